@@ -1,0 +1,1 @@
+"""The ``gistools`` command line (click)."""

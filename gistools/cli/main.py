@@ -1,0 +1,54 @@
+"""``gistools``: the command group and its error handling.
+
+Expected failures (bad input, missing CRS, existing outputs) print one line that
+names the file, the problem and the fix, and exit with status 1; no traceback.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+
+import click
+
+from .. import __version__
+from ..errors import Cancelled, GistoolsError
+
+
+class GistoolsGroup(click.Group):
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except Cancelled as err:
+            click.echo(f"gistools: {err}", err=True)
+            sys.exit(130)
+        except GistoolsError as err:
+            click.echo(f"gistools: error: {err}", err=True)
+            sys.exit(1)
+        except KeyboardInterrupt:
+            click.echo("gistools: interrupted; no partial output was left", err=True)
+            sys.exit(130)
+
+
+@click.group(cls=GistoolsGroup)
+@click.version_option(__version__, prog_name="gistools")
+@click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
+def cli(verbose):
+    """Open tools for LiDAR shrub mapping and terrain models."""
+    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
+                        format="%(levelname)s %(name)s: %(message)s")
+
+
+from . import info as _info  # noqa: E402
+from . import rasters as _rasters  # noqa: E402
+
+cli.add_command(_info.info)
+cli.add_command(_rasters.rasters)
+
+
+def main():  # console_scripts entry point
+    cli(prog_name="gistools")
+
+
+if __name__ == "__main__":
+    main()

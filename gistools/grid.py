@@ -1,0 +1,123 @@
+"""Raster grids snapped to a global lattice of cells.
+
+A :class:`Grid` is a north-up raster: an affine ``transform``, ``width`` and
+``height`` in cells, and a ``crs``. Grids made by :func:`snapped_grid` have cell
+edges on multiples of the cell size in CRS coordinates, so grids of adjoining
+tiles share one lattice and mosaic without gaps, shifts or overlaps.
+
+Cells are half-open: a cell covers ``[x0, x0 + cs)`` in x and ``(y1 - cs, y1]`` is
+avoided in favour of ``[y1 - cs, y1)``; the cell of a point is
+``floor(x / cs)``, ``floor(y / cs)`` on the global lattice, whatever tile it is read from.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pyproj
+from affine import Affine
+from rasterio.transform import from_origin
+
+from .errors import InputError
+
+__all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "lattice_offset"]
+
+
+@dataclass(frozen=True)
+class Grid:
+    """A north-up raster grid: transform, width and height in cells, crs."""
+
+    transform: Affine
+    width: int
+    height: int
+    crs: pyproj.CRS | None = None
+
+    @property
+    def cell_size(self) -> float:
+        """Cell size in CRS units (square cells)."""
+        return float(self.transform.a)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(rows, cols)."""
+        return (self.height, self.width)
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float]:
+        """(west, south, east, north) in CRS units."""
+        west, north = self.transform.c, self.transform.f
+        return (west, north - self.height * self.cell_size, west + self.width * self.cell_size, north)
+
+    @property
+    def col0(self) -> int:
+        """Global lattice column of the first column (west edge / cell size)."""
+        return int(round(self.transform.c / self.cell_size))
+
+    @property
+    def row_top(self) -> int:
+        """Global lattice index of the north edge (north / cell size)."""
+        return int(round(self.transform.f / self.cell_size))
+
+    def window_in(self, other: "Grid") -> tuple[slice, slice, slice, slice] | None:
+        """Overlap of this grid and ``other`` (same lattice) as slices.
+
+        Returns (rows_self, cols_self, rows_other, cols_other), or None when they do not overlap.
+        """
+        if abs(other.cell_size - self.cell_size) > 1e-9 * self.cell_size:
+            raise InputError("grids have different cell sizes", hint="Use one cell size for all tiles of a run")
+        c0 = max(self.col0, other.col0)
+        c1 = min(self.col0 + self.width, other.col0 + other.width)
+        t0 = min(self.row_top, other.row_top)
+        t1 = max(self.row_top - self.height, other.row_top - other.height)
+        if c0 >= c1 or t1 >= t0:
+            return None
+        rs = slice(self.row_top - t0, self.row_top - t1)
+        cs_ = slice(c0 - self.col0, c1 - self.col0)
+        ro = slice(other.row_top - t0, other.row_top - t1)
+        co = slice(c0 - other.col0, c1 - other.col0)
+        return rs, cs_, ro, co
+
+
+def lattice_offset(x: np.ndarray, cell_size: float) -> np.ndarray:
+    """Global lattice index ``floor(x / cell_size)`` as int64."""
+    return np.floor(np.asarray(x, dtype=np.float64) / cell_size).astype(np.int64)
+
+
+def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Grid:
+    """The smallest lattice-snapped grid whose cells hold every point inside ``bounds``.
+
+    ``bounds`` is (west, south, east, north) in CRS units; ``cell_size`` in CRS units.
+
+    >>> g = snapped_grid((12.0, 3.0, 27.0, 18.0), 5.0)
+    >>> g.bounds, g.shape
+    ((10.0, 0.0, 30.0, 20.0), (4, 4))
+    """
+    if not cell_size > 0:
+        raise InputError(f"cell size {cell_size!r} must be positive", hint="Give e.g. --cell-size 5ft")
+    west, south, east, north = bounds
+    c0 = int(np.floor(west / cell_size))
+    c1 = int(np.floor(east / cell_size)) + 1
+    r0 = int(np.floor(south / cell_size))
+    r1 = int(np.floor(north / cell_size)) + 1
+    transform = from_origin(c0 * cell_size, r1 * cell_size, cell_size, cell_size)
+    return Grid(transform, c1 - c0, r1 - r0, crs)
+
+
+def cell_index(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Flat cell index (row * width + col) of each point, -1 outside the grid."""
+    cs = grid.cell_size
+    col = lattice_offset(x, cs) - grid.col0
+    row = (grid.row_top - 1) - lattice_offset(y, cs)
+    inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
+    flat = row * grid.width + col
+    flat[~inside] = -1
+    return flat
+
+
+def cell_centres(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
+    """x (per column) and y (per row) of the cell centres, 1-D float64."""
+    cs = grid.cell_size
+    xs = (grid.col0 + np.arange(grid.width) + 0.5) * cs
+    ys = (grid.row_top - np.arange(grid.height) - 0.5) * cs
+    return xs, ys

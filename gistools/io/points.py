@@ -1,0 +1,229 @@
+"""LAS / LAZ tiles: headers, CRS and linear units, and chunked point streams.
+
+Uses laspy (LAZ through lazrs). Reads LAS 1.0-1.4; memory stays flat whatever
+the tile size because points are read ``chunk_size`` at a time.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import laspy
+import numpy as np
+import pyproj
+
+from ..errors import CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
+from ..units import LinearUnit, horizontal_unit, vertical_unit
+
+__all__ = [
+    "TileInfo",
+    "PointChunk",
+    "read_tile_info",
+    "iter_chunks",
+    "read_points",
+    "parse_crs_text",
+    "common_crs",
+    "crs_label",
+    "DEFAULT_CHUNK_SIZE",
+]
+
+log = logging.getLogger(__name__)
+
+DEFAULT_CHUNK_SIZE = 2_000_000
+
+
+@dataclass(frozen=True)
+class TileInfo:
+    """What a LAS/LAZ header says about a tile. Bounds (west, south, east, north) in CRS units."""
+
+    path: Path
+    point_count: int
+    bounds: tuple[float, float, float, float]
+    z_range: tuple[float, float]
+    crs: pyproj.CRS
+    crs_from_file: bool
+    version: str
+    point_format: int
+    scales: tuple[float, float, float]
+    offsets: tuple[float, float, float]
+    compressed: bool
+    points_by_return: tuple[int, ...] = field(default=())
+
+    @property
+    def name(self) -> str:
+        """File name without its .las/.laz suffix."""
+        return self.path.stem
+
+    @property
+    def unit(self) -> LinearUnit:
+        return horizontal_unit(self.crs)
+
+    @property
+    def z_unit(self) -> LinearUnit:
+        return vertical_unit(self.crs)
+
+
+@dataclass
+class PointChunk:
+    """A chunk of points as plain arrays (x, y, z float64 in CRS units)."""
+
+    x: np.ndarray
+    y: np.ndarray
+    z: np.ndarray
+    classification: np.ndarray
+    return_number: np.ndarray
+    number_of_returns: np.ndarray
+    withheld: np.ndarray
+    intensity: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return len(self.x)
+
+    def subset(self, mask: np.ndarray) -> "PointChunk":
+        return PointChunk(
+            **{k: (None if v is None else v[mask]) for k, v in self.__dict__.items()},
+        )
+
+
+def crs_label(crs: pyproj.CRS | None) -> str:
+    """Short human label for a CRS: 'EPSG:2882 (NAD83(HARN) / Florida West (ftUS))'."""
+    if crs is None:
+        return "no CRS"
+    code = crs.to_epsg(min_confidence=70)
+    return f"EPSG:{code} ({crs.name})" if code else crs.name
+
+
+def parse_crs_text(text: str) -> pyproj.CRS:
+    """A CRS from user text (EPSG:2882, WKT, PROJ string)."""
+    try:
+        return pyproj.CRS.from_user_input(text)
+    except pyproj.exceptions.CRSError as err:
+        raise InputError(f"--crs {text!r} is not a CRS ({err})", hint="Give e.g. EPSG:2882 or a WKT string") from None
+
+
+def _open_error(path: Path, err: Exception) -> DataFileError:
+    return DataFileError(
+        f"not a readable LAS/LAZ file ({type(err).__name__}: {err})",
+        path=path,
+        hint="Check the file is a complete LAS 1.0-1.4 or LAZ file (re-copy or re-export it)",
+    )
+
+
+def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
+    """Header facts of one tile, reading no points.
+
+    ``crs`` overrides the file's CRS and is required when the file has none.
+    Raises DataFileError (unreadable, truncated), MissingCRSError, EmptyTileError.
+    """
+    path = Path(path)
+    if isinstance(crs, str):
+        crs = parse_crs_text(crs)
+    if not path.is_file():
+        raise DataFileError("file not found", path=path, hint="Check the path")
+    try:
+        with laspy.open(path) as reader:
+            header = reader.header
+            try:
+                file_crs = header.parse_crs()
+            except Exception as err:  # malformed CRS VLRs
+                log.warning("%s: CRS records could not be parsed (%s)", path, err)
+                file_crs = None
+    except Exception as err:
+        raise _open_error(path, err) from None
+    count = int(header.point_count)
+    compressed = path.suffix.lower() == ".laz" or header.point_format.id >= 128
+    if count == 0:
+        raise EmptyTileError("the tile holds no points", path=path, hint="Remove it from the input or re-export it")
+    if not compressed:
+        needed = header.offset_to_point_data + count * header.point_format.size
+        size = os.path.getsize(path)
+        if size < needed:
+            raise DataFileError(
+                f"truncated: the header promises {count:,} points ({needed:,} bytes) but the file has {size:,} bytes",
+                path=path,
+                hint="Re-copy or re-export the tile",
+            )
+    if crs is None and file_crs is None:
+        raise MissingCRSError(
+            "header has no CRS",
+            path=path,
+            hint='Pass --crs EPSG:XXXX (CLI) or set "Input CRS" (QGIS) to the CRS the tiles are in',
+        )
+    used = crs if crs is not None else file_crs
+    horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
+    return TileInfo(
+        path=path,
+        point_count=count,
+        bounds=(float(header.mins[0]), float(header.mins[1]), float(header.maxs[0]), float(header.maxs[1])),
+        z_range=(float(header.mins[2]), float(header.maxs[2])),
+        crs=used,
+        crs_from_file=crs is None,
+        version=str(header.version),
+        point_format=int(header.point_format.id),
+        scales=tuple(float(s) for s in header.scales),
+        offsets=tuple(float(o) for o in header.offsets),
+        compressed=compressed,
+        points_by_return=tuple(int(n) for n in header.number_of_points_by_return),
+    )
+
+
+def common_crs(infos: list[TileInfo]) -> pyproj.CRS:
+    """The one CRS of a run's tiles; CRSMismatchError naming both files otherwise."""
+    first = infos[0]
+    for info in infos[1:]:
+        if not info.crs.equals(first.crs, ignore_axis_order=True):
+            raise CRSMismatchError(
+                f"CRS {crs_label(info.crs)} differs from {crs_label(first.crs)} of {first.path}",
+                path=info.path,
+                hint="Reproject the tiles to one CRS, or run them separately; --crs overrides the CRS of every tile",
+            )
+    return first.crs
+
+
+def iter_chunks(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensity: bool = False) -> Iterator[PointChunk]:
+    """Points of a tile, ``chunk_size`` at a time, as :class:`PointChunk` arrays.
+
+    Raises DataFileError naming the file when decoding fails (e.g. a truncated LAZ).
+    """
+    path = info.path
+    try:
+        with laspy.open(path) as reader:
+            for points in reader.chunk_iterator(chunk_size):
+                if len(points) == 0:
+                    continue
+                yield _chunk_from(points, intensity)
+    except DataFileError:
+        raise
+    except (GeneratorExit, KeyboardInterrupt):
+        raise
+    except Exception as err:
+        raise _open_error(path, err) from None
+
+
+def _chunk_from(points, intensity: bool) -> PointChunk:
+    withheld = np.asarray(points.withheld, bool)
+    return PointChunk(
+        x=np.asarray(points.x, np.float64),
+        y=np.asarray(points.y, np.float64),
+        z=np.asarray(points.z, np.float64),
+        classification=np.asarray(points.classification, np.uint8),
+        return_number=np.asarray(points.return_number, np.uint8),
+        number_of_returns=np.asarray(points.number_of_returns, np.uint8),
+        withheld=withheld,
+        intensity=np.asarray(points.intensity, np.uint16) if intensity else None,
+    )
+
+
+def read_points(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE) -> PointChunk:
+    """All points of a tile in one PointChunk (small tiles and tests only)."""
+    chunks = list(iter_chunks(info, chunk_size))
+    return PointChunk(
+        **{
+            k: np.concatenate([getattr(c, k) for c in chunks]) if chunks else np.empty(0)
+            for k in ("x", "y", "z", "classification", "return_number", "number_of_returns", "withheld")
+        }
+    )

@@ -1,0 +1,150 @@
+"""GeoTIFF and VRT writing (atomic) and reading.
+
+Float grids hold NaN in memory; files carry the nodata value (-9999 by default).
+Every write goes to ``<name>.partial`` in the target folder and is renamed onto
+the final name only once complete, so a crash or Ctrl-C leaves no half-written file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import html
+import os
+from pathlib import Path
+
+import numpy as np
+import pyproj
+import rasterio
+
+from ..errors import OutputExistsError
+from ..grid import Grid
+
+__all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "NODATA"]
+
+NODATA = -9999.0
+
+
+@contextlib.contextmanager
+def atomic_path(path, *, overwrite: bool = False):
+    """Yield a temporary path beside ``path``; rename it onto ``path`` on success, delete it on error."""
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise OutputExistsError("output exists", path=path, hint="Pass --overwrite to replace it, or choose another --out")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".partial")
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_raster(
+    path,
+    array: np.ndarray,
+    grid: Grid,
+    *,
+    nodata: float = NODATA,
+    dtype: str = "float32",
+    overwrite: bool = False,
+    tags: dict | None = None,
+    description: str | None = None,
+    units: str | None = None,
+) -> Path:
+    """Write one band as a tiled, DEFLATE-compressed GeoTIFF, atomically. NaN becomes ``nodata``."""
+    path = Path(path)
+    data = np.asarray(array)
+    if np.issubdtype(data.dtype, np.floating):
+        data = np.where(np.isnan(data), nodata, data)
+    data = data.astype(dtype)
+    profile = dict(
+        driver="GTiff",
+        width=grid.width,
+        height=grid.height,
+        count=1,
+        dtype=dtype,
+        crs=grid.crs.to_wkt() if grid.crs is not None else None,
+        transform=grid.transform,
+        nodata=nodata,
+        compress="deflate",
+        predictor=3 if dtype.startswith("float") else 2,
+        tiled=grid.width >= 256 and grid.height >= 256,
+        blockxsize=256,
+        blockysize=256,
+    )
+    if not profile["tiled"]:
+        for key in ("tiled", "blockxsize", "blockysize"):
+            profile.pop(key)
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        with rasterio.open(tmp, "w", **profile) as dst:
+            dst.write(data, 1)
+            if tags:
+                dst.update_tags(**{k: str(v) for k, v in tags.items()})
+            if description:
+                dst.set_band_description(1, description)
+            if units:
+                dst.units = (units,)
+    return path
+
+
+def read_raster(path) -> tuple[np.ndarray, Grid, float | None]:
+    """(array, grid, nodata) of band 1; float arrays get NaN where nodata."""
+    with rasterio.open(path) as src:
+        data = src.read(1)
+        grid = Grid(src.transform, src.width, src.height, pyproj.CRS.from_wkt(src.crs.to_wkt()) if src.crs else None)
+        nodata = src.nodata
+    if np.issubdtype(data.dtype, np.floating):
+        data = data.astype(np.float64)
+        if nodata is not None:
+            data[data == nodata] = np.nan
+    return data, grid, nodata
+
+
+def write_vrt(path, sources: list[Path], *, overwrite: bool = True) -> Path | None:
+    """A GDAL VRT mosaic of single-band GeoTIFFs on one lattice (written atomically).
+
+    Sources are referenced relative to the VRT. Returns None when ``sources`` is empty.
+    """
+    path = Path(path)
+    metas = []
+    for src_path in sources:
+        with rasterio.open(src_path) as src:
+            metas.append((Path(src_path), src.transform, src.width, src.height, src.crs, src.nodata, src.dtypes[0]))
+    if not metas:
+        return None
+    cs = metas[0][1].a
+    west = min(m[1].c for m in metas)
+    north = max(m[1].f for m in metas)
+    east = max(m[1].c + m[2] * cs for m in metas)
+    south = min(m[1].f - m[3] * cs for m in metas)
+    width = int(round((east - west) / cs))
+    height = int(round((north - south) / cs))
+    crs, nodata, dtype = metas[0][4], metas[0][5], metas[0][6]
+    gdal_type = {"float32": "Float32", "float64": "Float64", "uint8": "Byte", "int32": "Int32", "uint16": "UInt16"}[dtype]
+    lines = [
+        f'<VRTDataset rasterXSize="{width}" rasterYSize="{height}">',
+        f"  <SRS>{html.escape(crs.to_wkt()) if crs else ''}</SRS>",
+        f"  <GeoTransform>{west!r}, {cs!r}, 0.0, {north!r}, 0.0, {-cs!r}</GeoTransform>",
+        f'  <VRTRasterBand dataType="{gdal_type}" band="1">',
+    ]
+    if nodata is not None:
+        lines.append(f"    <NoDataValue>{nodata!r}</NoDataValue>")
+    for src_path, tr, w, h, _, nd, _ in metas:
+        xoff = int(round((tr.c - west) / cs))
+        yoff = int(round((north - tr.f) / cs))
+        rel = os.path.relpath(src_path, path.parent)
+        lines += [
+            "    <ComplexSource>",
+            f'      <SourceFilename relativeToVRT="1">{html.escape(rel)}</SourceFilename>',
+            "      <SourceBand>1</SourceBand>",
+            f'      <SrcRect xOff="0" yOff="0" xSize="{w}" ySize="{h}"/>',
+            f'      <DstRect xOff="{xoff}" yOff="{yoff}" xSize="{w}" ySize="{h}"/>',
+        ]
+        if nd is not None:
+            lines.append(f"      <NODATA>{nd!r}</NODATA>")
+        lines.append("    </ComplexSource>")
+    lines += ["  </VRTRasterBand>", "</VRTDataset>", ""]
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp.write_text("\n".join(lines))
+    return path

@@ -1,0 +1,46 @@
+"""Finding tiles on disk and naming their outputs."""
+
+from __future__ import annotations
+
+import glob
+from pathlib import Path
+
+from ..errors import InputError
+
+__all__ = ["find_tiles", "LAS_SUFFIXES"]
+
+LAS_SUFFIXES = (".las", ".laz")
+
+
+def find_tiles(inputs) -> list[Path]:
+    """LAS/LAZ files from files, folders (their *.las / *.laz, not recursive) and glob patterns.
+
+    Explicit files are kept whatever their suffix (so a bad file is reported, not
+    silently skipped). Raises InputError when nothing matches or two tiles share a name.
+    """
+    if isinstance(inputs, (str, Path)):
+        inputs = [inputs]
+    found: list[Path] = []
+    for item in inputs:
+        p = Path(item)
+        if p.is_dir():
+            found += sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in LAS_SUFFIXES)
+        elif p.is_file():
+            found.append(p)
+        else:
+            matches = sorted(Path(m) for m in glob.glob(str(item)))
+            if not matches:
+                raise InputError(f"{item}: no such file, folder or matching tile", hint="Check the path or the glob pattern")
+            found += [m for m in matches if m.is_file()]
+    unique = list(dict.fromkeys(f.resolve() for f in found))
+    if not unique:
+        raise InputError(f"{', '.join(map(str, inputs))}: no .las or .laz tiles found", hint="Give tile files or a folder holding them")
+    names: dict[str, Path] = {}
+    for f in unique:
+        if f.stem in names:
+            raise InputError(
+                f"two tiles share the name {f.stem!r}: {names[f.stem]} and {f}",
+                hint="Outputs are named after tiles; run the folders separately or rename one",
+            )
+        names[f.stem] = f
+    return unique

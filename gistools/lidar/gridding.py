@@ -1,0 +1,169 @@
+"""DSM, DEM and nDSM from points on one snapped grid.
+
+Pure functions over numpy arrays and a :class:`~gistools.grid.Grid`. Heights
+stay in the CRS's vertical unit; empty cells are NaN.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from affine import Affine
+from scipy import ndimage
+from scipy.spatial import cKDTree
+
+from ..errors import InputError
+from ..grid import Grid, cell_centres, cell_index
+from .tin import tin_to_grid
+
+__all__ = [
+    "DEM_METHODS",
+    "cell_max",
+    "cell_statistic",
+    "dsm_from_points",
+    "dem_from_ground_points",
+    "ndsm_from",
+    "within_distance",
+]
+
+DEM_METHODS = ("tin", "max", "min", "mean", "idw")
+
+
+def cell_max(acc: np.ndarray, grid: Grid, x, y, z) -> np.ndarray:
+    """Accumulate the per-cell maximum of z into ``acc`` (float64, -inf = empty) and return it.
+
+    Call once per chunk; points outside ``grid`` are ignored.
+    """
+    flat = cell_index(grid, x, y)
+    inside = flat >= 0
+    np.maximum.at(acc.reshape(-1), flat[inside], np.asarray(z, np.float64)[inside])
+    return acc
+
+
+def cell_statistic(grid: Grid, x, y, z, statistic: str = "max") -> np.ndarray:
+    """Per-cell ``max``, ``min``, ``mean`` or ``count`` of z; NaN (0 for count) where a cell has no point."""
+    flat = cell_index(grid, x, y)
+    inside = flat >= 0
+    flat = flat[inside]
+    z = np.asarray(z, np.float64)[inside]
+    n = grid.width * grid.height
+    if statistic == "count":
+        return np.bincount(flat, minlength=n).reshape(grid.shape)
+    if statistic == "mean":
+        count = np.bincount(flat, minlength=n)
+        total = np.bincount(flat, weights=z, minlength=n)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(grid.shape)
+    if statistic in ("max", "min"):
+        fill = -np.inf if statistic == "max" else np.inf
+        acc = np.full(n, fill)
+        (np.maximum if statistic == "max" else np.minimum).at(acc, flat, z)
+        acc[np.isinf(acc)] = np.nan
+        return acc.reshape(grid.shape)
+    raise InputError(f"statistic {statistic!r} is not one of max, min, mean, count")
+
+
+def dsm_from_points(x, y, z, grid: Grid) -> np.ndarray:
+    """DSM: maximum z per cell (give first returns of the chosen classes). NaN where empty."""
+    return cell_statistic(grid, x, y, z, "max")
+
+
+def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
+    """Boolean grid: the cell centre lies within ``max_distance`` (CRS units) of a point.
+
+    Exact: a Euclidean distance transform over the cells holding points (on the
+    grid padded by ``max_distance``, so points beyond the edges count) decides
+    every cell except those within half a cell diagonal of the limit, which a
+    k-d tree of the nearby points settles.
+    """
+    cs = grid.cell_size
+    reach = int(np.ceil(max_distance / cs)) + 1
+    padded = Grid(
+        grid.transform * Affine.translation(-reach, -reach), grid.width + 2 * reach, grid.height + 2 * reach, grid.crs
+    )
+    flat = cell_index(padded, x, y)
+    occupied = np.zeros(padded.width * padded.height, bool)
+    occupied[flat[flat >= 0]] = True
+    occupied = occupied.reshape(padded.shape)
+    if not occupied.any():
+        return np.zeros(grid.shape, bool)
+    dist = ndimage.distance_transform_edt(~occupied) * cs
+    half_diag = cs * np.sqrt(0.5)
+    result = dist + half_diag <= max_distance
+    unsure = (np.abs(dist - max_distance) <= half_diag) & ~result
+    unsure[:reach, :] = unsure[-reach:, :] = unsure[:, :reach] = unsure[:, -reach:] = False
+    if unsure.any():
+        near = ndimage.distance_transform_edt(~unsure) * cs <= max_distance + 2 * cs
+        pick = flat >= 0
+        pick[pick] = near.reshape(-1)[flat[pick]]
+        tree = cKDTree(np.column_stack([np.asarray(x)[pick], np.asarray(y)[pick]]))
+        rows, cols = np.nonzero(unsure)
+        xs, ys = cell_centres(padded)
+        d, _ = tree.query(np.column_stack([xs[cols], ys[rows]]), distance_upper_bound=max_distance * (1 + 1e-12))
+        result[rows, cols] = d <= max_distance
+    return result[reach:-reach, reach:-reach]
+
+
+def _idw(grid: Grid, x, y, z, max_distance: float, k: int = 8, power: float = 2.0) -> np.ndarray:
+    xs, ys = cell_centres(grid)
+    cx, cy = np.meshgrid(xs, ys)
+    tree = cKDTree(np.column_stack([x, y]))
+    k = min(k, len(x))
+    d, i = tree.query(np.column_stack([cx.ravel(), cy.ravel()]), k=k, distance_upper_bound=max_distance)
+    d = d.reshape(-1, k)
+    i = i.reshape(-1, k)
+    valid = np.isfinite(d)
+    zz = np.where(valid, np.asarray(z, np.float64)[np.minimum(i, len(x) - 1)], 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = np.where(valid, 1.0 / np.maximum(d, 1e-12) ** power, 0.0)
+        out = (w * zz).sum(axis=1) / w.sum(axis=1)
+    exact = valid[:, 0] & (d[:, 0] < 1e-12)
+    out[exact] = zz[exact, 0]
+    out[~valid[:, 0]] = np.nan
+    return out.reshape(grid.shape)
+
+
+def dem_from_ground_points(
+    x,
+    y,
+    z,
+    grid: Grid,
+    *,
+    method: str = "tin",
+    max_distance: float | None = None,
+    water: np.ndarray | None = None,
+) -> np.ndarray:
+    """DEM of ground points on ``grid`` (float64, NaN = nodata).
+
+    method: ``tin`` (Delaunay, linear, evaluated at cell centres: the default, fills
+    cells without ground points under vegetation), ``max`` (the dissertation's
+    Point To Raster MAXIMUM, gaps stay NaN), ``min``, ``mean``, ``idw`` (8 nearest
+    within ``max_distance``, power 2). ``max_distance`` (CRS units): cells whose
+    centre is farther from every ground point stay NaN (tin, idw). ``water``: a
+    boolean grid of water cells, which stay NaN.
+
+    Give ground points from a buffer around the grid (neighbouring tiles) so edge
+    cells equal those of one mosaic-wide computation.
+    """
+    if method not in DEM_METHODS:
+        raise InputError(f"DEM method {method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin")
+    x = np.asarray(x, np.float64)
+    y = np.asarray(y, np.float64)
+    z = np.asarray(z, np.float64)
+    if len(x) == 0:
+        dem = np.full(grid.shape, np.nan)
+    elif method in ("max", "min", "mean"):
+        dem = cell_statistic(grid, x, y, z, method)
+    elif method == "idw":
+        dem = _idw(grid, x, y, z, max_distance if max_distance else np.inf)
+    else:
+        dem = tin_to_grid(x, y, z, grid)
+    if method in ("tin", "idw") and max_distance is not None and len(x):
+        dem[~within_distance(grid, x, y, max_distance)] = np.nan
+    if water is not None:
+        dem[water] = np.nan
+    return dem
+
+
+def ndsm_from(dsm: np.ndarray, dem: np.ndarray) -> np.ndarray:
+    """nDSM = DSM - DEM where both are valid, NaN elsewhere (heights above ground)."""
+    return np.where(np.isfinite(dsm) & np.isfinite(dem), dsm - dem, np.nan)

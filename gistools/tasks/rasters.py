@@ -1,0 +1,400 @@
+"""Tiles to DSM, DEM and nDSM GeoTIFFs, one per tile, plus VRT mosaics and report.json.
+
+Two passes, each tile decoded once:
+
+1. *scan* (per tile, parallel): stream the tile in chunks; keep a partial DSM (max
+   of first returns) and ground / water counts on the tile's snapped grid, and its
+   ground points, in a scratch folder.
+2. *grid* (per tile, parallel): merge the partial grids of the tiles that overlap
+   this tile's grid (cells on a shared edge), take ground points of the tile and of
+   its neighbours within a buffer, and compute DEM and nDSM.
+
+So cells near tile edges get the same values as if the block were one file.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import tempfile
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyproj
+
+from ..errors import Cancelled, GistoolsError, InputError
+from ..grid import Grid, snapped_grid
+from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
+from ..io.raster import NODATA, atomic_path, write_raster, write_vrt
+from ..io.tiles import find_tiles
+from ..lidar.gridding import DEM_METHODS, cell_max, cell_statistic, dem_from_ground_points, ndsm_from
+from ..progress import ProgressCallback, report
+from ..units import length_to_crs_units
+
+__all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
+
+log = logging.getLogger(__name__)
+
+PRODUCTS = ("dsm", "dem", "ndsm")
+NOISE_CLASSES = (7, 18)
+GROUND_CLASS = 2
+WATER_CLASS = 9
+
+
+@dataclass(frozen=True)
+class RasterSettings:
+    """Parameters of a DSM / DEM / nDSM run. Lengths take a unit: "5ft", "1.5m", or a bare number in CRS units.
+
+    dsm_classes: None = every class but noise (7, 18); withheld points are always left out.
+    The dissertation's set is (1, 2). dem_max_distance: cells farther than this from
+    every ground point stay nodata (TIN, IDW). buffer: how far into neighbouring
+    tiles ground points are read (default: 2 x dem_max_distance, at least 20 cells).
+    """
+
+    cell_size: str | float = "5ft"
+    dem_method: str = "tin"
+    dsm_classes: tuple[int, ...] | None = None
+    dem_max_distance: str | float = "15m"
+    buffer: str | float | None = None
+    crs: str | None = None
+    chunk_size: int = DEFAULT_CHUNK_SIZE
+
+    def validate(self) -> None:
+        if self.dem_method not in DEM_METHODS:
+            raise InputError(
+                f"--dem-method {self.dem_method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin"
+            )
+        if self.chunk_size < 1:
+            raise InputError(f"chunk size {self.chunk_size} must be at least 1")
+
+
+@dataclass
+class TileResult:
+    """One tile's line in report.json."""
+
+    name: str
+    path: str
+    status: str = "ok"  # ok / failed / skipped
+    error: str | None = None
+    points: int = 0
+    points_by_class: dict = field(default_factory=dict)
+    points_by_return: dict = field(default_factory=dict)
+    points_outside_header_bounds: int = 0
+    outputs: dict = field(default_factory=dict)
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class _Run:
+    """What both passes need (picklable)."""
+
+    cell_size: float
+    dem_method: str
+    dsm_classes: tuple[int, ...] | None
+    max_distance: float
+    buffer: float
+    chunk_size: int
+    scratch: str
+    out: str
+    overwrite: bool
+    crs_wkt: str
+    z_unit: str
+
+
+def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
+    return snapped_grid(info.bounds, run.cell_size, crs)
+
+
+def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
+    """Pass 1: stream a tile, keep its partial grids and ground points in the scratch folder."""
+    grid = _tile_grid(info, run)
+    n = grid.width * grid.height
+    dsm = np.full(n, -np.inf)
+    ground_count = np.zeros(n, np.int64)
+    water_count = np.zeros(n, np.int64)
+    by_class = np.zeros(256, np.int64)
+    by_return = np.zeros(16, np.int64)
+    ground_parts = []
+    outside = 0
+    done = 0
+    west, south, east, north = info.bounds
+    for chunk in iter_chunks(info, run.chunk_size):
+        by_class += np.bincount(chunk.classification, minlength=256)[:256]
+        by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
+        outside += int(np.count_nonzero((chunk.x < west) | (chunk.x > east) | (chunk.y < south) | (chunk.y > north)))
+        usable = ~chunk.withheld
+        cls = chunk.classification
+        if run.dsm_classes is None:
+            surface = usable & ~np.isin(cls, NOISE_CLASSES)
+        else:
+            surface = usable & np.isin(cls, run.dsm_classes)
+        surface &= chunk.return_number <= 1  # first returns (0 = not recorded, taken as first)
+        cell_max(dsm.reshape(grid.shape), grid, chunk.x[surface], chunk.y[surface], chunk.z[surface])
+        ground = usable & (cls == GROUND_CLASS)
+        water = usable & (cls == WATER_CLASS)
+        ground_count += cell_statistic(grid, chunk.x[ground], chunk.y[ground], chunk.z[ground], "count").reshape(-1)
+        water_count += cell_statistic(grid, chunk.x[water], chunk.y[water], chunk.z[water], "count").reshape(-1)
+        ground_parts.append(np.column_stack([chunk.x[ground], chunk.y[ground], chunk.z[ground]]))
+        done += len(chunk)
+        report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
+    dsm[np.isinf(dsm)] = np.nan
+    ground_xyz = np.concatenate(ground_parts) if ground_parts else np.empty((0, 3))
+    scratch = Path(run.scratch)
+    np.save(scratch / f"{info.name}.ground.npy", ground_xyz)
+    np.savez(
+        scratch / f"{info.name}.grids.npz",
+        dsm=dsm.reshape(grid.shape),
+        ground_count=ground_count.reshape(grid.shape).astype(np.int32),
+        water_count=water_count.reshape(grid.shape).astype(np.int32),
+    )
+    return {
+        "points": int(by_class.sum()),
+        "points_by_class": {int(c): int(v) for c, v in enumerate(by_class) if v},
+        "points_by_return": {int(r): int(v) for r, v in enumerate(by_return) if v},
+        "points_outside_header_bounds": outside,
+    }
+
+
+def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[TileInfo]:
+    w, s, e, n = info.bounds
+    out = []
+    for other in infos:
+        if other.path == info.path:
+            continue
+        ow, os_, oe, on = other.bounds
+        if ow <= e + distance and oe >= w - distance and os_ <= n + distance and on >= s - distance:
+            out.append(other)
+    return out
+
+
+def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
+    """Pass 2: merge partial grids with neighbours, DEM from buffered ground points, write rasters."""
+    crs = pyproj.CRS.from_wkt(run.crs_wkt)
+    grid = _tile_grid(info, run, crs)
+    scratch = Path(run.scratch)
+    with np.load(scratch / f"{info.name}.grids.npz") as own:
+        dsm, ground_count, water_count = own["dsm"].copy(), own["ground_count"].astype(np.int64), own["water_count"].astype(np.int64)
+    ground = [np.load(scratch / f"{info.name}.ground.npy")]
+    west, south, east, north = grid.bounds
+    b = run.buffer
+    for other in neighbours:
+        grids_file = scratch / f"{other.name}.grids.npz"
+        if not grids_file.exists():  # the neighbour failed in pass 1
+            continue
+        window = grid.window_in(_tile_grid(other, run))
+        if window is not None:
+            rs, cs_, ro, co = window
+            with np.load(grids_file) as nb:
+                dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"][ro, co])
+                ground_count[rs, cs_] += nb["ground_count"][ro, co]
+                water_count[rs, cs_] += nb["water_count"][ro, co]
+        pts = np.load(scratch / f"{other.name}.ground.npy", mmap_mode="r")
+        near = (pts[:, 0] >= west - b) & (pts[:, 0] <= east + b) & (pts[:, 1] >= south - b) & (pts[:, 1] <= north + b)
+        ground.append(np.asarray(pts[near]))
+    ground_xyz = np.concatenate(ground)
+    water = (water_count > 0) & (ground_count == 0)
+    dem = dem_from_ground_points(
+        ground_xyz[:, 0], ground_xyz[:, 1], ground_xyz[:, 2], grid,
+        method=run.dem_method, max_distance=run.max_distance, water=water,
+    )
+    ndsm = ndsm_from(dsm, dem)
+    outputs = {}
+    tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
+    for product, array in (("dsm", dsm), ("dem", dem), ("ndsm", ndsm)):
+        path = Path(run.out) / product / f"{info.name}.tif"
+        write_raster(path, array, grid, overwrite=run.overwrite, units=run.z_unit,
+                     tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
+        outputs[product] = str(path)
+    return {
+        "outputs": outputs,
+        "cells": int(grid.width * grid.height),
+        "dem_nodata_cells": int(np.isnan(dem).sum()),
+        "dsm_nodata_cells": int(np.isnan(dsm).sum()),
+    }
+
+
+def _outputs_exist(out: Path, name: str) -> bool:
+    return all((out / p / f"{name}.tif").exists() for p in PRODUCTS)
+
+
+def _fail(result: TileResult, err: BaseException) -> None:
+    result.status = "failed"
+    result.error = str(err) if isinstance(err, GistoolsError) else f"{result.path}: {type(err).__name__}: {err}"
+
+
+def rasters_from_tiles(
+    inputs,
+    out,
+    settings: RasterSettings | None = None,
+    *,
+    jobs: int = 1,
+    overwrite: bool = False,
+    progress: ProgressCallback | None = None,
+) -> dict:
+    """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
+
+    ``inputs``: LAS/LAZ files, folders or globs. Writes ``out/{dsm,dem,ndsm}/<tile>.tif``,
+    ``out/{dsm,dem,ndsm}.vrt`` and ``out/report.json``. A tile that fails is reported
+    (status ``failed`` with its error) and the others complete; existing outputs are
+    kept (status ``skipped``) unless ``overwrite``. Raises CRSMismatchError when
+    tiles disagree on CRS, Cancelled when ``progress`` returns False.
+    """
+    settings = settings or RasterSettings()
+    settings.validate()
+    started = time.time()
+    out = Path(out)
+    paths = find_tiles(inputs)
+    override = parse_crs_text(settings.crs) if settings.crs else None
+    results = {p.stem: TileResult(name=p.stem, path=str(p)) for p in paths}
+    infos: list[TileInfo] = []
+    for p in paths:
+        try:
+            infos.append(read_tile_info(p, override))
+        except GistoolsError as err:
+            _fail(results[p.stem], err)
+    run = None
+    if infos:
+        crs = common_crs(infos)
+        unit, z_unit = infos[0].unit, infos[0].z_unit
+        cell_size = length_to_crs_units(settings.cell_size, unit, name="cell size")
+        if not cell_size > 0:
+            raise InputError(f"cell size {settings.cell_size!r} must be positive", hint="Give e.g. --cell-size 5ft")
+        max_distance = length_to_crs_units(settings.dem_max_distance, unit, name="DEM max distance")
+        buffer = (
+            length_to_crs_units(settings.buffer, unit, name="buffer")
+            if settings.buffer is not None
+            else max(2 * max_distance, 20 * cell_size)
+        )
+        out.mkdir(parents=True, exist_ok=True)
+        scratch = Path(tempfile.mkdtemp(prefix=".gistools-scratch-", dir=out))
+        run = _Run(
+            cell_size=cell_size, dem_method=settings.dem_method,
+            dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
+            max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
+            out=str(out), overwrite=overwrite, crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
+        )
+        try:
+            _run_passes(infos, results, run, jobs, overwrite, progress)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+    vrts = {}
+    for product in PRODUCTS:
+        tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
+        mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
+        if mine:
+            vrts[product] = str(write_vrt(out / f"{product}.vrt", mine))
+    summary = {
+        "tool": "gistools rasters",
+        "crs": crs_label(infos[0].crs) if infos else None,
+        "crs_wkt": run.crs_wkt if run else None,
+        "horizontal_unit": infos[0].unit.name if infos else None,
+        "vertical_unit": infos[0].z_unit.name if infos else None,
+        "cell_size": run.cell_size if run else None,
+        "cell_size_m": run.cell_size * infos[0].unit.metres if run else None,
+        "dem_method": settings.dem_method,
+        "dem_max_distance": run.max_distance if run else None,
+        "buffer": run.buffer if run else None,
+        "dsm_classes": list(settings.dsm_classes) if settings.dsm_classes is not None else f"all but {list(NOISE_CLASSES)}",
+        "tiles": [asdict(r) for r in results.values()],
+        "counts": {s: sum(r.status == s for r in results.values()) for s in ("ok", "failed", "skipped")},
+        "mosaics": vrts,
+        "seconds": round(time.time() - started, 3),
+    }
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress) -> None:
+    out = Path(run.out)
+    todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name)}
+    for i in infos:
+        if i.name not in todo:
+            results[i.name].status = "skipped"
+    neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
+    needed = set(todo)
+    for name in todo:
+        needed |= {n.name for n in neighbours[name]}
+    scan = [i for i in infos if i.name in needed]
+    total = max(len(scan) + len(todo), 1)
+    state = {"done": 0}
+
+    def tick(message):
+        state["done"] += 1
+        report(progress, state["done"] / total, message)
+
+    def within_tile(fraction, message):  # chunk progress inside the current tile (inline runs)
+        return None if progress is None else progress((state["done"] + fraction) / total, message)
+
+    # Pass 1
+    def scan_done(info, value, seconds):
+        r = results[info.name]
+        r.points, r.points_by_class = value["points"], value["points_by_class"]
+        r.points_by_return = value["points_by_return"]
+        r.points_outside_header_bounds = value["points_outside_header_bounds"]
+        r.seconds += seconds
+
+    _map(_scan_tile, [(i, run) for i in scan], jobs, results, [i.name for i in scan], scan_done, tick, "read",
+         within_tile if progress is not None else None)
+    # Pass 2
+    grid_jobs = [(i, neighbours[i.name], run) for i in infos if i.name in todo and results[i.name].status == "ok"]
+
+    def grid_done(info, value, seconds):
+        results[info.name].outputs = value["outputs"]
+        results[info.name].seconds += seconds
+
+    _map(_grid_tile, grid_jobs, jobs, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
+
+
+def _timed(fn, args):
+    t = time.perf_counter()
+    value = fn(*args)
+    return value, time.perf_counter() - t
+
+
+def _map(fn, arglist, jobs, results, names, on_done, tick, verb, inner_progress=None) -> None:
+    """Run fn over arglist (inline or in processes); a failure marks its tile failed and the rest go on.
+
+    ``inner_progress`` (inline runs only) is passed to fn as its last argument for chunk progress.
+    """
+    if not arglist:
+        return
+    if jobs <= 1 or len(arglist) == 1:
+        for name, args in zip(names, arglist):
+            if results[name].status == "failed":
+                continue
+            try:
+                value, seconds = _timed(fn, args if inner_progress is None else (*args, inner_progress))
+                on_done(args[0], value, seconds)
+            except Cancelled:
+                raise
+            except Exception as err:  # one bad tile never stops the batch; it is reported
+                _fail(results[name], err)
+            tick(f"{name} {verb}")
+        return
+    with ProcessPoolExecutor(max_workers=jobs) as pool:
+        pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
+                   if results[name].status != "failed"}
+        try:
+            while pending:
+                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in finished:
+                    name, args = pending.pop(fut)
+                    try:
+                        value, seconds = fut.result()
+                        on_done(args[0], value, seconds)
+                    except Cancelled:
+                        raise
+                    except Exception as err:  # incl. a worker crash (BrokenProcessPool): reported per tile
+                        _fail(results[name], err)
+                    tick(f"{name} {verb}")
+        except BaseException:
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
