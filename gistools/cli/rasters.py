@@ -54,9 +54,9 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
     """
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size)
-    with tqdm(total=100, unit="%", disable=quiet, bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with tqdm(total=100, unit="%", disable=True if quiet else None, bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite,
-                                     progress=None if quiet else tqdm_progress(bar))
+                                     progress=None if bar.disable else tqdm_progress(bar))
     counts = summary["counts"]
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"cell size {summary['cell_size']} {summary['horizontal_unit'] or ''}; report: {out}/report.json")

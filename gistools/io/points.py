@@ -227,3 +227,36 @@ def read_points(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE) -> PointCh
             for k in ("x", "y", "z", "classification", "return_number", "number_of_returns", "withheld")
         }
     )
+
+
+def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", point_format: int = 6,
+               scale: float = 0.01, offsets=None, overwrite: bool = False) -> Path:
+    """Write point arrays (x, y, z, classification, return_number, number_of_returns, optional
+    intensity, gps_time) as LAS or LAZ (by suffix), atomically, with the CRS in the header
+    (GeoTIFF keys below LAS 1.4, WKT from 1.4)."""
+    from .raster import atomic_path
+
+    path = Path(path)
+    header = laspy.LasHeader(point_format=point_format, version=version)
+    header.scales = np.array([scale, scale, scale])
+    x, y, z = points["x"], points["y"], points["z"]
+    header.offsets = np.array(offsets if offsets is not None else [np.floor(x.min()), np.floor(y.min()), 0.0])
+    try:
+        header.add_crs(crs, keep_compatibility=True)
+    except RuntimeError:  # GeoTIFF keys need an EPSG code; a custom CRS goes as a WKT record
+        header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(crs.to_wkt()))
+    las = laspy.LasData(header)
+    las.x, las.y, las.z = x, y, z
+    for name in ("classification", "return_number", "number_of_returns", "intensity", "gps_time"):
+        if name in points and name in las.point_format.dimension_names:
+            setattr(las, name, points[name])
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        # laspy picks LAZ from the suffix; keep it on the temporary name
+        tmp_named = tmp.with_name(tmp.stem + ".partial" + path.suffix)
+        try:
+            las.write(tmp_named)
+            os.replace(tmp_named, tmp)
+        finally:
+            if tmp_named.exists():
+                tmp_named.unlink()
+    return path

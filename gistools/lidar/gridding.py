@@ -130,6 +130,7 @@ def dem_from_ground_points(
     *,
     method: str = "tin",
     max_distance: float | None = None,
+    max_edge: float | None = None,
     water: np.ndarray | None = None,
 ) -> np.ndarray:
     """DEM of ground points on ``grid`` (float64, NaN = nodata).
@@ -139,7 +140,8 @@ def dem_from_ground_points(
     Point To Raster MAXIMUM, gaps stay NaN), ``min``, ``mean``, ``idw`` (8 nearest
     within ``max_distance``, power 2). ``max_distance`` (CRS units): cells whose
     centre is farther from every ground point stay NaN (tin, idw). ``water``: a
-    boolean grid of water cells, which stay NaN.
+    boolean grid of water cells, which stay NaN. ``max_edge`` (CRS units, tin):
+    triangles with a longer edge are left out (default: 2 x ``max_distance``).
 
     Give ground points from a buffer around the grid (neighbouring tiles) so edge
     cells equal those of one mosaic-wide computation.
@@ -156,7 +158,9 @@ def dem_from_ground_points(
     elif method == "idw":
         dem = _idw(grid, x, y, z, max_distance if max_distance else np.inf)
     else:
-        dem = tin_to_grid(x, y, z, grid)
+        if max_edge is None and max_distance is not None:
+            max_edge = 2 * max_distance
+        dem = tin_to_grid(x, y, z, grid, max_edge=max_edge)
     if method in ("tin", "idw") and max_distance is not None and len(x):
         dem[~within_distance(grid, x, y, max_distance)] = np.nan
     if water is not None:

@@ -48,11 +48,16 @@ def delaunay_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return result.get("triangles", np.empty((0, 3), np.int32)).astype(np.int32, copy=False)
 
 
-def tin_to_grid(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np.ndarray | None = None) -> np.ndarray:
+def tin_to_grid(
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np.ndarray | None = None, *, max_edge: float | None = None
+) -> np.ndarray:
     """Linear TIN interpolation of (x, y, z) at the cell centres of ``grid``.
 
     x, y in CRS units; z in any unit (returned unchanged). Cells outside the
-    convex hull of the points are NaN. Repeated (x, y) are merged (mean z).
+    convex hull of the points are NaN, and so are cells in triangles with an edge
+    longer than ``max_edge`` (CRS units; the hull's long bridges over concave data
+    edges and big gaps, as WhiteboxTools' and PDAL's ``max_triangle_edge_length``).
+    Repeated (x, y) are merged (mean z).
     Returns a float64 array of ``grid.shape``; with ``out`` given, only cells the
     TIN covers are written into it.
     """
@@ -60,6 +65,10 @@ def tin_to_grid(x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np
         out = np.full(grid.shape, np.nan)
     x, y, z = unique_xy(np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64))
     tris = delaunay_triangles(x, y)
+    if max_edge is not None and len(tris):
+        ex, ey = x[tris], y[tris]
+        e2 = np.maximum.reduce([(ex[:, i] - ex[:, j]) ** 2 + (ey[:, i] - ey[:, j]) ** 2 for i, j in ((0, 1), (1, 2), (2, 0))])
+        tris = tris[e2 <= max_edge * max_edge]
     if len(tris) == 0:
         return out
     cs = grid.cell_size

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import logging
+import multiprocessing
 import os
 import shutil
 import tempfile
@@ -379,7 +380,8 @@ def _map(fn, arglist, jobs, results, names, on_done, tick, verb, inner_progress=
                 _fail(results[name], err)
             tick(f"{name} {verb}")
         return
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
+    # spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock the children
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
         pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
                    if results[name].status != "failed"}
         try:

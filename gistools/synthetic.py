@@ -1,0 +1,264 @@
+"""Synthetic LiDAR scenes with known answers, shaped like a Florida county delivery.
+
+A scene is a block of ground (smooth, rolling), paved roads, a river, a pond with an
+island, a narrow creek, wetland, open grass, shrub patches of light / medium / heavy
+cover in the 0-1 m, 1-2 m and 2-6 m height bands, trees taller than 6 m and a few
+buildings. :func:`scene_points` samples pulses on a jittered grid and gives each
+pulse 1-4 returns classified 1 (unclassified), 2 (ground) or 9 (water), as the
+Levy County LAS 1.1 tiles are. Coordinates and heights are in the CRS's units
+(US survey feet for EPSG:2882). Everything is deterministic for a given seed.
+
+The generator's truth (ground surface function, feature polygons) is what tests
+check gistools' results against.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import shapely
+from shapely.geometry import LineString, Point, Polygon, box
+
+from .units import US_SURVEY_FOOT
+
+__all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "BANDS_M", "COVER"]
+
+M = 1.0 / US_SURVEY_FOOT  # ftUS per metre
+BANDS_M = {"B1": (0.25, 0.9), "B2": (1.15, 1.85), "B3": (2.3, 5.6)}  # shrub top heights used per band (m)
+COVER = {"light": 0.2, "medium": 0.5, "heavy": 0.85}
+
+
+@dataclass
+class ShrubPatch:
+    geometry: Polygon
+    cover: str  # light / medium / heavy
+    band: str  # B1 / B2 / B3
+
+
+@dataclass
+class Scene:
+    """Feature geometry of a block, in CRS coordinates (ftUS)."""
+
+    origin: tuple[float, float]
+    size: tuple[float, float]
+    roads: list[Polygon] = field(default_factory=list)
+    river: Polygon | None = None
+    river_centre: LineString | None = None
+    creek: LineString | None = None
+    creek_width: float = 6.0
+    pond: Polygon | None = None
+    wetland: list[Polygon] = field(default_factory=list)
+    shrubs: list[ShrubPatch] = field(default_factory=list)
+    trees: list[tuple[float, float, float, float]] = field(default_factory=list)  # x, y, crown radius, height
+    buildings: list[tuple[Polygon, float]] = field(default_factory=list)
+
+    @property
+    def bounds(self):
+        x0, y0 = self.origin
+        return (x0, y0, x0 + self.size[0], y0 + self.size[1])
+
+    @property
+    def road_union(self):
+        return shapely.union_all(self.roads)
+
+    @property
+    def water_union(self):
+        parts = [g for g in (self.river, self.pond) if g is not None]
+        if self.creek is not None:
+            parts.append(self.creek.buffer(self.creek_width / 2))
+        return shapely.union_all(parts)
+
+
+def ground_z(x, y, origin=(0.0, 0.0)):
+    """True ground height (ftUS) of the synthetic scenes at (x, y): gently rolling, 25-45 ft."""
+    u = np.asarray(x, np.float64) - origin[0]
+    v = np.asarray(y, np.float64) - origin[1]
+    return 35.0 + 4.0 * np.sin(u / 310.0) * np.cos(v / 270.0) + 0.0015 * u - 0.001 * v + 1.5 * np.sin((u + v) / 140.0)
+
+
+def _ellipse(cx, cy, rx, ry, angle=0.0, wobble=0.0, rng=None, n=48):
+    t = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    r = 1.0 + (wobble * np.sin(3 * t + (rng.uniform(0, 6) if rng is not None else 0.0)))
+    px, py = rx * r * np.cos(t), ry * r * np.sin(t)
+    ca, sa = np.cos(angle), np.sin(angle)
+    return Polygon(np.column_stack([cx + ca * px - sa * py, cy + sa * px + ca * py]))
+
+
+def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 35712) -> Scene:
+    """A deterministic scene of ``size`` ftUS with its south-west corner at ``origin``.
+
+    Features are laid out relative to the block size, so larger blocks (benchmarks)
+    get the same kinds of features, repeated.
+    """
+    rng = np.random.default_rng(seed)
+    x0, y0 = origin
+    W, H = size
+    sc = Scene(origin=(x0, y0), size=(W, H))
+    block = box(x0, y0, x0 + W, y0 + H)
+    # Roads: east-west roads every ~1400 ft, a curving north-south road every ~1300 ft.
+    for k, v in enumerate(np.arange(0.7, H / 2000.0 * 2, 1.4)[: max(1, int(H // 1400))]):
+        yc = y0 + v * 1000.0
+        sc.roads.append(LineString([(x0 - 50, yc), (x0 + W + 50, yc)]).buffer(12.0, cap_style="flat"))
+    for k in range(max(1, int(W // 1300))):
+        xc = x0 + 700.0 + 1300.0 * k
+        vs = np.linspace(-50, H + 50, 80)
+        line = LineString(np.column_stack([xc + 60 * np.sin(vs / 400.0), y0 + vs]))
+        sc.roads.append(line.buffer(11.0, cap_style="flat"))
+    # River: meander west-east near the south of the block; creek from pond to river.
+    us = np.linspace(-50, W + 50, 200)
+    sc.river_centre = LineString(np.column_stack([x0 + us, y0 + 0.25 * H + 120 * np.sin(us / 300.0)]))
+    sc.river = sc.river_centre.buffer(22.5, cap_style="flat").intersection(block)
+    pond_c = (x0 + 0.78 * W, y0 + 0.86 * H)
+    pond = _ellipse(*pond_c, 130, 85, angle=0.3)
+    island = _ellipse(*pond_c, 26, 20)
+    sc.pond = Polygon(pond.exterior.coords, [island.exterior.coords])
+    sc.creek = LineString([(pond_c[0] - 40, pond_c[1] - 80), (x0 + 0.62 * W, y0 + 0.62 * H), (x0 + 0.55 * W, y0 + 0.3 * H)])
+    sc.wetland = [_ellipse(x0 + 0.18 * W, y0 + 0.12 * H, 0.12 * W, 0.07 * H, angle=0.2, wobble=0.1, rng=rng)]
+    # Buildings: a few houses near the roads.
+    for bx, by in [(0.30, 0.76), (0.45, 0.76), (0.30, 0.63), (0.60, 0.50)]:
+        cx, cy = x0 + bx * W, y0 + by * H
+        sc.buildings.append((box(cx - 30, cy - 20, cx + 30, cy + 20), float(rng.uniform(14, 24))))
+    blocked = shapely.union_all([sc.road_union.buffer(10), sc.water_union.buffer(10)] + [b.buffer(15) for b, _ in sc.buildings])
+    # Shrub patches: every cover x band combination at least once, placed on free ground.
+    combos = [(c, b) for c in COVER for b in BANDS_M]
+    n_patches = max(2 * len(combos), int(round(2 * len(combos) * W * H / 4.0e6)))
+    placed: list[Polygon] = []
+    tries = 0
+    while len(sc.shrubs) < n_patches and tries < 5000:
+        tries += 1
+        cover, band = combos[len(sc.shrubs) % len(combos)]
+        rx, ry = rng.uniform(60, 120), rng.uniform(45, 95)
+        cx, cy = x0 + rng.uniform(rx + 20, W - rx - 20), y0 + rng.uniform(ry + 20, H - ry - 20)
+        poly = _ellipse(cx, cy, rx, ry, angle=rng.uniform(0, np.pi), wobble=0.12, rng=rng)
+        if poly.intersects(blocked) or any(poly.distance(p) < 20 for p in placed):
+            continue
+        placed.append(poly)
+        sc.shrubs.append(ShrubPatch(poly, cover, band))
+    # One low shrub patch inside the wetland (vegetation inside wetlands).
+    wet = sc.wetland[0]
+    c = wet.centroid
+    patch = _ellipse(c.x, c.y, 40, 30)
+    if not patch.intersects(blocked):
+        sc.shrubs.append(ShrubPatch(patch, "medium", "B1"))
+        placed.append(patch)
+    # Trees taller than 6 m in small groves.
+    taken = shapely.union_all([blocked] + [p.buffer(10) for p in placed])
+    n_groves = max(6, int(W * H / 0.5e6))
+    for _ in range(n_groves * 8):
+        gx, gy = x0 + rng.uniform(60, W - 60), y0 + rng.uniform(60, H - 60)
+        for _ in range(int(rng.integers(6, 14))):
+            tx, ty = gx + rng.normal(0, 35), gy + rng.normal(0, 35)
+            r = float(rng.uniform(10, 18))
+            if taken.intersects(Point(tx, ty).buffer(r)):
+                continue
+            sc.trees.append((tx, ty, r, float(rng.uniform(40, 75))))
+        if len(sc.trees) >= n_groves * 10:
+            break
+    return sc
+
+
+def _inside(poly, x, y):
+    """Boolean mask of points inside ``poly`` (bounding box first, then exact test)."""
+    w, s, e, n = poly.bounds
+    cand = np.nonzero((x >= w) & (x <= e) & (y >= s) & (y <= n))[0]
+    mask = np.zeros(len(x), bool)
+    if len(cand):
+        mask[cand] = shapely.contains_xy(poly, x[cand], y[cand])
+    return mask
+
+
+def scene_points(scene: Scene, bounds, *, spacing: float = 4.0, seed: int = 0) -> dict:
+    """Returns of pulses on a jittered ``spacing`` grid inside ``bounds`` (west, south, east, north), half-open.
+
+    Returns a dict of arrays: x, y, z (ftUS), classification, return_number,
+    number_of_returns, intensity, gps_time.
+    """
+    rng = np.random.default_rng(seed)
+    w, s, e, n = bounds
+    gx = np.arange(w + spacing / 2, e, spacing)
+    gy = np.arange(s + spacing / 2, n, spacing)
+    px, py = np.meshgrid(gx, gy)
+    px = (px + rng.uniform(-0.4, 0.4, px.shape) * spacing).ravel()
+    py = (py + rng.uniform(-0.4, 0.4, py.shape) * spacing).ravel()
+    keep = (px >= w) & (px < e) & (py >= s) & (py < n)
+    px, py = px[keep], py[keep]
+    npulse = len(px)
+    gz = ground_z(px, py, scene.origin)
+    # Surface type of each pulse, later features win: 0 ground, 1 road, 2 water, 3 shrub, 4 tree, 5 building.
+    kind = np.zeros(npulse, np.int8)
+    top = np.full(npulse, np.nan)  # height above ground of the first return (ft)
+    cover = np.zeros(npulse)
+    for patch in scene.shrubs:
+        m = _inside(patch.geometry, px, py)
+        lo, hi = BANDS_M[patch.band]
+        hit = m & (rng.random(npulse) < COVER[patch.cover])
+        kind[hit] = 3
+        top[hit] = rng.uniform(lo * M, hi * M, hit.sum())
+        cover[m] = COVER[patch.cover]
+    if scene.trees:
+        t = np.array(scene.trees)
+        from scipy.spatial import cKDTree
+
+        tree = cKDTree(t[:, :2])
+        d, i = tree.query(np.column_stack([px, py]), distance_upper_bound=t[:, 2].max())
+        ok = np.isfinite(d)
+        ok[ok] = d[ok] <= t[i[ok], 2]
+        hit = ok & (rng.random(npulse) < 0.92)
+        r_rel = d[hit] / t[i[hit], 2]
+        kind[hit] = 4
+        top[hit] = t[i[hit], 3] * (1 - 0.35 * r_rel**2) - rng.uniform(0, 2, hit.sum())
+    water = _inside(scene.water_union, px, py)
+    kind[water] = 2
+    road = _inside(scene.road_union, px, py)
+    kind[road] = 1
+    for poly, height in scene.buildings:
+        m = _inside(poly, px, py)
+        kind[m] = 5
+        top[m] = height
+    # Water surface: 3 ft under the banks' ground, smoothed along the river.
+    wz = gz - 3.0
+    # Returns per pulse.
+    nret = np.ones(npulse, np.int64)
+    veg = kind == 3
+    ground_seen = rng.random(npulse) > 0.7 * cover  # denser shrub hides more ground
+    nret[veg & ground_seen] = 2
+    tall_shrub = veg & (top > 2.3 * M)
+    nret[tall_shrub & ground_seen] = np.where(rng.random((tall_shrub & ground_seen).sum()) < 0.5, 3, 2)
+    tree = kind == 4
+    nret[tree] = rng.integers(1, 5, tree.sum())
+    water_dropout = (kind == 2) & (rng.random(npulse) < 0.15)  # specular water gives no return sometimes
+    keep_pulse = ~water_dropout
+    total = int(nret[keep_pulse].sum())
+    pulse = np.repeat(np.nonzero(keep_pulse)[0], nret[keep_pulse])
+    rn = np.arange(total) - np.repeat(np.cumsum(nret[keep_pulse]) - nret[keep_pulse], nret[keep_pulse]) + 1
+    nr = nret[pulse]
+    k = kind[pulse]
+    x = px[pulse] + rng.normal(0, 0.05, total)
+    y = py[pulse] + rng.normal(0, 0.05, total)
+    g = gz[pulse]
+    z = g.copy()
+    cls = np.full(total, 2, np.uint8)
+    inten = rng.integers(120, 240, total)
+    last = rn == nr
+    # Ground noise: open terrain RMSEz about 0.1 ft here (the delivery tested 0.30 ft).
+    z += rng.normal(0, 0.08, total)
+    # Vegetation and buildings: returns above ground; the last of several returns is ground.
+    above = (k >= 3) & ~(last & (nr > 1))
+    frac = np.where(rn == 1, 1.0, rng.uniform(0.2, 0.8, total))
+    z[above] = g[above] + top[pulse][above] * frac[above]
+    cls[above] = 1
+    inten[above] = rng.integers(60, 200, above.sum())
+    # Trees with one return: canopy only, no ground.
+    w_ = k == 2
+    z[w_] = wz[pulse][w_] + rng.normal(0, 0.03, w_.sum())
+    cls[w_] = 9
+    inten[w_] = rng.integers(2, 25, w_.sum())
+    r_ = k == 1
+    inten[r_] = rng.integers(20, 70, r_.sum())
+    return {
+        "x": x, "y": y, "z": z, "classification": cls,
+        "return_number": rn.astype(np.uint8), "number_of_returns": nr.astype(np.uint8),
+        "intensity": inten.astype(np.uint16),
+        "gps_time": 86400.0 * 190 + np.arange(total) * 1e-5,
+    }

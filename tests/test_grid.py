@@ -1,0 +1,52 @@
+import numpy as np
+import pytest
+from affine import Affine
+
+from gistools.grid import Grid, cell_centres, cell_index, snapped_grid
+
+
+def test_snapped_grid_edges_are_multiples_of_the_cell_size():
+    g = snapped_grid((430000.39, 1811000.44, 430999.65, 1811999.62), 5.0)
+    assert g.bounds == (430000.0, 1811000.0, 431000.0, 1812000.0)
+    assert g.shape == (200, 200)
+    g2 = snapped_grid((12.3, 7.9, 13.1, 8.2), 0.5)
+    assert g2.bounds == (12.0, 7.5, 13.5, 8.5)
+
+
+def test_point_on_an_edge_goes_to_the_cell_east_and_north():
+    g = snapped_grid((0.0, 0.0, 10.0, 10.0), 5.0)
+    # max edge 10.0 makes a third column/row: half-open cells [10, 15)
+    assert g.shape == (3, 3)
+    flat = cell_index(g, np.array([0.0, 5.0, 9.999, 10.0]), np.array([0.0, 0.0, 0.0, 0.0]))
+    rows, cols = np.divmod(flat, g.width)
+    assert cols.tolist() == [0, 1, 1, 2]
+    assert rows.tolist() == [2, 2, 2, 2]
+
+
+def test_cell_index_is_the_same_whatever_grid_holds_the_point():
+    a = snapped_grid((0, 0, 100, 100), 2.5)
+    b = snapped_grid((50, 50, 300, 300), 2.5)
+    x, y = np.array([60.1, 77.7]), np.array([55.0, 99.99])
+    fa, fb = cell_index(a, x, y), cell_index(b, x, y)
+    ra, ca = np.divmod(fa, a.width)
+    rb, cb = np.divmod(fb, b.width)
+    xa, ya = cell_centres(a)
+    xb, yb = cell_centres(b)
+    assert np.allclose(xa[ca], xb[cb]) and np.allclose(ya[ra], yb[rb])
+
+
+def test_outside_points_get_minus_one():
+    g = snapped_grid((0, 0, 10, 10), 5.0)
+    assert cell_index(g, np.array([-0.1, 20.0]), np.array([1.0, 1.0])).tolist() == [-1, -1]
+
+
+def test_window_in_overlap():
+    a = snapped_grid((0, 0, 99, 99), 10.0)  # 10 x 10
+    b = snapped_grid((90, 50, 150, 120), 10.0)
+    rs, cs, ro, co = a.window_in(b)
+    assert (rs.stop - rs.start, cs.stop - cs.start) == (5, 1)
+    assert (ro.stop - ro.start, co.stop - co.start) == (5, 1)
+    assert a.window_in(snapped_grid((200, 200, 300, 300), 10.0)) is None
+    g = Grid(Affine(10, 0, 0, 0, -10, 100), 10, 10)
+    with pytest.raises(ValueError):
+        g.window_in(snapped_grid((0, 0, 10, 10), 5.0))

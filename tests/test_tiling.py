@@ -1,0 +1,65 @@
+"""Tiled == untiled: tiles see their neighbours, so a split block gives the unsplit block's mosaic."""
+
+from __future__ import annotations
+
+import laspy
+import numpy as np
+import pytest
+
+from conftest import read_las_independently
+from gistools import RasterSettings, rasters_from_tiles
+from gistools.io.points import read_tile_info, write_tile
+from gistools.io.raster import read_raster
+
+
+def _las_dict(las):
+    return {k: np.asarray(getattr(las, k)) for k in
+            ("x", "y", "z", "classification", "return_number", "number_of_returns", "intensity")}
+
+
+def _compare(tiled_out, whole_out):
+    for product in ("dsm", "dem", "ndsm"):
+        a, ga, _ = read_raster(tiled_out / f"{product}.vrt")
+        b, gb, _ = read_raster(whole_out / f"{product}.vrt")
+        assert ga.transform == gb.transform and ga.shape == gb.shape, product
+        assert np.array_equal(np.isnan(a), np.isnan(b)), f"{product}: nodata differs at {np.sum(np.isnan(a) != np.isnan(b))} cells"
+        diff = np.nanmax(np.abs(a - b)) if np.isfinite(a).any() else 0.0
+        assert diff <= 0.001 / 0.3048, f"{product}: max abs difference {diff}"
+
+
+def test_sample_block_tiled_equals_one_file(sample_tiles, sample_run, tmp_path):
+    x, y, z, cls, rn, _ = read_las_independently(sample_tiles)
+    nr = np.concatenate([np.asarray(laspy.read(p).number_of_returns) for p in sample_tiles])
+    crs = read_tile_info(sample_tiles[0]).crs
+    whole = tmp_path / "in" / "block.las"
+    whole.parent.mkdir()
+    write_tile(whole, dict(x=x, y=y, z=z, classification=cls, return_number=rn, number_of_returns=nr),
+               crs, version="1.1", point_format=1, offsets=[430000.0, 1810000.0, 0.0])
+    rasters_from_tiles([whole], tmp_path / "whole")
+    _compare(sample_run[0], tmp_path / "whole")
+
+
+@pytest.mark.parametrize("cell_size", ["1m", "5ft"])
+def test_real_file_split_at_unaligned_edges_equals_unsplit(autzen, tmp_path, cell_size):
+    """autzen split into 4 tiles at edges that are not multiples of the cell size."""
+    las = laspy.read(autzen)
+    pts = _las_dict(las)
+    crs = las.header.parse_crs()
+    xm = np.quantile(pts["x"], 0.47) + 0.37
+    ym = np.quantile(pts["y"], 0.55) + 0.61
+    tiles = tmp_path / "tiles"
+    for i, mx in enumerate([pts["x"] < xm, pts["x"] >= xm]):
+        for j, my in enumerate([pts["y"] < ym, pts["y"] >= ym]):
+            m = mx & my
+            write_tile(tiles / f"t{i}{j}.las", {k: v[m] for k, v in pts.items()}, crs, version="1.2", point_format=3,
+                       offsets=[0.0, 0.0, 0.0])
+    s_tiled = rasters_from_tiles([tiles], tmp_path / "tiled", RasterSettings(cell_size=cell_size))
+    s_whole = rasters_from_tiles([autzen], tmp_path / "whole", RasterSettings(cell_size=cell_size))
+    assert s_tiled["counts"]["ok"] == 4
+    _compare(tmp_path / "tiled", tmp_path / "whole")
+
+
+def test_parallel_jobs_give_the_same_rasters(sample_tiles, sample_run, tmp_path):
+    summary = rasters_from_tiles(sample_tiles, tmp_path, jobs=2)
+    assert summary["counts"]["ok"] == 4
+    _compare(tmp_path, sample_run[0])

@@ -1,0 +1,53 @@
+import pyproj
+import pytest
+
+from gistools.errors import InputError
+from gistools.units import FOOT, US_SURVEY_FOOT, LinearUnit, horizontal_unit, length_to_crs_units, vertical_unit
+
+FTUS = LinearUnit("US survey foot", US_SURVEY_FOOT)
+FT = LinearUnit("foot", FOOT)
+M = LinearUnit("metre", 1.0)
+
+
+def test_units_read_from_crs():
+    assert horizontal_unit(pyproj.CRS.from_epsg(2882)).metres == pytest.approx(US_SURVEY_FOOT, abs=1e-12)
+    assert horizontal_unit(pyproj.CRS.from_epsg(2881)).short == "ftUS"
+    assert horizontal_unit(pyproj.CRS.from_epsg(26917)).short == "m"
+    assert horizontal_unit(pyproj.CRS.from_epsg(2992)).short == "ft"  # Oregon Lambert, international feet
+    compound = pyproj.CRS.from_user_input("EPSG:26917+5703")  # UTM 17N + NAVD88 height (m)
+    assert vertical_unit(compound).short == "m"
+    ftus_height = pyproj.CRS.from_user_input("EPSG:2882+6360")  # + NAVD88 height (ftUS)
+    assert vertical_unit(ftus_height).short == "ftUS"
+
+
+def test_geographic_crs_is_refused():
+    with pytest.raises(InputError, match="geographic"):
+        horizontal_unit(pyproj.CRS.from_epsg(4326))
+
+
+@pytest.mark.parametrize(
+    "text, unit, expected",
+    [
+        ("5ft", FTUS, 5.0),  # ft means the CRS's own foot
+        ("5ft", FT, 5.0),
+        ("5", FTUS, 5.0),  # bare number: map units
+        (5, M, 5.0),
+        ("1.5m", M, 1.5),
+        ("1m", FTUS, 3937 / 1200),
+        ("6m", FTUS, 19.685),  # exactly 19.685 ftUS; the dissertation's 19.658 is a typo
+        ("6m", FT, 19.685039370078737),
+        ("1m", FT, 1 / 0.3048),
+        ("5ft", M, 1.524),  # on a metre CRS ft is the international foot
+        ("5ftUS", M, 5 * US_SURVEY_FOOT),
+        ("10 feet", FT, 10.0),
+    ],
+)
+def test_length_to_crs_units(text, unit, expected):
+    assert length_to_crs_units(text, unit) == pytest.approx(expected, rel=1e-12)
+
+
+@pytest.mark.parametrize("bad", ["five feet", "5 parsecs", "", "m5"])
+def test_bad_lengths_name_the_fix(bad):
+    with pytest.raises(InputError) as err:
+        length_to_crs_units(bad, M, name="cell size")
+    assert "cell size" in str(err.value)

@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Write sample_tiles/: a 2 x 2 block of synthetic tiles shaped like the Levy County delivery.
+
+LAS 1.1, point format 1, EPSG:2882 (NAD83(HARN) / Florida West, US survey feet) in
+the header as GeoTIFF keys, classes 1 / 2 / 9, up to 4 returns per pulse, 4 ft
+pulse spacing; one tile LAZ. Beside them ``breaklines.gpkg`` (FOOTPRINT,
+ROADBREAKLINE, HYDROGRAPHICFEATURE, WATERBODY, WETLAND) and ``truth.gpkg``
+(the generator's shrub patches with cover and band, roads, water, trees, buildings).
+Deterministic: the same seed writes the same points.
+
+    python tools/make_sample_tiles.py [--out sample_tiles] [--seed 35712]
+"""
+
+from __future__ import annotations
+
+import argparse
+import shutil
+import sys
+from pathlib import Path
+
+import geopandas as gpd
+import numpy as np
+import pyproj
+import shapely
+from shapely.geometry import box
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from gistools.io.points import write_tile  # noqa: E402
+from gistools.synthetic import make_scene, scene_points  # noqa: E402
+
+CRS = pyproj.CRS.from_epsg(2882)
+TILE = 1000.0  # ftUS
+ORIGIN = (430000.0, 1810000.0)
+# Levy-like 5-digit tile numbers: row 357 / 358 (north to south), column 12 / 13.
+TILE_IDS = {(0, 0): 35712, (0, 1): 35713, (1, 0): 35812, (1, 1): 35813}
+LAZ_TILE = 35813
+
+
+def lines_of(geom):
+    """Boundary rings of a (multi)polygon as LineStrings."""
+    b = geom.boundary
+    return list(getattr(b, "geoms", [b]))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="sample_tiles")
+    ap.add_argument("--seed", type=int, default=35712)
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    if out.exists():
+        shutil.rmtree(out)
+    out.mkdir(parents=True)
+    scene = make_scene(ORIGIN, (2 * TILE, 2 * TILE), seed=args.seed)
+    pts = scene_points(scene, scene.bounds, spacing=4.0, seed=args.seed)
+    footprints = []
+    for (row, col), tid in TILE_IDS.items():
+        w = ORIGIN[0] + col * TILE
+        s = ORIGIN[1] + (1 - row) * TILE
+        m = (pts["x"] >= w) & (pts["x"] < w + TILE) & (pts["y"] >= s) & (pts["y"] < s + TILE)
+        tile = {k: v[m] for k, v in pts.items()}
+        suffix = ".laz" if tid == LAZ_TILE else ".las"
+        write_tile(out / f"{tid}{suffix}", tile, CRS, version="1.1", point_format=1, offsets=[w, s, 0.0])
+        footprints.append({"TILE_ID": tid, "FILENAME": f"{tid}{suffix}", "geometry": box(w, s, w + TILE, s + TILE)})
+        print(f"{tid}{suffix}: {m.sum():,} points")
+    block = box(*scene.bounds)
+    gpkg = out / "breaklines.gpkg"
+    gpd.GeoDataFrame(footprints, crs=CRS).to_file(gpkg, layer="FOOTPRINT")
+    road_edges = [ln for ln in lines_of(scene.road_union.intersection(block))]
+    gpd.GeoDataFrame({"TYPE": ["EDGE_OF_PAVEMENT"] * len(road_edges)}, geometry=road_edges, crs=CRS).to_file(
+        gpkg, layer="ROADBREAKLINE")
+    hydro = [(ln, "DUAL_LINE_BANK") for ln in lines_of(scene.river)] + [(scene.creek, "SINGLE_LINE")]
+    gpd.GeoDataFrame({"TYPE": [t for _, t in hydro]}, geometry=[g for g, _ in hydro], crs=CRS).to_file(
+        gpkg, layer="HYDROGRAPHICFEATURE")
+    gpd.GeoDataFrame({"NAME": ["river", "pond"]}, geometry=[scene.river, scene.pond], crs=CRS).to_file(
+        gpkg, layer="WATERBODY")
+    gpd.GeoDataFrame({"NAME": ["wetland"]}, geometry=scene.wetland, crs=CRS).to_file(gpkg, layer="WETLAND")
+    truth = out / "truth.gpkg"
+    gpd.GeoDataFrame(
+        {"cover": [p.cover for p in scene.shrubs], "band": [p.band for p in scene.shrubs],
+         "cover_fraction": [{"light": 0.2, "medium": 0.5, "heavy": 0.85}[p.cover] for p in scene.shrubs]},
+        geometry=[p.geometry for p in scene.shrubs], crs=CRS).to_file(truth, layer="SHRUB_TRUTH")
+    gpd.GeoDataFrame({"kind": ["road"]}, geometry=[scene.road_union.intersection(block)], crs=CRS).to_file(
+        truth, layer="ROAD_TRUTH")
+    gpd.GeoDataFrame({"kind": ["water"]}, geometry=[scene.water_union.intersection(block)], crs=CRS).to_file(
+        truth, layer="WATER_TRUTH")
+    t = np.array(scene.trees)
+    gpd.GeoDataFrame({"height_ft": t[:, 3], "crown_radius_ft": t[:, 2]},
+                     geometry=shapely.buffer(shapely.points(t[:, :2]), t[:, 2]), crs=CRS).to_file(truth, layer="TREE_TRUTH")
+    gpd.GeoDataFrame({"roof_height_ft": [h for _, h in scene.buildings]},
+                     geometry=[b for b, _ in scene.buildings], crs=CRS).to_file(truth, layer="BUILDING_TRUTH")
+    total = sum(f.stat().st_size for f in out.iterdir())
+    print(f"wrote {out}/ ({total / 1e6:.1f} MB)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# One entry point for the README's two commands, and for CI.
+#   bash tools/run.sh sample   set up .venv, run the main job on sample_tiles/ into out/
+#   bash tools/run.sh test     set up .venv, run the whole test suite
+# Works on a fresh Debian 12 from a clean clone (installs python3-venv when it is missing).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+ROOT=$(pwd)
+VENV="$ROOT/.venv"
+# Debian's system Python, so that QGIS's bindings (python3-qgis) are importable in the same venv.
+PY=/usr/bin/python3
+[ -x "$PY" ] || PY=$(command -v python3)
+
+need_apt=()
+"$PY" -c "import venv, ensurepip" 2>/dev/null || need_apt+=(python3-venv)
+if [ ${#need_apt[@]} -gt 0 ]; then
+  if [ "$(id -u)" = 0 ]; then
+    echo "gistools setup: installing ${need_apt[*]} (apt-get)"
+    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
+  else
+    echo "gistools setup: missing ${need_apt[*]}; run: sudo apt-get install ${need_apt[*]}" >&2
+    exit 1
+  fi
+fi
+
+if [ ! -x "$VENV/bin/python" ]; then
+  echo "gistools setup: creating $VENV"
+  "$PY" -m venv --system-site-packages "$VENV"
+fi
+STAMP="$VENV/.gistools-installed"
+WANT=$(cat pyproject.toml | sha256sum | cut -c1-16)
+if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
+  echo "gistools setup: installing gistools and its dependencies into $VENV"
+  "$VENV/bin/python" -m pip install -q --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
+  "$VENV/bin/python" -m pip install -q -e ".[test,plot]" 2>&1 | grep -v "^WARNING: Location" || true
+  "$VENV/bin/python" -c "import gistools, laspy, lazrs, rasterio, triangle" 
+  echo "$WANT" > "$STAMP"
+fi
+
+case "${1:-}" in
+  sample)
+    shift
+    "$VENV/bin/gistools" rasters sample_tiles --out out "$@"
+    echo "outputs in $ROOT/out (dsm/, dem/, ndsm/, *.vrt, report.json)"
+    ;;
+  test)
+    shift
+    set +e
+    "$VENV/bin/python" -m pytest "$@"
+    rc=$?
+    set -e
+    if [ $rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi
+    exit $rc
+    ;;
+  *)
+    echo "usage: bash tools/run.sh sample|test [args...]" >&2
+    exit 2
+    ;;
+esac
