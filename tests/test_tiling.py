@@ -63,3 +63,18 @@ def test_parallel_jobs_give_the_same_rasters(sample_tiles, sample_run, tmp_path)
     summary = rasters_from_tiles(sample_tiles, tmp_path, jobs=2)
     assert summary["counts"]["ok"] == 4
     _compare(tmp_path, sample_run[0])
+
+
+def test_dem_in_strips_equals_dem_in_one_piece(sample_tiles, sample_run, tmp_path):
+    """A tile's DEM built in strips of few ground points (bounded memory) equals the one-piece DEM."""
+    summary = rasters_from_tiles(sample_tiles, tmp_path, RasterSettings(tin_block_points=9_000))
+    assert summary["counts"]["ok"] == 4
+    _compare(tmp_path, sample_run[0])
+
+
+def test_dsm_only_run(sample_tiles, sample_run, tmp_path):
+    summary = rasters_from_tiles(sample_tiles, tmp_path, RasterSettings(products=("dsm",)))
+    assert sorted(summary["mosaics"]) == ["dsm"] and not (tmp_path / "dem").exists()
+    a, _, _ = read_raster(tmp_path / "dsm.vrt")
+    b, _, _ = read_raster(sample_run[0] / "dsm.vrt")
+    assert np.array_equal(a, b, equal_nan=True)

@@ -33,12 +33,13 @@ def tqdm_progress(bar: tqdm):
 @click.option("--dem-max-distance", default="15m", show_default=True,
               help="DEM cells farther than this from every ground point stay nodata (tin, idw).")
 @click.option("--buffer", default=None, help="How far to read ground points from neighbouring tiles. Default: 2 x --dem-max-distance, at least 20 cells.")
+@click.option("--products", default="dsm,dem,ndsm", show_default=True, help="Which rasters to write, comma-separated.")
 @crs_opt
 @jobs_opt
 @chunk_opt
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, crs, jobs, chunk_size, overwrite, quiet):
+def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, crs, jobs, chunk_size, overwrite, quiet):
     """DSM, DEM and nDSM GeoTIFFs for every tile of INPUTS (files, folders or globs).
 
     Writes OUT/dsm/<tile>.tif, OUT/dem/<tile>.tif, OUT/ndsm/<tile>.tif, VRT mosaics
@@ -53,7 +54,8 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
       $ gistools rasters tiles --out out --dem-method max --dsm-classes 1,2
     """
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
-                              dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size)
+                              dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
+                              products=tuple(p.strip() for p in products.split(",") if p.strip()))
     with tqdm(total=100, unit="%", disable=True if quiet else None, bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite,
                                      progress=None if bar.disable else tqdm_progress(bar))

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pyproj
+from affine import Affine
 
 from ..errors import Cancelled, GistoolsError, InputError
 from ..grid import Grid, snapped_grid
@@ -52,7 +53,9 @@ class RasterSettings:
     """Parameters of a DSM / DEM / nDSM run. Lengths take a unit: "5ft", "1.5m", or a bare number in CRS units.
 
     dsm_classes: None = every class but noise (7, 18); withheld points are always left out.
-    The dissertation's set is (1, 2). dem_max_distance: cells farther than this from
+    The dissertation's set is (1, 2). products: any of dsm, dem, ndsm (a DSM-only run
+    keeps no ground points). tin_block_points: the DEM is built in strips of about this
+    many ground points, bounding memory (about 200 bytes per point). dem_max_distance: cells farther than this from
     every ground point stay nodata (TIN, IDW). buffer: how far into neighbouring
     tiles ground points are read (default: 2 x dem_max_distance, at least 20 cells).
     """
@@ -64,8 +67,13 @@ class RasterSettings:
     buffer: str | float | None = None
     crs: str | None = None
     chunk_size: int = DEFAULT_CHUNK_SIZE
+    products: tuple[str, ...] = PRODUCTS
+    tin_block_points: int = 2_500_000
 
     def validate(self) -> None:
+        bad = [p for p in self.products if p not in PRODUCTS]
+        if bad or not self.products:
+            raise InputError(f"products {', '.join(bad) or '(none)'}: choose among {', '.join(PRODUCTS)}", hint="e.g. --products dsm,dem")
         if self.dem_method not in DEM_METHODS:
             raise InputError(
                 f"--dem-method {self.dem_method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin"
@@ -105,50 +113,60 @@ class _Run:
     overwrite: bool
     crs_wkt: str
     z_unit: str
+    products: tuple[str, ...] = PRODUCTS
+    tin_block_points: int = 2_500_000
 
 
 def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
     return snapped_grid(info.bounds, run.cell_size, crs)
 
 
+def _ground_file(scratch, name) -> Path:
+    return Path(scratch) / f"{name}.ground.f8"
+
+
 def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
-    """Pass 1: stream a tile, keep its partial grids and ground points in the scratch folder."""
+    """Pass 1: stream a tile; keep its partial grids, and append its ground points to a scratch file.
+
+    Memory stays flat whatever the tile size: only the grids and one chunk are held.
+    """
     grid = _tile_grid(info, run)
     n = grid.width * grid.height
+    need_dem = run.products != ("dsm",)
     dsm = np.full(n, -np.inf)
     ground_count = np.zeros(n, np.int64)
     water_count = np.zeros(n, np.int64)
     by_class = np.zeros(256, np.int64)
     by_return = np.zeros(16, np.int64)
-    ground_parts = []
     outside = 0
     done = 0
     west, south, east, north = info.bounds
-    for chunk in iter_chunks(info, run.chunk_size):
-        by_class += np.bincount(chunk.classification, minlength=256)[:256]
-        by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
-        outside += int(np.count_nonzero((chunk.x < west) | (chunk.x > east) | (chunk.y < south) | (chunk.y > north)))
-        usable = ~chunk.withheld
-        cls = chunk.classification
-        if run.dsm_classes is None:
-            surface = usable & ~np.isin(cls, NOISE_CLASSES)
-        else:
-            surface = usable & np.isin(cls, run.dsm_classes)
-        surface &= chunk.return_number <= 1  # first returns (0 = not recorded, taken as first)
-        cell_max(dsm.reshape(grid.shape), grid, chunk.x[surface], chunk.y[surface], chunk.z[surface])
-        ground = usable & (cls == GROUND_CLASS)
-        water = usable & (cls == WATER_CLASS)
-        ground_count += cell_statistic(grid, chunk.x[ground], chunk.y[ground], chunk.z[ground], "count").reshape(-1)
-        water_count += cell_statistic(grid, chunk.x[water], chunk.y[water], chunk.z[water], "count").reshape(-1)
-        ground_parts.append(np.column_stack([chunk.x[ground], chunk.y[ground], chunk.z[ground]]))
-        done += len(chunk)
-        report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
+    ground_path = _ground_file(run.scratch, info.name)
+    with open(ground_path, "wb") as ground_out:
+        for chunk in iter_chunks(info, run.chunk_size):
+            cls = chunk.classification
+            by_class += np.bincount(cls, minlength=256)[:256]
+            by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
+            outside += int(np.count_nonzero((chunk.x < west) | (chunk.x > east) | (chunk.y < south) | (chunk.y > north)))
+            usable = ~chunk.withheld
+            if run.dsm_classes is None:
+                surface = usable & ~np.isin(cls, NOISE_CLASSES)
+            else:
+                surface = usable & np.isin(cls, run.dsm_classes)
+            surface &= chunk.return_number <= 1  # first returns (0 = not recorded, taken as first)
+            cell_max(dsm.reshape(grid.shape), grid, chunk.x[surface], chunk.y[surface], chunk.z[surface])
+            if need_dem:
+                ground = usable & (cls == GROUND_CLASS)
+                water = usable & (cls == WATER_CLASS)
+                gx, gy, gz = chunk.x[ground], chunk.y[ground], chunk.z[ground]
+                ground_count += cell_statistic(grid, gx, gy, gz, "count").reshape(-1)
+                water_count += cell_statistic(grid, chunk.x[water], chunk.y[water], chunk.z[water], "count").reshape(-1)
+                np.column_stack([gx, gy, gz]).tofile(ground_out)
+            done += len(chunk)
+            report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     dsm[np.isinf(dsm)] = np.nan
-    ground_xyz = np.concatenate(ground_parts) if ground_parts else np.empty((0, 3))
-    scratch = Path(run.scratch)
-    np.save(scratch / f"{info.name}.ground.npy", ground_xyz)
     np.savez(
-        scratch / f"{info.name}.grids.npz",
+        Path(run.scratch) / f"{info.name}.grids.npz",
         dsm=dsm.reshape(grid.shape),
         ground_count=ground_count.reshape(grid.shape).astype(np.int32),
         water_count=water_count.reshape(grid.shape).astype(np.int32),
@@ -173,16 +191,46 @@ def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[
     return out
 
 
+def _read_ground(files: list[Path], bounds, chunk_points: int = 2_000_000) -> np.ndarray:
+    """Ground points (n, 3) of scratch files that fall inside ``bounds``, read a chunk at a time."""
+    west, south, east, north = bounds
+    parts = []
+    for f in files:
+        if not f.exists():
+            continue
+        total = f.stat().st_size // 24
+        with open(f, "rb") as fh:
+            for _ in range(0, total, chunk_points):
+                pts = np.fromfile(fh, dtype=np.float64, count=3 * chunk_points).reshape(-1, 3)
+                m = (pts[:, 0] >= west) & (pts[:, 0] <= east) & (pts[:, 1] >= south) & (pts[:, 1] <= north)
+                if m.any():
+                    parts.append(pts[m])
+    return np.concatenate(parts) if parts else np.empty((0, 3))
+
+
+def _strips(counts_per_row: np.ndarray, max_points: int) -> list[tuple[int, int]]:
+    """Row ranges holding at most about ``max_points`` ground points each."""
+    strips, start, acc = [], 0, 0
+    for r, c in enumerate(counts_per_row):
+        if acc and acc + c > max_points:
+            strips.append((start, r))
+            start, acc = r, 0
+        acc += int(c)
+    strips.append((start, len(counts_per_row)))
+    return strips
+
+
 def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
-    """Pass 2: merge partial grids with neighbours, DEM from buffered ground points, write rasters."""
+    """Pass 2: merge partial grids with neighbours, DEM from buffered ground points, write rasters.
+
+    The DEM is computed in strips of at most ``run.tin_block_points`` ground points (plus
+    the buffer), so memory stays bounded whatever the tile size.
+    """
     crs = pyproj.CRS.from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
     scratch = Path(run.scratch)
     with np.load(scratch / f"{info.name}.grids.npz") as own:
         dsm, ground_count, water_count = own["dsm"].copy(), own["ground_count"].astype(np.int64), own["water_count"].astype(np.int64)
-    ground = [np.load(scratch / f"{info.name}.ground.npy")]
-    west, south, east, north = grid.bounds
-    b = run.buffer
     for other in neighbours:
         grids_file = scratch / f"{other.name}.grids.npz"
         if not grids_file.exists():  # the neighbour failed in pass 1
@@ -194,33 +242,35 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                 dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"][ro, co])
                 ground_count[rs, cs_] += nb["ground_count"][ro, co]
                 water_count[rs, cs_] += nb["water_count"][ro, co]
-        pts = np.load(scratch / f"{other.name}.ground.npy", mmap_mode="r")
-        near = (pts[:, 0] >= west - b) & (pts[:, 0] <= east + b) & (pts[:, 1] >= south - b) & (pts[:, 1] <= north + b)
-        ground.append(np.asarray(pts[near]))
-    ground_xyz = np.concatenate(ground)
-    water = (water_count > 0) & (ground_count == 0)
-    dem = dem_from_ground_points(
-        ground_xyz[:, 0], ground_xyz[:, 1], ground_xyz[:, 2], grid,
-        method=run.dem_method, max_distance=run.max_distance, water=water,
-    )
-    ndsm = ndsm_from(dsm, dem)
+    arrays = {"dsm": dsm}
+    if run.products != ("dsm",):
+        water = (water_count > 0) & (ground_count == 0)
+        files = [_ground_file(scratch, info.name)] + [_ground_file(scratch, o.name) for o in neighbours]
+        dem = np.full(grid.shape, np.nan)
+        b, cs = run.buffer, grid.cell_size
+        for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
+            strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
+            w, s, e, n = strip.bounds
+            pts = _read_ground(files, (w - b, s - b, e + b, n + b))
+            dem[r0:r1] = dem_from_ground_points(
+                pts[:, 0], pts[:, 1], pts[:, 2], strip,
+                method=run.dem_method, max_distance=run.max_distance, water=water[r0:r1],
+            )
+            del pts
+        arrays["dem"] = dem
+        arrays["ndsm"] = ndsm_from(dsm, dem)
     outputs = {}
     tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
-    for product, array in (("dsm", dsm), ("dem", dem), ("ndsm", ndsm)):
+    for product in run.products:
         path = Path(run.out) / product / f"{info.name}.tif"
-        write_raster(path, array, grid, overwrite=run.overwrite, units=run.z_unit,
+        write_raster(path, arrays[product], grid, overwrite=run.overwrite, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
-    return {
-        "outputs": outputs,
-        "cells": int(grid.width * grid.height),
-        "dem_nodata_cells": int(np.isnan(dem).sum()),
-        "dsm_nodata_cells": int(np.isnan(dsm).sum()),
-    }
+    return {"outputs": outputs}
 
 
-def _outputs_exist(out: Path, name: str) -> bool:
-    return all((out / p / f"{name}.tif").exists() for p in PRODUCTS)
+def _outputs_exist(out: Path, name: str, products=PRODUCTS) -> bool:
+    return all((out / p / f"{name}.tif").exists() for p in products)
 
 
 def _fail(result: TileResult, err: BaseException) -> None:
@@ -278,6 +328,8 @@ def rasters_from_tiles(
             dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
             max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
             out=str(out), overwrite=overwrite, crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
+            products=tuple(p for p in PRODUCTS if p in settings.products),
+            tin_block_points=settings.tin_block_points,
         )
         try:
             _run_passes(infos, results, run, jobs, overwrite, progress)
@@ -286,7 +338,7 @@ def rasters_from_tiles(
     else:
         out.mkdir(parents=True, exist_ok=True)
     vrts = {}
-    for product in PRODUCTS:
+    for product in settings.products:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
         mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
         if mine:
@@ -315,7 +367,7 @@ def rasters_from_tiles(
 
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress) -> None:
     out = Path(run.out)
-    todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name)}
+    todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name, run.products)}
     for i in infos:
         if i.name not in todo:
             results[i.name].status = "skipped"
