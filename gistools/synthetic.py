@@ -108,7 +108,7 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
     # River: meander west-east near the south of the block; creek from pond to river.
     us = np.linspace(-50, W + 50, 200)
     sc.river_centre = LineString(np.column_stack([x0 + us, y0 + 0.25 * H + 120 * np.sin(us / 300.0)]))
-    sc.river = sc.river_centre.buffer(22.5, cap_style="flat").intersection(block)
+    sc.river = sc.river_centre.buffer(22.5, cap_style="flat")  # runs past the block edges
     pond_c = (x0 + 0.78 * W, y0 + 0.86 * H)
     pond = _ellipse(*pond_c, 130, 85, angle=0.3)
     island = _ellipse(*pond_c, 26, 20)

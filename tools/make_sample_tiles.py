@@ -36,10 +36,10 @@ TILE_IDS = {(0, 0): 35712, (0, 1): 35713, (1, 0): 35812, (1, 1): 35813}
 LAZ_TILE = 35813
 
 
-def lines_of(geom):
-    """Boundary rings of a (multi)polygon as LineStrings."""
-    b = geom.boundary
-    return list(getattr(b, "geoms", [b]))
+def edges_within(geom, block):
+    """Edge lines of a (multi)polygon inside ``block``, merged where they join (no block-edge segments)."""
+    lines = shapely.line_merge(geom.boundary.intersection(block))
+    return list(getattr(lines, "geoms", [lines]))
 
 
 def main(argv=None):
@@ -66,13 +66,13 @@ def main(argv=None):
     block = box(*scene.bounds)
     gpkg = out / "breaklines.gpkg"
     gpd.GeoDataFrame(footprints, crs=CRS).to_file(gpkg, layer="FOOTPRINT")
-    road_edges = [ln for ln in lines_of(scene.road_union.intersection(block))]
+    road_edges = edges_within(scene.road_union, block)
     gpd.GeoDataFrame({"TYPE": ["EDGE_OF_PAVEMENT"] * len(road_edges)}, geometry=road_edges, crs=CRS).to_file(
         gpkg, layer="ROADBREAKLINE")
-    hydro = [(ln, "DUAL_LINE_BANK") for ln in lines_of(scene.river)] + [(scene.creek, "SINGLE_LINE")]
+    hydro = [(ln, "DUAL_LINE_BANK") for ln in edges_within(scene.river, block)] + [(scene.creek, "SINGLE_LINE")]
     gpd.GeoDataFrame({"TYPE": [t for _, t in hydro]}, geometry=[g for g, _ in hydro], crs=CRS).to_file(
         gpkg, layer="HYDROGRAPHICFEATURE")
-    gpd.GeoDataFrame({"NAME": ["river", "pond"]}, geometry=[scene.river, scene.pond], crs=CRS).to_file(
+    gpd.GeoDataFrame({"NAME": ["river", "pond"]}, geometry=[scene.river.intersection(block), scene.pond], crs=CRS).to_file(
         gpkg, layer="WATERBODY")
     gpd.GeoDataFrame({"NAME": ["wetland"]}, geometry=scene.wetland, crs=CRS).to_file(gpkg, layer="WETLAND")
     truth = out / "truth.gpkg"

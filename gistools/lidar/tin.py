@@ -13,23 +13,32 @@ import triangle as _triangle
 
 from ..grid import Grid
 
-__all__ = ["delaunay_triangles", "unique_xy", "tin_to_grid"]
+__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid"]
 
 _BATCH = 1_000_000  # triangles per evaluation batch (bounds temporary memory)
 
 
-def unique_xy(x: np.ndarray, y: np.ndarray, z: np.ndarray):
-    """Points with repeated (x, y) merged into one, z = mean of the repeats.
+def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray) -> np.ndarray:
+    """z with each repeated (x, y) given the mean z of its repeats, on the copy the TIN uses.
 
-    A TIN cannot hold two heights at one position; overlapping flight lines give
-    such repeats. Returns (x, y, z) float64 arrays.
+    A TIN cannot hold two heights at one position (overlapping flight lines give such
+    repeats). Triangle keeps the first of a repeated position and leaves the others out
+    of every triangle, so the unreferenced vertices are exactly the repeats.
     """
-    xy = np.column_stack([x, y])
-    uniq, inverse, counts = np.unique(xy, axis=0, return_inverse=True, return_counts=True)
-    if len(uniq) == len(x):
-        return np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64)
-    zsum = np.bincount(inverse.ravel(), weights=z, minlength=len(uniq))
-    return uniq[:, 0].copy(), uniq[:, 1].copy(), zsum / counts
+    used = np.zeros(len(x), bool)
+    used[tris.ravel()] = True
+    if used.all():
+        return z
+    cand = np.nonzero(np.isin(x, x[~used]))[0]
+    order = cand[np.lexsort((y[cand], x[cand]))]
+    xs, ys = x[order], y[order]
+    new = np.ones(len(order), bool)
+    new[1:] = (xs[1:] != xs[:-1]) | (ys[1:] != ys[:-1])
+    group = np.cumsum(new) - 1
+    zmean = np.bincount(group, weights=z[order]) / np.bincount(group)
+    z = z.copy()
+    z[order] = zmean[group]
+    return z
 
 
 def delaunay_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -42,7 +51,7 @@ def delaunay_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
         return np.empty((0, 3), np.int32)
     pts = np.column_stack([x - x.mean(), y - y.mean()])
     try:
-        result = _triangle.triangulate({"vertices": pts}, "Q")
+        result = _triangle.triangulate({"vertices": pts}, "QNBP")  # quiet; return triangles only
     except Exception:  # Triangle rejects degenerate (e.g. collinear) input
         return np.empty((0, 3), np.int32)
     return result.get("triangles", np.empty((0, 3), np.int32)).astype(np.int32, copy=False)
@@ -63,64 +72,67 @@ def tin_to_grid(
     """
     if out is None:
         out = np.full(grid.shape, np.nan)
-    x, y, z = unique_xy(np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64))
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     tris = delaunay_triangles(x, y)
-    if max_edge is not None and len(tris):
-        ex, ey = x[tris], y[tris]
-        e2 = np.maximum.reduce([(ex[:, i] - ex[:, j]) ** 2 + (ey[:, i] - ey[:, j]) ** 2 for i, j in ((0, 1), (1, 2), (2, 0))])
-        tris = tris[e2 <= max_edge * max_edge]
     if len(tris) == 0:
         return out
+    z = merge_repeats(x, y, z, tris)
     cs = grid.cell_size
     # Work in cell units relative to the grid's west/north edge: u = col + 0.5 at a centre, v = row + 0.5.
     u = (x / cs) - grid.col0
     v = grid.row_top - (y / cs)
     flat_out = out.reshape(-1)
+    max_edge_cells = None if max_edge is None else max_edge / cs
     for start in range(0, len(tris), _BATCH):
         t = tris[start : start + _BATCH]
-        _eval_batch(u[t], v[t], z[t], grid.width, grid.height, flat_out)
+        i0, i1, i2 = t[:, 0], t[:, 1], t[:, 2]
+        _eval_batch(u[i0], u[i1], u[i2], v[i0], v[i1], v[i2], z[i0], z[i1], z[i2],
+                    grid.width, grid.height, flat_out, max_edge_cells)
     return out
 
 
-def _eval_batch(U, V, Z, width, height, flat_out):
-    """Evaluate triangles (vertex arrays (m, 3) in cell units) at the cell centres they cover."""
-    c_lo = np.ceil(U.min(axis=1) - 0.5).astype(np.int64)
-    c_hi = np.floor(U.max(axis=1) - 0.5).astype(np.int64)
-    r_lo = np.ceil(V.min(axis=1) - 0.5).astype(np.int64)
-    r_hi = np.floor(V.max(axis=1) - 0.5).astype(np.int64)
-    np.maximum(c_lo, 0, out=c_lo)
-    np.minimum(c_hi, width - 1, out=c_hi)
-    np.maximum(r_lo, 0, out=r_lo)
-    np.minimum(r_hi, height - 1, out=r_hi)
-    nc = np.clip(c_hi - c_lo + 1, 0, None)
-    nr = np.clip(r_hi - r_lo + 1, 0, None)
-    k = nc * nr
-    keep = k > 0
+def _min3(a, b, c):
+    return np.minimum(np.minimum(a, b), c)
+
+
+def _max3(a, b, c):
+    return np.maximum(np.maximum(a, b), c)
+
+
+def _eval_batch(ax, bx, cx, ay, by, cy, za, zb, zc, width, height, flat_out, max_edge=None):
+    """Evaluate triangles (vertices a, b, c in cell units) at the cell centres they cover."""
+    if max_edge is not None:
+        e2 = _max3((ax - bx) ** 2 + (ay - by) ** 2, (bx - cx) ** 2 + (by - cy) ** 2, (cx - ax) ** 2 + (cy - ay) ** 2)
+        keep = e2 <= max_edge * max_edge
+        if not keep.all():
+            ax, bx, cx, ay, by, cy, za, zb, zc = (a[keep] for a in (ax, bx, cx, ay, by, cy, za, zb, zc))
+    c_lo = np.maximum(np.ceil(_min3(ax, bx, cx) - 0.5), 0).astype(np.int64)
+    c_hi = np.minimum(np.floor(_max3(ax, bx, cx) - 0.5), width - 1).astype(np.int64)
+    r_lo = np.maximum(np.ceil(_min3(ay, by, cy) - 0.5), 0).astype(np.int64)
+    r_hi = np.minimum(np.floor(_max3(ay, by, cy) - 0.5), height - 1).astype(np.int64)
+    nc = c_hi - c_lo + 1
+    nr = r_hi - r_lo + 1
+    det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
+    keep = (nc > 0) & (nr > 0) & (det != 0)
     if not keep.any():
         return
-    U, V, Z, c_lo, r_lo, nc, k = U[keep], V[keep], Z[keep], c_lo[keep], r_lo[keep], nc[keep], k[keep]
-    # Barycentric coefficients per triangle.
-    ax, bx, cx = U[:, 0], U[:, 1], U[:, 2]
-    ay, by, cy = V[:, 0], V[:, 1], V[:, 2]
-    det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy)
-    good = det != 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = np.where(good, 1.0 / det, 0.0)
-    k = np.where(good, k, 0)
+    idx = np.nonzero(keep)[0]
+    nc, nr = nc[idx], nr[idx]
+    k = nc * nr
     total = int(k.sum())
-    if total == 0:
-        return
-    tri = np.repeat(np.arange(len(k)), k)
+    # one candidate per (triangle, covered cell centre)
+    tri = np.repeat(idx, k)
     j = np.arange(total) - np.repeat(np.cumsum(k) - k, k)
-    ncr = nc[tri]
+    ncr = np.repeat(nc, k)
     col = c_lo[tri] + j % ncr
     row = r_lo[tri] + j // ncr
+    inv = 1.0 / det[tri]
     px = col + 0.5 - cx[tri]
     py = row + 0.5 - cy[tri]
-    w1 = ((by - cy)[tri] * px + (cx - bx)[tri] * py) * inv[tri]
-    w2 = ((cy - ay)[tri] * px + (ax - cx)[tri] * py) * inv[tri]
+    w1 = ((by - cy)[tri] * px + (cx - bx)[tri] * py) * inv
+    w2 = ((cy - ay)[tri] * px + (ax - cx)[tri] * py) * inv
     w3 = 1.0 - w1 - w2
     eps = -1e-9
     inside = (w1 >= eps) & (w2 >= eps) & (w3 >= eps)
-    zi = w1 * Z[tri, 0] + w2 * Z[tri, 1] + w3 * Z[tri, 2]
+    zi = w1 * za[tri] + w2 * zb[tri] + w3 * zc[tri]
     flat_out[(row * width + col)[inside]] = zi[inside]

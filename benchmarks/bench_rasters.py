@@ -1,0 +1,200 @@
+#!/usr/bin/env python3
+"""Throughput and memory of ``gistools rasters`` (DSM + TIN DEM + nDSM) against WhiteboxTools.
+
+Generates (once, cached in --workdir) a block of 4 tiles totalling --points points
+(synthetic scene: smooth rolling ground, roads, water, shrub and trees with up to 4
+returns), as LAS and as LAZ, plus one tile of --big-tile points. Then runs, each in a
+fresh process so peak RSS is its own:
+
+* pure laspy decode of the same files (chunked, nothing else: the floor);
+* gistools DSM + DEM (TIN) + nDSM from LAS and LAZ with --jobs 1 and --jobs 2;
+* gistools DSM alone from LAZ, --jobs 1, against the decode throughput;
+* WhiteboxTools (whitebox-workflows wheel) lidar_block_maximum + lidar_tin_gridding over
+  the same LAS tiles, two tiles at a time (it uses mostly one core per tile here);
+* gistools on the single big tile, for peak RSS.
+
+Prints points per second, peak RSS per worker and the ratios the targets are stated in.
+
+    python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+PY = sys.executable
+
+
+def generate(workdir: Path, points: float, big: float) -> dict:
+    """Write the block (LAS and LAZ) and the big tile, unless already there."""
+    import numpy as np
+    import pyproj
+
+    from gistools.io.points import write_tile
+    from gistools.synthetic import make_scene, scene_points
+
+    crs = pyproj.CRS.from_epsg(2882)
+    spacing = 1.0  # ft between pulses: about 11 pulses per m2, a modern ALS density
+    pts_per_pulse = 1.06  # measured on the scene (vegetation gives extra returns)
+    tile = math.ceil(math.sqrt(points / 4 / pts_per_pulse) * spacing / 10) * 10
+    meta = workdir / "block.json"
+    if meta.exists():
+        info = json.loads(meta.read_text())
+        if info["points_target"] == points and info["big_target"] == big:
+            return info
+    for sub in ("las", "laz", "big"):
+        (workdir / sub).mkdir(parents=True, exist_ok=True)
+        for f in (workdir / sub).iterdir():
+            f.unlink()
+    origin = (430000.0, 1810000.0)
+    scene = make_scene(origin, (2 * tile, 2 * tile), seed=1)
+    total = 0
+    for i in range(2):
+        for j in range(2):
+            w, s = origin[0] + i * tile, origin[1] + j * tile
+            p = scene_points(scene, (w, s, w + tile, s + tile), spacing=spacing, seed=10 * i + j)
+            total += len(p["x"])
+            for sub, suffix in (("las", ".las"), ("laz", ".laz")):
+                write_tile(workdir / sub / f"t{i}{j}{suffix}", p, crs, version="1.2", point_format=1, offsets=[w, s, 0])
+            del p
+    big_side = math.ceil(math.sqrt(big / pts_per_pulse) * spacing / 10) * 10
+    bscene = make_scene(origin, (big_side, big_side), seed=2)
+    p = scene_points(bscene, bscene.bounds, spacing=spacing, seed=3)
+    big_points = len(p["x"])
+    write_tile(workdir / "big" / "big.las", p, crs, version="1.2", point_format=1, offsets=[origin[0], origin[1], 0])
+    del p
+    info = {"points_target": points, "big_target": big, "points": total, "tile_ft": tile, "big_points": big_points,
+            "big_ft": big_side}
+    meta.write_text(json.dumps(info))
+    return info
+
+
+def run_child(code: str) -> dict:
+    """Run code in a fresh interpreter; it prints one JSON line, to which peak RSS is added."""
+    prologue = textwrap.dedent(
+        """
+        import json, resource, sys, time
+        sys.path.insert(0, %r)
+        def _done(result):
+            self_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+            kids_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024
+            result.update(rss_self_mb=self_mb, rss_children_mb=kids_mb)
+            print(json.dumps(result))
+        """ % str(ROOT)
+    )
+    full = prologue + "\nif __name__ == '__main__':\n" + textwrap.indent(textwrap.dedent(code), "    ")
+    out = subprocess.run([PY, "-c", full], capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
+    if out.returncode != 0:
+        raise RuntimeError(out.stderr[-3000:])
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def decode(files) -> dict:
+    return run_child(f"""
+        import laspy
+        t = time.perf_counter(); n = 0
+        for f in {[str(f) for f in files]!r}:
+            with laspy.open(f) as r:
+                for pts in r.chunk_iterator(2_000_000):
+                    n += len(pts)
+                    pts.X, pts.Y, pts.Z, pts.classification, pts.return_number  # decode the fields we use
+        _done(dict(seconds=time.perf_counter() - t, points=n))
+    """)
+
+
+def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
+    return run_child(f"""
+        import shutil
+        from gistools import rasters_from_tiles, RasterSettings
+        shutil.rmtree({str(out)!r}, ignore_errors=True)
+        t = time.perf_counter()
+        s = rasters_from_tiles([{str(folder)!r}], {str(out)!r}, RasterSettings(products={tuple(products)!r}), jobs={jobs})
+        assert s["counts"]["failed"] == 0, s
+        _done(dict(seconds=time.perf_counter() - t, points=sum(t["points"] for t in s["tiles"])))
+    """)
+
+
+def whitebox_run(files, out: Path, cell: float, max_edge: float) -> dict:
+    """WhiteboxTools: block maximum (DSM) + TIN gridding of ground, two tiles at a time (two processes)."""
+    out.mkdir(parents=True, exist_ok=True)
+    halves = [files[0::2], files[1::2]]
+    code = """
+import sys, time
+import whitebox_workflows as wbw
+wbe = wbw.WbEnvironment()
+for f in sys.argv[2:]:
+    lidar = wbe.read_lidar(f)
+    grid = wbe.lidar.interpolation_gridding
+    dsm = grid.lidar_block_maximum(input=lidar, resolution=%r)
+    wbe.write_raster(dsm, sys.argv[1] + "/" + f.split("/")[-1] + ".dsm.tif")
+    dem = grid.lidar_tin_gridding(input=lidar, resolution=%r, returns_included="all",
+                                 excluded_classes=[c for c in range(19) if c != 2], max_triangle_edge_length=%r)
+    wbe.write_raster(dem, sys.argv[1] + "/" + f.split("/")[-1] + ".dem.tif")
+""" % (cell, cell, max_edge)
+    t = time.perf_counter()
+    procs = [subprocess.Popen([PY, "-c", code, str(out)] + [str(f) for f in h]) for h in halves if h]
+    rc = [p.wait() for p in procs]
+    if any(rc):
+        raise RuntimeError(f"whitebox-workflows failed: {rc}")
+    return {"seconds": time.perf_counter() - t}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=float, default=20e6, help="points in the 4-tile block")
+    ap.add_argument("--big-tile", type=float, default=20e6, help="points in the single big tile (RSS check)")
+    ap.add_argument("--workdir", default="/tmp/gistools-bench")
+    ap.add_argument("--skip-whitebox", action="store_true")
+    args = ap.parse_args(argv)
+    work = Path(args.workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    t = time.perf_counter()
+    info = generate(work, args.points, args.big_tile)
+    print(f"block: 4 tiles of {info['tile_ft']} ft, {info['points']:,} points (LAS and LAZ); "
+          f"big tile: {info['big_points']:,} points  [{time.perf_counter() - t:.0f} s to prepare]", flush=True)
+    las = sorted((work / "las").glob("*.las"))
+    laz = sorted((work / "laz").glob("*.laz"))
+    n = info["points"]
+    rows = {}
+
+    def show(name, r, npts=n):
+        rows[name] = r
+        rss = max(r.get("rss_self_mb", 0), r.get("rss_children_mb", 0)) if "rss_self_mb" in r else float("nan")
+        print(f"{name:<44} {r['seconds']:8.2f} s  {npts / r['seconds'] / 1e6:7.2f} M pts/s  peak RSS/worker {rss:7.0f} MB", flush=True)
+
+    show("laspy decode, LAS", decode(las))
+    show("laspy decode, LAZ", decode(laz))
+    show("gistools DSM only, LAZ, --jobs 1", gistools_run(work / "laz", work / "out", 1, ("dsm",)))
+    show("gistools DSM+DEM+nDSM, LAS, --jobs 1", gistools_run(work / "las", work / "out", 1))
+    show("gistools DSM+DEM+nDSM, LAS, --jobs 2", gistools_run(work / "las", work / "out", 2))
+    show("gistools DSM+DEM+nDSM, LAZ, --jobs 1", gistools_run(work / "laz", work / "out", 1))
+    show("gistools DSM+DEM+nDSM, LAZ, --jobs 2", gistools_run(work / "laz", work / "out", 2))
+    if not args.skip_whitebox:
+        # same cell (5 ft) and triangle edge limit (2 x 15 m) as gistools' defaults
+        show("WhiteboxTools block max + TIN, LAS, 2 at a time", whitebox_run(las, work / "wbt", 5.0, 2 * 15 / 0.3048006096))
+    show("gistools DSM+DEM+nDSM, one big LAS tile", gistools_run(work / "big", work / "out_big", 1), info["big_points"])
+    print()
+    rate = {k: (info["big_points"] if "big" in k else n) / v["seconds"] for k, v in rows.items()}
+    print(f"DSM alone from LAZ / pure LAZ decode:     {rate['gistools DSM only, LAZ, --jobs 1'] / rate['laspy decode, LAZ']:.2f}  (target >= 0.70)")
+    if not args.skip_whitebox:
+        wb = rate["WhiteboxTools block max + TIN, LAS, 2 at a time"]
+        for k in ("gistools DSM+DEM+nDSM, LAS, --jobs 2", "gistools DSM+DEM+nDSM, LAZ, --jobs 2",
+                  "gistools DSM+DEM+nDSM, LAS, --jobs 1"):
+            print(f"{k} / WhiteboxTools:  {rate[k] / wb:.2f}  (target >= 3 with --jobs 2)")
+    big = rows["gistools DSM+DEM+nDSM, one big LAS tile"]
+    print(f"peak RSS, {info['big_points']:,}-point tile: {big['rss_self_mb']:.0f} MB  (target < 1500 MB)")
+
+
+if __name__ == "__main__":
+    main()
