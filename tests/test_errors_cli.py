@@ -151,3 +151,29 @@ def test_info_prints_header_crs_units_and_counts(sample_tiles, autzen):
 def test_bad_cell_size_is_one_line(sample_tiles, tmp_path):
     result = CliRunner().invoke(cli, ["rasters", str(sample_tiles[0]), "--out", str(tmp_path), "--cell-size", "5 parsecs"])
     assert result.exit_code == 1 and "cell size" in result.output and "Traceback" not in result.output
+
+
+def test_ctrl_c_leaves_no_partial_file(sample_tiles, tmp_path):
+    """SIGINT in the middle of a run: exit 130, one line, no partial file, no scratch left."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for k in range(4):  # 16 tiles, so the run is long enough to be interrupted
+        for p in sample_tiles:
+            shutil.copy(p, tiles / f"{p.stem}_{k}{p.suffix}")
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "gistools.cli.main", "rasters", str(tiles),
+                             "--out", str(out), "-q", "--chunk-size", "5000", "--jobs", "2"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.time() + 60
+    while not list(out.glob(".gistools-scratch-*/*.npz")) and time.time() < deadline:
+        time.sleep(0.05)  # wait until the run is under way
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "Traceback" not in err
+    assert not list(out.rglob("*.partial")) and not list(out.glob(".gistools-scratch-*"))

@@ -78,3 +78,23 @@ def test_dsm_only_run(sample_tiles, sample_run, tmp_path):
     a, _, _ = read_raster(tmp_path / "dsm.vrt")
     b, _, _ = read_raster(sample_run[0] / "dsm.vrt")
     assert np.array_equal(a, b, equal_nan=True)
+
+
+def test_overlapping_tiles_read_each_other_whole(sample_tiles, tmp_path):
+    """Two deliveries of the same area (overlapping tiles): each tile's DEM uses all of the other's ground."""
+    laz = sample_tiles[0]
+    a = tmp_path / "in" / "a.las"
+    b = tmp_path / "in" / "b.las"
+    las = laspy.read(laz)
+    pts = _las_dict(las)
+    crs = las.header.parse_crs()
+    even = np.arange(len(pts["x"])) % 2 == 0
+    write_tile(a, {k: v[even] for k, v in pts.items()}, crs, version="1.1", point_format=1)
+    write_tile(b, {k: v[~even] for k, v in pts.items()}, crs, version="1.1", point_format=1)
+    rasters_from_tiles([a, b], tmp_path / "split")
+    rasters_from_tiles([laz], tmp_path / "whole")
+    for name in ("a", "b"):
+        x, _, _ = read_raster(tmp_path / "split" / "dem" / f"{name}.tif")
+        w, _, _ = read_raster(tmp_path / "whole" / "dem" / f"{laz.stem}.tif")
+        assert x.shape == w.shape
+        assert np.array_equal(np.isnan(x), np.isnan(w)) and np.nanmax(np.abs(x - w)) < 1e-3

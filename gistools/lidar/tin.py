@@ -86,6 +86,21 @@ def tin_to_grid(
     for start in range(0, len(tris), _BATCH):
         t = tris[start : start + _BATCH]
         i0, i1, i2 = t[:, 0], t[:, 1], t[:, 2]
+        ax, bx, cx = u[i0], u[i1], u[i2]
+        # keep only triangles whose bounding box holds a cell centre (few, when points are dense)
+        c_lo = np.ceil(_min3(ax, bx, cx) - 0.5)
+        c_hi = np.floor(_max3(ax, bx, cx) - 0.5)
+        hit = (c_hi >= np.maximum(c_lo, 0)) & (np.minimum(c_hi, grid.width - 1) >= c_lo)
+        if not hit.any():
+            continue
+        i0, i1, i2 = i0[hit], i1[hit], i2[hit]
+        ay, by, cy = v[i0], v[i1], v[i2]
+        r_lo = np.ceil(_min3(ay, by, cy) - 0.5)
+        r_hi = np.floor(_max3(ay, by, cy) - 0.5)
+        hit = (r_hi >= np.maximum(r_lo, 0)) & (np.minimum(r_hi, grid.height - 1) >= r_lo)
+        if not hit.any():
+            continue
+        i0, i1, i2 = i0[hit], i1[hit], i2[hit]
         _eval_batch(u[i0], u[i1], u[i2], v[i0], v[i1], v[i2], z[i0], z[i1], z[i2],
                     grid.width, grid.height, flat_out, max_edge_cells)
     return out

@@ -121,8 +121,9 @@ def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
     return snapped_grid(info.bounds, run.cell_size, crs)
 
 
-def _ground_file(scratch, name) -> Path:
-    return Path(scratch) / f"{name}.ground.f8"
+def _ground_file(scratch, name, halo: bool = False) -> Path:
+    """Scratch file of a tile's ground points (x, y, z float64); ``halo``: only those within the buffer of its edges."""
+    return Path(scratch) / f"{name}.{'halo' if halo else 'ground'}.f8"
 
 
 def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
@@ -141,8 +142,9 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     outside = 0
     done = 0
     west, south, east, north = info.bounds
-    ground_path = _ground_file(run.scratch, info.name)
-    with open(ground_path, "wb") as ground_out:
+    b = run.buffer
+    with open(_ground_file(run.scratch, info.name), "wb") as ground_out, \
+            open(_ground_file(run.scratch, info.name, halo=True), "wb") as halo_out:
         for chunk in iter_chunks(info, run.chunk_size):
             cls = chunk.classification
             by_class += np.bincount(cls, minlength=256)[:256]
@@ -161,7 +163,10 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 gx, gy, gz = chunk.x[ground], chunk.y[ground], chunk.z[ground]
                 ground_count += cell_statistic(grid, gx, gy, gz, "count").reshape(-1)
                 water_count += cell_statistic(grid, chunk.x[water], chunk.y[water], chunk.z[water], "count").reshape(-1)
-                np.column_stack([gx, gy, gz]).tofile(ground_out)
+                xyz = np.column_stack([gx, gy, gz])
+                xyz.tofile(ground_out)
+                near_edge = (gx < west + b) | (gx > east - b) | (gy < south + b) | (gy > north - b)
+                xyz[near_edge].tofile(halo_out)  # what the neighbours read
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     dsm[np.isinf(dsm)] = np.nan
@@ -245,9 +250,16 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     arrays = {"dsm": dsm}
     if run.products != ("dsm",):
         water = (water_count > 0) & (ground_count == 0)
-        files = [_ground_file(scratch, info.name)] + [_ground_file(scratch, o.name) for o in neighbours]
+        b = run.buffer
+        gw, gs, ge, gn = grid.bounds
+        files = [_ground_file(scratch, info.name)]
+        for o in neighbours:
+            # a neighbour's halo holds its points within the buffer of its edges; tiles that overlap
+            # this one beyond that strip (overlapping deliveries) are read whole
+            ow, os_, oe, on = o.bounds
+            deep = (ow + b < ge + b) and (oe - b > gw - b) and (os_ + b < gn + b) and (on - b > gs - b)
+            files.append(_ground_file(scratch, o.name, halo=not deep))
         dem = np.full(grid.shape, np.nan)
-        b, cs = run.buffer, grid.cell_size
         for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
             strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
             w, s, e, n = strip.bounds
