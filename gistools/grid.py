@@ -107,10 +107,14 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
 def cell_index(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Flat cell index (row * width + col) of each point, -1 outside the grid."""
     cs = grid.cell_size
-    col = lattice_offset(x, cs) - grid.col0
-    row = (grid.row_top - 1) - lattice_offset(y, cs)
+    col = np.floor(np.divide(x, cs, dtype=np.float64))
+    col -= grid.col0
+    row = np.floor(np.divide(y, cs, dtype=np.float64))
+    np.subtract(grid.row_top - 1, row, out=row)
     inside = (col >= 0) & (col < grid.width) & (row >= 0) & (row < grid.height)
-    flat = row * grid.width + col
+    row *= grid.width
+    row += col
+    flat = row.astype(np.int64)
     flat[~inside] = -1
     return flat
 

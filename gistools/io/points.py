@@ -20,6 +20,7 @@ from ..errors import CRSMismatchError, DataFileError, EmptyTileError, InputError
 from ..units import LinearUnit, horizontal_unit, vertical_unit
 
 __all__ = [
+    "scaled",
     "TileInfo",
     "PointChunk",
     "read_tile_info",
@@ -79,6 +80,7 @@ class PointChunk:
     number_of_returns: np.ndarray
     withheld: np.ndarray
     intensity: np.ndarray | None = None
+    raw: object = None  # the laspy point record, for fields not extracted (e.g. raw integer Z)
 
     def __len__(self) -> int:
         return len(self.x)
@@ -184,10 +186,16 @@ def common_crs(infos: list[TileInfo]) -> pyproj.CRS:
     return first.crs
 
 
-def iter_chunks(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensity: bool = False) -> Iterator[PointChunk]:
+ALL_FIELDS = ("x", "y", "z", "classification", "return_number", "number_of_returns", "withheld")
+
+
+def iter_chunks(
+    info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensity: bool = False, fields=ALL_FIELDS
+) -> Iterator[PointChunk]:
     """Points of a tile, ``chunk_size`` at a time, as :class:`PointChunk` arrays.
 
-    Raises DataFileError naming the file when decoding fails (e.g. a truncated LAZ).
+    ``fields`` limits what is extracted (the others are None), which saves time on
+    big tiles. Raises DataFileError naming the file when decoding fails (e.g. a truncated LAZ).
     """
     path = info.path
     try:
@@ -195,7 +203,7 @@ def iter_chunks(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensi
             for points in reader.chunk_iterator(chunk_size):
                 if len(points) == 0:
                     continue
-                yield _chunk_from(points, intensity)
+                yield _chunk_from(points, intensity, fields)
     except DataFileError:
         raise
     except (GeneratorExit, KeyboardInterrupt):
@@ -204,18 +212,26 @@ def iter_chunks(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensi
         raise _open_error(path, err) from None
 
 
-def _chunk_from(points, intensity: bool) -> PointChunk:
-    withheld = np.asarray(points.withheld, bool)
-    return PointChunk(
-        x=np.asarray(points.x, np.float64),
-        y=np.asarray(points.y, np.float64),
-        z=np.asarray(points.z, np.float64),
-        classification=np.asarray(points.classification, np.uint8),
-        return_number=np.asarray(points.return_number, np.uint8),
-        number_of_returns=np.asarray(points.number_of_returns, np.uint8),
-        withheld=withheld,
-        intensity=np.asarray(points.intensity, np.uint16) if intensity else None,
-    )
+_DTYPES = {"x": np.float64, "y": np.float64, "z": np.float64, "classification": np.uint8, "return_number": np.uint8,
+           "number_of_returns": np.uint8, "withheld": bool}
+
+
+def _chunk_from(points, intensity: bool, fields=ALL_FIELDS) -> PointChunk:
+    values = {name: (np.asarray(getattr(points, name), _DTYPES[name]) if name in fields else None) for name in ALL_FIELDS}
+    return PointChunk(**values, intensity=np.asarray(points.intensity, np.uint16) if intensity else None, raw=points)
+
+
+def scaled(chunk: PointChunk, axis: str, mask: np.ndarray) -> np.ndarray:
+    """x, y or z of the points under ``mask`` (float64), scaled from the raw integers only for them.
+
+    Gives the same values as laspy's scaled arrays (raw * scale + offset).
+    """
+    full = getattr(chunk, axis)
+    if full is not None:
+        return full[mask]
+    i = "xyz".index(axis)
+    raw = np.asarray(getattr(chunk.raw, axis.upper()))[mask]
+    return raw * chunk.raw.scales[i] + chunk.raw.offsets[i]
 
 
 def read_points(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE) -> PointChunk:

@@ -30,11 +30,11 @@ import pyproj
 from affine import Affine
 
 from ..errors import Cancelled, GistoolsError, InputError
-from ..grid import Grid, snapped_grid
-from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
+from ..grid import Grid, cell_index, snapped_grid
+from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.raster import NODATA, atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
-from ..lidar.gridding import DEM_METHODS, cell_max, cell_statistic, dem_from_ground_points, ndsm_from
+from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report
 from ..units import length_to_crs_units
 
@@ -145,24 +145,30 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     b = run.buffer
     with open(_ground_file(run.scratch, info.name), "wb") as ground_out, \
             open(_ground_file(run.scratch, info.name, halo=True), "wb") as halo_out:
-        for chunk in iter_chunks(info, run.chunk_size):
+        fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
+        if run.dsm_classes is None:
+            surface_class = np.ones(256, bool)
+            surface_class[list(NOISE_CLASSES)] = False
+        else:
+            surface_class = np.zeros(256, bool)
+            surface_class[list(run.dsm_classes)] = True
+        flat_dsm = dsm  # 1-D view
+        for chunk in iter_chunks(info, run.chunk_size, fields=fields):
             cls = chunk.classification
             by_class += np.bincount(cls, minlength=256)[:256]
             by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
-            outside += int(np.count_nonzero((chunk.x < west) | (chunk.x > east) | (chunk.y < south) | (chunk.y > north)))
-            usable = ~chunk.withheld
-            if run.dsm_classes is None:
-                surface = usable & ~np.isin(cls, NOISE_CLASSES)
-            else:
-                surface = usable & np.isin(cls, run.dsm_classes)
-            surface &= chunk.return_number <= 1  # first returns (0 = not recorded, taken as first)
-            cell_max(dsm.reshape(grid.shape), grid, chunk.x[surface], chunk.y[surface], chunk.z[surface])
+            cell = cell_index(grid, chunk.x, chunk.y)  # -1 outside the grid, i.e. outside the header bounds
+            inside = cell >= 0
+            outside += int(len(cell) - np.count_nonzero(inside))
+            usable = inside & ~chunk.withheld
+            # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
+            surface = usable & surface_class[cls] & (chunk.return_number <= 1)
+            np.maximum.at(flat_dsm, cell[surface], scaled(chunk, "z", surface))
             if need_dem:
                 ground = usable & (cls == GROUND_CLASS)
-                water = usable & (cls == WATER_CLASS)
-                gx, gy, gz = chunk.x[ground], chunk.y[ground], chunk.z[ground]
-                ground_count += cell_statistic(grid, gx, gy, gz, "count").reshape(-1)
-                water_count += cell_statistic(grid, chunk.x[water], chunk.y[water], chunk.z[water], "count").reshape(-1)
+                ground_count += np.bincount(cell[ground], minlength=n)
+                water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
+                gx, gy, gz = chunk.x[ground], chunk.y[ground], scaled(chunk, "z", ground)
                 xyz = np.column_stack([gx, gy, gz])
                 xyz.tofile(ground_out)
                 near_edge = (gx < west + b) | (gx > east - b) | (gy < south + b) | (gy > north - b)
