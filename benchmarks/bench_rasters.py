@@ -189,15 +189,17 @@ def main(argv=None):
     if not args.skip_whitebox:
         # same cell (5 ft) and triangle edge limit (2 x 15 m) as gistools' defaults
         show("WhiteboxTools block max + TIN, LAS, 2 at a time", whitebox_run(las, work / "wbt", 5.0, 2 * 15 / 0.3048006096))
+        show("WhiteboxTools block max + TIN, LAZ, 2 at a time", whitebox_run(laz, work / "wbt", 5.0, 2 * 15 / 0.3048006096))
     show("gistools DSM+DEM+nDSM, one big LAS tile", gistools_run(work / "big", work / "out_big", 1), info["big_points"])
     print()
     rate = {k: (info["big_points"] if "big" in k else n) / v["seconds"] for k, v in rows.items()}
     print(f"DSM alone from LAZ / pure LAZ decode:     {rate['gistools DSM only, LAZ, --jobs 1'] / rate['laspy decode, LAZ']:.2f}  (target >= 0.70)")
     if not args.skip_whitebox:
-        wb = rate["WhiteboxTools block max + TIN, LAS, 2 at a time"]
-        for k in ("gistools DSM+DEM+nDSM, LAS, --jobs 2", "gistools DSM+DEM+nDSM, LAZ, --jobs 2",
-                  "gistools DSM+DEM+nDSM, LAS, --jobs 1"):
-            print(f"{k} / WhiteboxTools:  {rate[k] / wb:.2f}  (target >= 3 with --jobs 2)")
+        for fmt in ("LAS", "LAZ"):
+            wb = rate[f"WhiteboxTools block max + TIN, {fmt}, 2 at a time"]
+            for jobs in (1, 2):
+                k = f"gistools DSM+DEM+nDSM, {fmt}, --jobs {jobs}"
+                print(f"{k} / WhiteboxTools ({fmt}):  {rate[k] / wb:.2f}  (target >= 3 with --jobs 2)")
     big = rows["gistools DSM+DEM+nDSM, one big LAS tile"]
     print(f"peak RSS, {info['big_points']:,}-point tile: {max(big['rss_self_mb'], big['rss_children_mb']):.0f} MB  (target < 1500 MB)")
 

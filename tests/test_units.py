@@ -51,3 +51,26 @@ def test_bad_lengths_name_the_fix(bad):
     with pytest.raises(InputError) as err:
         length_to_crs_units(bad, M, name="cell size")
     assert "cell size" in str(err.value)
+
+
+def test_vertical_unit_from_geotiff_keys(tmp_path):
+    """Horizontal ftUS (EPSG:2882) with z in metres (VerticalCSTypeGeoKey 5703, NAVD88 height m)."""
+    import numpy as np
+
+    from gistools.io.points import read_tile_info, write_tile
+
+    pts = {"x": np.array([430000.0, 430010.0]), "y": np.array([1810000.0, 1810010.0]), "z": np.array([10.0, 11.0]),
+           "classification": np.array([2, 2], np.uint8), "return_number": np.array([1, 1], np.uint8),
+           "number_of_returns": np.array([1, 1], np.uint8)}
+    crs = pyproj.CRS.from_epsg(2882)
+    write_tile(tmp_path / "m.las", pts, crs, version="1.2", point_format=1, vertical_epsg=5703)
+    write_tile(tmp_path / "f.las", pts, crs, version="1.2", point_format=1, vertical_epsg=6360)
+    write_tile(tmp_path / "none.las", pts, crs, version="1.2", point_format=1)
+    assert read_tile_info(tmp_path / "m.las").z_unit.short == "m"
+    assert read_tile_info(tmp_path / "f.las").z_unit.short == "ftUS"
+    assert read_tile_info(tmp_path / "none.las").z_unit.short == "ftUS"  # the horizontal unit
+    from gistools.errors import CRSMismatchError
+    from gistools.io.points import common_crs
+
+    with pytest.raises(CRSMismatchError, match="z is in metre"):
+        common_crs([read_tile_info(tmp_path / "f.las"), read_tile_info(tmp_path / "m.las")])

@@ -60,7 +60,8 @@ def main(argv=None):
         m = (pts["x"] >= w) & (pts["x"] < w + TILE) & (pts["y"] >= s) & (pts["y"] < s + TILE)
         tile = {k: v[m] for k, v in pts.items()}
         suffix = ".laz" if tid == LAZ_TILE else ".las"
-        write_tile(out / f"{tid}{suffix}", tile, CRS, version="1.1", point_format=1, offsets=[w, s, 0.0])
+        write_tile(out / f"{tid}{suffix}", tile, CRS, version="1.1", point_format=1, offsets=[w, s, 0.0],
+                   vertical_epsg=6360)  # NAVD88 height (ftUS), as FDEM deliveries
         footprints.append({"TILE_ID": tid, "FILENAME": f"{tid}{suffix}", "geometry": box(w, s, w + TILE, s + TILE)})
         print(f"{tid}{suffix}: {m.sum():,} points")
     block = box(*scene.bounds)

@@ -53,6 +53,7 @@ class TileInfo:
     offsets: tuple[float, float, float]
     compressed: bool
     points_by_return: tuple[int, ...] = field(default=())
+    geokey_z_unit: LinearUnit | None = None  # from the GeoTIFF vertical keys, when the CRS is not compound
 
     @property
     def name(self) -> str:
@@ -65,7 +66,10 @@ class TileInfo:
 
     @property
     def z_unit(self) -> LinearUnit:
-        return vertical_unit(self.crs)
+        """Unit of z: the compound CRS's vertical unit, else the GeoTIFF vertical keys', else the horizontal unit."""
+        if self.crs.is_compound or self.geokey_z_unit is None:
+            return vertical_unit(self.crs)
+        return self.geokey_z_unit
 
 
 @dataclass
@@ -115,6 +119,47 @@ def _open_error(path: Path, err: Exception) -> DataFileError:
     )
 
 
+_GEOKEY_UNITS = {9001: LinearUnit("metre", 1.0), 9002: LinearUnit("foot", 0.3048),
+                 9003: LinearUnit("US survey foot", 1200.0 / 3937.0)}
+
+
+def _geokey_z_unit(header) -> LinearUnit | None:
+    """Vertical unit from GeoTIFF keys: VerticalCSTypeGeoKey (4096, an EPSG vertical CRS) or
+    VerticalUnitsGeoKey (4099). laspy's CRS parser reads only the horizontal keys."""
+    for vlr in header.vlrs:
+        if type(vlr).__name__ != "GeoKeyDirectoryVlr":
+            continue
+        keys = {int(k.id): k for k in vlr.geo_keys}
+        vcs = keys.get(4096)
+        if vcs is not None and vcs.tiff_tag_location == 0 and 0 < vcs.value_offset < 32767:
+            try:
+                axis = pyproj.CRS.from_epsg(int(vcs.value_offset)).axis_info[0]
+                return LinearUnit(axis.unit_name, float(axis.unit_conversion_factor))
+            except pyproj.exceptions.CRSError:
+                pass
+        units = keys.get(4099)
+        if units is not None and units.tiff_tag_location == 0:
+            return _GEOKEY_UNITS.get(int(units.value_offset))
+    return None
+
+
+def _add_vertical_geokeys(header, epsg: int) -> None:
+    from laspy.vlrs.known import GeoKeyEntryStruct
+
+    unit = pyproj.CRS.from_epsg(epsg).axis_info[0].unit_conversion_factor
+    unit_code = min(_GEOKEY_UNITS, key=lambda c: abs(_GEOKEY_UNITS[c].metres - unit))
+    for vlr in header.vlrs:
+        if type(vlr).__name__ == "GeoKeyDirectoryVlr":
+            keys = [k for k in vlr.geo_keys if k.id not in (4096, 4099)]
+            for key_id, value in ((4096, epsg), (4099, unit_code)):
+                entry = GeoKeyEntryStruct()
+                entry.id, entry.tiff_tag_location, entry.count, entry.value_offset = key_id, 0, 1, value
+                keys.append(entry)
+            vlr.geo_keys = keys
+            vlr.geo_keys_header.number_of_keys = len(keys)
+            return
+
+
 def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
     """Header facts of one tile, reading no points.
 
@@ -134,6 +179,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
             except Exception as err:  # malformed CRS VLRs
                 log.warning("%s: CRS records could not be parsed (%s)", path, err)
                 file_crs = None
+            geokey_z = _geokey_z_unit(header)
     except Exception as err:
         raise _open_error(path, err) from None
     count = int(header.point_count)
@@ -170,6 +216,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
         offsets=tuple(float(o) for o in header.offsets),
         compressed=compressed,
         points_by_return=tuple(int(n) for n in header.number_of_points_by_return),
+        geokey_z_unit=geokey_z,
     )
 
 
@@ -182,6 +229,12 @@ def common_crs(infos: list[TileInfo]) -> pyproj.CRS:
                 f"CRS {crs_label(info.crs)} differs from {crs_label(first.crs)} of {first.path}",
                 path=info.path,
                 hint="Reproject the tiles to one CRS, or run them separately; --crs overrides the CRS of every tile",
+            )
+        if abs(info.z_unit.metres - first.z_unit.metres) > 1e-9:
+            raise CRSMismatchError(
+                f"z is in {info.z_unit.name} but in {first.z_unit.name} in {first.path}",
+                path=info.path,
+                hint="Convert the tiles to one vertical unit, or run them separately; --crs with a compound CRS overrides both",
             )
     return first.crs
 
@@ -246,10 +299,11 @@ def read_points(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE) -> PointCh
 
 
 def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", point_format: int = 6,
-               scale: float = 0.01, offsets=None, overwrite: bool = False) -> Path:
+               scale: float = 0.01, offsets=None, overwrite: bool = False, vertical_epsg: int | None = None) -> Path:
     """Write point arrays (x, y, z, classification, return_number, number_of_returns, optional
     intensity, gps_time) as LAS or LAZ (by suffix), atomically, with the CRS in the header
-    (GeoTIFF keys below LAS 1.4, WKT from 1.4)."""
+    (GeoTIFF keys below LAS 1.4, WKT from 1.4). ``vertical_epsg`` adds the vertical CRS as
+    GeoTIFF VerticalCSTypeGeoKey / VerticalUnitsGeoKey (e.g. 6360, NAVD88 height in ftUS)."""
     from .raster import atomic_path
 
     path = Path(path)
@@ -261,6 +315,8 @@ def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", poi
         header.add_crs(crs, keep_compatibility=True)
     except RuntimeError:  # GeoTIFF keys need an EPSG code; a custom CRS goes as a WKT record
         header.vlrs.append(laspy.vlrs.known.WktCoordinateSystemVlr(crs.to_wkt()))
+    if vertical_epsg is not None:
+        _add_vertical_geokeys(header, vertical_epsg)
     las = laspy.LasData(header)
     las.x, las.y, las.z = x, y, z
     for name in ("classification", "return_number", "number_of_returns", "intensity", "gps_time"):
