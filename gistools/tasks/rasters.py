@@ -304,6 +304,7 @@ def rasters_from_tiles(
     jobs: int = 1,
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
+    dask: str | None = None,
 ) -> dict:
     """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
 
@@ -312,6 +313,11 @@ def rasters_from_tiles(
     (status ``failed`` with its error) and the others complete; existing outputs are
     kept (status ``skipped``) unless ``overwrite``. Raises CRSMismatchError when
     tiles disagree on CRS, Cancelled when ``progress`` returns False.
+
+    ``jobs``: tiles in parallel on local processes. ``dask``: run the tiles as tasks on a
+    dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
+    ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
+    ``out`` (where the scratch folder lives) at the same paths.
     """
     settings = settings or RasterSettings()
     settings.validate()
@@ -350,7 +356,7 @@ def rasters_from_tiles(
             tin_block_points=settings.tin_block_points,
         )
         try:
-            _run_passes(infos, results, run, jobs, overwrite, progress)
+            _run_passes(infos, results, run, jobs, overwrite, progress, dask)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     else:
@@ -383,7 +389,7 @@ def rasters_from_tiles(
     return summary
 
 
-def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress) -> None:
+def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, dask: str | None = None) -> None:
     out = Path(run.out)
     todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name, run.products)}
     for i in infos:
@@ -412,16 +418,26 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress)
         r.points_outside_header_bounds = value["points_outside_header_bounds"]
         r.seconds += seconds
 
-    _map(_scan_tile, [(i, run) for i in scan], jobs, results, [i.name for i in scan], scan_done, tick, "read",
-         within_tile if progress is not None else None)
-    # Pass 2
-    grid_jobs = [(i, neighbours[i.name], run) for i in infos if i.name in todo and results[i.name].status == "ok"]
+    if dask:
+        pool = _DaskPool(dask, jobs)
+    elif jobs > 1 and len(scan) > 1:
+        pool = _ProcessPool(jobs)
+    else:
+        pool = None
+    try:
+        _map(_scan_tile, [(i, run) for i in scan], pool, results, [i.name for i in scan], scan_done, tick, "read",
+             within_tile if progress is not None and pool is None else None)
+        # Pass 2
+        grid_jobs = [(i, neighbours[i.name], run) for i in infos if i.name in todo and results[i.name].status == "ok"]
 
-    def grid_done(info, value, seconds):
-        results[info.name].outputs = value["outputs"]
-        results[info.name].seconds += seconds
+        def grid_done(info, value, seconds):
+            results[info.name].outputs = value["outputs"]
+            results[info.name].seconds += seconds
 
-    _map(_grid_tile, grid_jobs, jobs, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
+        _map(_grid_tile, grid_jobs, pool, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
+    finally:
+        if pool is not None:
+            pool.close()
 
 
 def _timed(fn, args):
@@ -430,14 +446,68 @@ def _timed(fn, args):
     return value, time.perf_counter() - t
 
 
-def _map(fn, arglist, jobs, results, names, on_done, tick, verb, inner_progress=None) -> None:
-    """Run fn over arglist (inline or in processes); a failure marks its tile failed and the rest go on.
+class _ProcessPool:
+    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
 
-    ``inner_progress`` (inline runs only) is passed to fn as its last argument for chunk progress.
-    """
+    def __init__(self, jobs: int):
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, fn, *args):
+        return self.pool.submit(fn, *args)
+
+    def wait_first(self, futures):
+        return wait(futures, return_when=FIRST_COMPLETED)[0]
+
+    def close(self, futures=()):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class _DaskPool:
+    """Tiles as tasks on a dask.distributed cluster: a scheduler address, or "local" for a LocalCluster."""
+
+    def __init__(self, address: str, jobs: int):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError(
+                "--dask needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
+            ) from None
+        self.cluster = None
+        if address == "local":
+            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+            self.client = Client(self.cluster)
+        else:
+            try:
+                self.client = Client(address, timeout=10)
+            except (OSError, TimeoutError) as err:
+                raise InputError(f"--dask {address}: no Dask scheduler answers ({err})",
+                                 hint="Start one (dask scheduler) or check the address") from None
+
+    def submit(self, fn, *args):
+        return self.client.submit(fn, *args, pure=False)
+
+    def wait_first(self, futures):
+        from dask.distributed import wait as dask_wait
+
+        return dask_wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def close(self, futures=()):
+        if self.client is None:
+            return
+        if futures:
+            self.client.cancel(list(futures))
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        self.client = self.cluster = None
+
+
+def _map(fn, arglist, pool, results, names, on_done, tick, verb, inner_progress=None) -> None:
+    """Run fn over arglist (inline when ``pool`` is None, else on the pool); a failure marks its tile
+    failed and the rest go on. ``inner_progress`` (inline runs) is passed to fn for chunk progress."""
     if not arglist:
         return
-    if jobs <= 1 or len(arglist) == 1:
+    if pool is None:
         for name, args in zip(names, arglist):
             if results[name].status == "failed":
                 continue
@@ -450,23 +520,18 @@ def _map(fn, arglist, jobs, results, names, on_done, tick, verb, inner_progress=
                 _fail(results[name], err)
             tick(f"{name} {verb}")
         return
-    # spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock the children
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-        pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
-                   if results[name].status != "failed"}
-        try:
-            while pending:
-                finished, _ = wait(pending, return_when=FIRST_COMPLETED)
-                for fut in finished:
-                    name, args = pending.pop(fut)
-                    try:
-                        value, seconds = fut.result()
-                        on_done(args[0], value, seconds)
-                    except Cancelled:
-                        raise
-                    except Exception as err:  # incl. a worker crash (BrokenProcessPool): reported per tile
-                        _fail(results[name], err)
-                    tick(f"{name} {verb}")
-        except BaseException:
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
+    pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
+               if results[name].status != "failed"}
+    try:
+        while pending:
+            for fut in pool.wait_first(pending):
+                name, args = pending.pop(fut)
+                try:
+                    value, seconds = fut.result()
+                    on_done(args[0], value, seconds)
+                except Exception as err:  # incl. a worker crash: reported per tile
+                    _fail(results[name], err)
+                tick(f"{name} {verb}")
+    except BaseException:
+        pool.close(list(pending))
+        raise

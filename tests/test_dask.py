@@ -1,0 +1,71 @@
+"""Tiles on a real dask.distributed cluster give the same rasters as a local run."""
+
+from __future__ import annotations
+
+import socket
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from gistools import rasters_from_tiles
+from gistools.errors import InputError
+from gistools.io.raster import read_raster
+
+distributed = pytest.importorskip("distributed", reason="dask.distributed is an optional extra (gistools[dask])")
+
+
+def _same(a_out, b_out):
+    for product in ("dsm", "dem", "ndsm"):
+        a, _, _ = read_raster(a_out / f"{product}.vrt")
+        b, _, _ = read_raster(b_out / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product
+
+
+def _free_port():
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture
+def dask_cluster():
+    """A scheduler and two workers as separate processes on loopback, as on a real cluster."""
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    bin_dir = __import__("pathlib").Path(sys.executable).parent
+    procs = [subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
+    time.sleep(1.5)
+    for _ in range(2):
+        procs.append(subprocess.Popen([str(bin_dir / "dask"), "worker", address, "--nthreads", "1", "--no-dashboard"],
+                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    from dask.distributed import Client
+
+    with Client(address, timeout=30) as client:
+        client.wait_for_workers(2, timeout=60)
+    yield address
+    for p in procs[::-1]:
+        p.terminate()
+    for p in procs:
+        p.wait(timeout=30)
+
+
+def test_dask_scheduler_gives_the_same_rasters(sample_tiles, sample_run, tmp_path, dask_cluster):
+    summary = rasters_from_tiles(sample_tiles, tmp_path, dask=dask_cluster)
+    assert summary["counts"] == {"ok": 4, "failed": 0, "skipped": 0}
+    assert all(t["points"] > 60000 for t in summary["tiles"])
+    _same(tmp_path, sample_run[0])
+
+
+def test_dask_local_cluster(sample_tiles, sample_run, tmp_path):
+    summary = rasters_from_tiles(sample_tiles, tmp_path, jobs=2, dask="local")
+    assert summary["counts"]["ok"] == 4
+    _same(tmp_path, sample_run[0])
+
+
+def test_unreachable_scheduler_is_a_clear_error(sample_tiles, tmp_path):
+    with pytest.raises(InputError, match="no Dask scheduler answers"):
+        rasters_from_tiles(sample_tiles[:1], tmp_path, dask=f"tcp://127.0.0.1:{_free_port()}")
