@@ -54,18 +54,18 @@ def dask_cluster():
 
 
 def test_dask_scheduler_gives_the_same_rasters(sample_tiles, sample_run, tmp_path, dask_cluster):
-    summary = rasters_from_tiles(sample_tiles, tmp_path, dask=dask_cluster)
+    summary = rasters_from_tiles(sample_tiles, tmp_path, scheduler=dask_cluster)
     assert summary["counts"] == {"ok": 4, "failed": 0, "skipped": 0}
     assert all(t["points"] > 60000 for t in summary["tiles"])
     _same(tmp_path, sample_run[0])
 
 
 def test_dask_local_cluster(sample_tiles, sample_run, tmp_path):
-    summary = rasters_from_tiles(sample_tiles, tmp_path, jobs=2, dask="local")
+    summary = rasters_from_tiles(sample_tiles, tmp_path, jobs=2, scheduler="local")
     assert summary["counts"]["ok"] == 4
     _same(tmp_path, sample_run[0])
 
 
 def test_unreachable_scheduler_is_a_clear_error(sample_tiles, tmp_path):
     with pytest.raises(InputError, match="no Dask scheduler answers"):
-        rasters_from_tiles(sample_tiles[:1], tmp_path, dask=f"tcp://127.0.0.1:{_free_port()}")
+        rasters_from_tiles(sample_tiles[:1], tmp_path, scheduler=f"tcp://127.0.0.1:{_free_port()}")

@@ -38,11 +38,11 @@ def tqdm_progress(bar: tqdm):
 @jobs_opt
 @chunk_opt
 @overwrite_opt
-@click.option("--dask", "dask_address", default=None, metavar="ADDRESS",
+@click.option("--scheduler", default=None, metavar="ADDRESS",
               help="Run the tiles on a Dask cluster: its scheduler address (tcp://host:8786), or 'local' for a "
                    "LocalCluster of --jobs workers. Workers must see the tiles and --out at the same paths.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, crs, jobs, chunk_size, overwrite, dask_address, quiet):
+def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, crs, jobs, chunk_size, overwrite, scheduler, quiet):
     """DSM, DEM and nDSM GeoTIFFs for every tile of INPUTS (files, folders or globs).
 
     Writes OUT/dsm/<tile>.tif, OUT/dem/<tile>.tif, OUT/ndsm/<tile>.tif, VRT mosaics
@@ -55,13 +55,13 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
       $ gistools rasters sample_tiles --out out
       $ gistools rasters 'tiles/*.laz' --out out --cell-size 1m --jobs 2
       $ gistools rasters tiles --out out --dem-method max --dsm-classes 1,2
-      $ gistools rasters /shared/tiles --out /shared/out --dask tcp://scheduler:8786
+      $ gistools rasters /shared/tiles --out /shared/out --scheduler tcp://scheduler:8786
     """
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
                               products=tuple(p.strip() for p in products.split(",") if p.strip()))
     with tqdm(total=100, unit="%", disable=True if quiet else None, bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
-        summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, dask=dask_address,
+        summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
                                      progress=None if bar.disable else tqdm_progress(bar))
     counts = summary["counts"]
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "

@@ -304,7 +304,7 @@ def rasters_from_tiles(
     jobs: int = 1,
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
-    dask: str | None = None,
+    scheduler: str | None = None,
 ) -> dict:
     """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
 
@@ -314,7 +314,7 @@ def rasters_from_tiles(
     kept (status ``skipped``) unless ``overwrite``. Raises CRSMismatchError when
     tiles disagree on CRS, Cancelled when ``progress`` returns False.
 
-    ``jobs``: tiles in parallel on local processes. ``dask``: run the tiles as tasks on a
+    ``jobs``: tiles in parallel on local processes. ``scheduler``: run the tiles as tasks on a
     dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
     ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
     ``out`` (where the scratch folder lives) at the same paths.
@@ -356,7 +356,7 @@ def rasters_from_tiles(
             tin_block_points=settings.tin_block_points,
         )
         try:
-            _run_passes(infos, results, run, jobs, overwrite, progress, dask)
+            _run_passes(infos, results, run, jobs, overwrite, progress, scheduler)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     else:
@@ -389,7 +389,7 @@ def rasters_from_tiles(
     return summary
 
 
-def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, dask: str | None = None) -> None:
+def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None) -> None:
     out = Path(run.out)
     todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name, run.products)}
     for i in infos:
@@ -418,8 +418,8 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.points_outside_header_bounds = value["points_outside_header_bounds"]
         r.seconds += seconds
 
-    if dask:
-        pool = _DaskPool(dask, jobs)
+    if scheduler:
+        pool = _DaskPool(scheduler, jobs)
     elif jobs > 1 and len(scan) > 1:
         pool = _ProcessPool(jobs)
     else:
@@ -470,7 +470,7 @@ class _DaskPool:
             from dask.distributed import Client, LocalCluster
         except ImportError:
             raise InputError(
-                "--dask needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
+                "--scheduler needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
             ) from None
         self.cluster = None
         if address == "local":
@@ -480,7 +480,7 @@ class _DaskPool:
             try:
                 self.client = Client(address, timeout=10)
             except (OSError, TimeoutError) as err:
-                raise InputError(f"--dask {address}: no Dask scheduler answers ({err})",
+                raise InputError(f"--scheduler {address}: no Dask scheduler answers ({err})",
                                  hint="Start one (dask scheduler) or check the address") from None
 
     def submit(self, fn, *args):
