@@ -43,8 +43,8 @@ def band_thresholds(z_unit: LinearUnit, preset: str = "exact", breaks_m=None) ->
     """T1, T2, T3 in ``z_unit``: from ``breaks_m`` (three heights in metres) or a named preset.
 
     >>> from gistools.units import LinearUnit
-    >>> band_thresholds(LinearUnit("US survey foot", 1200 / 3937))
-    (3.280833333333333, 6.561666666666666, 19.685)
+    >>> [round(t, 6) for t in band_thresholds(LinearUnit("US survey foot", 1200 / 3937))]
+    [3.280833, 6.561667, 19.685]
     """
     if breaks_m is not None:
         values, unit = tuple(float(b) for b in breaks_m), LinearUnit("metre", METRE)
@@ -56,7 +56,7 @@ def band_thresholds(z_unit: LinearUnit, preset: str = "exact", breaks_m=None) ->
         raise InputError(f"band breaks {values} must be three increasing positive heights", hint="e.g. 1,2,6 (metres)")
     if abs(unit.metres - z_unit.metres) < 1e-12:
         return values  # type: ignore[return-value]
-    return tuple(v * unit.metres / z_unit.metres for v in values)  # type: ignore[return-value]
+    return tuple(v * (unit.metres / z_unit.metres) for v in values)  # type: ignore[return-value]
 
 
 def height_bands(ndsm: np.ndarray, thresholds, *, top_is_ground: np.ndarray | None = None,
