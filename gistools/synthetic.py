@@ -25,15 +25,29 @@ from .units import US_SURVEY_FOOT
 __all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "BANDS_M", "COVER"]
 
 M = 1.0 / US_SURVEY_FOOT  # ftUS per metre
-BANDS_M = {"B1": (0.25, 0.9), "B2": (1.15, 1.85), "B3": (2.3, 5.6)}  # shrub top heights used per band (m)
-COVER = {"light": 0.2, "medium": 0.5, "heavy": 0.85}
+BANDS_M = {"B1": (0.25, 0.9), "B2": (1.2, 1.85), "B3": (2.35, 5.6)}  # crown top heights per band (m)
+CROWN_RADIUS_FT = (3.5, 6.5)
+CROWN_SHAPE = 0.1  # a crown's top falls by this fraction from its centre to its rim
+COVER = {"light": 0.15, "medium": 0.5, "heavy": 0.9}  # crown cover fraction, mid-class of 0-0.3-0.7-1
 
 
 @dataclass
 class ShrubPatch:
+    """A patch of shrub: its outline, cover class, band, and its crowns (x, y, radius, top height in ft).
+
+    Crowns are opaque discs placed at random (a Boolean model) so that they cover the
+    patch's cover fraction of its area; what the patch looks like from above is the crowns.
+    """
+
     geometry: Polygon
     cover: str  # light / medium / heavy
     band: str  # B1 / B2 / B3
+    crowns: np.ndarray = field(default_factory=lambda: np.empty((0, 4)))
+
+    @property
+    def crown_union(self):
+        discs = shapely.buffer(shapely.points(self.crowns[:, :2]), self.crowns[:, 2], quad_segs=16)
+        return shapely.intersection(shapely.union_all(discs), self.geometry)
 
 
 @dataclass
@@ -134,13 +148,13 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         if poly.intersects(blocked) or any(poly.distance(p) < 20 for p in placed):
             continue
         placed.append(poly)
-        sc.shrubs.append(ShrubPatch(poly, cover, band))
+        sc.shrubs.append(ShrubPatch(poly, cover, band, _crowns(poly, cover, band, rng)))
     # One low shrub patch inside the wetland (vegetation inside wetlands).
     wet = sc.wetland[0]
     c = wet.centroid
     patch = _ellipse(c.x, c.y, 40, 30)
     if not patch.intersects(blocked):
-        sc.shrubs.append(ShrubPatch(patch, "medium", "B1"))
+        sc.shrubs.append(ShrubPatch(patch, "medium", "B1", _crowns(patch, "medium", "B1", rng)))
         placed.append(patch)
     # Trees taller than 6 m in small groves.
     taken = shapely.union_all([blocked] + [p.buffer(10) for p in placed])
@@ -156,6 +170,33 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         if len(sc.trees) >= n_groves * 10:
             break
     return sc
+
+
+def _crowns(poly, cover: str, band: str, rng) -> np.ndarray:
+    """Crowns (x, y, r, top ft) covering COVER[cover] of ``poly`` (within 2 %): discs on a jittered
+    grid whose spacing is tuned to the cover (shrubs of one stand are spread fairly evenly; a pure
+    Boolean model clumps too much to give one cover class over a 25 ft neighbourhood)."""
+    lo_r, hi_r = CROWN_RADIUS_FT
+    lo, hi = BANDS_M[band]
+    mean_area = np.pi * (lo_r * lo_r + lo_r * hi_r + hi_r * hi_r) / 3
+    f = COVER[cover]
+    w, s, e, n = poly.bounds
+    spacing = np.sqrt(mean_area / f)
+    state = rng.bit_generator.state
+    for _ in range(6):
+        rng.bit_generator.state = state  # the same draws each try: only the spacing changes
+        gx, gy = np.meshgrid(np.arange(w, e, spacing), np.arange(s, n, spacing))
+        x = gx.ravel() + rng.uniform(-0.35, 0.35, gx.size) * spacing
+        y = gy.ravel() + rng.uniform(-0.35, 0.35, gy.size) * spacing
+        r = rng.uniform(lo_r, hi_r, gx.size)
+        top = rng.uniform(lo * M, hi * M, gx.size)
+        keep = shapely.contains_xy(poly, x, y)
+        discs = shapely.buffer(shapely.points(x[keep], y[keep]), r[keep], quad_segs=16)
+        got = shapely.intersection(shapely.union_all(discs), poly).area / poly.area
+        if abs(got - f) < 0.01:
+            break
+        spacing *= np.sqrt(got / f)
+    return np.column_stack([x[keep], y[keep], r[keep], top[keep]])
 
 
 def _inside(poly, x, y):
@@ -189,13 +230,22 @@ def scene_points(scene: Scene, bounds, *, spacing: float = 4.0, seed: int = 0) -
     kind = np.zeros(npulse, np.int8)
     top = np.full(npulse, np.nan)  # height above ground of the first return (ft)
     cover = np.zeros(npulse)
-    for patch in scene.shrubs:
-        m = _inside(patch.geometry, px, py)
-        lo, hi = BANDS_M[patch.band]
-        hit = m & (rng.random(npulse) < COVER[patch.cover])
+    crowns = [(p.crowns, COVER[p.cover]) for p in scene.shrubs if len(p.crowns)]
+    if crowns:
+        from scipy.spatial import cKDTree
+
+        c = np.concatenate([a for a, _ in crowns])
+        c_cover = np.concatenate([np.full(len(a), f) for a, f in crowns])
+        d, i = cKDTree(c[:, :2]).query(np.column_stack([px, py]), k=8, distance_upper_bound=CROWN_RADIUS_FT[1])
+        ok = np.isfinite(d)
+        i = np.where(ok, i, 0)
+        inside = ok & (d <= c[i, 2])
+        height = np.where(inside, c[i, 3] * (1 - CROWN_SHAPE * (d / c[i, 2]) ** 2), -np.inf)
+        best = height.max(axis=1)
+        hit = np.isfinite(best) & (rng.random(npulse) < 0.97)  # a few pulses slip through gaps in the foliage
         kind[hit] = 3
-        top[hit] = rng.uniform(lo * M, hi * M, hit.sum())
-        cover[m] = COVER[patch.cover]
+        top[hit] = best[hit]
+        cover[hit] = c_cover[i[np.arange(npulse), height.argmax(axis=1)]][hit]
     if scene.trees:
         t = np.array(scene.trees)
         from scipy.spatial import cKDTree

@@ -26,7 +26,7 @@ from shapely.geometry import box
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gistools.io.points import write_tile  # noqa: E402
-from gistools.synthetic import make_scene, scene_points  # noqa: E402
+from gistools.synthetic import COVER, make_scene, scene_points  # noqa: E402
 
 CRS = pyproj.CRS.from_epsg(2882)
 TILE = 1000.0  # ftUS
@@ -79,8 +79,12 @@ def main(argv=None):
     truth = out / "truth.gpkg"
     gpd.GeoDataFrame(
         {"cover": [p.cover for p in scene.shrubs], "band": [p.band for p in scene.shrubs],
-         "cover_fraction": [{"light": 0.2, "medium": 0.5, "heavy": 0.85}[p.cover] for p in scene.shrubs]},
+         "cover_fraction": [COVER[p.cover] for p in scene.shrubs],
+         "crown_area": [p.crown_union.area for p in scene.shrubs]},
         geometry=[p.geometry for p in scene.shrubs], crs=CRS).to_file(truth, layer="SHRUB_TRUTH")
+    crowns = [(p.band, p.cover, g) for p in scene.shrubs for g in [p.crown_union]]
+    gpd.GeoDataFrame({"band": [b for b, _, _ in crowns], "cover": [c for _, c, _ in crowns]},
+                     geometry=[g for _, _, g in crowns], crs=CRS).to_file(truth, layer="SHRUB_CROWNS")
     gpd.GeoDataFrame({"kind": ["road"]}, geometry=[scene.road_union.intersection(block)], crs=CRS).to_file(
         truth, layer="ROAD_TRUTH")
     gpd.GeoDataFrame({"kind": ["water"]}, geometry=[scene.water_union.intersection(block)], crs=CRS).to_file(

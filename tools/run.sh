@@ -40,8 +40,10 @@ fi
 case "${1:-}" in
   sample)
     shift
-    "$VENV/bin/gistools" rasters sample_tiles --out out "$@"
-    echo "outputs in $ROOT/out (dsm/, dem/, ndsm/, *.vrt, report.json)"
+    B=sample_tiles/breaklines.gpkg
+    "$VENV/bin/gistools" shrub sample_tiles --out out --roads "$B:ROADBREAKLINE" --hydro "$B:HYDROGRAPHICFEATURE" \
+      --waterbodies "$B:WATERBODY" --wetlands "$B:WETLAND" --tile-index "$B:FOOTPRINT" "$@"
+    echo "outputs in $ROOT/out: shrub_map.png / .pdf, shrub_classes.gpkg, rasters (dsm/ dem/ ndsm/ bands/ veg/ cover/ classes/ ...), report.json"
     ;;
   test)
     shift

@@ -41,9 +41,11 @@ def cli(verbose):
 
 from . import info as _info  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
+from . import shrub as _shrub  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_rasters.rasters)
+cli.add_command(_shrub.shrub)
 
 
 def main():  # console_scripts entry point

@@ -16,12 +16,10 @@ from __future__ import annotations
 
 import json
 import logging
-import multiprocessing
 import os
 import shutil
 import tempfile
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
@@ -36,13 +34,17 @@ from ..io.raster import NODATA, atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report
+from .batch import fail, make_pool, run_each
 from ..units import length_to_crs_units
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
 
 log = logging.getLogger(__name__)
 
-PRODUCTS = ("dsm", "dem", "ndsm")
+PRODUCTS = ("dsm", "dem", "ndsm", "topclass")
+DEFAULT_PRODUCTS = ("dsm", "dem", "ndsm")
+TOPCLASS_NODATA = 255
+GROUNDISH = (2, 9)  # ground and water: a cell topped by these is bare (band B0)
 NOISE_CLASSES = (7, 18)
 GROUND_CLASS = 2
 WATER_CLASS = 9
@@ -53,8 +55,8 @@ class RasterSettings:
     """Parameters of a DSM / DEM / nDSM run. Lengths take a unit: "5ft", "1.5m", or a bare number in CRS units.
 
     dsm_classes: None = every class but noise (7, 18); withheld points are always left out.
-    The dissertation's set is (1, 2). products: any of dsm, dem, ndsm (a DSM-only run
-    keeps no ground points). tin_block_points: the DEM is built in strips of about this
+    The dissertation's set is (1, 2). products: any of dsm, dem, ndsm, topclass (the
+    ASPRS class of each cell's highest first return, uint8; a DSM-only run keeps no ground points). tin_block_points: the DEM is built in strips of about this
     many ground points, bounding memory (about 200 bytes per point). dem_max_distance: cells farther than this from
     every ground point stay nodata (TIN, IDW). buffer: how far into neighbouring
     tiles ground points are read (default: 2 x dem_max_distance, at least 20 cells).
@@ -67,7 +69,7 @@ class RasterSettings:
     buffer: str | float | None = None
     crs: str | None = None
     chunk_size: int = DEFAULT_CHUNK_SIZE
-    products: tuple[str, ...] = PRODUCTS
+    products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 2_500_000
 
     def validate(self) -> None:
@@ -113,7 +115,7 @@ class _Run:
     overwrite: bool
     crs_wkt: str
     z_unit: str
-    products: tuple[str, ...] = PRODUCTS
+    products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 2_500_000
 
 
@@ -133,8 +135,10 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     """
     grid = _tile_grid(info, run)
     n = grid.width * grid.height
-    need_dem = run.products != ("dsm",)
+    need_dem = bool({"dem", "ndsm"} & set(run.products))
+    track_top = "topclass" in run.products
     dsm = np.full(n, -np.inf)
+    top_class = np.full(n, TOPCLASS_NODATA, np.uint8)
     ground_count = np.zeros(n, np.int64)
     water_count = np.zeros(n, np.int64)
     by_class = np.zeros(256, np.int64)
@@ -163,7 +167,10 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             usable = inside & ~chunk.withheld
             # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
             surface = usable & surface_class[cls] & (chunk.return_number <= 1)
-            np.maximum.at(flat_dsm, cell[surface], scaled(chunk, "z", surface))
+            if track_top:
+                _max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
+            else:
+                np.maximum.at(flat_dsm, cell[surface], scaled(chunk, "z", surface))
             if need_dem:
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
@@ -179,6 +186,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     np.savez(
         Path(run.scratch) / f"{info.name}.grids.npz",
         dsm=dsm.reshape(grid.shape),
+        top_class=top_class.reshape(grid.shape),
         ground_count=ground_count.reshape(grid.shape).astype(np.int32),
         water_count=water_count.reshape(grid.shape).astype(np.int32),
     )
@@ -188,6 +196,36 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_by_return": {int(r): int(v) for r, v in enumerate(by_return) if v},
         "points_outside_header_bounds": outside,
     }
+
+
+def _max_with_class(dsm, top_class, cell, z, cls) -> None:
+    """Per-cell max of z into ``dsm`` and the class of the point that gives it into ``top_class``.
+
+    Ties go to ground or water (a cell whose top is bare ground at the same height as a
+    vegetation return is bare)."""
+    n = len(dsm)
+    cm = np.full(n, -np.inf)
+    np.maximum.at(cm, cell, z)
+    top = z == cm[cell]
+    tcell, tcls = cell[top], cls[top]
+    tc = np.full(n, TOPCLASS_NODATA, np.uint8)
+    bare = np.isin(tcls, GROUNDISH)
+    tc[tcell[~bare]] = tcls[~bare]
+    tc[tcell[bare]] = tcls[bare]
+    higher = cm > dsm
+    top_class[higher] = tc[higher]
+    tie = (cm == dsm) & np.isin(tc, GROUNDISH)
+    top_class[tie] = tc[tie]
+    np.maximum(dsm, cm, out=dsm)
+
+
+def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
+    """In place: take the neighbour's top class where its DSM is higher, or equal and bare."""
+    higher = other_dsm > dsm
+    higher |= np.isnan(dsm) & ~np.isnan(other_dsm)
+    tie = (other_dsm == dsm) & np.isin(other_class, GROUNDISH)
+    take = higher | tie
+    top_class[take] = other_class[take]
 
 
 def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[TileInfo]:
@@ -242,6 +280,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     scratch = Path(run.scratch)
     with np.load(scratch / f"{info.name}.grids.npz") as own:
         dsm, ground_count, water_count = own["dsm"].copy(), own["ground_count"].astype(np.int64), own["water_count"].astype(np.int64)
+        top_class = own["top_class"].copy()
     for other in neighbours:
         grids_file = scratch / f"{other.name}.grids.npz"
         if not grids_file.exists():  # the neighbour failed in pass 1
@@ -250,10 +289,11 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         if window is not None:
             rs, cs_, ro, co = window
             with np.load(grids_file) as nb:
+                _merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"][ro, co], nb["dsm"][ro, co])
                 dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"][ro, co])
                 ground_count[rs, cs_] += nb["ground_count"][ro, co]
                 water_count[rs, cs_] += nb["water_count"][ro, co]
-    arrays = {"dsm": dsm}
+    arrays = {"dsm": dsm, "topclass": top_class}
     if run.products != ("dsm",):
         water = (water_count > 0) & (ground_count == 0)
         b = run.buffer
@@ -281,19 +321,19 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
     for product in run.products:
         path = Path(run.out) / product / f"{info.name}.tif"
+        if product == "topclass":
+            write_raster(path, arrays[product], grid, overwrite=run.overwrite, nodata=TOPCLASS_NODATA, dtype="uint8",
+                         tags={**tags, "GISTOOLS_PRODUCT": product}, description="class of the highest first return")
+            outputs[product] = str(path)
+            continue
         write_raster(path, arrays[product], grid, overwrite=run.overwrite, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
     return {"outputs": outputs}
 
 
-def _outputs_exist(out: Path, name: str, products=PRODUCTS) -> bool:
+def _outputs_exist(out: Path, name: str, products=DEFAULT_PRODUCTS) -> bool:
     return all((out / p / f"{name}.tif").exists() for p in products)
-
-
-def _fail(result: TileResult, err: BaseException) -> None:
-    result.status = "failed"
-    result.error = str(err) if isinstance(err, GistoolsError) else f"{result.path}: {type(err).__name__}: {err}"
 
 
 def rasters_from_tiles(
@@ -331,7 +371,7 @@ def rasters_from_tiles(
         try:
             infos.append(read_tile_info(p, override))
         except GistoolsError as err:
-            _fail(results[p.stem], err)
+            fail(results[p.stem], err)
     run = None
     if infos:
         crs = common_crs(infos)
@@ -373,6 +413,8 @@ def rasters_from_tiles(
         "crs_wkt": run.crs_wkt if run else None,
         "horizontal_unit": infos[0].unit.name if infos else None,
         "vertical_unit": infos[0].z_unit.name if infos else None,
+        "horizontal_unit_m": infos[0].unit.metres if infos else None,
+        "vertical_unit_m": infos[0].z_unit.metres if infos else None,
         "cell_size": run.cell_size if run else None,
         "cell_size_m": run.cell_size * infos[0].unit.metres if run else None,
         "dem_method": settings.dem_method,
@@ -418,14 +460,9 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.points_outside_header_bounds = value["points_outside_header_bounds"]
         r.seconds += seconds
 
-    if scheduler:
-        pool = _DaskPool(scheduler, jobs)
-    elif jobs > 1 and len(scan) > 1:
-        pool = _ProcessPool(jobs)
-    else:
-        pool = None
+    pool = make_pool(jobs, scheduler, len(scan))
     try:
-        _map(_scan_tile, [(i, run) for i in scan], pool, results, [i.name for i in scan], scan_done, tick, "read",
+        run_each(_scan_tile, [(i, run) for i in scan], pool, results, [i.name for i in scan], scan_done, tick, "read",
              within_tile if progress is not None and pool is None else None)
         # Pass 2
         grid_jobs = [(i, neighbours[i.name], run) for i in infos if i.name in todo and results[i.name].status == "ok"]
@@ -434,104 +471,9 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
             results[info.name].outputs = value["outputs"]
             results[info.name].seconds += seconds
 
-        _map(_grid_tile, grid_jobs, pool, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
+        run_each(_grid_tile, grid_jobs, pool, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
     finally:
         if pool is not None:
             pool.close()
 
 
-def _timed(fn, args):
-    t = time.perf_counter()
-    value = fn(*args)
-    return value, time.perf_counter() - t
-
-
-class _ProcessPool:
-    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
-
-    def __init__(self, jobs: int):
-        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
-
-    def submit(self, fn, *args):
-        return self.pool.submit(fn, *args)
-
-    def wait_first(self, futures):
-        return wait(futures, return_when=FIRST_COMPLETED)[0]
-
-    def close(self, futures=()):
-        self.pool.shutdown(wait=True, cancel_futures=True)
-
-
-class _DaskPool:
-    """Tiles as tasks on a dask.distributed cluster: a scheduler address, or "local" for a LocalCluster."""
-
-    def __init__(self, address: str, jobs: int):
-        try:
-            from dask.distributed import Client, LocalCluster
-        except ImportError:
-            raise InputError(
-                "--scheduler needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
-            ) from None
-        self.cluster = None
-        if address == "local":
-            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
-            self.client = Client(self.cluster)
-        else:
-            try:
-                self.client = Client(address, timeout=10)
-            except (OSError, TimeoutError) as err:
-                raise InputError(f"--scheduler {address}: no Dask scheduler answers ({err})",
-                                 hint="Start one (dask scheduler) or check the address") from None
-
-    def submit(self, fn, *args):
-        return self.client.submit(fn, *args, pure=False)
-
-    def wait_first(self, futures):
-        from dask.distributed import wait as dask_wait
-
-        return dask_wait(list(futures), return_when="FIRST_COMPLETED").done
-
-    def close(self, futures=()):
-        if self.client is None:
-            return
-        if futures:
-            self.client.cancel(list(futures))
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-        self.client = self.cluster = None
-
-
-def _map(fn, arglist, pool, results, names, on_done, tick, verb, inner_progress=None) -> None:
-    """Run fn over arglist (inline when ``pool`` is None, else on the pool); a failure marks its tile
-    failed and the rest go on. ``inner_progress`` (inline runs) is passed to fn for chunk progress."""
-    if not arglist:
-        return
-    if pool is None:
-        for name, args in zip(names, arglist):
-            if results[name].status == "failed":
-                continue
-            try:
-                value, seconds = _timed(fn, args if inner_progress is None else (*args, inner_progress))
-                on_done(args[0], value, seconds)
-            except Cancelled:
-                raise
-            except Exception as err:  # one bad tile never stops the batch; it is reported
-                _fail(results[name], err)
-            tick(f"{name} {verb}")
-        return
-    pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
-               if results[name].status != "failed"}
-    try:
-        while pending:
-            for fut in pool.wait_first(pending):
-                name, args = pending.pop(fut)
-                try:
-                    value, seconds = fut.result()
-                    on_done(args[0], value, seconds)
-                except Exception as err:  # incl. a worker crash: reported per tile
-                    _fail(results[name], err)
-                tick(f"{name} {verb}")
-    except BaseException:
-        pool.close(list(pending))
-        raise

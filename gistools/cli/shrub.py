@@ -1,0 +1,93 @@
+"""``gistools shrub``: the whole shrub chain, tiles and breaklines to a shrub density map."""
+
+from __future__ import annotations
+
+import click
+from tqdm import tqdm
+
+from ..lidar.gridding import DEM_METHODS
+from ..tasks.rasters import RasterSettings
+from ..tasks.shrub import ShrubSettings, shrub_from_tiles
+from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes
+from .rasters import tqdm_progress
+
+
+def _floats(ctx, param, value):
+    if value is None:
+        return None
+    try:
+        return tuple(float(v) for v in value.split(","))
+    except ValueError:
+        raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
+
+
+@click.command()
+@click.argument("inputs", nargs=-1, required=True)
+@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
+@click.option("--roads", help="Edge-of-pavement lines (file.gpkg:LAYER or a shapefile).")
+@click.option("--hydro", help="Hydrographic breaklines: dual-line banks and single-line features.")
+@click.option("--waterbodies", help="Water body polygons (islands as holes).")
+@click.option("--wetlands", help="Wetland polygons: vegetation inside them is written apart (wetveg/).")
+@click.option("--tile-index", help="Tile footprints (FOOTPRINT) that split the breaklines, as the dissertation did.")
+@click.option("--tile-field", default="TILE_ID", show_default=True, help="Tile-number field of --tile-index.")
+@click.option("--reproject-vectors", is_flag=True, help="Reproject vector layers to the points' CRS instead of refusing.")
+@click.option("--cell-size", default="5ft", show_default=True, help="Cell size with its unit.")
+@click.option("--dem-method", type=click.Choice(DEM_METHODS), default="tin", show_default=True)
+@click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
+@click.option("--dem-max-distance", default="15m", show_default=True)
+@click.option("--bands", "band_preset", type=click.Choice(["exact", "text_literal"]), default="exact", show_default=True,
+              help="Height bands: exact 1 / 2 / 6 m, or the dissertation's printed 3.28 / 6.56 / 19.658 ft.")
+@click.option("--band-breaks", callback=_floats, default=None, help="Three band limits in metres, e.g. 1,2,6.")
+@click.option("--noise-floor", default="0.1m", show_default=True, help="Heights up to this are bare ground (B0).")
+@click.option("--radius", default="25ft", show_default=True, help="Density neighbourhood radius.")
+@click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True,
+              help="Bands whose vegetation is counted; 1 is the dissertation's choice.")
+@click.option("--classify", type=click.Choice(["breaks", "quantile", "jenks"]), default="breaks", show_default=True)
+@click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True,
+              help="Cover fraction breaks light/medium and medium/heavy.")
+@click.option("--max-road-width", default="60ft", show_default=True, help="Wider faces between road lines are blocks, not road.")
+@click.option("--snap", default="0.2ft", show_default=True, help="Breakline snapping tolerance.")
+@click.option("--no-map", is_flag=True, help="Skip the PNG / PDF map.")
+@click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'.")
+@crs_opt
+@jobs_opt
+@chunk_opt
+@overwrite_opt
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size, dem_method,
+          dsm_classes, dem_max_distance, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
+          max_road_width, snap, no_map, scheduler, crs, jobs, chunk_size, overwrite, quiet):
+    """Shrub density map of LAS/LAZ tiles: DSM/DEM/nDSM, height bands, road and water clipping,
+    vegetation density, light / medium / heavy classes, polygons and a printable map.
+
+    \b
+    Examples:
+      $ gistools shrub sample_tiles --out out \\
+          --roads sample_tiles/breaklines.gpkg:ROADBREAKLINE --hydro sample_tiles/breaklines.gpkg:HYDROGRAPHICFEATURE \\
+          --waterbodies sample_tiles/breaklines.gpkg:WATERBODY --wetlands sample_tiles/breaklines.gpkg:WETLAND \\
+          --tile-index sample_tiles/breaklines.gpkg:FOOTPRINT
+      $ gistools shrub tiles --out out --roads roads.shp --hydro hydro.shp --density-bands 1 --bands text_literal
+    """
+    settings = ShrubSettings(
+        raster=RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
+                              dem_max_distance=dem_max_distance, crs=crs, chunk_size=chunk_size),
+        bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
+        density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
+        max_road_width=max_road_width, snap=snap, tile_field=tile_field,
+    )
+    with tqdm(total=100, unit="%", disable=True if quiet else None,
+              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+        report = shrub_from_tiles(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies,
+                                  wetlands=wetlands, tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs,
+                                  scheduler=scheduler, overwrite=overwrite, make_map=not no_map,
+                                  progress=None if bar.disable else tqdm_progress(bar))
+    counts = report.get("counts", {})
+    unit = report.get("area_unit", "")
+    click.echo(f"{counts.get('ok', 0)} tiles ok, {counts.get('failed', 0)} failed; report: {out}/report.json")
+    if "class_area" in report:
+        click.echo("class area (" + unit + "): " + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+    for tile in report.get("tiles", []):
+        if tile.get("status") == "failed":
+            click.echo(f"  FAILED {tile['error']}", err=True)
+    if counts.get("failed"):
+        raise SystemExit(1)

@@ -1,0 +1,67 @@
+"""Vector layers: GeoPackage layers (``file.gpkg:LAYER``) and shapefiles, through geopandas / pyogrio."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import geopandas as gpd
+import pyproj
+
+from ..errors import CRSMismatchError, DataFileError, InputError
+from .points import crs_label
+
+__all__ = ["read_layer", "check_crs", "write_layer"]
+
+
+def _split(spec) -> tuple[Path, str | None]:
+    text = str(spec)
+    if ":" in text and not Path(text).exists():
+        path, layer = text.rsplit(":", 1)
+        return Path(path), layer
+    return Path(text), None
+
+
+def read_layer(spec) -> gpd.GeoDataFrame:
+    """A vector layer from ``path`` or ``path:LAYER`` (GeoPackage layer); DataFileError naming it otherwise."""
+    path, layer = _split(spec)
+    if not path.exists():
+        raise DataFileError("file not found", path=path, hint="Check the path (GeoPackage layers are written file.gpkg:LAYER)")
+    try:
+        gdf = gpd.read_file(path, layer=layer) if layer else gpd.read_file(path)
+    except Exception as err:
+        raise DataFileError(f"cannot read layer {layer or '(first)'} ({err})", path=path,
+                            hint="Name an existing layer, e.g. breaklines.gpkg:ROADBREAKLINE") from None
+    if gdf.crs is None:
+        raise InputError("layer has no CRS", path=spec, hint="Assign one in QGIS or with ogr2ogr -a_srs")
+    return gdf
+
+
+def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: bool = False) -> gpd.GeoDataFrame:
+    """``gdf`` in ``crs``: refused when they differ, unless ``reproject``."""
+    layer_crs = pyproj.CRS.from_user_input(gdf.crs)
+    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+    if layer_crs.equals(horizontal, ignore_axis_order=True) or layer_crs.equals(crs, ignore_axis_order=True):
+        return gdf
+    if reproject:
+        return gdf.to_crs(horizontal)
+    raise CRSMismatchError(
+        f"layer CRS {crs_label(layer_crs)} differs from the points' CRS {crs_label(crs)}",
+        path=name,
+        hint="Reproject the layer, or pass --reproject-vectors to have gistools do it",
+    )
+
+
+def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = True) -> Path:
+    """Write one layer of a GeoPackage atomically (the whole file is replaced)."""
+    from .raster import atomic_path
+
+    path = Path(path)
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
+        try:
+            gdf.to_file(tmp_gpkg, layer=layer, driver="GPKG")
+            tmp_gpkg.replace(tmp)
+        finally:
+            if tmp_gpkg.exists():
+                tmp_gpkg.unlink()
+    return path

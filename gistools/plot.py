@@ -1,0 +1,91 @@
+"""Maps and figures (matplotlib, imported lazily)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import rasterio
+
+from .units import LinearUnit
+
+__all__ = ["SHRUB_COLOURS", "shrub_map"]
+
+# The dissertation's legend (L4766): white no vegetation, green light, yellow medium, red heavy, gray roads, blue water.
+SHRUB_COLOURS = {
+    0: ("no vegetation", "#ffffff"),
+    1: ("light", "#2ca02c"),
+    2: ("medium", "#ffd700"),
+    3: ("heavy", "#d62728"),
+    4: ("road", "#808080"),
+    5: ("water", "#1f77b4"),
+}
+
+
+def _nice_length(target: float) -> float:
+    exp = 10 ** np.floor(np.log10(target))
+    for m in (1, 2, 5, 10):
+        if m * exp >= target:
+            return float(m * exp)
+    return float(10 * exp)
+
+
+def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150) -> list[Path]:
+    """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
+
+    Returns the written paths (``out_stem`` + .png / .pdf), written atomically.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Patch
+
+    from .io.raster import atomic_path
+
+    with rasterio.open(classes_path) as src:
+        scale = max(1, int(np.ceil(max(src.width, src.height) / max_pixels)))
+        data = src.read(1, out_shape=(max(1, src.height // scale), max(1, src.width // scale)),
+                        resampling=rasterio.enums.Resampling.mode)
+        west, south, east, north = src.bounds
+        crs = src.crs
+    rgb = np.ones(data.shape + (3,))
+    for code, (_, colour) in SHRUB_COLOURS.items():
+        rgb[data == code] = matplotlib.colors.to_rgb(colour)
+    rgb[data == 255] = (0.85, 0.85, 0.85)
+    fig, ax = plt.subplots(figsize=(8.5, 9))
+    ax.imshow(rgb, extent=(west, east, south, north), interpolation="nearest")
+    ax.set_title(title)
+    ax.set_xlabel(f"x ({unit.name})")
+    ax.set_ylabel(f"y ({unit.name})")
+    ax.ticklabel_format(useOffset=False, style="plain")
+    handles = [Patch(facecolor=c, edgecolor="black", label=n) for _, (n, c) in SHRUB_COLOURS.items()]
+    handles.append(Patch(facecolor=(0.85, 0.85, 0.85), edgecolor="black", label="no data"))
+    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="Shrub density")
+    # scale bar (a round length about a fifth of the width), in map units
+    length = _nice_length((east - west) / 5)
+    x0, y0 = west + 0.05 * (east - west), south + 0.05 * (north - south)
+    ax.plot([x0, x0 + length], [y0, y0], color="black", linewidth=4, solid_capstyle="butt")
+    ax.text(x0 + length / 2, y0 + 0.02 * (north - south), f"{length:g} {unit.short}", ha="center", va="bottom")
+    # north arrow (north-up rasters)
+    ax.annotate("N", xy=(0.93, 0.93), xytext=(0.93, 0.83), xycoords="axes fraction", ha="center",
+                arrowprops=dict(facecolor="black", width=4, headwidth=12), fontsize=14, fontweight="bold")
+    crs_name = crs.to_string() if crs else "no CRS"
+    try:
+        import pyproj
+
+        crs_name = pyproj.CRS.from_wkt(crs.to_wkt()).name
+    except Exception:
+        pass
+    fig.text(0.01, 0.01, f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius.",
+             fontsize=8)
+    fig.tight_layout()
+    written = []
+    for suffix in (".png", ".pdf"):
+        path = Path(str(out_stem) + suffix)
+        with atomic_path(path, overwrite=True) as tmp:
+            fig.savefig(tmp, format=suffix[1:], dpi=dpi)
+        written.append(path)
+    plt.close(fig)
+    return written

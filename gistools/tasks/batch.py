@@ -1,0 +1,128 @@
+"""Running one function per tile: inline, on local processes, or on a dask.distributed cluster.
+
+One bad tile never stops the batch: its result is marked failed with the error's
+one-line message, and the other tiles go on.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+from ..errors import Cancelled, GistoolsError, InputError
+
+__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "fail"]
+
+
+def fail(result, err: BaseException) -> None:
+    """Mark a tile's result failed with a one-line message."""
+    result.status = "failed"
+    result.error = str(err) if isinstance(err, GistoolsError) else f"{result.path}: {type(err).__name__}: {err}"
+
+
+
+def _timed(fn, args):
+    t = time.perf_counter()
+    value = fn(*args)
+    return value, time.perf_counter() - t
+
+
+class ProcessPool:
+    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
+
+    def __init__(self, jobs: int):
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, fn, *args):
+        return self.pool.submit(fn, *args)
+
+    def wait_first(self, futures):
+        return wait(futures, return_when=FIRST_COMPLETED)[0]
+
+    def close(self, futures=()):
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+class DaskPool:
+    """Tiles as tasks on a dask.distributed cluster: a scheduler address, or "local" for a LocalCluster."""
+
+    def __init__(self, address: str, jobs: int):
+        try:
+            from dask.distributed import Client, LocalCluster
+        except ImportError:
+            raise InputError(
+                "--scheduler needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
+            ) from None
+        self.cluster = None
+        if address == "local":
+            self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
+            self.client = Client(self.cluster)
+        else:
+            try:
+                self.client = Client(address, timeout=10)
+            except (OSError, TimeoutError) as err:
+                raise InputError(f"--scheduler {address}: no Dask scheduler answers ({err})",
+                                 hint="Start one (dask scheduler) or check the address") from None
+
+    def submit(self, fn, *args):
+        return self.client.submit(fn, *args, pure=False)
+
+    def wait_first(self, futures):
+        from dask.distributed import wait as dask_wait
+
+        return dask_wait(list(futures), return_when="FIRST_COMPLETED").done
+
+    def close(self, futures=()):
+        if self.client is None:
+            return
+        if futures:
+            self.client.cancel(list(futures))
+        self.client.close()
+        if self.cluster is not None:
+            self.cluster.close()
+        self.client = self.cluster = None
+
+
+def run_each(fn, arglist, pool, results, names, on_done, tick, verb, inner_progress=None) -> None:
+    """Run fn over arglist (inline when ``pool`` is None, else on the pool); a failure marks its tile
+    failed and the rest go on. ``inner_progress`` (inline runs) is passed to fn for chunk progress."""
+    if not arglist:
+        return
+    if pool is None:
+        for name, args in zip(names, arglist):
+            if results[name].status == "failed":
+                continue
+            try:
+                value, seconds = _timed(fn, args if inner_progress is None else (*args, inner_progress))
+                on_done(args[0], value, seconds)
+            except Cancelled:
+                raise
+            except Exception as err:  # one bad tile never stops the batch; it is reported
+                fail(results[name], err)
+            tick(f"{name} {verb}")
+        return
+    pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
+               if results[name].status != "failed"}
+    try:
+        while pending:
+            for fut in pool.wait_first(pending):
+                name, args = pending.pop(fut)
+                try:
+                    value, seconds = fut.result()
+                    on_done(args[0], value, seconds)
+                except Exception as err:  # incl. a worker crash: reported per tile
+                    fail(results[name], err)
+                tick(f"{name} {verb}")
+    except BaseException:
+        pool.close(list(pending))
+        raise
+
+
+def make_pool(jobs: int, scheduler: str | None, n_tasks: int):
+    """A DaskPool for a scheduler address, a ProcessPool for jobs > 1, else None (inline)."""
+    if scheduler:
+        return DaskPool(scheduler, jobs)
+    if jobs > 1 and n_tasks > 1:
+        return ProcessPool(jobs)
+    return None

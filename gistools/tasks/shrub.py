@@ -1,0 +1,380 @@
+"""The shrub chain (dissertation ch. 9, S4-S11): tiles and breaklines to a shrub density map.
+
+Stages, each one function per tile run inline, on local processes or on Dask:
+
+1. DSM, DEM, nDSM and the class of each cell's highest first return
+   (:func:`gistools.tasks.rasters.rasters_from_tiles`).
+2. *bands*: height bands of the nDSM; road and water polygons of the tile from the
+   breaklines (split by the tile index, polygonised); vegetation = band minus road minus
+   water (cell-centre-in-polygon, as Clip / Select By Location on Raster To Point output);
+   vegetation inside wetlands.
+3. *density*: point density and cover of vegetation cells over a circle, reading a halo
+   from the neighbouring tiles through the VRT mosaic, so tile edges do not matter.
+4. *classes*: none / light / medium / heavy (+ road, water) from cover; class polygons.
+
+Then VRT mosaics, a GeoPackage of class polygons, a printable map and report.json.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pyproj
+import rasterio
+import shapely
+from rasterio.features import rasterize, shapes
+from rasterio.windows import from_bounds
+from shapely.geometry import box
+
+from ..errors import GistoolsError, InputError
+from ..grid import Grid
+from ..io.raster import atomic_path, read_raster, write_raster, write_vrt
+from ..io.vector import check_crs, read_layer, write_layer
+from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
+from ..lidar.density import halo_cells, point_density
+from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
+from ..progress import ProgressCallback, report, sub_progress
+from ..units import LinearUnit, length_to_crs_units
+from ..vector.breaklines import road_polygons, water_polygons
+from .batch import fail, make_pool, run_each
+from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
+
+__all__ = ["ShrubSettings", "shrub_from_tiles", "VEG_ROAD", "VEG_WATER"]
+
+VEG_ROAD, VEG_WATER, VEG_NODATA = 4, 5, 255
+ACRE_M2 = 4046.8564224
+HECTARE_M2 = 10000.0
+
+
+@dataclass(frozen=True)
+class ShrubSettings:
+    """Parameters of the shrub chain. Lengths take a unit ("25ft", "0.1m") or are CRS units.
+
+    bands: "exact" (1, 2, 6 m) or "text_literal" (the dissertation's 3.28 / 6.56 / 19.658 ft),
+    or band_breaks_m = three heights in metres. noise_floor: heights up to it are bare (B0).
+    snap: breakline snapping (0.2 ft, the dissertation's cluster tolerance). max_road_width /
+    max_hydro_width: faces wider than this are blocks between lines, not road / river.
+    single_line_width: width given to single-line hydro features. radius: density circle.
+    density_bands: the bands whose vegetation counts (default B1-B3; the dissertation used B1).
+    classify: "breaks" (class_breaks on cover), "quantile" or "jenks".
+    """
+
+    raster: RasterSettings = field(default_factory=RasterSettings)
+    bands: str = "exact"
+    band_breaks_m: tuple[float, float, float] | None = None
+    noise_floor: str | float = "0.1m"
+    snap: str | float = "0.2ft"
+    max_road_width: str | float = "60ft"
+    max_hydro_width: str | float = "500ft"
+    single_line_width: str | float = "8ft"
+    radius: str | float = "25ft"
+    density_bands: tuple[int, ...] = (1, 2, 3)
+    classify: str = "breaks"
+    class_breaks: tuple[float, float] = DEFAULT_BREAKS
+    tile_field: str = "TILE_ID"
+
+    def validate(self):
+        if self.classify not in ("breaks", "quantile", "jenks"):
+            raise InputError(f"--classify {self.classify!r} is not one of breaks, quantile, jenks")
+        if not self.density_bands or any(b not in (1, 2, 3) for b in self.density_bands):
+            raise InputError(f"density bands {self.density_bands} must be among 1, 2, 3", hint="e.g. --density-bands 1,2,3")
+
+
+@dataclass
+class _TileState:
+    name: str
+    path: str
+    status: str = "ok"
+    error: str | None = None
+    outputs: dict = field(default_factory=dict)
+    band_area: dict = field(default_factory=dict)
+    class_area: dict = field(default_factory=dict)
+    nodata_share: float = 0.0
+    wetland_vegetation_area: float = 0.0
+
+
+def _frames(grid: Grid, footprints) -> list:
+    """The tile index polygons that cover this tile's grid (the dissertation's split), or the grid box."""
+    gbox = box(*grid.bounds)
+    if footprints is None:
+        return [gbox]
+    hits = [f for f in footprints if f.intersects(gbox) and f.intersection(gbox).area > 0]
+    return hits or [gbox]
+
+
+def _bands_tile(name, ndsm_path, top_path, vec, p, out) -> dict:
+    ndsm, grid, _ = read_raster(ndsm_path)
+    top, _, _ = read_raster(top_path)
+    bands = height_bands(ndsm, p["thresholds"], top_is_ground=np.isin(top, GROUNDISH), noise_floor=p["noise_floor"])
+    frames = _frames(grid, vec["footprints"])
+    road = shapely.union_all([road_polygons(vec["roads"], f, snap=p["snap"], max_width=p["max_road_width"]) for f in frames])
+    water = shapely.union_all([water_polygons(vec["hydro"], vec["waterbodies"], f, snap=p["snap"], max_width=p["max_hydro_width"],
+                                              single_line_width=p["single_line_width"]) for f in frames])
+
+    def mask(geom):
+        if geom is None or geom.is_empty:
+            return np.zeros(grid.shape, bool)
+        # all_touched=False: a cell is in when its centre is (the Clip of Raster To Point centres)
+        return rasterize([geom], out_shape=grid.shape, transform=grid.transform, fill=0, default_value=1,
+                         all_touched=False, dtype="uint8").astype(bool)
+
+    road_m, water_m = mask(road), mask(water)
+    wet_m = mask(shapely.union_all(vec["wetlands"])) if vec["wetlands"] else np.zeros(grid.shape, bool)
+    veg = np.where((bands >= 1) & (bands <= 3), bands, 0).astype(np.uint8)
+    veg[bands == BAND_NODATA] = VEG_NODATA
+    veg[water_m] = VEG_WATER
+    veg[road_m] = VEG_ROAD
+    wetveg = np.where(wet_m & (veg >= 1) & (veg <= 3), veg, 0).astype(np.uint8)
+    outputs = {}
+    for product, array, nodata in (("bands", bands, BAND_NODATA), ("veg", veg, VEG_NODATA), ("wetveg", wetveg, None)):
+        path = Path(out) / product / f"{name}.tif"
+        write_raster(path, array, grid, nodata=nodata if nodata is not None else 255, dtype="uint8", overwrite=True,
+                     tags={"GISTOOLS_PRODUCT": product})
+        outputs[product] = str(path)
+    cell_area = grid.cell_size ** 2
+    band_area = {n: float(np.count_nonzero(bands == i) * cell_area) for i, n in enumerate(BAND_NAMES)}
+    return {
+        "outputs": outputs,
+        "band_area": band_area,
+        "nodata_share": float(np.mean(bands == BAND_NODATA)),
+        "wetland_vegetation_area": float(np.count_nonzero(wetveg) * cell_area),
+    }
+
+
+def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
+    cs = grid.cell_size
+    w, s, e, n = grid.bounds
+    with rasterio.open(vrt_path) as src:
+        window = from_bounds(w - halo * cs, s - halo * cs, e + halo * cs, n + halo * cs, src.transform)
+        window = window.round_offsets().round_lengths()
+        return src.read(1, window=window, boundless=True, fill_value=fill)
+
+
+def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
+    veg, grid, _ = read_raster(veg_tif)
+    halo = halo_cells(p["radius"], grid.cell_size)
+    big = _read_with_halo(veg_vrt, grid, halo, 0)
+    sel = np.isin(big, p["density_bands"])
+    count, density, cover = point_density(sel, grid.cell_size, p["radius"])
+    # cover is 0, not nodata, where data exist in reach but no vegetation; NaN only with no data in reach
+    has_data, _, _ = point_density(big != VEG_NODATA, grid.cell_size, p["radius"])
+    cover = np.where(np.isnan(cover) & (has_data > 0), 0.0, cover)
+    core = (slice(halo, halo + grid.height), slice(halo, halo + grid.width))
+    outputs = {}
+    for product, array in (("density", density[core]), ("cover", cover[core])):
+        path = Path(out) / product / f"{name}.tif"
+        write_raster(path, array, grid, overwrite=True, tags={"GISTOOLS_PRODUCT": product})
+        outputs[product] = str(path)
+    return {"outputs": outputs}
+
+
+def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
+    veg, grid, _ = read_raster(veg_tif)
+    cover, _, _ = read_raster(cover_tif)
+    classes = shrub_classes(cover, breaks, road=veg == VEG_ROAD, water=veg == VEG_WATER, nodata=np.isnan(cover))
+    path = Path(out) / "classes" / f"{name}.tif"
+    write_raster(path, classes, grid, nodata=CLASS_NODATA, dtype="uint8", overwrite=True,
+                 tags={"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES)})
+    cell_area = grid.cell_size ** 2
+    class_area = {n: float(np.count_nonzero(classes == c) * cell_area) for c, n in CLASS_NAMES.items()}
+    polys = []
+    for geom, value in shapes(classes, mask=(classes >= 1) & (classes <= 5), transform=grid.transform):
+        polys.append((int(value), shapely.geometry.shape(geom)))
+    dissolved = []
+    for c in sorted({v for v, _ in polys}):
+        dissolved.append((c, shapely.to_wkb(shapely.union_all([g for v, g in polys if v == c]))))
+    return {"outputs": {"classes": str(path)}, "class_area": class_area, "polygons": dissolved}
+
+
+def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject):
+    def load(spec, name):
+        if spec is None:
+            return None
+        return check_crs(read_layer(spec), crs, str(spec), reproject=reproject)
+
+    roads_g, hydro_g = load(roads, "roads"), load(hydro, "hydro")
+    wb_g, wet_g, idx_g = load(waterbodies, "waterbodies"), load(wetlands, "wetlands"), load(tile_index, "tile index")
+    if idx_g is not None and settings.tile_field not in idx_g.columns:
+        raise InputError(f"the tile index has no field {settings.tile_field!r} (fields: {', '.join(map(str, idx_g.columns))})",
+                         path=str(tile_index), hint="Pass --tile-field NAME")
+    return {
+        "roads": list(roads_g.geometry) if roads_g is not None else [],
+        "hydro": list(hydro_g.geometry) if hydro_g is not None else [],
+        "waterbodies": list(wb_g.geometry) if wb_g is not None else [],
+        "wetlands": list(wet_g.geometry) if wet_g is not None else [],
+        "footprints": list(idx_g.geometry) if idx_g is not None else None,
+    }
+
+
+def _subset(vec, bounds, margin):
+    """Vector geometries near a tile (what one worker needs)."""
+    area = box(*bounds).buffer(margin)
+    return {k: (None if v is None else [g for g in v if g is not None and g.intersects(area)]) for k, v in vec.items()}
+
+
+def shrub_from_tiles(
+    inputs,
+    out,
+    settings: ShrubSettings | None = None,
+    *,
+    roads=None,
+    hydro=None,
+    waterbodies=None,
+    wetlands=None,
+    tile_index=None,
+    reproject_vectors: bool = False,
+    jobs: int = 1,
+    scheduler: str | None = None,
+    overwrite: bool = False,
+    make_map: bool = True,
+    progress: ProgressCallback | None = None,
+) -> dict:
+    """The whole shrub chain on LAS/LAZ tiles; returns the report dict (also ``out/report.json``).
+
+    Vector inputs are paths or ``file.gpkg:LAYER``; they must be in the points' CRS unless
+    ``reproject_vectors``. Writes under ``out``: dsm/ dem/ ndsm/ topclass/ bands/ veg/ wetveg/
+    density/ cover/ classes/ (one GeoTIFF per tile) with VRT mosaics, ``shrub_classes.gpkg``,
+    ``shrub_map.png`` / ``.pdf`` and ``report.json``.
+    """
+    settings = settings or ShrubSettings()
+    settings.validate()
+    started = time.time()
+    out = Path(out)
+    rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass")})
+    summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, progress=sub_progress(progress, 0, 0.6),
+                                 scheduler=scheduler)
+    if summary["crs_wkt"] is None:
+        return summary
+    crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
+    unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
+    length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
+    params = {
+        "thresholds": band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
+        "noise_floor": length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
+        "snap": length(settings.snap, "snap"),
+        "max_road_width": length(settings.max_road_width, "max road width"),
+        "max_hydro_width": length(settings.max_hydro_width, "max hydro width"),
+        "single_line_width": length(settings.single_line_width, "single-line hydro width"),
+        "radius": length(settings.radius, "density radius"),
+        "density_bands": tuple(settings.density_bands),
+    }
+    vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
+    states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t["error"]) for t in summary["tiles"]}
+    ok = [t for t in summary["tiles"] if t["status"] in ("ok", "skipped")]
+    for t in ok:
+        states[t["name"]].status = "ok"
+    names = [t["name"] for t in ok]
+    pool = make_pool(jobs, scheduler, len(names))
+    done = {"n": 0}
+    total = max(3 * len(names), 1)
+
+    def tick(message):
+        done["n"] += 1
+        report(progress, 0.6 + 0.35 * done["n"] / total, message)
+
+    def grid_of(name):
+        with rasterio.open(out / "ndsm" / f"{name}.tif") as src:
+            return src.bounds
+
+    try:
+        margin = params["max_road_width"] + params["max_hydro_width"]
+        args = [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", _subset(vec, grid_of(n), margin), params, out)
+                for n in names]
+
+        def bands_done(name, value, seconds):
+            st = states[name]
+            st.outputs.update(value["outputs"])
+            st.band_area, st.nodata_share = value["band_area"], value["nodata_share"]
+            st.wetland_vegetation_area = value["wetland_vegetation_area"]
+
+        run_each(_bands_tile, args, pool, states, names, bands_done, tick, "bands")
+        good = [n for n in names if states[n].status == "ok"]
+        mosaic = {}
+        for product in ("bands", "veg", "wetveg"):
+            mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+        run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], params, out) for n in good], pool, states,
+                 good, lambda n, v, s: states[n].outputs.update(v["outputs"]), tick, "density")
+        good = [n for n in good if states[n].status == "ok"]
+        breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
+        polygons = []
+
+        def classes_done(name, value, seconds):
+            states[name].outputs.update(value["outputs"])
+            states[name].class_area = value["class_area"]
+            polygons.extend((name, c, g) for c, g in value["polygons"])
+
+        run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, params, out) for n in good],
+                 pool, states, good, classes_done, tick, "classes")
+    finally:
+        if pool is not None:
+            pool.close()
+    good = [n for n in names if states[n].status == "ok"]
+    for product in ("density", "cover", "classes"):
+        mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+    area_m2 = unit.metres ** 2
+    _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, area_m2)
+    if make_map and mosaic.get("classes"):
+        from ..plot import shrub_map
+
+        shrub_map(mosaic["classes"], out / "shrub_map", title=f"Shrub density - {_input_label(inputs)}", unit=unit)
+    report(progress, 1.0, "done")
+    totals_band = {b: sum(states[n].band_area.get(b, 0.0) for n in good) for b in BAND_NAMES}
+    totals_class = {c: sum(states[n].class_area.get(c, 0.0) for n in good) for c in CLASS_NAMES.values()}
+    shrub_report = {
+        **{k: v for k, v in summary.items() if k not in ("tiles", "counts", "mosaics", "seconds")},
+        "tool": "gistools shrub",
+        "area_unit": f"{unit.name} squared",
+        "band_thresholds": list(params["thresholds"]),
+        "band_unit": z_unit.name,
+        "density_radius": params["radius"],
+        "density_bands": list(params["density_bands"]),
+        "class_breaks": list(breaks),
+        "band_area": totals_band,
+        "class_area": totals_class,
+        "class_area_acres": {k: v * area_m2 / ACRE_M2 for k, v in totals_class.items()},
+        "nodata_share": float(np.mean([states[n].nodata_share for n in good])) if good else None,
+        "tiles": [{**next(t for t in summary["tiles"] if t["name"] == n), **states[n].__dict__} for n in states],
+        "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "failed")},
+        "mosaics": {k: str(v) for k, v in {**summary["mosaics"], **mosaic}.items() if v},
+        "seconds": round(time.time() - started, 3),
+    }
+    for t in shrub_report["tiles"]:
+        t.pop("polygons", None)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
+    return shrub_report
+
+
+def _breaks(settings: ShrubSettings, cover_paths) -> tuple[float, float]:
+    if settings.classify == "breaks":
+        return tuple(settings.class_breaks)  # type: ignore[return-value]
+    values = []
+    for p in cover_paths:
+        a, _, _ = read_raster(p)
+        v = a[np.isfinite(a)]
+        if v.size:
+            values.append(np.random.default_rng(0).choice(v, min(v.size, 5000), replace=False))
+    allv = np.concatenate(values) if values else np.empty(0)
+    return quantile_breaks(allv) if settings.classify == "quantile" else jenks_breaks(allv)
+
+
+def _write_polygons(path, polygons, crs, tile_field, area_m2):
+    import geopandas as gpd
+
+    rows = [{"tile": n, "class_code": c, "class": CLASS_NAMES[c], "geometry": shapely.from_wkb(g)} for n, c, g in polygons]
+    gdf = gpd.GeoDataFrame(rows, geometry="geometry", crs=crs.sub_crs_list[0] if crs.is_compound else crs) if rows else \
+        gpd.GeoDataFrame({"tile": [], "class_code": [], "class": []}, geometry=[], crs=crs)
+    gdf["area"] = gdf.geometry.area
+    gdf["area_acres"] = gdf["area"] * area_m2 / ACRE_M2
+    gdf["area_ha"] = gdf["area"] * area_m2 / HECTARE_M2
+    write_layer(gdf, path, "shrub_classes")
+
+
+def _input_label(inputs) -> str:
+    items = [inputs] if isinstance(inputs, (str, Path)) else list(inputs)
+    return ", ".join(Path(i).name for i in items[:3]) + (" ..." if len(items) > 3 else "")

@@ -1,0 +1,1 @@
+"""Vector operations on shapely geometries: breaklines to polygons, polygon masks on grids."""
