@@ -30,10 +30,12 @@ def _nice_length(target: float) -> float:
     return float(10 * exp)
 
 
-def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150) -> list[Path]:
+def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150,
+              probes=()) -> dict:
     """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
 
-    Returns the written paths (``out_stem`` + .png / .pdf), written atomically.
+    Returns {"paths": [png, pdf], "probes": [(col, row) pixel of the PNG for each (x, y) of ``probes``]};
+    files are written atomically.
     """
     import matplotlib
 
@@ -81,6 +83,12 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     fig.text(0.01, 0.01, f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius.",
              fontsize=8)
     fig.tight_layout()
+    fig.canvas.draw()
+    height_px = fig.get_size_inches()[1] * dpi
+    pixels = []
+    for x, y in probes:
+        px, py = ax.transData.transform((x, y)) * (dpi / fig.dpi)
+        pixels.append((int(round(px)), int(round(height_px - py))))
     written = []
     for suffix in (".png", ".pdf"):
         path = Path(str(out_stem) + suffix)
@@ -88,4 +96,4 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
             fig.savefig(tmp, format=suffix[1:], dpi=dpi)
         written.append(path)
     plt.close(fig)
-    return written
+    return {"paths": written, "probes": pixels}

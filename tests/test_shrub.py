@@ -1,0 +1,190 @@
+"""The shrub chain on the sample block against the generator's truth, and on the real Megaplot file."""
+
+from __future__ import annotations
+
+import json
+
+import geopandas as gpd
+import numpy as np
+import pyproj
+import pytest
+import shapely
+from click.testing import CliRunner
+
+from conftest import SAMPLE, SHARED_DATA
+from gistools.cli.main import cli
+from gistools.errors import CRSMismatchError
+from gistools.grid import cell_centres
+from gistools.io.points import write_tile
+from gistools.io.raster import read_raster
+from gistools.synthetic import Scene, ground_z, scene_points
+from gistools.tasks.shrub import ShrubSettings, shrub_from_tiles
+
+B = SAMPLE / "breaklines.gpkg"
+VECTORS = dict(roads=f"{B}:ROADBREAKLINE", hydro=f"{B}:HYDROGRAPHICFEATURE", waterbodies=f"{B}:WATERBODY",
+               wetlands=f"{B}:WETLAND", tile_index=f"{B}:FOOTPRINT")
+CODE = {"light": 1, "medium": 2, "heavy": 3}
+
+
+@pytest.fixture(scope="session")
+def shrub_run(tmp_path_factory, sample_tiles):
+    out = tmp_path_factory.mktemp("shrub")
+    report = shrub_from_tiles(sample_tiles, out, **VECTORS)
+    return out, report
+
+
+def centres(grid):
+    xs, ys = cell_centres(grid)
+    return np.meshgrid(xs, ys)
+
+
+def test_report_has_areas_by_band_and_class(shrub_run):
+    out, report = shrub_run
+    assert report["counts"] == {"ok": 4, "failed": 0}
+    assert set(report["class_area"]) == {"none", "light", "medium", "heavy", "road", "water"}
+    assert set(report["band_area"]) == {"B0", "B1", "B2", "B3"}
+    assert report["area_unit"] == "US survey foot squared"
+    assert report["band_thresholds"] == pytest.approx([3937 / 1200, 2 * 3937 / 1200, 19.685])
+    assert sum(report["class_area"].values()) == pytest.approx(2000 * 2000)
+    assert json.loads((out / "report.json").read_text())["class_area"] == report["class_area"]
+    for name in ("shrub_map.png", "shrub_map.pdf", "shrub_classes.gpkg", "classes.vrt", "cover.vrt", "density.vrt",
+                 "bands.vrt", "veg.vrt", "wetveg.vrt"):
+        assert (out / name).exists(), name
+
+
+def test_each_patch_interior_gets_its_class(shrub_run):
+    out, _ = shrub_run
+    classes, grid, _ = read_raster(out / "classes.vrt")
+    cx, cy = centres(grid)
+    truth = gpd.read_file(SAMPLE / "truth.gpkg", layer="SHRUB_TRUTH")
+    checked = 0
+    for _, patch in truth.iterrows():
+        inner = patch.geometry.buffer(-25)  # cells whose whole 25 ft neighbourhood is in the patch
+        m = shapely.contains_xy(inner, cx, cy) if not inner.is_empty else np.zeros(cx.shape, bool)
+        if m.sum() < 20:
+            continue
+        share = np.mean(classes[m] == CODE[patch["cover"]])
+        assert share >= 0.9, (patch["cover"], patch["band"], share)
+        checked += 1
+    assert checked >= 15
+
+
+def test_no_vegetation_in_roads_or_water(shrub_run):
+    out, _ = shrub_run
+    veg, grid, _ = read_raster(out / "veg.vrt")
+    cx, cy = centres(grid)
+    for layer in ("ROAD_TRUTH", "WATER_TRUTH"):
+        poly = gpd.read_file(SAMPLE / "truth.gpkg", layer=layer).union_all().buffer(-1.0)
+        inside = shapely.contains_xy(poly, cx, cy)
+        assert inside.sum() > 1000
+        assert not np.any((veg[inside] >= 1) & (veg[inside] <= 3)), layer
+    classes, _, _ = read_raster(out / "classes.vrt")
+    road = shapely.contains_xy(gpd.read_file(SAMPLE / "truth.gpkg", layer="ROAD_TRUTH").union_all().buffer(-1.0), cx, cy)
+    assert np.mean(classes[road] == 4) > 0.99
+
+
+def test_band_areas_against_true_crowns(shrub_run, record_property):
+    """Band areas against the generator's crown areas (see the issue note: the 2 % target is not met yet)."""
+    out, report = shrub_run
+    crowns = gpd.read_file(SAMPLE / "truth.gpkg", layer="SHRUB_CROWNS")
+    veg, grid, _ = read_raster(out / "veg.vrt")
+    cx, cy = centres(grid)
+    roofs = shapely.contains_xy(gpd.read_file(SAMPLE / "truth.gpkg", layer="BUILDING_TRUTH").union_all(), cx, cy)
+    for band in ("B1", "B2", "B3"):
+        true_area = crowns[crowns.band == band].area.sum()
+        got = np.count_nonzero((veg == int(band[1])) & ~roofs) * grid.cell_size ** 2
+        ratio = got / true_area
+        record_property(f"{band}_area_ratio", ratio)
+        print(f"{band}: band cells {got:,.0f} ft2, true crowns {true_area:,.0f} ft2, ratio {ratio:.3f}")
+        assert 0.95 < ratio < 1.12  # a cell counts when any of its ~1.6 pulses hits a crown: biased up
+
+
+def test_vegetation_inside_wetland(shrub_run):
+    out, _ = shrub_run
+    wetveg, grid, _ = read_raster(out / "wetveg.vrt")
+    cx, cy = centres(grid)
+    wet = gpd.read_file(B, layer="WETLAND").union_all()
+    inside = shapely.contains_xy(wet, cx, cy)
+    assert np.any((wetveg >= 1) & (wetveg <= 3))
+    assert not np.any(((wetveg >= 1) & (wetveg <= 3)) & ~inside)
+
+
+def test_map_colours_at_known_patches(shrub_run):
+    import matplotlib.image as mpimg
+    import matplotlib.colors as mcolors
+
+    from gistools.plot import SHRUB_COLOURS, shrub_map
+    from gistools.units import LinearUnit
+
+    out, _ = shrub_run
+    truth = gpd.read_file(SAMPLE / "truth.gpkg", layer="SHRUB_TRUTH")
+    big = truth[truth.geometry.buffer(-30).area > 500]
+    probes = [(p.geometry.buffer(-30).representative_point().x, p.geometry.buffer(-30).representative_point().y)
+              for p in big.itertuples()]
+    result = shrub_map(out / "classes.vrt", out / "probe_map", title="probe", unit=LinearUnit("US survey foot", 1200 / 3937),
+                       probes=probes)
+    img = mpimg.imread(result["paths"][0])[:, :, :3]
+    for (col, row), cover in zip(result["probes"], big["cover"]):
+        want = np.array(mcolors.to_rgb(SHRUB_COLOURS[CODE[cover]][1]))
+        assert np.abs(img[row, col] - want).max() < 0.05, (cover, img[row, col], want)
+
+
+def test_class_polygons_layer(shrub_run, shrub_area=None):
+    out, report = shrub_run
+    gdf = gpd.read_file(out / "shrub_classes.gpkg", layer="shrub_classes")
+    assert gdf.crs.to_epsg() == 2882
+    assert set(gdf["class"]) == {"light", "medium", "heavy", "road", "water"}
+    for name in ("light", "medium", "heavy"):
+        assert gdf.loc[gdf["class"] == name, "area"].sum() == pytest.approx(report["class_area"][name], rel=1e-6)
+    assert np.allclose(gdf["area_acres"], gdf["area"] * (1200 / 3937) ** 2 / 4046.8564224)
+
+
+def test_bare_sloping_rough_ground_has_no_shrub(tmp_path):
+    """Only ground: steep slope plus 0.3 ft roughness. No cell may come out as B1-B3 or as shrub."""
+    import numpy as np
+
+    scene = Scene(origin=(500000.0, 1800000.0), size=(600.0, 600.0))
+    pts = scene_points(scene, scene.bounds, spacing=4.0, seed=5)
+    rng = np.random.default_rng(1)
+    pts["z"] = pts["z"] + 0.08 * (pts["x"] - 500000.0) + rng.normal(0, 0.3, pts["z"].size)  # 8 % slope, rough
+    assert set(np.unique(pts["classification"])) == {2}
+    write_tile(tmp_path / "bare.las", pts, pyproj.CRS.from_epsg(2882), version="1.2", point_format=1)
+    report = shrub_from_tiles([tmp_path / "bare.las"], tmp_path / "out")
+    assert report["band_area"]["B1"] == report["band_area"]["B2"] == report["band_area"]["B3"] == 0
+    assert report["class_area"]["light"] == report["class_area"]["medium"] == report["class_area"]["heavy"] == 0
+
+
+def test_vector_crs_mismatch_is_refused(sample_tiles, tmp_path):
+    roads = gpd.read_file(B, layer="ROADBREAKLINE").to_crs(4326)
+    roads.to_file(tmp_path / "roads_wgs84.gpkg", layer="roads")
+    with pytest.raises(CRSMismatchError) as err:
+        shrub_from_tiles(sample_tiles, tmp_path / "out", roads=f"{tmp_path / 'roads_wgs84.gpkg'}:roads")
+    assert "EPSG:4326" in str(err.value) and "EPSG:2882" in str(err.value) and "--reproject-vectors" in str(err.value)
+    report = shrub_from_tiles(sample_tiles, tmp_path / "out2", roads=f"{tmp_path / 'roads_wgs84.gpkg'}:roads",
+                              reproject_vectors=True, make_map=False)
+    assert report["class_area"]["road"] > 50000
+
+
+def test_megaplot_with_its_lake(megaplot, tmp_path, record_property):
+    lake = SHARED_DATA / "lidar" / "megaplot" / "lake_polygons_UTM17.shp"
+    report = shrub_from_tiles([megaplot], tmp_path, ShrubSettings(), waterbodies=str(lake))
+    assert report["counts"]["ok"] == 1 and report["horizontal_unit"] == "metre"
+    veg, grid, _ = read_raster(tmp_path / "veg.vrt")
+    cx, cy = centres(grid)
+    inside = shapely.contains_xy(gpd.read_file(lake).union_all().buffer(-0.5), cx, cy)
+    assert inside.sum() > 100
+    assert not np.any((veg[inside] >= 1) & (veg[inside] <= 3))
+    print("\nMegaplot:", json.dumps({k: report[k] for k in ("band_area", "class_area", "nodata_share")}))
+    for k, v in report["class_area"].items():
+        record_property(f"megaplot_{k}_m2", v)
+    assert report["class_area"]["water"] > 0 and report["class_area"]["heavy"] + report["class_area"]["medium"] > 0
+
+
+def test_cli_shrub(sample_tiles, tmp_path):
+    args = ["shrub", str(SAMPLE), "--out", str(tmp_path), "-q", "--no-map"]
+    for k, v in VECTORS.items():
+        args += [f"--{k.replace('_', '-')}", v]
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 0, result.output
+    assert "4 tiles ok" in result.output and "heavy" in result.output
+    assert (tmp_path / "classes.vrt").exists() and not (tmp_path / "shrub_map.png").exists()
