@@ -188,3 +188,61 @@ def test_cli_shrub(sample_tiles, tmp_path):
     assert result.exit_code == 0, result.output
     assert "4 tiles ok" in result.output and "heavy" in result.output
     assert (tmp_path / "classes.vrt").exists() and not (tmp_path / "shrub_map.png").exists()
+
+
+def _metre_copy(sample_tiles, dest):
+    """The sample in NAD83(HARN) / Florida West metres (EPSG:2778): same projection, coordinates x 1200/3937."""
+    import laspy
+
+    k = 1200 / 3937
+    dest.mkdir()
+    for p in sample_tiles:
+        las = laspy.read(p)
+        pts = {n: np.asarray(getattr(las, n)) for n in ("x", "y", "z", "classification", "return_number",
+                                                       "number_of_returns", "intensity")}
+        pts["x"], pts["y"], pts["z"] = pts["x"] * k, pts["y"] * k, pts["z"] * k
+        write_tile(dest / p.name, pts, pyproj.CRS.from_epsg(2778), version="1.2", point_format=1, scale=0.001,
+                   vertical_epsg=5703)
+    vectors = {}
+    for key, spec in VECTORS.items():
+        path, layer = spec.rsplit(":", 1)
+        gdf = gpd.read_file(path, layer=layer)
+        gdf = gdf.set_geometry(shapely.transform(gdf.geometry, lambda c: c * k)).set_crs(2778, allow_override=True)
+        gdf.to_file(dest / "breaklines.gpkg", layer=layer)
+        vectors[key] = f"{dest / 'breaklines.gpkg'}:{layer}"
+    return vectors
+
+
+def test_the_same_run_in_metres_gives_the_same_areas(sample_tiles, shrub_run, tmp_path):
+    out, feet = shrub_run
+    vectors = _metre_copy(sample_tiles, tmp_path / "m")
+    s = ShrubSettings()
+    metres = shrub_from_tiles(sorted((tmp_path / "m").glob("*.la[sz]")), tmp_path / "out",
+                              ShrubSettings(raster=s.raster.__class__(cell_size="5ftUS")), make_map=False, **vectors)
+    assert metres["horizontal_unit"] == "metre" and metres["vertical_unit"] == "metre"
+    assert metres["band_thresholds"] == pytest.approx([1.0, 2.0, 6.0])
+    ft2 = (1200 / 3937) ** 2
+    for key in ("band_area", "class_area"):
+        for name, a_ft2 in feet[key].items():
+            a_m2 = metres[key][name]
+            assert a_m2 == pytest.approx(a_ft2 * ft2, rel=0.005, abs=50 * 0.3 ** 2), (key, name)
+
+
+def test_tiled_equals_untiled_for_density_and_classes(sample_tiles, shrub_run, tmp_path):
+    import laspy
+
+    out, _ = shrub_run
+    parts = [laspy.read(p) for p in sample_tiles]
+    pts = {n: np.concatenate([np.asarray(getattr(l, n)) for l in parts])
+           for n in ("x", "y", "z", "classification", "return_number", "number_of_returns", "intensity")}
+    write_tile(tmp_path / "block.las", pts, pyproj.CRS.from_epsg(2882), version="1.1", point_format=1,
+               offsets=[430000.0, 1810000.0, 0.0], vertical_epsg=6360)
+    shrub_from_tiles([tmp_path / "block.las"], tmp_path / "out", make_map=False, **VECTORS)
+    for product in ("bands", "veg", "classes"):
+        a, _, _ = read_raster(out / f"{product}.vrt")
+        b, _, _ = read_raster(tmp_path / "out" / f"{product}.vrt")
+        assert np.array_equal(a, b), (product, int(np.sum(a != b)))
+    for product in ("density", "cover"):
+        a, _, _ = read_raster(out / f"{product}.vrt")
+        b, _, _ = read_raster(tmp_path / "out" / f"{product}.vrt")
+        assert np.allclose(a, b, equal_nan=True, atol=1e-6), product

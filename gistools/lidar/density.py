@@ -20,20 +20,23 @@ __all__ = ["disk_kernel", "point_density", "halo_cells"]
 
 def halo_cells(radius: float, cell_size: float) -> int:
     """Cells of halo a neighbourhood of ``radius`` (CRS units) needs."""
-    return int(np.ceil(radius / cell_size))
+    return int(np.ceil(radius / cell_size - 1e-5))
 
 
 def disk_kernel(radius: float, cell_size: float) -> np.ndarray:
     """Boolean kernel of the cell centres within ``radius`` of the centre cell's centre (CRS units).
+
+    Centres at the radius count, with a 1e-5 relative tolerance, so that a radius converted
+    between foot definitions (2 ppm apart) keeps the same cells.
 
     >>> int(disk_kernel(25.0, 5.0).sum())
     81
     """
     if not radius > 0:
         raise InputError(f"density radius {radius!r} must be positive", hint="e.g. --radius 25ft")
-    k = halo_cells(radius, cell_size)
+    k = halo_cells(radius * (1 + 1e-5), cell_size)
     off = np.arange(-k, k + 1) * cell_size
-    return (off[:, None] ** 2 + off[None, :] ** 2) <= radius * radius * (1 + 1e-12)
+    return (off[:, None] ** 2 + off[None, :] ** 2) <= radius * radius * (1 + 2e-5)
 
 
 def point_density(mask: np.ndarray, cell_size: float, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
