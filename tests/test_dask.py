@@ -69,3 +69,20 @@ def test_dask_local_cluster(sample_tiles, sample_run, tmp_path):
 def test_unreachable_scheduler_is_a_clear_error(sample_tiles, tmp_path):
     with pytest.raises(InputError, match="no Dask scheduler answers"):
         rasters_from_tiles(sample_tiles[:1], tmp_path, scheduler=f"tcp://127.0.0.1:{_free_port()}")
+
+
+def test_shrub_chain_on_dask_equals_local(sample_tiles, tmp_path, dask_cluster):
+    from conftest import SAMPLE
+    from gistools.tasks.shrub import shrub_from_tiles
+
+    b = SAMPLE / "breaklines.gpkg"
+    vectors = dict(roads=f"{b}:ROADBREAKLINE", hydro=f"{b}:HYDROGRAPHICFEATURE", waterbodies=f"{b}:WATERBODY",
+                   wetlands=f"{b}:WETLAND", tile_index=f"{b}:FOOTPRINT")
+    local = shrub_from_tiles(sample_tiles, tmp_path / "local", make_map=False, **vectors)
+    remote = shrub_from_tiles(sample_tiles, tmp_path / "dask", make_map=False, scheduler=dask_cluster, **vectors)
+    assert remote["counts"] == {"ok": 4, "failed": 0}
+    assert remote["class_area"] == local["class_area"] and remote["band_area"] == local["band_area"]
+    for product in ("bands", "veg", "classes", "cover"):
+        a, _, _ = read_raster(tmp_path / "local" / f"{product}.vrt")
+        c, _, _ = read_raster(tmp_path / "dask" / f"{product}.vrt")
+        assert np.array_equal(a, c, equal_nan=True), product

@@ -246,3 +246,42 @@ def test_tiled_equals_untiled_for_density_and_classes(sample_tiles, shrub_run, t
         a, _, _ = read_raster(out / f"{product}.vrt")
         b, _, _ = read_raster(tmp_path / "out" / f"{product}.vrt")
         assert np.allclose(a, b, equal_nan=True, atol=1e-6), product
+
+
+def test_killed_run_resumes_to_identical_outputs(sample_tiles, shrub_run, tmp_path):
+    """SIGKILL mid-way (no clean-up possible), then the same command again: identical outputs, no partial files."""
+    import shutil
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for p in sample_tiles:
+        shutil.copy(p, tiles / p.name)
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "gistools.cli.main", "shrub", str(tiles), "--out", str(out), "-q", "--no-map",
+            "--chunk-size", "5000"]
+    for k, v in VECTORS.items():
+        args += [f"--{k.replace('_', '-')}", v]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.time() + 60
+    while not list((out / "dem").glob("*.tif")) if (out / "dem").exists() else True:
+        if time.time() > deadline:
+            break
+        time.sleep(0.02)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert proc.returncode == -signal.SIGKILL
+    assert not (out / "classes.vrt").exists()  # it was stopped before the end
+    again = subprocess.run(args, capture_output=True, text=True)
+    assert again.returncode == 0, again.stderr
+    assert not list(out.rglob("*.partial*")) and not list(out.glob(".gistools-scratch-*"))
+    ref_out, ref = shrub_run
+    report = json.loads((out / "report.json").read_text())
+    assert report["class_area"] == ref["class_area"] and report["band_area"] == ref["band_area"]
+    for product in ("dsm", "dem", "ndsm", "bands", "veg", "cover", "classes"):
+        a, _, _ = read_raster(ref_out / f"{product}.vrt")
+        b, _, _ = read_raster(out / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product

@@ -332,6 +332,18 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     return {"outputs": outputs}
 
 
+def _remove_leftovers(out: Path) -> None:
+    """Partial files and scratch folders a killed run left (a resumed run starts clean)."""
+    if not out.is_dir():
+        return
+    for leftover in out.glob(".gistools-scratch-*"):
+        shutil.rmtree(leftover, ignore_errors=True)
+    for partial in out.rglob("*.partial*"):
+        if partial.is_file():
+            log.info("removing %s, left by an interrupted run", partial)
+            partial.unlink()
+
+
 def _outputs_exist(out: Path, name: str, products=DEFAULT_PRODUCTS) -> bool:
     return all((out / p / f"{name}.tif").exists() for p in products)
 
@@ -363,6 +375,7 @@ def rasters_from_tiles(
     settings.validate()
     started = time.time()
     out = Path(out)
+    _remove_leftovers(out)
     paths = find_tiles(inputs)
     override = parse_crs_text(settings.crs) if settings.crs else None
     results = {p.stem: TileResult(name=p.stem, path=str(p)) for p in paths}

@@ -106,7 +106,29 @@ def _frames(grid: Grid, footprints) -> list:
     return hits or [gbox]
 
 
+def _stats_of_bands(bands, wetveg, grid) -> dict:
+    cell_area = grid.cell_size ** 2
+    return {
+        "band_area": {n: float(np.count_nonzero(bands == i) * cell_area) for i, n in enumerate(BAND_NAMES)},
+        "nodata_share": float(np.mean(bands == BAND_NODATA)),
+        "wetland_vegetation_area": float(np.count_nonzero((wetveg >= 1) & (wetveg <= 3)) * cell_area),
+    }
+
+
+def _existing(out, name, products, overwrite) -> dict | None:
+    """Output paths of a stage when all exist and overwriting is off (a resumed run), else None."""
+    paths = {p: Path(out) / p / f"{name}.tif" for p in products}
+    if overwrite or not all(path.exists() for path in paths.values()):
+        return None
+    return {k: str(v) for k, v in paths.items()}
+
+
 def _bands_tile(name, ndsm_path, top_path, vec, p, out) -> dict:
+    done = _existing(out, name, ("bands", "veg", "wetveg"), p["overwrite"])
+    if done:
+        bands, grid, _ = read_raster(done["bands"])
+        wetveg, _, _ = read_raster(done["wetveg"])
+        return {"outputs": done, **_stats_of_bands(bands, wetveg, grid)}
     ndsm, grid, _ = read_raster(ndsm_path)
     top, _, _ = read_raster(top_path)
     bands = height_bands(ndsm, p["thresholds"], top_is_ground=np.isin(top, GROUNDISH), noise_floor=p["noise_floor"])
@@ -135,14 +157,7 @@ def _bands_tile(name, ndsm_path, top_path, vec, p, out) -> dict:
         write_raster(path, array, grid, nodata=nodata if nodata is not None else 255, dtype="uint8", overwrite=True,
                      tags={"GISTOOLS_PRODUCT": product})
         outputs[product] = str(path)
-    cell_area = grid.cell_size ** 2
-    band_area = {n: float(np.count_nonzero(bands == i) * cell_area) for i, n in enumerate(BAND_NAMES)}
-    return {
-        "outputs": outputs,
-        "band_area": band_area,
-        "nodata_share": float(np.mean(bands == BAND_NODATA)),
-        "wetland_vegetation_area": float(np.count_nonzero(wetveg) * cell_area),
-    }
+    return {"outputs": outputs, **_stats_of_bands(bands, wetveg, grid)}
 
 
 def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
@@ -155,6 +170,9 @@ def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
 
 
 def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
+    done = _existing(out, name, ("density", "cover"), p["overwrite"])
+    if done:
+        return {"outputs": done}
     veg, grid, _ = read_raster(veg_tif)
     halo = halo_cells(p["radius"], grid.cell_size)
     big = _read_with_halo(veg_vrt, grid, halo, 0)
@@ -173,12 +191,15 @@ def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
 
 
 def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
-    veg, grid, _ = read_raster(veg_tif)
-    cover, _, _ = read_raster(cover_tif)
-    classes = shrub_classes(cover, breaks, road=veg == VEG_ROAD, water=veg == VEG_WATER, nodata=np.isnan(cover))
     path = Path(out) / "classes" / f"{name}.tif"
-    write_raster(path, classes, grid, nodata=CLASS_NODATA, dtype="uint8", overwrite=True,
-                 tags={"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES)})
+    if _existing(out, name, ("classes",), p["overwrite"]):
+        classes, grid, _ = read_raster(path)
+    else:
+        veg, grid, _ = read_raster(veg_tif)
+        cover, _, _ = read_raster(cover_tif)
+        classes = shrub_classes(cover, breaks, road=veg == VEG_ROAD, water=veg == VEG_WATER, nodata=np.isnan(cover))
+        write_raster(path, classes, grid, nodata=CLASS_NODATA, dtype="uint8", overwrite=True,
+                     tags={"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES)})
     cell_area = grid.cell_size ** 2
     class_area = {n: float(np.count_nonzero(classes == c) * cell_area) for c, n in CLASS_NAMES.items()}
     polys = []
@@ -262,6 +283,7 @@ def shrub_from_tiles(
         "single_line_width": length(settings.single_line_width, "single-line hydro width"),
         "radius": length(settings.radius, "density radius"),
         "density_bands": tuple(settings.density_bands),
+        "overwrite": overwrite,
     }
     vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
     states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t["error"]) for t in summary["tiles"]}
