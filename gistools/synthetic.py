@@ -22,7 +22,7 @@ from shapely.geometry import LineString, Point, Polygon, box
 
 from .units import US_SURVEY_FOOT
 
-__all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "BANDS_M", "COVER"]
+__all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "write_breaklines", "BANDS_M", "COVER"]
 
 M = 1.0 / US_SURVEY_FOOT  # ftUS per metre
 BANDS_M = {"B1": (0.25, 0.9), "B2": (1.2, 1.85), "B3": (2.35, 5.6)}  # crown top heights per band (m)
@@ -312,3 +312,29 @@ def scene_points(scene: Scene, bounds, *, spacing: float = 4.0, seed: int = 0) -
         "intensity": inten.astype(np.uint16),
         "gps_time": 86400.0 * 190 + np.arange(total) * 1e-5,
     }
+
+
+def _edges_within(geom, block):
+    """Edge lines of a (multi)polygon inside ``block``, merged where they join (no block-edge segments)."""
+    lines = shapely.line_merge(geom.boundary.intersection(block))
+    return list(getattr(lines, "geoms", [lines]))
+
+
+def write_breaklines(scene: Scene, footprints: list[dict], gpkg, crs) -> None:
+    """The delivery's breakline layers for a scene, as a GeoPackage: FOOTPRINT (``footprints``: dicts
+    with a geometry and fields), ROADBREAKLINE (edge of pavement, both sides), HYDROGRAPHICFEATURE
+    (river banks and a single-line creek), WATERBODY (river and pond with its island) and WETLAND."""
+    import geopandas as gpd
+
+    block = box(*scene.bounds)
+    gpd.GeoDataFrame(footprints, crs=crs).to_file(gpkg, layer="FOOTPRINT")
+    road_edges = _edges_within(scene.road_union, block)
+    gpd.GeoDataFrame({"TYPE": ["EDGE_OF_PAVEMENT"] * len(road_edges)}, geometry=road_edges, crs=crs).to_file(
+        gpkg, layer="ROADBREAKLINE")
+    hydro = [(ln, "DUAL_LINE_BANK") for ln in _edges_within(scene.river, block)] + [(scene.creek, "SINGLE_LINE")]
+    gpd.GeoDataFrame({"TYPE": [t for _, t in hydro]}, geometry=[g for g, _ in hydro], crs=crs).to_file(
+        gpkg, layer="HYDROGRAPHICFEATURE")
+    gpd.GeoDataFrame({"NAME": ["river", "pond"]}, geometry=[scene.river.intersection(block), scene.pond], crs=crs).to_file(
+        gpkg, layer="WATERBODY")
+    gpd.GeoDataFrame({"NAME": ["wetland"] * len(scene.wetland)}, geometry=scene.wetland, crs=crs).to_file(
+        gpkg, layer="WETLAND")

@@ -26,7 +26,7 @@ from shapely.geometry import box
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gistools.io.points import write_tile  # noqa: E402
-from gistools.synthetic import COVER, make_scene, scene_points  # noqa: E402
+from gistools.synthetic import COVER, make_scene, scene_points, write_breaklines  # noqa: E402
 
 CRS = pyproj.CRS.from_epsg(2882)
 TILE = 1000.0  # ftUS
@@ -34,12 +34,6 @@ ORIGIN = (430000.0, 1810000.0)
 # Levy-like 5-digit tile numbers: row 357 / 358 (north to south), column 12 / 13.
 TILE_IDS = {(0, 0): 35712, (0, 1): 35713, (1, 0): 35812, (1, 1): 35813}
 LAZ_TILE = 35813
-
-
-def edges_within(geom, block):
-    """Edge lines of a (multi)polygon inside ``block``, merged where they join (no block-edge segments)."""
-    lines = shapely.line_merge(geom.boundary.intersection(block))
-    return list(getattr(lines, "geoms", [lines]))
 
 
 def main(argv=None):
@@ -65,17 +59,7 @@ def main(argv=None):
         footprints.append({"TILE_ID": tid, "FILENAME": f"{tid}{suffix}", "geometry": box(w, s, w + TILE, s + TILE)})
         print(f"{tid}{suffix}: {m.sum():,} points")
     block = box(*scene.bounds)
-    gpkg = out / "breaklines.gpkg"
-    gpd.GeoDataFrame(footprints, crs=CRS).to_file(gpkg, layer="FOOTPRINT")
-    road_edges = edges_within(scene.road_union, block)
-    gpd.GeoDataFrame({"TYPE": ["EDGE_OF_PAVEMENT"] * len(road_edges)}, geometry=road_edges, crs=CRS).to_file(
-        gpkg, layer="ROADBREAKLINE")
-    hydro = [(ln, "DUAL_LINE_BANK") for ln in edges_within(scene.river, block)] + [(scene.creek, "SINGLE_LINE")]
-    gpd.GeoDataFrame({"TYPE": [t for _, t in hydro]}, geometry=[g for g, _ in hydro], crs=CRS).to_file(
-        gpkg, layer="HYDROGRAPHICFEATURE")
-    gpd.GeoDataFrame({"NAME": ["river", "pond"]}, geometry=[scene.river.intersection(block), scene.pond], crs=CRS).to_file(
-        gpkg, layer="WATERBODY")
-    gpd.GeoDataFrame({"NAME": ["wetland"]}, geometry=scene.wetland, crs=CRS).to_file(gpkg, layer="WETLAND")
+    write_breaklines(scene, footprints, out / "breaklines.gpkg", CRS)
     truth = out / "truth.gpkg"
     gpd.GeoDataFrame(
         {"cover": [p.cover for p in scene.shrubs], "band": [p.band for p in scene.shrubs],
