@@ -285,3 +285,28 @@ def test_killed_run_resumes_to_identical_outputs(sample_tiles, shrub_run, tmp_pa
         a, _, _ = read_raster(ref_out / f"{product}.vrt")
         b, _, _ = read_raster(out / f"{product}.vrt")
         assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_steps_one_by_one(sample_tiles, tmp_path):
+    """gistools density / classify / map rerun one step on an existing output folder, keeping what is before."""
+    out = tmp_path / "out"
+    args = ["shrub", str(SAMPLE), "--out", str(out), "-q"]
+    for k, v in VECTORS.items():
+        args += [f"--{k.replace('_', '-')}", v]
+    assert CliRunner().invoke(cli, args).exit_code == 0
+    first = json.loads((out / "report.json").read_text())
+    bands_before = (out / "bands" / f"{sample_tiles[0].stem}.tif").stat().st_mtime_ns
+    r = CliRunner().invoke(cli, ["density", str(out), "-q", "--radius", "50ft", "--no-map"])
+    assert r.exit_code == 0, r.output
+    wider = json.loads((out / "report.json").read_text())
+    assert wider["density_radius"] == 50.0 and wider["band_area"] == first["band_area"]
+    assert wider["class_area"] != first["class_area"]
+    assert (out / "bands" / f"{sample_tiles[0].stem}.tif").stat().st_mtime_ns == bands_before  # kept
+    r = CliRunner().invoke(cli, ["classify", str(out), "-q", "--classify", "jenks", "--radius", "50ft", "--no-map"])
+    assert r.exit_code == 0, r.output
+    jenks = json.loads((out / "report.json").read_text())
+    assert jenks["class_breaks"] != [0.3, 0.7] and 0 < jenks["class_breaks"][0] < jenks["class_breaks"][1] <= 1
+    r = CliRunner().invoke(cli, ["map", str(out), "--title", "Sample block"])
+    assert r.exit_code == 0 and (out / "shrub_map.png").exists() and (out / "shrub_map.pdf").exists()
+    r = CliRunner().invoke(cli, ["density", str(tmp_path), "-q"])
+    assert r.exit_code == 1 and "no report.json" in r.output

@@ -91,3 +91,113 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
             click.echo(f"  FAILED {tile['error']}", err=True)
     if counts.get("failed"):
         raise SystemExit(1)
+
+
+def _step_options(fn):
+    """Options of the steps after the rasters (the same words as gistools shrub)."""
+    opts = [
+        click.option("--roads", help="Edge-of-pavement lines (clip step)."),
+        click.option("--hydro", help="Hydrographic breaklines (clip step)."),
+        click.option("--waterbodies", help="Water body polygons (clip step)."),
+        click.option("--wetlands", help="Wetland polygons (clip step)."),
+        click.option("--tile-index", help="Tile footprints that split the breaklines (clip step)."),
+        click.option("--tile-field", default="TILE_ID", show_default=True),
+        click.option("--reproject-vectors", is_flag=True),
+        click.option("--bands", "band_preset", type=click.Choice(["exact", "text_literal"]), default="exact", show_default=True),
+        click.option("--band-breaks", callback=_floats, default=None, help="Three band limits in metres."),
+        click.option("--noise-floor", default="0.1m", show_default=True),
+        click.option("--radius", default="25ft", show_default=True),
+        click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True),
+        click.option("--classify", type=click.Choice(["breaks", "quantile", "jenks"]), default="breaks", show_default=True),
+        click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True),
+        click.option("--max-road-width", default="60ft", show_default=True),
+        click.option("--snap", default="0.2ft", show_default=True),
+        click.option("--no-map", is_flag=True),
+        click.option("--scheduler", default=None, metavar="ADDRESS"),
+        jobs_opt,
+        click.option("--quiet", "-q", is_flag=True),
+    ]
+    for opt in reversed(opts):
+        fn = opt(fn)
+    return click.argument("out", type=click.Path(exists=True, file_okay=False))(fn)
+
+
+def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, band_preset,
+              band_breaks, noise_floor, radius, density_bands, classify, class_breaks, max_road_width, snap, no_map,
+              scheduler, jobs, quiet):
+    settings = ShrubSettings(bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
+                             density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
+                             max_road_width=max_road_width, snap=snap, tile_field=tile_field)
+    with tqdm(total=100, unit="%", disable=True if quiet else None,
+              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+        report = shrub_from_tiles(None, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
+                                  tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
+                                  make_map=not no_map, from_stage=stage, progress=None if bar.disable else tqdm_progress(bar))
+    click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
+               + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+    if report["counts"].get("failed"):
+        raise SystemExit(1)
+
+
+@click.command()
+@_step_options
+def bands(**kw):
+    """Rerun the height bands (and the steps after them) on OUT, an output folder of gistools shrub.
+
+    \b
+    Example:
+      $ gistools bands out --bands text_literal --noise-floor 0.05m
+    """
+    _run_step("bands", **kw)
+
+
+@click.command()
+@_step_options
+def clip(**kw):
+    """Rerun road / water clipping and vegetation selection (and the steps after) on OUT.
+
+    \b
+    Example:
+      $ gistools clip out --roads roads.gpkg:ROADBREAKLINE --hydro roads.gpkg:HYDROGRAPHICFEATURE --max-road-width 40ft
+    """
+    _run_step("clip", **kw)
+
+
+@click.command()
+@_step_options
+def density(**kw):
+    """Rerun the point density and cover (and the classes) on OUT.
+
+    \b
+    Example:
+      $ gistools density out --radius 50ft --density-bands 1
+    """
+    _run_step("density", **kw)
+
+
+@click.command()
+@_step_options
+def classify(**kw):
+    """Rerun the light / medium / heavy classes (polygons, map, report) on OUT.
+
+    \b
+    Example:
+      $ gistools classify out --classify jenks
+    """
+    _run_step("classes", **kw)
+
+
+@click.command(name="map")
+@click.argument("out", type=click.Path(exists=True, file_okay=False))
+@click.option("--title", default=None, help="Map title (default: names the folder).")
+def map_(out, title):
+    """Draw the printable shrub map (PNG and PDF) of OUT/classes.vrt.
+
+    \b
+    Example:
+      $ gistools map out --title "Levy County shrub density"
+    """
+    from ..tasks.shrub import map_from_classes
+
+    result = map_from_classes(out, title=title)
+    click.echo("wrote " + ", ".join(str(p) for p in result["paths"]))

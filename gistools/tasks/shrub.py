@@ -43,7 +43,7 @@ from ..vector.breaklines import road_polygons, water_polygons
 from .batch import fail, make_pool, run_each
 from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
-__all__ = ["ShrubSettings", "shrub_from_tiles", "VEG_ROAD", "VEG_WATER"]
+__all__ = ["ShrubSettings", "shrub_from_tiles", "map_from_classes", "STAGES", "VEG_ROAD", "VEG_WATER"]
 
 VEG_ROAD, VEG_WATER, VEG_NODATA = 4, 5, 255
 ACRE_M2 = 4046.8564224
@@ -123,15 +123,27 @@ def _existing(out, name, products, overwrite) -> dict | None:
     return {k: str(v) for k, v in paths.items()}
 
 
-def _bands_tile(name, ndsm_path, top_path, vec, p, out) -> dict:
-    done = _existing(out, name, ("bands", "veg", "wetveg"), p["overwrite"])
+def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:
+    """Height bands of one tile (S4-S5)."""
+    done = _existing(out, name, ("bands",), p["overwrite"]["bands"])
     if done:
-        bands, grid, _ = read_raster(done["bands"])
-        wetveg, _, _ = read_raster(done["wetveg"])
-        return {"outputs": done, **_stats_of_bands(bands, wetveg, grid)}
+        return {"outputs": done}
     ndsm, grid, _ = read_raster(ndsm_path)
     top, _, _ = read_raster(top_path)
     bands = height_bands(ndsm, p["thresholds"], top_is_ground=np.isin(top, GROUNDISH), noise_floor=p["noise_floor"])
+    path = Path(out) / "bands" / f"{name}.tif"
+    write_raster(path, bands, grid, nodata=BAND_NODATA, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "bands"})
+    return {"outputs": {"bands": str(path)}}
+
+
+def _clip_tile(name, bands_path, vec, p, out) -> dict:
+    """Road and water polygons of one tile from the breaklines (S6-S7), vegetation = band - road - water,
+    vegetation inside wetlands (S8-S9)."""
+    done = _existing(out, name, ("veg", "wetveg"), p["overwrite"]["clip"])
+    bands, grid, _ = read_raster(bands_path)
+    if done:
+        wetveg, _, _ = read_raster(done["wetveg"])
+        return {"outputs": done, **_stats_of_bands(bands, wetveg, grid)}
     frames = _frames(grid, vec["footprints"])
     road = shapely.union_all([road_polygons(vec["roads"], f, snap=p["snap"], max_width=p["max_road_width"]) for f in frames])
     water = shapely.union_all([water_polygons(vec["hydro"], vec["waterbodies"], f, snap=p["snap"], max_width=p["max_hydro_width"],
@@ -152,10 +164,9 @@ def _bands_tile(name, ndsm_path, top_path, vec, p, out) -> dict:
     veg[road_m] = VEG_ROAD
     wetveg = np.where(wet_m & (veg >= 1) & (veg <= 3), veg, 0).astype(np.uint8)
     outputs = {}
-    for product, array, nodata in (("bands", bands, BAND_NODATA), ("veg", veg, VEG_NODATA), ("wetveg", wetveg, None)):
+    for product, array in (("veg", veg), ("wetveg", wetveg)):
         path = Path(out) / product / f"{name}.tif"
-        write_raster(path, array, grid, nodata=nodata if nodata is not None else 255, dtype="uint8", overwrite=True,
-                     tags={"GISTOOLS_PRODUCT": product})
+        write_raster(path, array, grid, nodata=255, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": product})
         outputs[product] = str(path)
     return {"outputs": outputs, **_stats_of_bands(bands, wetveg, grid)}
 
@@ -170,7 +181,7 @@ def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
 
 
 def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
-    done = _existing(out, name, ("density", "cover"), p["overwrite"])
+    done = _existing(out, name, ("density", "cover"), p["overwrite"]["density"])
     if done:
         return {"outputs": done}
     veg, grid, _ = read_raster(veg_tif)
@@ -192,7 +203,7 @@ def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
 
 def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
     path = Path(out) / "classes" / f"{name}.tif"
-    if _existing(out, name, ("classes",), p["overwrite"]):
+    if _existing(out, name, ("classes",), p["overwrite"]["classes"]):
         classes, grid, _ = read_raster(path)
     else:
         veg, grid, _ = read_raster(veg_tif)
@@ -237,6 +248,9 @@ def _subset(vec, bounds, margin):
     return {k: (None if v is None else [g for g in v if g is not None and g.intersects(area)]) for k, v in vec.items()}
 
 
+STAGES = ("rasters", "bands", "clip", "density", "classes")
+
+
 def shrub_from_tiles(
     inputs,
     out,
@@ -252,6 +266,7 @@ def shrub_from_tiles(
     scheduler: str | None = None,
     overwrite: bool = False,
     make_map: bool = True,
+    from_stage: str = "rasters",
     progress: ProgressCallback | None = None,
 ) -> dict:
     """The whole shrub chain on LAS/LAZ tiles; returns the report dict (also ``out/report.json``).
@@ -260,20 +275,31 @@ def shrub_from_tiles(
     ``reproject_vectors``. Writes under ``out``: dsm/ dem/ ndsm/ topclass/ bands/ veg/ wetveg/
     density/ cover/ classes/ (one GeoTIFF per tile) with VRT mosaics, ``shrub_classes.gpkg``,
     ``shrub_map.png`` / ``.pdf`` and ``report.json``.
+
+    Complete outputs of an earlier run are kept (a killed run resumes) unless ``overwrite``.
+    ``from_stage`` (bands, clip, density or classes) reruns the chain from that stage on an
+    existing ``out``, reusing what comes before it (``inputs`` may then be None): the
+    one-step commands ``gistools bands / clip / density / classify``.
     """
     settings = settings or ShrubSettings()
     settings.validate()
+    if from_stage not in STAGES:
+        raise InputError(f"stage {from_stage!r} is not one of {', '.join(STAGES)}")
     started = time.time()
     out = Path(out)
-    rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass")})
-    summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, progress=sub_progress(progress, 0, 0.6),
-                                 scheduler=scheduler)
+    if from_stage == "rasters":
+        rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass")})
+        summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
+                                     progress=sub_progress(progress, 0, 0.6))
+    else:
+        summary = _previous_run(out)
     if summary["crs_wkt"] is None:
         return summary
     crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
     unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
+    redo = {stage: overwrite or STAGES.index(stage) >= STAGES.index(from_stage) for stage in STAGES}
     params = {
         "thresholds": band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
         "noise_floor": length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
@@ -283,47 +309,56 @@ def shrub_from_tiles(
         "single_line_width": length(settings.single_line_width, "single-line hydro width"),
         "radius": length(settings.radius, "density radius"),
         "density_bands": tuple(settings.density_bands),
-        "overwrite": overwrite,
+        "overwrite": redo,
     }
     vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
-    states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t["error"]) for t in summary["tiles"]}
-    ok = [t for t in summary["tiles"] if t["status"] in ("ok", "skipped")]
-    for t in ok:
-        states[t["name"]].status = "ok"
-    names = [t["name"] for t in ok]
+    base = {t["name"]: t for t in summary["tiles"]}
+    states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t.get("error")) for t in summary["tiles"]}
+    names = [n for n, t in base.items() if t["status"] in ("ok", "skipped")]
+    for n in names:
+        states[n].status, states[n].error = "ok", None
     pool = make_pool(jobs, scheduler, len(names))
     done = {"n": 0}
-    total = max(3 * len(names), 1)
+    total = max(4 * len(names), 1)
+    start = 0.6 if from_stage == "rasters" else 0.0
 
     def tick(message):
         done["n"] += 1
-        report(progress, 0.6 + 0.35 * done["n"] / total, message)
+        report(progress, start + (0.95 - start) * done["n"] / total, message)
+
+    def alive():
+        return [n for n in names if states[n].status == "ok"]
 
     def grid_of(name):
         with rasterio.open(out / "ndsm" / f"{name}.tif") as src:
             return src.bounds
 
-    try:
-        margin = params["max_road_width"] + params["max_hydro_width"]
-        args = [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", _subset(vec, grid_of(n), margin), params, out)
-                for n in names]
+    def keep_outputs(name, value, seconds):
+        states[name].outputs.update(value["outputs"])
 
-        def bands_done(name, value, seconds):
+    mosaic = {}
+    polygons = []
+    try:
+        run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", params, out) for n in names],
+                 pool, states, names, keep_outputs, tick, "bands")
+        margin = params["max_road_width"] + params["max_hydro_width"]
+
+        def clip_done(name, value, seconds):
             st = states[name]
             st.outputs.update(value["outputs"])
             st.band_area, st.nodata_share = value["band_area"], value["nodata_share"]
             st.wetland_vegetation_area = value["wetland_vegetation_area"]
 
-        run_each(_bands_tile, args, pool, states, names, bands_done, tick, "bands")
-        good = [n for n in names if states[n].status == "ok"]
-        mosaic = {}
+        good = alive()
+        run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, grid_of(n), margin), params, out) for n in good],
+                 pool, states, good, clip_done, tick, "clip")
+        good = alive()
         for product in ("bands", "veg", "wetveg"):
             mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
         run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], params, out) for n in good], pool, states,
-                 good, lambda n, v, s: states[n].outputs.update(v["outputs"]), tick, "density")
-        good = [n for n in good if states[n].status == "ok"]
+                 good, keep_outputs, tick, "density")
+        good = alive()
         breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
-        polygons = []
 
         def classes_done(name, value, seconds):
             states[name].outputs.update(value["outputs"])
@@ -335,15 +370,13 @@ def shrub_from_tiles(
     finally:
         if pool is not None:
             pool.close()
-    good = [n for n in names if states[n].status == "ok"]
+    good = alive()
     for product in ("density", "cover", "classes"):
         mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
     area_m2 = unit.metres ** 2
     _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, area_m2)
     if make_map and mosaic.get("classes"):
-        from ..plot import shrub_map
-
-        shrub_map(mosaic["classes"], out / "shrub_map", title=f"Shrub density - {_input_label(inputs)}", unit=unit)
+        map_from_classes(out, title=f"Shrub density - {_input_label(inputs) if inputs else out.name}", unit=unit)
     report(progress, 1.0, "done")
     totals_band = {b: sum(states[n].band_area.get(b, 0.0) for n in good) for b in BAND_NAMES}
     totals_class = {c: sum(states[n].class_area.get(c, 0.0) for n in good) for c in CLASS_NAMES.values()}
@@ -360,16 +393,38 @@ def shrub_from_tiles(
         "class_area": totals_class,
         "class_area_acres": {k: v * area_m2 / ACRE_M2 for k, v in totals_class.items()},
         "nodata_share": float(np.mean([states[n].nodata_share for n in good])) if good else None,
-        "tiles": [{**next(t for t in summary["tiles"] if t["name"] == n), **states[n].__dict__} for n in states],
+        "tiles": [{**{k: v for k, v in base[n].items() if k not in states[n].__dict__}, **states[n].__dict__,
+                   "outputs": {**base[n].get("outputs", {}), **states[n].outputs}} for n in states],
         "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "failed")},
-        "mosaics": {k: str(v) for k, v in {**summary["mosaics"], **mosaic}.items() if v},
+        "mosaics": {k: str(v) for k, v in {**summary.get("mosaics", {}), **mosaic}.items() if v},
         "seconds": round(time.time() - started, 3),
     }
-    for t in shrub_report["tiles"]:
-        t.pop("polygons", None)
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
     return shrub_report
+
+
+def _previous_run(out: Path) -> dict:
+    path = out / "report.json"
+    if not path.exists():
+        raise InputError(f"{out}: no report.json of an earlier run", hint="Run gistools shrub (or gistools rasters) on the tiles first")
+    summary = json.loads(path.read_text())
+    if "topclass" not in summary.get("mosaics", {}) and not (out / "topclass").is_dir():
+        raise InputError(f"{out}: the earlier run has no topclass/ rasters", hint="Run gistools shrub on the tiles first")
+    return summary
+
+
+def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None = None) -> dict:
+    """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``."""
+    from ..plot import shrub_map
+
+    out = Path(out)
+    if not (out / "classes.vrt").exists():
+        raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")
+    if unit is None:
+        summary = json.loads((out / "report.json").read_text())
+        unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit)
 
 
 def _breaks(settings: ShrubSettings, cover_paths) -> tuple[float, float]:
