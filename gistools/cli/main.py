@@ -45,7 +45,7 @@ from . import shrub as _shrub  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_rasters.rasters)
-for _command in (_shrub.shrub, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
+for _command in (_shrub.shrub, _shrub.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
     cli.add_command(_command)
 
 

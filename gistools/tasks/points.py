@@ -1,0 +1,130 @@
+"""LAS / LAZ tiles to point layers (the dissertation's LAS To Multipoint, S1).
+
+One layer per tile with x, y, z, class, return number and intensity, streamed in
+chunks: GeoPackage by default, GeoParquet (needs pyarrow) for tiles of millions of points.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GistoolsError, InputError
+from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
+from ..io.raster import atomic_path
+from ..io.tiles import find_tiles
+from ..progress import ProgressCallback, report
+from .batch import fail
+
+__all__ = ["points_from_tiles", "RETURNS"]
+
+RETURNS = ("first", "last", "any")
+
+
+def _select(chunk, classes, returns):
+    keep = ~chunk.withheld
+    if classes is not None:
+        keep &= np.isin(chunk.classification, classes)
+    if returns == "first":
+        keep &= chunk.return_number <= 1
+    elif returns == "last":
+        keep &= chunk.return_number >= chunk.number_of_returns
+    return keep
+
+
+def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
+    import geopandas as gpd
+    import shapely
+
+    crs = info.crs.sub_crs_list[0] if info.crs.is_compound else info.crs
+    written = 0
+    with atomic_path(path, overwrite=True) as tmp:
+        tmp_named = tmp.with_name(tmp.stem + ".partial" + path.suffix)
+        parts = []
+        try:
+            for chunk in iter_chunks(info, chunk_size, intensity=True):
+                keep = _select(chunk, classes, returns)
+                if not keep.any():
+                    continue
+                gdf = gpd.GeoDataFrame(
+                    {"z": chunk.z[keep], "class": chunk.classification[keep], "return_number": chunk.return_number[keep],
+                     "intensity": chunk.intensity[keep]},
+                    geometry=shapely.points(chunk.x[keep], chunk.y[keep]), crs=crs)
+                gdf.insert(0, "y", chunk.y[keep])
+                gdf.insert(0, "x", chunk.x[keep])
+                written += len(gdf)
+                if fmt == "gpkg":
+                    gdf.to_file(tmp_named, layer="points", driver="GPKG", mode="a" if tmp_named.exists() else "w")
+                else:
+                    parts.append(gdf)
+            if fmt == "parquet":
+                frame = gpd.GeoDataFrame(gpd.pd.concat(parts, ignore_index=True), crs=crs) if parts else \
+                    gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=[], crs=crs)
+                frame.to_parquet(tmp_named)
+            elif not tmp_named.exists():  # no point selected: an empty layer
+                gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=gpd.GeoSeries([], crs=crs)).to_file(
+                    tmp_named, layer="points", driver="GPKG")
+            os.replace(tmp_named, tmp)
+        finally:
+            if tmp_named.exists():
+                tmp_named.unlink()
+    return written
+
+
+def points_from_tiles(inputs, out, *, classes=(1, 2), returns: str = "any", fmt: str = "gpkg", crs: str | None = None,
+                      overwrite: bool = False, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                      progress: ProgressCallback | None = None) -> dict:
+    """Point layers ``out/<tile>.gpkg`` (or .parquet) of the chosen classes and returns of each tile.
+
+    classes: ASPRS codes, None for all; returns: first, last or any. The dissertation ran it
+    twice: non-ground = classes 1, 2 first returns; ground = class 2, any return.
+    """
+    if returns not in RETURNS:
+        raise InputError(f"--returns {returns!r} is not one of {', '.join(RETURNS)}")
+    if fmt not in ("gpkg", "parquet"):
+        raise InputError(f"--format {fmt!r} is not gpkg or parquet")
+    if fmt == "parquet":
+        try:
+            import pyarrow  # noqa: F401
+        except ImportError as err:
+            raise InputError(f"GeoParquet needs pyarrow, which does not import ({err})",
+                             hint="pip install 'gistools[parquet]', or use --format gpkg") from None
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    override = parse_crs_text(crs) if crs else None
+    paths = find_tiles(inputs)
+    tiles, infos = [], []
+    for p in paths:
+        entry = {"name": p.stem, "path": str(p), "status": "ok", "error": None, "points": 0, "output": None}
+        tiles.append(entry)
+        try:
+            infos.append((entry, read_tile_info(p, override)))
+        except GistoolsError as err:
+            entry["status"], entry["error"] = "failed", str(err)
+    if infos:
+        common_crs([i for _, i in infos])
+    for k, (entry, info) in enumerate(infos):
+        target = out / f"{info.name}.{fmt}"
+        if target.exists() and not overwrite:
+            entry["status"], entry["output"] = "skipped", str(target)
+        else:
+            t = time.perf_counter()
+            try:
+                entry["points"] = _write_tile(info, target, None if classes is None else tuple(classes), returns, fmt,
+                                              chunk_size)
+                entry["output"] = str(target)
+            except GistoolsError as err:
+                entry["status"], entry["error"] = "failed", str(err)
+            entry["seconds"] = round(time.perf_counter() - t, 3)
+        report(progress, (k + 1) / len(infos), f"{info.name}: {entry['points']:,} points")
+    return {
+        "tool": "gistools points",
+        "crs": crs_label(infos[0][1].crs) if infos else None,
+        "classes": None if classes is None else list(classes),
+        "returns": returns,
+        "tiles": tiles,
+        "counts": {s: sum(t["status"] == s for t in tiles) for s in ("ok", "failed", "skipped")},
+    }
