@@ -41,7 +41,7 @@ def generate(work: Path, points: float) -> dict:
     if meta.exists() and json.loads(meta.read_text())["points_target"] == points:
         return json.loads(meta.read_text())
     crs = pyproj.CRS.from_epsg(2882)
-    spacing = math.sqrt(16 * TILE_FT * TILE_FT * 1.05 / points)  # ft between pulses, about 1.05 returns each
+    spacing = math.sqrt(16 * TILE_FT * TILE_FT * 1.02 / points)  # ft between pulses, about 1.03 returns each
     origin = (400000.0, 1800000.0)
     tiles = work / "tiles"
     tiles.mkdir(parents=True, exist_ok=True)
