@@ -2,7 +2,23 @@
 
 import click
 
-overwrite_opt = click.option("--overwrite", is_flag=True, help="Replace existing outputs (default: keep them and skip the tile).")
+def _resume_or_overwrite(fn):
+    fn = click.option("--resume", is_flag=True,
+                      help="Keep complete outputs of an earlier (or killed) run and do the rest; this is the default.")(fn)
+    return click.option("--overwrite", is_flag=True, help="Replace existing outputs (default: keep them, i.e. --resume).")(fn)
+
+
+def overwrite_opt(fn):
+    """--overwrite and --resume (the default); the command receives ``overwrite`` only."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, resume=False, **kwargs):
+        if resume and kwargs.get("overwrite"):
+            raise click.UsageError("--resume and --overwrite exclude each other")
+        return fn(*args, **kwargs)
+
+    return _resume_or_overwrite(wrapper)
 jobs_opt = click.option("--jobs", "-j", type=click.IntRange(1), default=1, show_default=True,
                         help="Tiles processed in parallel (local processes).")
 crs_opt = click.option("--crs", default=None, help="CRS of the tiles (EPSG:2882, WKT): required when a header has none; overrides the header's otherwise.")
