@@ -38,8 +38,10 @@ def generate(work: Path, points: float) -> dict:
     from gistools.synthetic import make_scene, scene_points, write_breaklines
 
     meta = work / "block.json"
-    if meta.exists() and json.loads(meta.read_text())["points_target"] == points:
-        return json.loads(meta.read_text())
+    if meta.exists():
+        info = json.loads(meta.read_text())
+        if info["points_target"] == points and info["points"] >= points:
+            return info
     crs = pyproj.CRS.from_epsg(2882)
     spacing = math.sqrt(16 * TILE_FT * TILE_FT * 1.02 / points)  # ft between pulses, about 1.03 returns each
     origin = (400000.0, 1800000.0)
