@@ -56,7 +56,8 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     for code, (_, colour) in SHRUB_COLOURS.items():
         rgb[data == code] = matplotlib.colors.to_rgb(colour)
     rgb[data == 255] = (0.85, 0.85, 0.85)
-    fig, ax = plt.subplots(figsize=(8.5, 9))
+    aspect = (north - south) / max(east - west, 1e-9)
+    fig, ax = plt.subplots(figsize=(11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
     ax.imshow(rgb, extent=(west, east, south, north), interpolation="nearest")
     ax.set_title(title)
     ax.set_xlabel(f"x ({unit.name})")

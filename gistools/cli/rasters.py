@@ -15,7 +15,7 @@ def tqdm_progress(bar: tqdm):
 
     def progress(fraction, message=""):
         bar.n = round(100 * fraction, 1)
-        bar.set_postfix_str(message[-60:], refresh=False)
+        bar.set_postfix_str(message[-70:], refresh=False)
         bar.refresh()
         return True
 

@@ -460,7 +460,8 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
 
     def tick(message):
         state["done"] += 1
-        report(progress, state["done"] / total, message)
+        failed = sum(r.status == "failed" for r in results.values())
+        report(progress, state["done"] / total, f"{message} | {len(todo)} tiles, {failed} failed")
 
     def within_tile(fraction, message):  # chunk progress inside the current tile (inline runs)
         return None if progress is None else progress((state["done"] + fraction) / total, message)

@@ -324,7 +324,8 @@ def shrub_from_tiles(
 
     def tick(message):
         done["n"] += 1
-        report(progress, start + (0.95 - start) * done["n"] / total, message)
+        failed = sum(st.status == "failed" for st in states.values())
+        report(progress, start + (0.95 - start) * done["n"] / total, f"{message} | {len(names)} tiles, {failed} failed")
 
     def alive():
         return [n for n in names if states[n].status == "ok"]
