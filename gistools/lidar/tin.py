@@ -83,21 +83,21 @@ def tin_to_grid(
     v = grid.row_top - (y / cs)
     flat_out = out.reshape(-1)
     max_edge_cells = None if max_edge is None else max_edge / cs
+    # Per vertex, the first and last cell centre at or beyond it (int32): a triangle's range of
+    # centres is the min / max of its vertices', so most triangles, which hold no centre when
+    # points are dense, are dropped with integer work only.
+    big = np.iinfo(np.int32).max // 2
+    ulo, uhi = (np.clip(f(u - 0.5), -big, big).astype(np.int32) for f in (np.ceil, np.floor))
+    vlo, vhi = (np.clip(f(v - 0.5), -big, big).astype(np.int32) for f in (np.ceil, np.floor))
     for start in range(0, len(tris), _BATCH):
         t = tris[start : start + _BATCH]
-        i0, i1, i2 = t[:, 0], t[:, 1], t[:, 2]
-        ax, bx, cx = u[i0], u[i1], u[i2]
-        # keep only triangles whose bounding box holds a cell centre (few, when points are dense)
-        c_lo = np.ceil(_min3(ax, bx, cx) - 0.5)
-        c_hi = np.floor(_max3(ax, bx, cx) - 0.5)
+        i0, i1, i2 = (np.ascontiguousarray(t[:, k]) for k in range(3))
+        c_lo = _min3(ulo[i0], ulo[i1], ulo[i2])
+        c_hi = _max3(uhi[i0], uhi[i1], uhi[i2])
         hit = (c_hi >= np.maximum(c_lo, 0)) & (np.minimum(c_hi, grid.width - 1) >= c_lo)
-        if not hit.any():
-            continue
-        i0, i1, i2 = i0[hit], i1[hit], i2[hit]
-        ay, by, cy = v[i0], v[i1], v[i2]
-        r_lo = np.ceil(_min3(ay, by, cy) - 0.5)
-        r_hi = np.floor(_max3(ay, by, cy) - 0.5)
-        hit = (r_hi >= np.maximum(r_lo, 0)) & (np.minimum(r_hi, grid.height - 1) >= r_lo)
+        r_lo = _min3(vlo[i0], vlo[i1], vlo[i2])
+        r_hi = _max3(vhi[i0], vhi[i1], vhi[i2])
+        hit &= (r_hi >= np.maximum(r_lo, 0)) & (np.minimum(r_hi, grid.height - 1) >= r_lo)
         if not hit.any():
             continue
         i0, i1, i2 = i0[hit], i1[hit], i2[hit]
