@@ -132,7 +132,8 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
     # Buildings: a few houses near the roads.
     for bx, by in [(0.30, 0.76), (0.45, 0.76), (0.30, 0.63), (0.60, 0.50)]:
         cx, cy = x0 + bx * W, y0 + by * H
-        sc.buildings.append((box(cx - 30, cy - 20, cx + 30, cy + 20), float(rng.uniform(14, 24))))
+        # two-storey roofs, 22-30 ft (6.7-9.1 m): above the shrub bands (lower roofs would be "shrub", spec A17)
+        sc.buildings.append((box(cx - 30, cy - 20, cx + 30, cy + 20), float(rng.uniform(22, 30))))
     blocked = shapely.union_all([sc.road_union.buffer(10), sc.water_union.buffer(10)] + [b.buffer(15) for b, _ in sc.buildings])
     # Shrub patches: every cover x band combination at least once, placed on free ground.
     combos = [(c, b) for c in COVER for b in BANDS_M]

@@ -84,19 +84,22 @@ def test_no_vegetation_in_roads_or_water(shrub_run):
 
 
 def test_band_areas_against_true_crowns(shrub_run, record_property):
-    """Band areas against the generator's crown areas (see the issue note: the 2 % target is not met yet)."""
+    """Band areas within 2 % of the generator's crown areas per band.
+
+    The report's band_area_from_returns (share of first returns in each band x area) is the unbiased
+    estimate; band_area counts band-raster cells, where a cell counts whole when any of its ~1.6
+    first returns hits a crown, so it runs 6-9 % high on crown edges (printed, bounded at 12 %).
+    """
     out, report = shrub_run
     crowns = gpd.read_file(SAMPLE / "truth.gpkg", layer="SHRUB_CROWNS")
-    veg, grid, _ = read_raster(out / "veg.vrt")
-    cx, cy = centres(grid)
-    roofs = shapely.contains_xy(gpd.read_file(SAMPLE / "truth.gpkg", layer="BUILDING_TRUTH").union_all(), cx, cy)
     for band in ("B1", "B2", "B3"):
         true_area = crowns[crowns.band == band].area.sum()
-        got = np.count_nonzero((veg == int(band[1])) & ~roofs) * grid.cell_size ** 2
-        ratio = got / true_area
-        record_property(f"{band}_area_ratio", ratio)
-        print(f"{band}: band cells {got:,.0f} ft2, true crowns {true_area:,.0f} ft2, ratio {ratio:.3f}")
-        assert 0.95 < ratio < 1.12  # a cell counts when any of its ~1.6 pulses hits a crown: biased up
+        from_returns = report["band_area_from_returns"][band] / true_area
+        from_cells = report["band_area"][band] / true_area
+        record_property(f"{band}_returns_ratio", from_returns)
+        print(f"{band}: true crowns {true_area:,.0f} ft2; from returns x{from_returns:.4f}, from cells x{from_cells:.4f}")
+        assert abs(from_returns - 1) <= 0.02, band
+        assert 0.95 < from_cells < 1.12, band
 
 
 def test_vegetation_inside_wetland(shrub_run):

@@ -55,11 +55,15 @@ class RasterSettings:
     """Parameters of a DSM / DEM / nDSM run. Lengths take a unit: "5ft", "1.5m", or a bare number in CRS units.
 
     dsm_classes: None = every class but noise (7, 18); withheld points are always left out.
-    The dissertation's set is (1, 2). products: any of dsm, dem, ndsm, topclass (the
-    ASPRS class of each cell's highest first return, uint8; a DSM-only run keeps no ground points). tin_block_points: the DEM is built in strips of about this
-    many ground points, bounding memory (about 200 bytes per point). dem_max_distance: cells farther than this from
-    every ground point stay nodata (TIN, IDW). buffer: how far into neighbouring
-    tiles ground points are read (default: 2 x dem_max_distance, at least 20 cells).
+    The dissertation's set is (1, 2). products: any of dsm, dem, ndsm, topclass (the ASPRS
+    class of each cell's highest first return, uint8; a DSM-only run keeps no ground points).
+    tin_block_points: the DEM is built in strips of about this many ground points, bounding
+    memory (about 200 bytes per point). dem_max_distance: cells farther than this from every
+    ground point stay nodata (TIN, IDW). buffer: how far into neighbouring tiles ground points
+    are read (default: 2 x dem_max_distance, at least 20 cells). return_band_breaks: heights
+    (with units) h0 <= h1 < h2 < h3; when given, each tile's first returns are counted by
+    height above the DEM in bands (h <= h0, h0-h1, h1-h2, h2-h3, > h3; ground and water
+    returns in the first): band areas that do not depend on the cell grid.
     """
 
     cell_size: str | float = "5ft"
@@ -71,6 +75,7 @@ class RasterSettings:
     chunk_size: int = DEFAULT_CHUNK_SIZE
     products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 2_500_000
+    return_band_breaks: tuple | None = None
 
     def validate(self) -> None:
         bad = [p for p in self.products if p not in PRODUCTS]
@@ -97,6 +102,7 @@ class TileResult:
     points_by_return: dict = field(default_factory=dict)
     points_outside_header_bounds: int = 0
     outputs: dict = field(default_factory=dict)
+    first_return_bands: list | None = None
     seconds: float = 0.0
 
 
@@ -117,6 +123,7 @@ class _Run:
     z_unit: str
     products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 2_500_000
+    return_breaks: tuple[float, ...] | None = None
 
 
 def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
@@ -147,8 +154,10 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     done = 0
     west, south, east, north = info.bounds
     b = run.buffer
+    first_path = Path(run.scratch) / f"{info.name}.first.f8"
     with open(_ground_file(run.scratch, info.name), "wb") as ground_out, \
-            open(_ground_file(run.scratch, info.name, halo=True), "wb") as halo_out:
+            open(_ground_file(run.scratch, info.name, halo=True), "wb") as halo_out, \
+            open(first_path, "wb") as first_out:
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
         if run.dsm_classes is None:
             surface_class = np.ones(256, bool)
@@ -167,6 +176,9 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             usable = inside & ~chunk.withheld
             # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
             surface = usable & surface_class[cls] & (chunk.return_number <= 1)
+            if run.return_breaks is not None:  # first returns: cell, z, bare (ground / water) flag
+                np.column_stack([cell[surface].astype(np.float64), scaled(chunk, "z", surface),
+                                 np.isin(cls[surface], GROUNDISH).astype(np.float64)]).tofile(first_out)
             if track_top:
                 _max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
             else:
@@ -226,6 +238,25 @@ def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
     tie = (other_dsm == dsm) & np.isin(other_class, GROUNDISH)
     take = higher | tie
     top_class[take] = other_class[take]
+
+
+def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, chunk_points: int = 2_000_000) -> list[int]:
+    """Counts of a tile's first returns by height above the DEM at their cell: [<= h0, h0-h1, h1-h2, h2-h3, > h3];
+    ground and water returns count in the first; returns over nodata DEM cells are left out."""
+    counts = np.zeros(len(breaks) + 1, np.int64)
+    with open(path, "rb") as fh:
+        while True:
+            a = np.fromfile(fh, dtype=np.float64, count=3 * chunk_points)
+            if a.size == 0:
+                break
+            a = a.reshape(-1, 3)
+            ground = dem_flat[a[:, 0].astype(np.int64)]
+            ok = np.isfinite(ground)
+            h = a[ok, 1] - ground[ok]
+            code = np.searchsorted(np.asarray(breaks), h, side="left")  # h <= b0 -> 0, b0 < h <= b1 -> 1, ...
+            code[a[ok, 2] > 0] = 0
+            counts += np.bincount(code, minlength=len(counts))
+    return [int(c) for c in counts]
 
 
 def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[TileInfo]:
@@ -294,6 +325,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                 ground_count[rs, cs_] += nb["ground_count"][ro, co]
                 water_count[rs, cs_] += nb["water_count"][ro, co]
     arrays = {"dsm": dsm, "topclass": top_class}
+    return_bands = None
     if run.products != ("dsm",):
         water = (water_count > 0) & (ground_count == 0)
         b = run.buffer
@@ -317,6 +349,12 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
             del pts
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
+        if run.return_breaks is not None:
+            return_bands = {
+                "counts": _first_return_bands(Path(run.scratch) / f"{info.name}.first.f8", dem.reshape(-1), run.return_breaks),
+                "dem_cells": int(np.isfinite(dem).sum()),
+                "cell_area": grid.cell_size ** 2,
+            }
     outputs = {}
     tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
     for product in run.products:
@@ -329,7 +367,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         write_raster(path, arrays[product], grid, overwrite=run.overwrite, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
-    return {"outputs": outputs}
+    return {"outputs": outputs, "first_return_bands": return_bands}
 
 
 def _remove_leftovers(out: Path) -> None:
@@ -407,6 +445,8 @@ def rasters_from_tiles(
             out=str(out), overwrite=overwrite, crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
             products=tuple(p for p in PRODUCTS if p in settings.products),
             tin_block_points=settings.tin_block_points,
+            return_breaks=None if settings.return_band_breaks is None else tuple(
+                length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
         )
         try:
             _run_passes(infos, results, run, jobs, overwrite, progress, scheduler)
@@ -483,6 +523,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
 
         def grid_done(info, value, seconds):
             results[info.name].outputs = value["outputs"]
+            results[info.name].first_return_bands = value["first_return_bands"]
             results[info.name].seconds += seconds
 
         run_each(_grid_tile, grid_jobs, pool, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")

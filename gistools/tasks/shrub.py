@@ -288,7 +288,8 @@ def shrub_from_tiles(
     started = time.time()
     out = Path(out)
     if from_stage == "rasters":
-        rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass")})
+        rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass"),
+                               "return_band_breaks": (settings.noise_floor, *_band_break_lengths(settings))})
         summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
                                      progress=sub_progress(progress, 0, 0.6))
     else:
@@ -391,6 +392,7 @@ def shrub_from_tiles(
         "density_bands": list(params["density_bands"]),
         "class_breaks": list(breaks),
         "band_area": totals_band,
+        "band_area_from_returns": _returns_band_area([base[n] for n in good]),
         "class_area": totals_class,
         "class_area_acres": {k: v * area_m2 / ACRE_M2 for k, v in totals_class.items()},
         "nodata_share": float(np.mean([states[n].nodata_share for n in good])) if good else None,
@@ -403,6 +405,28 @@ def shrub_from_tiles(
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
     return shrub_report
+
+
+def _band_break_lengths(settings: ShrubSettings) -> tuple[str, str, str]:
+    """The band limits as lengths with units, for counting first returns before the vertical unit is known."""
+    from ..lidar.bands import PRESETS
+
+    if settings.band_breaks_m is not None:
+        return tuple(f"{b}m" for b in settings.band_breaks_m)  # type: ignore[return-value]
+    values, unit = PRESETS[settings.bands]
+    return tuple(f"{v * unit.metres!r}m" for v in values)  # type: ignore[return-value]
+
+
+def _returns_band_area(tiles) -> dict | None:
+    """Band areas from first returns: share of the returns in each band x the area with a DEM (None if a tile lacks counts)."""
+    total = np.zeros(5)
+    for t in tiles:
+        frb = t.get("first_return_bands")
+        if not frb or not sum(frb["counts"]):
+            return None
+        counts = np.asarray(frb["counts"], float)
+        total += counts / counts.sum() * frb["dem_cells"] * frb["cell_area"]
+    return {name: float(total[i]) for i, name in enumerate(BAND_NAMES)} | {"above": float(total[4])}
 
 
 def _previous_run(out: Path) -> dict:
