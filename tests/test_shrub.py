@@ -313,3 +313,27 @@ def test_steps_one_by_one(sample_tiles, tmp_path):
     assert r.exit_code == 0 and (out / "shrub_map.png").exists() and (out / "shrub_map.pdf").exists()
     r = CliRunner().invoke(cli, ["density", str(tmp_path), "-q"])
     assert r.exit_code == 1 and "no report.json" in r.output
+
+
+def test_band_points_and_a_bad_tile(sample_tiles, tmp_path):
+    """--band-points writes Raster To Point output; a broken tile is reported and the chain completes the rest."""
+    import shutil
+
+    tiles = tmp_path / "tiles"
+    tiles.mkdir()
+    for p in sample_tiles:
+        shutil.copy(p, tiles / p.name)
+    (tiles / "broken.las").write_bytes(sample_tiles[0].read_bytes()[:5000])
+    args = ["shrub", str(tiles), "--out", str(tmp_path / "out"), "-q", "--no-map", "--band-points"]
+    for k, v in VECTORS.items():
+        args += [f"--{k.replace('_', '-')}", v]
+    r = CliRunner().invoke(cli, args)
+    assert r.exit_code == 1 and "broken.las" in r.output and "4 tiles ok, 1 failed" in r.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert {t["name"]: t["status"] for t in report["tiles"]}["broken"] == "failed"
+    name = sample_tiles[0].stem
+    pts = gpd.read_file(tmp_path / "out" / "band_points" / f"{name}.gpkg", layer="band_points")
+    bands, grid, _ = read_raster(tmp_path / "out" / "bands" / f"{name}.tif")
+    assert len(pts) == np.count_nonzero(bands <= 3) and pts.crs.to_epsg() == 2882
+    b1 = pts[pts.band == "B1"]
+    assert len(b1) and (b1.grid_code > 0).all() and (b1.grid_code <= 3937 / 1200 + 1e-6).all()

@@ -48,6 +48,7 @@ def _floats(ctx, param, value):
 @click.option("--max-road-width", default="60ft", show_default=True, help="Wider faces between road lines are blocks, not road.")
 @click.option("--snap", default="0.2ft", show_default=True, help="Breakline snapping tolerance.")
 @click.option("--no-map", is_flag=True, help="Skip the PNG / PDF map.")
+@click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'.")
 @crs_opt
 @jobs_opt
@@ -56,7 +57,7 @@ def _floats(ctx, param, value):
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size, dem_method,
           dsm_classes, dem_max_distance, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
-          max_road_width, snap, no_map, scheduler, crs, jobs, chunk_size, overwrite, quiet):
+          max_road_width, snap, no_map, band_points, scheduler, crs, jobs, chunk_size, overwrite, quiet):
     """Shrub density map of LAS/LAZ tiles: DSM/DEM/nDSM, height bands, road and water clipping,
     vegetation density, light / medium / heavy classes, polygons and a printable map.
 
@@ -79,7 +80,7 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
               bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
         report = shrub_from_tiles(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies,
                                   wetlands=wetlands, tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs,
-                                  scheduler=scheduler, overwrite=overwrite, make_map=not no_map,
+                                  scheduler=scheduler, overwrite=overwrite, make_map=not no_map, band_points=band_points,
                                   progress=None if bar.disable else tqdm_progress(bar))
     counts = report.get("counts", {})
     unit = report.get("area_unit", "")

@@ -133,7 +133,25 @@ def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:
     bands = height_bands(ndsm, p["thresholds"], top_is_ground=np.isin(top, GROUNDISH), noise_floor=p["noise_floor"])
     path = Path(out) / "bands" / f"{name}.tif"
     write_raster(path, bands, grid, nodata=BAND_NODATA, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "bands"})
-    return {"outputs": {"bands": str(path)}}
+    outputs = {"bands": str(path)}
+    if p["band_points"]:
+        outputs["band_points"] = str(_write_band_points(Path(out) / "band_points" / f"{name}.gpkg", bands, ndsm, grid, p))
+    return {"outputs": outputs}
+
+
+def _write_band_points(path: Path, bands, ndsm, grid: Grid, p) -> Path:
+    """The dissertation's Raster To Point: one point per cell centre of B0-B3 with its band and height (grid_code)."""
+    import geopandas as gpd
+
+    from ..grid import cell_centres
+    from ..io.vector import write_layer
+
+    rows, cols = np.nonzero(bands <= 3)
+    xs, ys = cell_centres(grid)
+    gdf = gpd.GeoDataFrame(
+        {"band": np.asarray(BAND_NAMES)[bands[rows, cols]], "grid_code": ndsm[rows, cols]},
+        geometry=shapely.points(xs[cols], ys[rows]), crs=p["crs_wkt"])
+    return write_layer(gdf, path, "band_points")
 
 
 def _clip_tile(name, bands_path, vec, p, out) -> dict:
@@ -266,6 +284,7 @@ def shrub_from_tiles(
     scheduler: str | None = None,
     overwrite: bool = False,
     make_map: bool = True,
+    band_points: bool = False,
     from_stage: str = "rasters",
     progress: ProgressCallback | None = None,
 ) -> dict:
@@ -274,7 +293,9 @@ def shrub_from_tiles(
     Vector inputs are paths or ``file.gpkg:LAYER``; they must be in the points' CRS unless
     ``reproject_vectors``. Writes under ``out``: dsm/ dem/ ndsm/ topclass/ bands/ veg/ wetveg/
     density/ cover/ classes/ (one GeoTIFF per tile) with VRT mosaics, ``shrub_classes.gpkg``,
-    ``shrub_map.png`` / ``.pdf`` and ``report.json``.
+    ``shrub_map.png`` / ``.pdf`` and ``report.json``; with ``band_points``, also the
+    dissertation's Raster To Point output: ``band_points/<tile>.gpkg``, one point per cell
+    centre of bands B0-B3 with its band and height (``grid_code``).
 
     Complete outputs of an earlier run are kept (a killed run resumes) unless ``overwrite``.
     ``from_stage`` (bands, clip, density or classes) reruns the chain from that stage on an
@@ -311,6 +332,8 @@ def shrub_from_tiles(
         "radius": length(settings.radius, "density radius"),
         "density_bands": tuple(settings.density_bands),
         "overwrite": redo,
+        "band_points": band_points,
+        "crs_wkt": (crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt(),
     }
     vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
     base = {t["name"]: t for t in summary["tiles"]}
