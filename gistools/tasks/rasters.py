@@ -146,6 +146,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     track_top = "topclass" in run.products
     dsm = np.full(n, -np.inf)
     top_class = np.full(n, TOPCLASS_NODATA, np.uint8)
+    bare_first = np.zeros(n, np.int64)
     ground_count = np.zeros(n, np.int64)
     water_count = np.zeros(n, np.int64)
     by_class = np.zeros(256, np.int64)
@@ -176,9 +177,16 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             usable = inside & ~chunk.withheld
             # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
             surface = usable & surface_class[cls] & (chunk.return_number <= 1)
-            if run.return_breaks is not None:  # first returns: cell, z, bare (ground / water) flag
-                np.column_stack([cell[surface].astype(np.float64), scaled(chunk, "z", surface),
-                                 np.isin(cls[surface], GROUNDISH).astype(np.float64)]).tofile(first_out)
+            if run.return_breaks is not None:
+                # first returns for band counts: bare ones (ground / water) counted per cell, the others kept as
+                # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
+                bare = surface & np.isin(cls, GROUNDISH)
+                bare_first += np.bincount(cell[bare], minlength=n)
+                other = surface & ~bare
+                rec = np.empty(int(np.count_nonzero(other)), dtype=_FIRST_DTYPE)
+                rec["cell"] = cell[other]
+                rec["z"] = scaled(chunk, "z", other)
+                rec.tofile(first_out)
             if track_top:
                 _max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
             else:
@@ -199,6 +207,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         Path(run.scratch) / f"{info.name}.grids.npz",
         dsm=dsm.reshape(grid.shape),
         top_class=top_class.reshape(grid.shape),
+        bare_first=bare_first.reshape(grid.shape).astype(np.int32),
         ground_count=ground_count.reshape(grid.shape).astype(np.int32),
         water_count=water_count.reshape(grid.shape).astype(np.int32),
     )
@@ -240,22 +249,27 @@ def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
     top_class[take] = other_class[take]
 
 
-def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, chunk_points: int = 2_000_000) -> list[int]:
-    """Counts of a tile's first returns by height above the DEM at their cell: [<= h0, h0-h1, h1-h2, h2-h3, > h3];
-    ground and water returns count in the first; returns over nodata DEM cells are left out."""
+_FIRST_DTYPE = np.dtype([("cell", "<i4"), ("z", "<f4")])
+
+
+def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, bare: int, chunk_points: int = 4_000_000) -> list[int]:
+    """Counts of a tile's first returns by height above the DEM at their cell: [<= h0, h0-h1, h1-h2, h2-h3, > h3].
+
+    ``bare``: ground and water first returns over DEM cells, counted in the first band. Returns over
+    nodata DEM cells are left out. z is kept as float32 (about 1e-5 ft at 100 ft), far below any band limit.
+    """
     counts = np.zeros(len(breaks) + 1, np.int64)
+    counts[0] += bare
+    edges = np.asarray(breaks)
     with open(path, "rb") as fh:
         while True:
-            a = np.fromfile(fh, dtype=np.float64, count=3 * chunk_points)
+            a = np.fromfile(fh, dtype=_FIRST_DTYPE, count=chunk_points)
             if a.size == 0:
                 break
-            a = a.reshape(-1, 3)
-            ground = dem_flat[a[:, 0].astype(np.int64)]
+            ground = dem_flat[a["cell"]]
             ok = np.isfinite(ground)
-            h = a[ok, 1] - ground[ok]
-            code = np.searchsorted(np.asarray(breaks), h, side="left")  # h <= b0 -> 0, b0 < h <= b1 -> 1, ...
-            code[a[ok, 2] > 0] = 0
-            counts += np.bincount(code, minlength=len(counts))
+            h = a["z"][ok] - ground[ok]
+            counts += np.bincount(np.searchsorted(edges, h, side="left"), minlength=len(counts))
     return [int(c) for c in counts]
 
 
@@ -312,6 +326,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     with np.load(scratch / f"{info.name}.grids.npz") as own:
         dsm, ground_count, water_count = own["dsm"].copy(), own["ground_count"].astype(np.int64), own["water_count"].astype(np.int64)
         top_class = own["top_class"].copy()
+        bare_first = own["bare_first"]
     for other in neighbours:
         grids_file = scratch / f"{other.name}.grids.npz"
         if not grids_file.exists():  # the neighbour failed in pass 1
@@ -351,20 +366,22 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         arrays["ndsm"] = ndsm_from(dsm, dem)
         if run.return_breaks is not None:
             return_bands = {
-                "counts": _first_return_bands(Path(run.scratch) / f"{info.name}.first.f8", dem.reshape(-1), run.return_breaks),
+                "counts": _first_return_bands(Path(run.scratch) / f"{info.name}.first.f8", dem.reshape(-1), run.return_breaks,
+                                              int(bare_first[np.isfinite(dem)].sum())),
                 "dem_cells": int(np.isfinite(dem).sum()),
                 "cell_area": grid.cell_size ** 2,
             }
     outputs = {}
+    # a tile reaches pass 2 only when its outputs are incomplete (or --overwrite): all of them are rewritten
     tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
     for product in run.products:
         path = Path(run.out) / product / f"{info.name}.tif"
         if product == "topclass":
-            write_raster(path, arrays[product], grid, overwrite=run.overwrite, nodata=TOPCLASS_NODATA, dtype="uint8",
+            write_raster(path, arrays[product], grid, overwrite=True, nodata=TOPCLASS_NODATA, dtype="uint8",
                          tags={**tags, "GISTOOLS_PRODUCT": product}, description="class of the highest first return")
             outputs[product] = str(path)
             continue
-        write_raster(path, arrays[product], grid, overwrite=run.overwrite, units=run.z_unit,
+        write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
     return {"outputs": outputs, "first_return_bands": return_bands}
