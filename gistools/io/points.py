@@ -25,7 +25,6 @@ __all__ = [
     "PointChunk",
     "read_tile_info",
     "iter_chunks",
-    "read_points",
     "parse_crs_text",
     "common_crs",
     "crs_label",
@@ -199,7 +198,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
         raise MissingCRSError(
             "header has no CRS",
             path=path,
-            hint='Pass --crs EPSG:XXXX (CLI) or set "Input CRS" (QGIS) to the CRS the tiles are in',
+            hint='Pass the tiles\' CRS with --crs, e.g. --crs EPSG:2882 (CLI), or set "Input CRS" (QGIS)',
         )
     used = crs if crs is not None else file_crs
     horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
@@ -285,17 +284,6 @@ def scaled(chunk: PointChunk, axis: str, mask: np.ndarray) -> np.ndarray:
     i = "xyz".index(axis)
     raw = np.asarray(getattr(chunk.raw, axis.upper()))[mask]
     return raw * chunk.raw.scales[i] + chunk.raw.offsets[i]
-
-
-def read_points(info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE) -> PointChunk:
-    """All points of a tile in one PointChunk (small tiles and tests only)."""
-    chunks = list(iter_chunks(info, chunk_size))
-    return PointChunk(
-        **{
-            k: np.concatenate([getattr(c, k) for c in chunks]) if chunks else np.empty(0)
-            for k in ("x", "y", "z", "classification", "return_number", "number_of_returns", "withheld")
-        }
-    )
 
 
 def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", point_format: int = 6,

@@ -2,7 +2,6 @@
 
 from .gridding import (
     DEM_METHODS,
-    cell_max,
     cell_statistic,
     dem_from_ground_points,
     dsm_from_points,
@@ -13,7 +12,6 @@ from .tin import tin_to_grid
 
 __all__ = [
     "DEM_METHODS",
-    "cell_max",
     "cell_statistic",
     "dem_from_ground_points",
     "dsm_from_points",

@@ -17,7 +17,6 @@ from .tin import tin_to_grid
 
 __all__ = [
     "DEM_METHODS",
-    "cell_max",
     "cell_statistic",
     "dsm_from_points",
     "dem_from_ground_points",
@@ -26,17 +25,6 @@ __all__ = [
 ]
 
 DEM_METHODS = ("tin", "max", "min", "mean", "idw")
-
-
-def cell_max(acc: np.ndarray, grid: Grid, x, y, z) -> np.ndarray:
-    """Accumulate the per-cell maximum of z into ``acc`` (float64, -inf = empty) and return it.
-
-    Call once per chunk; points outside ``grid`` are ignored.
-    """
-    flat = cell_index(grid, x, y)
-    inside = flat >= 0
-    np.maximum.at(acc.reshape(-1), flat[inside], np.asarray(z, np.float64)[inside])
-    return acc
 
 
 def cell_statistic(grid: Grid, x, y, z, statistic: str = "max") -> np.ndarray:

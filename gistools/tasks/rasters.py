@@ -118,7 +118,6 @@ class _Run:
     chunk_size: int
     scratch: str
     out: str
-    overwrite: bool
     crs_wkt: str
     z_unit: str
     products: tuple[str, ...] = DEFAULT_PRODUCTS
@@ -459,7 +458,7 @@ def rasters_from_tiles(
             cell_size=cell_size, dem_method=settings.dem_method,
             dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
             max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
-            out=str(out), overwrite=overwrite, crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
+            out=str(out), crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
             products=tuple(p for p in PRODUCTS if p in settings.products),
             tin_block_points=settings.tin_block_points,
             return_breaks=None if settings.return_band_breaks is None else tuple(
