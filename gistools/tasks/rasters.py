@@ -34,7 +34,7 @@ from ..io.raster import NODATA, atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report
-from .batch import fail, make_pool, run_each
+from .batch import _timed, fail, make_pool
 from ..units import length_to_crs_units
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
@@ -440,6 +440,7 @@ def rasters_from_tiles(
         except GistoolsError as err:
             fail(results[p.stem], err)
     run = None
+    scratch_peak = 0
     if infos:
         crs = common_crs(infos)
         unit, z_unit = infos[0].unit, infos[0].z_unit
@@ -465,7 +466,7 @@ def rasters_from_tiles(
                 length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
         )
         try:
-            _run_passes(infos, results, run, jobs, overwrite, progress, scheduler)
+            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     else:
@@ -493,6 +494,7 @@ def rasters_from_tiles(
         "tiles": [asdict(r) for r in results.values()],
         "counts": {s: sum(r.status == s for r in results.values()) for s in ("ok", "failed", "skipped")},
         "mosaics": vrts,
+        "scratch_peak_tiles": scratch_peak if run else 0,
         "seconds": round(time.time() - started, 3),
     }
     with atomic_path(out / "report.json", overwrite=True) as tmp:
@@ -530,21 +532,98 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.points_outside_header_bounds = value["points_outside_header_bounds"]
         r.seconds += seconds
 
+    def grid_done(info, value, seconds):
+        results[info.name].outputs = value["outputs"]
+        results[info.name].first_return_bands = value["first_return_bands"]
+        results[info.name].seconds += seconds
+
+    # Tiles go north to south, west to east. A tile is gridded as soon as it and its neighbours are read,
+    # and a tile's scratch files are deleted once every tile that reads them is gridded: the scratch
+    # holds a front of a few tile rows, not the whole county.
+    by_name = {i.name: i for i in infos}
+    scan_order = [i.name for i in sorted(scan, key=lambda i: (-i.bounds[3], i.bounds[0]))]
+    grid_order = [n for n in scan_order if n in todo]
+    deps = {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo}
+    users = {v: {n for n in todo if v in deps[n]} for v in needed}
+    scanned, gridded, started = set(), set(), set()
+    pending: dict = {}
+    state["scratch_peak"] = 0
+
+    def release(names):
+        for v in names:
+            if users[v] <= gridded:
+                for f in Path(run.scratch).glob(f"{v}.*"):
+                    f.unlink()
+
+    def finish(kind, name, value, seconds, err):
+        info = by_name[name]
+        if err is not None:
+            fail(results[name], err)
+        elif kind == "scan":
+            scan_done(info, value, seconds)
+        else:
+            grid_done(info, value, seconds)
+        if kind == "scan":
+            scanned.add(name)
+            state["scratch_peak"] = max(state["scratch_peak"], len(scanned) - sum(users[v] <= gridded for v in scanned))
+        else:
+            gridded.add(name)
+            release(deps[name])
+        tick(f"{name} {'read' if kind == 'scan' else 'gridded'}")
+
+    def start(kind, name):
+        fn, args = (_scan_tile, (by_name[name], run)) if kind == "scan" else (_grid_tile, (by_name[name], neighbours[name], run))
+        if pool is None:
+            try:
+                inner = (within_tile,) if kind == "scan" and progress is not None else ()
+                value, seconds = _timed(fn, (*args, *inner))
+            except Cancelled:
+                raise
+            except Exception as err:  # one bad tile never stops the batch; it is reported
+                finish(kind, name, None, 0.0, err)
+                return
+            finish(kind, name, value, seconds, None)
+        else:
+            pending[pool.submit(_timed, fn, args)] = (kind, name)
+
+    def next_task():
+        for n in grid_order:
+            if n not in started and deps[n] <= scanned:
+                started.add(n)
+                if results[n].status == "failed":  # its own read failed: nothing to grid
+                    gridded.add(n)
+                    release(deps[n])
+                    continue
+                return "grid", n
+        for n in scan_order:
+            if n not in started and ("scan", n) not in started:
+                started.add(("scan", n))
+                return "scan", n
+        return None
+
     pool = make_pool(jobs, scheduler, len(scan))
+    in_flight = 1 if pool is None else 2 * max(jobs, 1)
     try:
-        run_each(_scan_tile, [(i, run) for i in scan], pool, results, [i.name for i in scan], scan_done, tick, "read",
-             within_tile if progress is not None and pool is None else None)
-        # Pass 2
-        grid_jobs = [(i, neighbours[i.name], run) for i in infos if i.name in todo and results[i.name].status == "ok"]
-
-        def grid_done(info, value, seconds):
-            results[info.name].outputs = value["outputs"]
-            results[info.name].first_return_bands = value["first_return_bands"]
-            results[info.name].seconds += seconds
-
-        run_each(_grid_tile, grid_jobs, pool, results, [j[0].name for j in grid_jobs], grid_done, tick, "gridded")
+        while True:
+            while len(pending) < in_flight:
+                task = next_task()
+                if task is None:
+                    break
+                start(*task)
+            if not pending:  # everything started has finished and nothing more can start
+                break
+            for fut in pool.wait_first(pending):
+                kind, name = pending.pop(fut)
+                try:
+                    value, seconds = fut.result()
+                    finish(kind, name, value, seconds, None)
+                except Exception as err:  # incl. a worker crash: reported per tile
+                    finish(kind, name, None, 0.0, err)
+    except BaseException:
+        if pool is not None:
+            pool.close(list(pending))
+        raise
     finally:
         if pool is not None:
             pool.close()
-
-
+    return state["scratch_peak"]
