@@ -41,11 +41,12 @@ def cli(verbose):
 
 from . import info as _info  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
+from . import points as _points  # noqa: E402
 from . import shrub as _shrub  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_rasters.rasters)
-for _command in (_shrub.shrub, _shrub.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
+for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
     cli.add_command(_command)
 
 
