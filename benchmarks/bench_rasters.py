@@ -38,7 +38,6 @@ PY = sys.executable
 
 def generate(workdir: Path, points: float, big: float) -> dict:
     """Write the block (LAS and LAZ) and the big tile, unless already there."""
-    import numpy as np
     import pyproj
 
     from gistools.io.points import write_tile

@@ -30,7 +30,6 @@ COUNTY_TILES = 733
 
 
 def generate(work: Path, points: float) -> dict:
-    import numpy as np
     import pyproj
     from shapely.geometry import box
 

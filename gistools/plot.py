@@ -41,7 +41,6 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch
 
     from .io.raster import atomic_path

@@ -109,7 +109,6 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
     x0, y0 = origin
     W, H = size
     sc = Scene(origin=(x0, y0), size=(W, H))
-    block = box(x0, y0, x0 + W, y0 + H)
     # Roads: east-west roads every ~1400 ft, a curving north-south road every ~1300 ft.
     for k, v in enumerate(np.arange(0.7, H / 2000.0 * 2, 1.4)[: max(1, int(H // 1400))]):
         yc = y0 + v * 1000.0

@@ -93,7 +93,6 @@ def tin_oracle(grid, paths, max_distance):
     interior = within_distance(grid, xy[:, 0], xy[:, 1], max_distance) & np.isfinite(ref)
     # interior: away from the hull edge, where Qhull and Triangle may close the hull differently
     interior[:3, :] = interior[-3:, :] = interior[:, :3] = interior[:, -3:] = False
-    water = np.zeros(grid.shape, bool)
     return ref, interior
 
 

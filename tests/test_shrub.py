@@ -17,7 +17,7 @@ from gistools.errors import CRSMismatchError
 from gistools.grid import cell_centres
 from gistools.io.points import write_tile
 from gistools.io.raster import read_raster
-from gistools.synthetic import Scene, ground_z, scene_points
+from gistools.synthetic import Scene, scene_points
 from gistools.tasks.shrub import ShrubSettings, shrub_from_tiles
 
 B = SAMPLE / "breaklines.gpkg"

@@ -17,7 +17,6 @@ from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, 
 from ..io.raster import atomic_path
 from ..io.tiles import find_tiles
 from ..progress import ProgressCallback, report
-from .batch import fail
 
 __all__ = ["points_from_tiles", "RETURNS"]
 

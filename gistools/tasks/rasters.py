@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import shutil
 import tempfile
 import time
@@ -30,7 +29,7 @@ from affine import Affine
 from ..errors import Cancelled, GistoolsError, InputError
 from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
-from ..io.raster import NODATA, atomic_path, write_raster, write_vrt
+from ..io.raster import atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report

@@ -30,7 +30,7 @@ from rasterio.features import rasterize, shapes
 from rasterio.windows import from_bounds
 from shapely.geometry import box
 
-from ..errors import GistoolsError, InputError
+from ..errors import InputError
 from ..grid import Grid
 from ..io.raster import atomic_path, read_raster, write_raster, write_vrt
 from ..io.vector import check_crs, read_layer, write_layer
@@ -40,7 +40,7 @@ from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_break
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
-from .batch import fail, make_pool, run_each
+from .batch import make_pool, run_each
 from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
 __all__ = ["ShrubSettings", "shrub_from_tiles", "map_from_classes", "STAGES", "VEG_ROAD", "VEG_WATER"]

@@ -10,7 +10,6 @@ Lengths are in CRS units.
 
 from __future__ import annotations
 
-import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.ops import polygonize
