@@ -33,7 +33,11 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "gistools setup: installing gistools and its dependencies into $VENV"
   "$VENV/bin/python" -m pip install -q --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
   "$VENV/bin/python" -m pip install -q -e ".[test,plot]" 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -c "import gistools, laspy, lazrs, rasterio, triangle" 
+  "$VENV/bin/python" -c "import gistools, laspy, lazrs, rasterio, triangle"
+  # Debian's python3-matplotlib (pulled in by qgis) registers mpl_toolkits from /usr/lib/python3 at start-up (its
+  # nspkg.pth), which hides the venv's mpl_toolkits.mplot3d; importing it first from the venv's own .pth fixes the order.
+  SITE=$("$VENV/bin/python" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
+  echo 'import importlib.util as u; u.find_spec("mpl_toolkits") and __import__("mpl_toolkits")' > "$SITE/00-gistools-mpl-toolkits.pth"
   echo "$WANT" > "$STAMP"
 fi
 
