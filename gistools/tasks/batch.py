@@ -22,7 +22,8 @@ def fail(result, err: BaseException) -> None:
 
 
 
-def _timed(fn, args):
+def timed(fn, args):
+    """(fn(*args), seconds it took)."""
     t = time.perf_counter()
     value = fn(*args)
     return value, time.perf_counter() - t
@@ -84,9 +85,9 @@ class DaskPool:
         self.client = self.cluster = None
 
 
-def run_each(fn, arglist, pool, results, names, on_done, tick, verb, inner_progress=None) -> None:
+def run_each(fn, arglist, pool, results, names, on_done, tick, verb) -> None:
     """Run fn over arglist (inline when ``pool`` is None, else on the pool); a failure marks its tile
-    failed and the rest go on. ``inner_progress`` (inline runs) is passed to fn for chunk progress."""
+    failed and the rest go on."""
     if not arglist:
         return
     if pool is None:
@@ -94,7 +95,7 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb, inner_progr
             if results[name].status == "failed":
                 continue
             try:
-                value, seconds = _timed(fn, args if inner_progress is None else (*args, inner_progress))
+                value, seconds = timed(fn, args)
                 on_done(args[0], value, seconds)
             except Cancelled:
                 raise
@@ -102,7 +103,7 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb, inner_progr
                 fail(results[name], err)
             tick(f"{name} {verb}")
         return
-    pending = {pool.submit(_timed, fn, args): (name, args) for name, args in zip(names, arglist)
+    pending = {pool.submit(timed, fn, args): (name, args) for name, args in zip(names, arglist)
                if results[name].status != "failed"}
     try:
         while pending:

@@ -33,7 +33,7 @@ from ..io.raster import atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report
-from .batch import _timed, fail, make_pool
+from .batch import fail, make_pool, timed
 from ..units import length_to_crs_units
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
@@ -575,7 +575,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         if pool is None:
             try:
                 inner = (within_tile,) if kind == "scan" and progress is not None else ()
-                value, seconds = _timed(fn, (*args, *inner))
+                value, seconds = timed(fn, (*args, *inner))
             except Cancelled:
                 raise
             except Exception as err:  # one bad tile never stops the batch; it is reported
@@ -583,7 +583,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
                 return
             finish(kind, name, value, seconds, None)
         else:
-            pending[pool.submit(_timed, fn, args)] = (kind, name)
+            pending[pool.submit(timed, fn, args)] = (kind, name)
 
     def next_task():
         for n in grid_order:
