@@ -24,6 +24,7 @@ __all__ = [
     "vertical_unit",
     "parse_length",
     "length_to_crs_units",
+    "unit_from_word",
 ]
 
 METRE = 1.0
@@ -145,3 +146,25 @@ def length_to_crs_units(text: str | float, unit: LinearUnit, *, name: str = "len
     if abs(metres - unit.metres) < 1e-12:
         return value
     return value * metres / unit.metres
+
+
+def unit_from_word(word: str, *, name: str = "unit") -> LinearUnit:
+    """The LinearUnit of a unit word as rasters and users write it ("m", "ft", "ftUS", "US survey foot").
+
+    "ft" alone is the international foot here (a raster's unit string has no CRS to lean on).
+
+    >>> unit_from_word("ftUS").short
+    'ftUS'
+    """
+    text = str(word).strip()
+    if text in ("US survey foot", "US survey feet"):
+        return LinearUnit("US survey foot", US_SURVEY_FOOT)
+    key = text.lower().replace(" ", "")
+    metres = _UNIT_WORDS.get(key, False)
+    if metres is False or metres is None:
+        raise InputError(f"{name} {word!r} is not a known linear unit", hint="Use m, ft or ftUS")
+    if metres == "foot" or abs(float(metres) - FOOT) < 1e-12:
+        return LinearUnit("foot", FOOT)
+    if abs(float(metres) - US_SURVEY_FOOT) < 1e-12:
+        return LinearUnit("US survey foot", US_SURVEY_FOOT)
+    return LinearUnit("metre", METRE)

@@ -5,39 +5,11 @@ from __future__ import annotations
 import json
 
 import click
-import numpy as np
 
 from ..errors import GistoolsError
-from ..io.points import crs_label, iter_chunks, read_tile_info
 from ..io.tiles import find_tiles
+from ..tasks.info import tile_summary
 from .options import crs_opt
-
-
-def tile_summary(path, crs=None) -> dict:
-    """Header facts plus point counts by class and by return (reads every point, in chunks)."""
-    info = read_tile_info(path, crs)
-    by_class = np.zeros(256, np.int64)
-    by_return = np.zeros(16, np.int64)
-    for chunk in iter_chunks(info):
-        by_class += np.bincount(chunk.classification, minlength=256)[:256]
-        by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
-    return {
-        "file": str(info.path),
-        "las_version": info.version,
-        "point_format": info.point_format,
-        "compressed": info.compressed,
-        "points": info.point_count,
-        "bounds": info.bounds,
-        "z_range": info.z_range,
-        "scales": info.scales,
-        "offsets": info.offsets,
-        "crs": crs_label(info.crs),
-        "crs_source": "file" if info.crs_from_file else "--crs",
-        "horizontal_unit": info.unit.name,
-        "vertical_unit": info.z_unit.name,
-        "points_by_class": {int(c): int(n) for c, n in enumerate(by_class) if n},
-        "points_by_return": {int(r): int(n) for r, n in enumerate(by_return) if n},
-    }
 
 
 @click.command()

@@ -108,9 +108,12 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True) -> Path | No
     """
     path = Path(path)
     metas = []
+    units = None
     for src_path in sources:
         with rasterio.open(src_path) as src:
             metas.append((Path(src_path), src.transform, src.width, src.height, src.crs, src.nodata, src.dtypes[0]))
+            if len(metas) == 1:
+                units = src.units[0]
     if not metas:
         return None
     cs = metas[0][1].a
@@ -130,6 +133,8 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True) -> Path | No
     ]
     if nodata is not None:
         lines.append(f"    <NoDataValue>{nodata!r}</NoDataValue>")
+    if units:
+        lines.append(f"    <UnitType>{html.escape(units)}</UnitType>")
     for src_path, tr, w, h, _, nd, _ in metas:
         xoff = int(round((tr.c - west) / cs))
         yoff = int(round((north - tr.f) / cs))

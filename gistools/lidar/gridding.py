@@ -157,5 +157,11 @@ def dem_from_ground_points(
 
 
 def ndsm_from(dsm: np.ndarray, dem: np.ndarray) -> np.ndarray:
-    """nDSM = DSM - DEM where both are valid, NaN elsewhere (heights above ground)."""
-    return np.where(np.isfinite(dsm) & np.isfinite(dem), dsm - dem, np.nan)
+    """nDSM = DSM - DEM where both are valid, NaN elsewhere (heights above ground).
+
+    Computed on the float32 values the DSM and DEM rasters store, so the nDSM of the
+    rasters (``gistools:ndsm``, a raster calculator) equals the one written with them.
+    """
+    dsm32 = np.asarray(dsm, np.float32)
+    dem32 = np.asarray(dem, np.float32)
+    return np.where(np.isfinite(dsm32) & np.isfinite(dem32), dsm32 - dem32, np.float32(np.nan))

@@ -7,6 +7,9 @@ one-line message, and the other tiles go on.
 from __future__ import annotations
 
 import multiprocessing
+import os
+import shutil
+import sys
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -22,6 +25,24 @@ def fail(result, err: BaseException) -> None:
 
 
 
+def python_executable() -> str:
+    """The Python interpreter for worker processes.
+
+    Inside QGIS (desktop or qgis_process) ``sys.executable`` is the QGIS program itself, and
+    spawning it would start QGIS; the interpreter beside the running Python library is used then.
+    """
+    exe = sys.executable or ""
+    if os.path.basename(exe).lower().startswith("python"):
+        return exe
+    names = ("python.exe", "python3.exe") if os.name == "nt" else (f"python{sys.version_info[0]}.{sys.version_info[1]}", "python3")
+    for folder in (os.path.join(sys.exec_prefix, "bin"), sys.exec_prefix, os.path.join(sys.base_exec_prefix, "bin")):
+        for name in names:
+            candidate = os.path.join(folder, name)
+            if os.path.isfile(candidate):
+                return candidate
+    return shutil.which("python3") or exe
+
+
 def timed(fn, args):
     """(fn(*args), seconds it took)."""
     t = time.perf_counter()
@@ -33,7 +54,11 @@ class ProcessPool:
     """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
 
     def __init__(self, jobs: int):
-        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"))
+        ctx = multiprocessing.get_context("spawn")
+        python = python_executable()
+        if python != sys.executable:
+            ctx.set_executable(python)
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
 
     def submit(self, fn, *args):
         return self.pool.submit(fn, *args)

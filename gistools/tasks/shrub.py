@@ -35,7 +35,8 @@ from ..grid import Grid
 from ..io.raster import atomic_path, read_raster, write_raster, write_vrt
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
-from ..lidar.density import halo_cells, point_density
+from ..lidar.density import halo_cells
+from ..lidar.vegetation import VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
 from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
@@ -45,7 +46,6 @@ from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
 __all__ = ["ShrubSettings", "shrub_from_tiles", "map_from_classes", "STAGES", "VEG_ROAD", "VEG_WATER"]
 
-VEG_ROAD, VEG_WATER, VEG_NODATA = 4, 5, 255
 ACRE_M2 = 4046.8564224
 HECTARE_M2 = 10000.0
 
@@ -176,11 +176,7 @@ def _clip_tile(name, bands_path, vec, p, out) -> dict:
 
     road_m, water_m = mask(road), mask(water)
     wet_m = mask(shapely.union_all(vec["wetlands"])) if vec["wetlands"] else np.zeros(grid.shape, bool)
-    veg = np.where((bands >= 1) & (bands <= 3), bands, 0).astype(np.uint8)
-    veg[bands == BAND_NODATA] = VEG_NODATA
-    veg[water_m] = VEG_WATER
-    veg[road_m] = VEG_ROAD
-    wetveg = np.where(wet_m & (veg >= 1) & (veg <= 3), veg, 0).astype(np.uint8)
+    veg, wetveg = vegetation(bands, road_m, water_m, wet_m)
     outputs = {}
     for product, array in (("veg", veg), ("wetveg", wetveg)):
         path = Path(out) / product / f"{name}.tif"
@@ -205,14 +201,9 @@ def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
     veg, grid, _ = read_raster(veg_tif)
     halo = halo_cells(p["radius"], grid.cell_size)
     big = _read_with_halo(veg_vrt, grid, halo, 0)
-    sel = np.isin(big, p["density_bands"])
-    count, density, cover = point_density(sel, grid.cell_size, p["radius"])
-    # cover is 0, not nodata, where data exist in reach but no vegetation; NaN only with no data in reach
-    has_data, _, _ = point_density(big != VEG_NODATA, grid.cell_size, p["radius"])
-    cover = np.where(np.isnan(cover) & (has_data > 0), 0.0, cover)
-    core = (slice(halo, halo + grid.height), slice(halo, halo + grid.width))
+    density, cover = vegetation_cover(big, grid.cell_size, p["radius"], p["density_bands"], halo)
     outputs = {}
-    for product, array in (("density", density[core]), ("cover", cover[core])):
+    for product, array in (("density", density), ("cover", cover)):
         path = Path(out) / product / f"{name}.tif"
         write_raster(path, array, grid, overwrite=True, tags={"GISTOOLS_PRODUCT": product})
         outputs[product] = str(path)

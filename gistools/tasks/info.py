@@ -1,0 +1,59 @@
+"""Header facts, CRS, units and point counts of tiles (``gistools info``, ``gistools:info``)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import GistoolsError
+from ..io.points import crs_label, iter_chunks, read_tile_info
+from ..io.tiles import find_tiles
+from ..progress import ProgressCallback, report
+
+__all__ = ["tile_summary", "tiles_summary"]
+
+
+def tile_summary(path, crs=None) -> dict:
+    """Header facts plus point counts by class and by return (reads every point, in chunks)."""
+    info = read_tile_info(path, crs)
+    by_class = np.zeros(256, np.int64)
+    by_return = np.zeros(16, np.int64)
+    for chunk in iter_chunks(info):
+        by_class += np.bincount(chunk.classification, minlength=256)[:256]
+        by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
+    return {
+        "file": str(info.path),
+        "las_version": info.version,
+        "point_format": info.point_format,
+        "compressed": info.compressed,
+        "points": info.point_count,
+        "bounds": info.bounds,
+        "z_range": info.z_range,
+        "scales": info.scales,
+        "offsets": info.offsets,
+        "crs": crs_label(info.crs),
+        "crs_source": "file" if info.crs_from_file else "--crs",
+        "horizontal_unit": info.unit.name,
+        "vertical_unit": info.z_unit.name,
+        "points_by_class": {int(c): int(n) for c, n in enumerate(by_class) if n},
+        "points_by_return": {int(r): int(n) for r, n in enumerate(by_return) if n},
+    }
+
+
+def tiles_summary(inputs, *, crs=None, progress: ProgressCallback | None = None) -> dict:
+    """:func:`tile_summary` of every tile of ``inputs``; a tile that cannot be read is listed with its error."""
+    paths = find_tiles(inputs)
+    tiles = []
+    for k, path in enumerate(paths):
+        try:
+            tiles.append({"status": "ok", **tile_summary(path, crs)})
+        except GistoolsError as err:
+            tiles.append({"status": "failed", "file": str(path), "error": str(err)})
+        report(progress, (k + 1) / len(paths), path.name)
+    ok = [t for t in tiles if t["status"] == "ok"]
+    return {
+        "tool": "gistools info",
+        "tiles": tiles,
+        "counts": {s: sum(t["status"] == s for t in tiles) for s in ("ok", "failed")},
+        "points": sum(t["points"] for t in ok),
+        "crs": sorted({t["crs"] for t in ok}),
+    }

@@ -1,0 +1,79 @@
+"""Build the QGIS plugin zip (Plugins > Manage and Install Plugins > Install from ZIP), and optionally install it.
+
+    python tools/build_plugin.py                       # -> dist/gistools_qgis-<version>.zip
+    python tools/build_plugin.py --install PROFILE_DIR # also unpack it into a QGIS profile and enable it
+
+PROFILE_DIR is a QGIS profile folder, e.g. ~/.local/share/QGIS/QGIS3/profiles/default. The plugin folder
+is named gistools_qgis (not gistools, which would hide the gistools library on QGIS's sys.path).
+"""
+
+from __future__ import annotations
+
+import argparse
+import configparser
+import shutil
+import sys
+import zipfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SOURCE = ROOT / "qgis_plugin"
+PLUGIN = "gistools_qgis"
+
+
+def version() -> str:
+    for line in (SOURCE / "metadata.txt").read_text().splitlines():
+        if line.startswith("version="):
+            return line.split("=", 1)[1].strip()
+    raise SystemExit("qgis_plugin/metadata.txt has no version=")
+
+
+def build(dist: Path) -> Path:
+    dist.mkdir(parents=True, exist_ok=True)
+    target = dist / f"{PLUGIN}-{version()}.zip"
+    tmp = target.with_name(target.name + ".partial")
+    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+        for path in sorted(SOURCE.rglob("*")):
+            if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
+                continue
+            zf.write(path, f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}")
+    tmp.replace(target)
+    return target
+
+
+def install(zip_path: Path, profile: Path) -> Path:
+    """Unpack into PROFILE/python/plugins and enable it in PROFILE/QGIS/QGIS3.ini (what Install from ZIP does)."""
+    plugins = profile / "python" / "plugins"
+    plugins.mkdir(parents=True, exist_ok=True)
+    if (plugins / PLUGIN).exists():
+        shutil.rmtree(plugins / PLUGIN)
+    with zipfile.ZipFile(zip_path) as zf:
+        zf.extractall(plugins)
+    ini = profile / "QGIS" / "QGIS3.ini"
+    ini.parent.mkdir(parents=True, exist_ok=True)
+    cfg = configparser.RawConfigParser()
+    cfg.optionxform = str
+    if ini.exists():
+        cfg.read(ini)
+    if not cfg.has_section("PythonPlugins"):
+        cfg.add_section("PythonPlugins")
+    cfg.set("PythonPlugins", PLUGIN, "true")
+    with ini.open("w") as f:
+        cfg.write(f, space_around_delimiters=False)
+    return plugins / PLUGIN
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="where the zip goes (default dist/)")
+    ap.add_argument("--install", type=Path, metavar="PROFILE_DIR", help="also install into this QGIS profile folder")
+    args = ap.parse_args(argv)
+    zip_path = build(args.dist)
+    print(zip_path)
+    if args.install:
+        print(install(zip_path, args.install))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,151 @@
+"""Write qgis_plugin/models/shrub_density.model3, the dissertation's ModelBuilder chain as a QGIS graphical model.
+
+Run with QGIS's Python and the plugin importable (the test command's venv does both):
+
+    QT_QPA_PLATFORM=offscreen .venv/bin/python tools/make_model.py
+
+The model is built through the QGIS API (not hand-written XML), so it is what the Model
+Designer itself would save; open it there to see and change each step.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+TARGET = ROOT / "qgis_plugin" / "models" / "shrub_density.model3"
+
+HELP = (
+    "The shrub density chain of the dissertation (ch. 9), one gistools algorithm per ModelBuilder step: LAS to "
+    "ground and non-ground points (LAS To Multipoint), DSM (max of first returns), DEM (ground TIN), nDSM = DSM - DEM, "
+    "height bands, breaklines split by the tile index and polygonised, clip of roads and water with selection of "
+    "wetland vegetation, point density and cover, light / medium / heavy classes. It gives the same class raster as "
+    "gistools shrub (and gistools:shrubchain) on the same tiles. The two point steps only write the dissertation's "
+    "point layers for inspection; on a county, deactivate them in the Model Designer (right click > Deactivate)."
+)
+
+
+def build():
+    from qgis.core import (
+        QgsProcessing,
+        QgsProcessingModelAlgorithm,
+        QgsProcessingModelChildAlgorithm,
+        QgsProcessingModelChildParameterSource as Src,
+        QgsProcessingModelOutput,
+        QgsProcessingModelParameter,
+        QgsProcessingParameterFile,
+        QgsProcessingParameterString,
+        QgsProcessingParameterVectorLayer,
+    )
+    from qgis.PyQt.QtCore import QPointF
+
+    model = QgsProcessingModelAlgorithm("shrub_density", "Models")
+    model.setHelpContent({"ALG_DESC": HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1"})
+
+    inputs = [
+        (QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=QgsProcessingParameterFile.Folder), 0),
+        (QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [QgsProcessing.TypeVectorLine]), 1),
+        (QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [QgsProcessing.TypeVectorLine],
+                                           optional=True), 2),
+        (QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [QgsProcessing.TypeVectorPolygon],
+                                           optional=True), 3),
+        (QgsProcessingParameterVectorLayer("WETLANDS", "Wetland polygons", [QgsProcessing.TypeVectorPolygon],
+                                           optional=True), 4),
+        (QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", [QgsProcessing.TypeVectorPolygon],
+                                           optional=True), 5),
+        (QgsProcessingParameterString("TILE_FIELD", "Tile number field", defaultValue="TILE_ID"), 6),
+        (QgsProcessingParameterString("CELL_SIZE", "Cell size (with unit)", defaultValue="5ft"), 7),
+        (QgsProcessingParameterString("RADIUS", "Density radius (with unit)", defaultValue="25ft"), 8),
+    ]
+    for definition, row in inputs:
+        component = QgsProcessingModelParameter(definition.name())
+        component.setPosition(QPointF(120, 60 + 70 * row))
+        model.addModelParameter(definition, component)
+
+    def child(cid, alg, description, x, y, sources, outputs=None):
+        c = QgsProcessingModelChildAlgorithm(alg)
+        c.setChildId(cid)
+        c.setDescription(description)
+        c.setPosition(QPointF(x, y))
+        for name, src in sources.items():
+            c.addParameterSources(name, [src])
+        if outputs:
+            mos = {}
+            for child_output, (model_name, param) in outputs.items():
+                mo = QgsProcessingModelOutput(model_name, model_name)
+                mo.setChildId(cid)
+                mo.setChildOutputName(child_output)
+                mo.setPosition(QPointF(x + 200, y + 40))
+                mos[model_name] = mo
+            c.setModelOutputs(mos)
+        model.addChildAlgorithm(c)
+        return c
+
+    P, C, V = Src.fromModelParameter, Src.fromChildOutput, Src.fromStaticValue
+    child("points_ground", "gistools:points", "LAS to ground points (class 2)", 420, 40,
+          {"INPUT": P("TILES"), "CLASSES": V("2"), "RETURNS": V(2), "FORMAT": V(0)})
+    child("points_nonground", "gistools:points", "LAS to non-ground points (classes 1, 2, first returns)", 420, 110,
+          {"INPUT": P("TILES"), "CLASSES": V("1,2"), "RETURNS": V(0), "FORMAT": V(0)})
+    child("dsm", "gistools:dsm", "DSM (max of first returns)", 420, 200,
+          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "JOBS": V(1)})
+    child("dem", "gistools:dem", "DEM (ground TIN)", 420, 280,
+          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "DEM_METHOD": V(0), "DEM_MAX_DISTANCE": V("15m"),
+           "JOBS": V(1)})
+    child("ndsm", "gistools:ndsm", "nDSM = DSM - DEM", 680, 240,
+          {"DSM": C("dsm", "OUTPUT"), "DEM": C("dem", "OUTPUT")})
+    child("bands", "gistools:bands", "Height bands B0-B3", 900, 240,
+          {"NDSM": C("ndsm", "OUTPUT"), "TOP_CLASS": C("dsm", "TOP_CLASS"), "PRESET": V(0), "NOISE_FLOOR": V("0.1m"),
+           "Z_UNIT": V(0)})
+    child("breaklines", "gistools:breaklines", "Split breaklines by tiles, polygonise roads and water", 680, 420,
+          {"ROADS": P("ROADS"), "HYDRO": P("HYDRO"), "WATERBODIES": P("WATERBODIES"), "TILE_INDEX": P("TILE_INDEX"),
+           "TILE_FIELD": P("TILE_FIELD"), "SNAP": V("0.2ft"), "MAX_ROAD_WIDTH": V("60ft"), "MAX_HYDRO_WIDTH": V("500ft"),
+           "SINGLE_LINE_WIDTH": V("8ft"), "REPROJECT": V(False)})
+    child("clip", "gistools:clip", "Clip roads and water; select wetland vegetation", 1120, 330,
+          {"BANDS": C("bands", "OUTPUT"), "ROAD_POLYGONS": C("breaklines", "OUTPUT_ROADS"),
+           "WATER_POLYGONS": C("breaklines", "OUTPUT_WATER"), "WETLANDS": P("WETLANDS"), "REPROJECT": V(False)},
+          outputs={"OUTPUT_WETLAND": ("Vegetation in wetlands", None)})
+    child("density", "gistools:density", "Point density and cover of vegetation", 1340, 330,
+          {"VEGETATION": C("clip", "OUTPUT"), "RADIUS": P("RADIUS"), "DENSITY_BANDS": V([0, 1, 2])},
+          outputs={"OUTPUT": ("Cover", None)})
+    child("classify", "gistools:classify", "Light / medium / heavy shrub classes", 1560, 330,
+          {"COVER": C("density", "OUTPUT"), "VEGETATION": C("clip", "OUTPUT"), "METHOD": V(0), "BREAKS": V("0.3,0.7")},
+          outputs={"OUTPUT": ("Shrub classes", None), "OUTPUT_POLYGONS": ("Shrub class polygons", None)})
+    # the model outputs become destination parameters of the model (as the Model Designer does on save)
+    model.updateDestinationParameters()
+    return model
+
+
+def load_plugin():
+    """The plugin of this checkout (qgis_plugin/) imported as the package gistools_qgis, as QGIS would."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("gistools_qgis", ROOT / "qgis_plugin" / "__init__.py",
+                                                  submodule_search_locations=[str(ROOT / "qgis_plugin")])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["gistools_qgis"] = module
+    spec.loader.exec_module(module)
+    return module.classFactory(None)
+
+
+def main() -> int:
+    os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+    from qgis.core import QgsApplication
+
+    app = QgsApplication([], False)
+    app.initQgis()
+    load_plugin().initProcessing()  # the children's algorithms must resolve for the model outputs to become parameters
+    model = build()
+    TARGET.parent.mkdir(parents=True, exist_ok=True)
+    tmp = TARGET.with_name(TARGET.name + ".partial")
+    if not model.toFile(str(tmp)):
+        print("could not write the model", file=sys.stderr)
+        return 1
+    tmp.replace(TARGET)
+    print(TARGET)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
