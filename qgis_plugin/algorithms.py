@@ -114,7 +114,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
                                             behavior=QgsProcessingParameterFile.Folder))
 
     def add_crs(self):
-        self.add(QgsProcessingParameterCrs("CRS", "CRS of tiles that carry none (never overrides a tile's own)",
+        self.add(QgsProcessingParameterCrs("CRS", "Input CRS (overrides the tiles' own; needed for tiles that carry none)",
                                            optional=True), advanced=True)
 
     def add_parallel(self):

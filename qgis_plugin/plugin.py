@@ -8,7 +8,6 @@ from qgis.core import Qgis, QgsApplication, QgsMessageLog
 
 # what the provider needs in QGIS's Python: (module, what to install)
 REQUIREMENTS = (
-    ("gistools", "gistools"),
     ("numpy", "numpy"),
     ("scipy", "scipy"),
     ("rasterio", "rasterio"),
@@ -23,9 +22,14 @@ REQUIREMENTS = (
 
 
 def missing_requirements() -> list[str]:
-    """The pip names of the packages QGIS's Python cannot import (empty when all are there)."""
+    """The pip names of the packages QGIS's Python cannot import (empty when all are there).
+
+    gistools itself is named only when its dependencies are all there (else it fails because of them).
+    """
     missing = []
-    for module, pip_name in REQUIREMENTS:
+    for module, pip_name in REQUIREMENTS + (("gistools", "gistools"),):
+        if module == "gistools" and missing:
+            break
         try:
             importlib.import_module(module)
         except Exception:  # ImportError, or a broken binary wheel raising something else
@@ -45,7 +49,8 @@ def missing_message(missing: list[str]) -> str:
             + ", ".join(missing) + ". Install them into the Python QGIS runs: on Debian/Ubuntu "
             "`/usr/bin/python3 -m pip install " + " ".join(f"'{m}'" for m in missing) + "` (or a venv made with "
             "--system-site-packages on QGIS's PYTHONPATH); on Windows the OSGeo4W Shell, on macOS the QGIS bundle's "
-            "python3: `python3 -m pip install " + " ".join(f"'{m}'" for m in missing) + "`. Then restart QGIS.")
+            "python3: `python3 -m pip install " + " ".join(f"'{m}'" for m in missing) + "`. Then restart QGIS. "
+            "The gistools README, section QGIS, has the details.")
 
 
 class GistoolsPlugin:

@@ -2,7 +2,13 @@
 # One entry point for the README's two commands, and for CI.
 #   bash tools/run.sh sample   set up .venv, run the main job on sample_tiles/ into out/
 #   bash tools/run.sh test     set up .venv, run the whole test suite
-# Works on a fresh Debian 12 from a clean clone (installs python3-venv when it is missing).
+# Works on a fresh Debian 12 from a clean clone (installs what it needs with apt-get when run as root).
+#
+# The GDAL / PROJ / GEOS bound packages (rasterio, pyogrio, pyproj, shapely) are built against the
+# system's libraries, not taken as binary wheels: QGIS links those system libraries, and a wheel's own
+# copy of PROJ or GDAL in the same process is interposed by them (qgis_process then aborts on exit with
+# "free(): invalid pointer"). One copy of each library makes the venv safe inside QGIS too.
+# GISTOOLS_BINARY_WHEELS=1 skips that (faster set-up, but not for use inside QGIS).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 ROOT=$(pwd)
@@ -13,12 +19,27 @@ PY=/usr/bin/python3
 
 need_apt=()
 "$PY" -c "import venv, ensurepip" 2>/dev/null || need_apt+=(python3-venv)
+WHEELS=${GISTOOLS_BINARY_WHEELS:-0}
+if [ "$WHEELS" != 1 ]; then
+  command -v gdal-config >/dev/null || need_apt+=(libgdal-dev)
+  pkg-config --exists proj 2>/dev/null || need_apt+=(libproj-dev)
+  command -v geos-config >/dev/null || need_apt+=(libgeos-dev)
+  command -v proj >/dev/null || need_apt+=(proj-bin)  # lets a venv's pyproj find /usr/share/proj
+  [ -f "/usr/include/python3.11/Python.h" ] || "$PY" -c "import sysconfig,os,sys; sys.exit(not os.path.exists(os.path.join(sysconfig.get_paths()['include'],'Python.h')))" || need_apt+=(python3-dev)
+  command -v g++ >/dev/null || need_apt+=(build-essential)
+  command -v pkg-config >/dev/null || need_apt+=(pkg-config)
+fi
+if [ "${1:-}" = test ]; then
+  # the QGIS plugin's tests run in a real headless QGIS (Debian's 3.22 LTR), and call its qgis_process
+  QT_QPA_PLATFORM=offscreen "$PY" -c "import qgis.core" 2>/dev/null || need_apt+=(python3-qgis)
+  [ -x /usr/bin/qgis_process.bin ] || need_apt+=(qgis)
+fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
     echo "gistools setup: installing ${need_apt[*]} (apt-get)"
     apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
   else
-    echo "gistools setup: missing ${need_apt[*]}; run: sudo apt-get install ${need_apt[*]}" >&2
+    echo "gistools setup: missing ${need_apt[*]}; run: sudo apt-get install --no-install-recommends ${need_apt[*]}" >&2
     exit 1
   fi
 fi
@@ -28,12 +49,46 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv --system-site-packages "$VENV"
 fi
 STAMP="$VENV/.gistools-installed"
-WANT=$(cat pyproject.toml | sha256sum | cut -c1-16)
+WANT=$( (cat pyproject.toml; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)
+pipq() {  # pip install, quiet on success, the whole log on failure
+  local log; log=$(mktemp)
+  if ! "$VENV/bin/python" -m pip install -q "$@" >"$log" 2>&1; then cat "$log" >&2; rm -f "$log"; return 1; fi
+  grep -v "^WARNING: Location\|^DEPRECATION: --no-binary\|^$" "$log" || true; rm -f "$log"
+}
+system_libs_only() {  # one GDAL / PROJ / GEOS in the process: the system's
+  "$VENV/bin/python" - <<'PYEOF'
+import subprocess as sp, sys
+import pyogrio, pyproj, rasterio, shapely
+gdal = sp.check_output(["gdal-config", "--version"], text=True).strip()
+proj = sp.check_output(["pkg-config", "--modversion", "proj"], text=True).strip()
+geos = sp.check_output(["geos-config", "--version"], text=True).strip()
+got = (rasterio.__gdal_version__, pyogrio.__gdal_version_string__, pyproj.proj_version_str, shapely.geos_version_string)
+if got != (gdal, gdal, proj, geos):
+    print(f"built against GDAL/GDAL/PROJ/GEOS {got}; the system has {gdal}, {proj}, {geos}", file=sys.stderr)
+    sys.exit(1)
+pyproj.CRS(2882)
+PYEOF
+}
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "gistools setup: installing gistools and its dependencies into $VENV"
-  "$VENV/bin/python" -m pip install -q --upgrade pip 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -m pip install -q -e ".[test,plot]" 2>&1 | grep -v "^WARNING: Location" || true
-  "$VENV/bin/python" -c "import gistools, laspy, lazrs, rasterio, triangle"
+  pipq --upgrade pip
+  if [ "$WHEELS" != 1 ]; then
+    echo "gistools setup: building rasterio, pyogrio, pyproj, shapely against the system GDAL $(gdal-config --version), PROJ $(pkg-config --modversion proj), GEOS $(geos-config --version) (a few minutes, once)"
+    # pyproj 3.7 needs PROJ >= 9.2 (Debian 12 has 9.1); 3.6 must be compiled with Cython < 3.1 (pyproj issue #1451)
+    PYPROJ="pyproj>=3.5"
+    pkg-config --atleast-version=9.2 proj || PYPROJ="pyproj>=3.5,<3.7"
+    pipq "cython<3.1" setuptools wheel "numpy<2"
+    PIP_NO_BINARY=pyproj pipq --no-cache-dir --no-build-isolation "$PYPROJ"
+    export PIP_NO_BINARY=rasterio,pyogrio,shapely
+  fi
+  pipq -e ".[test,plot]"
+  unset PIP_NO_BINARY
+  "$VENV/bin/python" -c "import gistools, laspy, lazrs, rasterio, triangle, pyogrio, pyproj, shapely"
+  if [ "$WHEELS" != 1 ] && ! system_libs_only; then  # a venv made before: replace its binary wheels once
+    PIP_NO_BINARY=pyproj pipq --no-cache-dir --force-reinstall --no-deps --no-build-isolation "$PYPROJ"
+    PIP_NO_BINARY=rasterio,pyogrio,shapely pipq --force-reinstall --no-deps rasterio pyogrio shapely
+    system_libs_only || { echo "gistools setup: rasterio / pyogrio / pyproj / shapely do not use the system libraries" >&2; exit 1; }
+  fi
   # Debian's python3-matplotlib (pulled in by qgis) registers mpl_toolkits from /usr/lib/python3 at start-up (its
   # nspkg.pth), which hides the venv's mpl_toolkits.mplot3d; importing it first from the venv's own .pth fixes the order.
   SITE=$("$VENV/bin/python" -c "import sysconfig; print(sysconfig.get_paths()['purelib'])")
@@ -52,6 +107,7 @@ case "${1:-}" in
   test)
     shift
     set +e
+    export QT_QPA_PLATFORM=${QT_QPA_PLATFORM:-offscreen}
     "$VENV/bin/python" -m pytest "$@"
     rc=$?
     set -e

@@ -36,8 +36,9 @@ def read_layer(spec) -> gpd.GeoDataFrame:
     return gdf
 
 
-def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: bool = False) -> gpd.GeoDataFrame:
-    """``gdf`` in ``crs``: refused when they differ, unless ``reproject``."""
+def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: bool = False,
+              against: str = "the points'") -> gpd.GeoDataFrame:
+    """``gdf`` in ``crs``: refused when they differ, unless ``reproject``. ``against`` names what ``crs`` belongs to."""
     layer_crs = pyproj.CRS.from_user_input(gdf.crs)
     horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
     if layer_crs.equals(horizontal, ignore_axis_order=True) or layer_crs.equals(crs, ignore_axis_order=True):
@@ -45,9 +46,9 @@ def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: b
     if reproject:
         return gdf.to_crs(horizontal)
     raise CRSMismatchError(
-        f"layer CRS {crs_label(layer_crs)} differs from the points' CRS {crs_label(crs)}",
+        f"layer CRS {crs_label(layer_crs)} differs from {against} CRS {crs_label(crs)}",
         path=name,
-        hint="Reproject the layer, or pass --reproject-vectors to have gistools do it",
+        hint='Reproject the layer, or have gistools do it: --reproject-vectors (CLI), "Reproject layers" (QGIS)',
     )
 
 

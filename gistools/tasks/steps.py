@@ -274,10 +274,13 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
     loaded = {k: read_layer(v) for k, v in layers.items() if v}
     if not loaded:
         raise InputError("no breakline layer given", hint="Give road lines and/or hydro lines or water bodies")
-    target = pyproj.CRS.from_user_input(crs) if crs else pyproj.CRS.from_user_input(next(iter(loaded.values())).crs)
+    # the tile index is the tiles' grid, so its CRS rules; else the first line layer's
+    first = "tile index" if "tile index" in loaded else next(iter(loaded))
+    target = pyproj.CRS.from_user_input(crs) if crs else pyproj.CRS.from_user_input(loaded[first].crs)
+    against = "the given" if crs else f"the {first} layer's ({layers[first]})"
     unit = horizontal_unit(target)
     for k in list(loaded):
-        loaded[k] = check_crs(loaded[k], target, str(layers[k]), reproject=reproject)
+        loaded[k] = check_crs(loaded[k], target, str(layers[k]), reproject=reproject, against=against)
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
     p = dict(snap=length(snap, "snap"), max_road=length(max_road_width, "max road width"),
              max_hydro=length(max_hydro_width, "max hydro width"), single=length(single_line_width, "single-line hydro width"))
@@ -322,10 +325,10 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
     return result
 
 
-def _polygons(spec, crs, reproject, what):
+def _polygons(spec, crs, reproject, against):
     if not spec:
         return None, []
-    gdf = check_crs(read_layer(spec), crs, str(spec), reproject=reproject)
+    gdf = check_crs(read_layer(spec), crs, str(spec), reproject=reproject, against=against)
     geoms = [g for g in gdf.geometry if g is not None and not g.is_empty]
     return shapely.STRtree(geoms), geoms
 
@@ -342,7 +345,7 @@ def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=
     _check_outputs({"out": out, "wet": wetland_out}, [bands])
     with _open(bands, "band") as src:
         crs = _crs(src, bands)
-        layers = {k: _polygons(v, crs, reproject, k) for k, v in
+        layers = {k: _polygons(v, crs, reproject, f"the band raster's ({bands})") for k, v in
                   (("road", road_polygons), ("water", water_polygons), ("wetland", wetlands))}
 
         def mask(kind, win):

@@ -1,0 +1,383 @@
+"""The QGIS plugin in a real headless QGIS (Debian's python3-qgis, QT_QPA_PLATFORM=offscreen): no mocks of QGIS.
+
+Every algorithm runs through ``processing.run("gistools:...")`` on sample_tiles/ and its outputs are
+compared with the library / CLI outputs for the same input: same cells, same features.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rasterio
+import shapely
+
+from conftest import ROOT, SAMPLE
+
+os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
+try:
+    from qgis.core import QgsApplication, QgsProcessingException, QgsProcessingFeedback
+except ImportError as err:  # pragma: no cover - depends on the machine
+    if os.environ.get("CI"):
+        raise RuntimeError(f"CI must run the QGIS tests, but qgis does not import ({err}); "
+                           "the test command installs python3-qgis") from None
+    pytest.skip(f"QGIS tests: qgis does not import here ({err}); apt-get install python3-qgis qgis",
+                allow_module_level=True)
+
+sys.path.insert(0, str(ROOT / "tools"))
+import build_plugin  # noqa: E402
+
+B = SAMPLE / "breaklines.gpkg"
+LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
+          "TILE_INDEX": "FOOTPRINT"}
+ALGORITHMS = {"info", "points", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
+              "shrubchain", "shrub_density"}
+QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
+
+
+def layer(name):
+    return f"{B}|layername={name}"
+
+
+def spec(name):
+    return f"{B}:{name}"
+
+
+def cells(path):
+    with rasterio.open(path) as src:
+        return src.read(1), src.transform, src.crs
+
+
+def same_cells(a, b):
+    da, ta, ca = cells(a)
+    db, tb, cb = cells(b)
+    assert ta == tb and ca == cb, (a, b)
+    np.testing.assert_array_equal(da, db)
+    return da
+
+
+class Feedback(QgsProcessingFeedback):
+    """Records what the algorithm reports; cancels itself once progress passes ``cancel_at`` percent,
+    or when the algorithm reports a step whose text holds ``cancel_text``."""
+
+    def __init__(self, cancel_at=None, cancel_text=None):
+        super().__init__()
+        self.cancel_at, self.cancel_text, self.infos, self.errors, self.progress = cancel_at, cancel_text, [], [], []
+        self.progressChanged.connect(self._on_progress)
+
+    def setProgressText(self, text):  # noqa: N802
+        super().setProgressText(text)
+        if self.cancel_text and self.cancel_text in text:
+            self.cancel()
+
+    def _on_progress(self, value):
+        self.progress.append(value)
+        if self.cancel_at is not None and value >= self.cancel_at:
+            self.cancel()
+
+    def pushInfo(self, text):  # noqa: N802
+        self.infos.append(text)
+
+    def reportError(self, text, fatalError=False):  # noqa: N802
+        self.errors.append(text)
+
+
+@pytest.fixture(scope="module")
+def plugin_zip(tmp_path_factory):
+    return build_plugin.build(tmp_path_factory.mktemp("dist"))
+
+
+@pytest.fixture(scope="module")
+def qgis(plugin_zip, tmp_path_factory):
+    """QGIS started headless once, Processing initialised, the plugin installed from its zip and loaded."""
+    profile = tmp_path_factory.mktemp("profile")
+    plugin_dir = build_plugin.install(plugin_zip, profile)
+    sys.path.insert(0, str(plugin_dir.parent))
+    app = QgsApplication([], False)
+    app.initQgis()
+    sys.path.append("/usr/share/qgis/python/plugins")
+    from processing.core.Processing import Processing
+
+    Processing.initialize()
+    import gistools_qgis
+
+    plugin = gistools_qgis.classFactory(None)
+    plugin.initProcessing()
+    assert plugin.missing == [] and plugin.provider is not None
+    import processing
+
+    yield processing
+    plugin.unload()
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    """The library's (= the CLI's) whole chain on sample_tiles/, the oracle of every algorithm."""
+    from gistools.tasks.shrub import shrub_from_tiles
+
+    out = tmp_path_factory.mktemp("reference")
+    report = shrub_from_tiles(SAMPLE, out, roads=spec("ROADBREAKLINE"), hydro=spec("HYDROGRAPHICFEATURE"),
+                              waterbodies=spec("WATERBODY"), wetlands=spec("WETLAND"), tile_index=spec("FOOTPRINT"),
+                              make_map=False)
+    assert report["counts"] == {"ok": 4, "failed": 0}
+    return out
+
+
+def test_provider_lists_every_algorithm(qgis):
+    from qgis.core import QgsApplication
+
+    provider = QgsApplication.processingRegistry().providerById("gistools")
+    assert provider is not None and provider.name() == "gistools"
+    assert {a.name() for a in provider.algorithms()} == ALGORITHMS
+    model = QgsApplication.processingRegistry().algorithmById("gistools:shrub_density")
+    assert [c for c in model.childAlgorithms()] and "ndsm" in model.childAlgorithms()
+
+
+def test_info_counts_every_point(qgis, sample_tiles):
+    import laspy
+
+    fb = Feedback()
+    result = qgis.run("gistools:info", {"INPUT": str(SAMPLE)}, feedback=fb)
+    assert result["TILES"] == 4
+    assert result["POINTS"] == sum(laspy.open(p).header.point_count for p in sample_tiles)
+    assert "EPSG:2882" in result["CRS_NAME"]
+    assert any("US survey foot" in t for t in fb.infos)
+
+
+def test_points_equal_the_library(qgis, tmp_path):
+    import geopandas as gpd
+
+    from gistools.tasks.points import points_from_tiles
+
+    result = qgis.run("gistools:points", {"INPUT": str(SAMPLE), "CLASSES": "2", "RETURNS": 2,
+                                          "OUTPUT_FOLDER": str(tmp_path / "q")})
+    points_from_tiles(SAMPLE, tmp_path / "lib", classes=(2,), returns="any")
+    files = sorted((tmp_path / "q").glob("*.gpkg"))
+    assert len(files) == 4
+    total = 0
+    for f in files:
+        a, b = gpd.read_file(f), gpd.read_file(tmp_path / "lib" / f.name)
+        assert len(a) == len(b) > 0 and set(a["class"]) == {2}
+        np.testing.assert_array_equal(shapely.get_coordinates(a.geometry), shapely.get_coordinates(b.geometry))
+        np.testing.assert_array_equal(a["z"], b["z"])
+        total += len(a)
+    assert result["POINTS"] == total
+
+
+def test_dsm_dem_rasters_equal_the_library(qgis, reference, tmp_path):
+    dsm = qgis.run("gistools:dsm", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "dsm")})
+    same_cells(dsm["OUTPUT"], reference / "dsm.vrt")
+    same_cells(dsm["TOP_CLASS"], reference / "topclass.vrt")
+    dem = qgis.run("gistools:dem", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "dem")})
+    same_cells(dem["OUTPUT"], reference / "dem.vrt")
+    both = qgis.run("gistools:rasters", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "all")})
+    for key, product in (("DSM", "dsm"), ("DEM", "dem"), ("NDSM", "ndsm"), ("TOP_CLASS", "topclass")):
+        same_cells(both[key], reference / f"{product}.vrt")
+    # the nDSM step (a raster calculator) gives the cells the tile run wrote
+    ndsm = qgis.run("gistools:ndsm", {"DSM": dsm["OUTPUT"], "DEM": dem["OUTPUT"], "OUTPUT": str(tmp_path / "ndsm.tif")})
+    h = same_cells(ndsm["OUTPUT"], reference / "ndsm.vrt")
+    assert np.isfinite(h[h != -9999]).all() and (h != -9999).sum() > 100_000
+    with rasterio.open(ndsm["OUTPUT"]) as src:
+        assert src.units[0] == "ftUS" and src.crs.to_epsg() == 2882
+
+
+def test_band_clip_density_classify_steps_equal_the_chain(qgis, reference, tmp_path):
+    bands = qgis.run("gistools:bands", {"NDSM": str(reference / "ndsm.vrt"), "TOP_CLASS": str(reference / "topclass.vrt"),
+                                        "OUTPUT": str(tmp_path / "bands.tif"), "OUTPUT_POINTS": str(tmp_path / "pts.gpkg")})
+    codes = same_cells(bands["OUTPUT"], reference / "bands.vrt")
+    import geopandas as gpd
+
+    pts = gpd.read_file(bands["OUTPUT_POINTS"])
+    assert len(pts) == int(np.count_nonzero(codes <= 3))
+    assert dict(pts["band"].value_counts()) == {f"B{i}": int((codes == i).sum()) for i in range(4) if (codes == i).any()}
+
+    lines = qgis.run("gistools:breaklines", {**{k: layer(v) for k, v in LAYERS.items() if k != "WETLANDS"},
+                                             "TILE_FIELD": "TILE_ID", "OUTPUT_ROADS": str(tmp_path / "road.gpkg"),
+                                             "OUTPUT_WATER": str(tmp_path / "water.gpkg")})
+    from gistools.tasks.steps import breakline_polygons
+
+    lib = breakline_polygons(roads=spec("ROADBREAKLINE"), hydro=spec("HYDROGRAPHICFEATURE"), waterbodies=spec("WATERBODY"),
+                             tile_index=spec("FOOTPRINT"), road_out=tmp_path / "lib_road.gpkg",
+                             water_out=tmp_path / "lib_water.gpkg")
+    for kind in ("road", "water"):
+        a = gpd.read_file(lines[f"OUTPUT_{kind.upper() if kind == 'water' else 'ROADS'}"])
+        b = gpd.read_file(lib[kind])
+        assert len(a) == len(b) > 0 and a.crs.to_epsg() == 2882
+        assert list(a["TILE_ID"]) == list(b["TILE_ID"])
+        assert all(shapely.equals(ga, gb) for ga, gb in zip(a.geometry, b.geometry))
+
+    clip = qgis.run("gistools:clip", {"BANDS": bands["OUTPUT"], "ROAD_POLYGONS": lines["OUTPUT_ROADS"],
+                                      "WATER_POLYGONS": lines["OUTPUT_WATER"], "WETLANDS": layer("WETLAND"),
+                                      "OUTPUT": str(tmp_path / "veg.tif"), "OUTPUT_WETLAND": str(tmp_path / "wetveg.tif")})
+    veg = same_cells(clip["OUTPUT"], reference / "veg.vrt")
+    same_cells(clip["OUTPUT_WETLAND"], reference / "wetveg.vrt")
+    assert {4, 5} <= set(np.unique(veg))
+
+    dens = qgis.run("gistools:density", {"VEGETATION": clip["OUTPUT"], "RADIUS": "25ft", "DENSITY_BANDS": [0, 1, 2],
+                                         "OUTPUT": str(tmp_path / "cover.tif"), "OUTPUT_DENSITY": str(tmp_path / "d.tif")})
+    same_cells(dens["OUTPUT"], reference / "cover.vrt")
+    same_cells(dens["OUTPUT_DENSITY"], reference / "density.vrt")
+
+    cls = qgis.run("gistools:classify", {"COVER": dens["OUTPUT"], "VEGETATION": clip["OUTPUT"], "METHOD": 0,
+                                         "BREAKS": "0.3,0.7", "OUTPUT": str(tmp_path / "classes.tif"),
+                                         "OUTPUT_POLYGONS": str(tmp_path / "classes.gpkg")})
+    classes = same_cells(cls["OUTPUT"], reference / "classes.vrt")
+    polys = gpd.read_file(cls["OUTPUT_POLYGONS"])
+    report = json.loads((reference / "report.json").read_text())
+    for code, name in ((1, "light"), (2, "medium"), (3, "heavy")):
+        area = polys.loc[polys["class_code"] == code].geometry.area.sum()
+        assert area == pytest.approx(report["class_area"][name]) and area == pytest.approx((classes == code).sum() * 25.0)
+
+
+def test_shrubchain_equals_the_cli(qgis, tmp_path):
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    args = ["shrub", str(SAMPLE), "--out", str(tmp_path / "cli"), "-q", "--no-map"]
+    for option, name in (("--roads", "ROADBREAKLINE"), ("--hydro", "HYDROGRAPHICFEATURE"), ("--waterbodies", "WATERBODY"),
+                         ("--wetlands", "WETLAND"), ("--tile-index", "FOOTPRINT")):
+        args += [option, spec(name)]
+    assert CliRunner().invoke(cli, args).exit_code == 0
+    result = qgis.run("gistools:shrubchain", {"INPUT": str(SAMPLE), **{k: layer(v) for k, v in LAYERS.items()},
+                                              "MAP": False, "OUTPUT_FOLDER": str(tmp_path / "q")})
+    same_cells(result["CLASSES"], tmp_path / "cli" / "classes.vrt")
+    same_cells(result["COVER"], tmp_path / "cli" / "cover.vrt")
+    import geopandas as gpd
+
+    a, b = gpd.read_file(result["POLYGONS"]), gpd.read_file(tmp_path / "cli" / "shrub_classes.gpkg")
+    assert len(a) == len(b) > 0 and a.geometry.area.sum() == pytest.approx(b.geometry.area.sum())
+
+
+def test_model_gives_the_class_raster_of_gistools_shrub(qgis, reference, tmp_path):
+    result = qgis.run("gistools:shrub_density", {
+        "TILES": str(SAMPLE), **{k: layer(v) for k, v in LAYERS.items()}, "TILE_FIELD": "TILE_ID", "CELL_SIZE": "5ft",
+        "RADIUS": "25ft", "classify:Shrub classes": str(tmp_path / "classes.tif"),
+        "classify:Shrub class polygons": str(tmp_path / "classes.gpkg"), "density:Cover": "TEMPORARY_OUTPUT",
+        "clip:Vegetation in wetlands": "TEMPORARY_OUTPUT"}, feedback=Feedback())
+    classes = same_cells(result["classify:Shrub classes"], reference / "classes.vrt")
+    assert set(np.unique(classes)) >= {0, 1, 2, 3, 4, 5}
+    children = result["CHILD_RESULTS"]
+    assert children["points_ground"]["POINTS"] > 0 and children["points_nonground"]["POINTS"] > 0
+
+
+def test_cancel_leaves_no_partial_output(qgis, reference, tmp_path):
+    # a one-output step: cancelled while it computes its first block, nothing is written
+    target = tmp_path / "cover.tif"
+    fb = Feedback(cancel_text="block 1 of")
+    with pytest.raises(QgsProcessingException, match="cancel|errors"):
+        qgis.run("gistools:density", {"VEGETATION": str(reference / "veg.vrt"), "OUTPUT": str(target)}, feedback=fb)
+    assert fb.isCanceled() and any("cancelled" in e for e in fb.errors)
+    assert not target.exists() and not list(tmp_path.rglob("*.partial"))
+    # a tile folder: cancelled after the first tiles; what exists is complete, no mosaic, no partial file
+    out = tmp_path / "dsm"
+    fb = Feedback(cancel_at=30)
+    with pytest.raises(QgsProcessingException, match="cancel|errors"):
+        qgis.run("gistools:dsm", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(out)}, feedback=fb)
+    assert fb.isCanceled() and max(fb.progress) < 100
+    assert not list(out.rglob("*.partial")) and not (out / "dsm.vrt").exists()
+    for tif in out.rglob("dsm/*.tif"):
+        with rasterio.open(tif) as src:
+            assert np.isfinite(src.read(1, masked=True).filled(np.nan)).any()
+
+
+def test_bad_inputs_raise_processing_exceptions_naming_file_and_fix(qgis, sample_tiles, tmp_path):
+    import geopandas as gpd
+    import laspy
+
+    las = laspy.read(sample_tiles[0])
+    for name in ("GeoKeyDirectoryVlr", "GeoAsciiParamsVlr", "GeoDoubleParamsVlr", "WktCoordinateSystemVlr"):
+        try:
+            las.vlrs.extract(name)
+        except IndexError:
+            pass
+    (tmp_path / "tiles").mkdir()
+    las.write(tmp_path / "tiles" / "nocrs.las")
+    with pytest.raises(QgsProcessingException) as err:
+        qgis.run("gistools:dsm", {"INPUT": str(tmp_path / "tiles"), "OUTPUT_FOLDER": str(tmp_path / "o")})
+    text = str(err.value)
+    assert "nocrs.las" in text and "header has no CRS" in text and "Input CRS" in text and "Traceback" not in text
+    # with the CRS given, the same tile runs
+    ok = qgis.run("gistools:dsm", {"INPUT": str(tmp_path / "tiles"), "CRS": "EPSG:2882", "OUTPUT_FOLDER": str(tmp_path / "p")})
+    assert Path(ok["OUTPUT"]).exists()
+
+    roads = gpd.read_file(B, layer="ROADBREAKLINE").to_crs(26917)  # UTM 17N, metres
+    moved = tmp_path / "roads_other_crs.gpkg"
+    roads.to_file(moved, layer="roads", driver="GPKG")
+    with pytest.raises(QgsProcessingException) as err:
+        qgis.run("gistools:breaklines", {"ROADS": f"{moved}|layername=roads", "TILE_INDEX": layer("FOOTPRINT"),
+                                         "OUTPUT_ROADS": str(tmp_path / "r.gpkg"), "OUTPUT_WATER": str(tmp_path / "w.gpkg")})
+    text = str(err.value)
+    assert "roads_other_crs.gpkg" in text and "differs" in text and "Reproject layers" in text
+    assert not (tmp_path / "r.gpkg").exists()
+
+
+def test_plugin_without_its_dependencies_loads_and_says_what_to_install(plugin_zip, tmp_path):
+    profile = tmp_path / "profile"
+    plugin_dir = build_plugin.install(plugin_zip, profile)
+    script = f"""
+import sys
+sys.modules["laspy"] = None  # as if laspy were not installed in QGIS's Python
+sys.path.insert(0, {str(plugin_dir.parent)!r})
+from qgis.core import QgsApplication
+app = QgsApplication([], False); app.initQgis()
+import gistools_qgis
+plugin = gistools_qgis.classFactory(None)
+plugin.initProcessing()
+from gistools_qgis.plugin import missing_message
+print("MISSING", plugin.missing, plugin.provider is None, QgsApplication.processingRegistry().providerById("gistools") is None)
+print("MESSAGE", missing_message(plugin.missing))
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    assert "MISSING ['laspy'] True True" in run.stdout, run.stdout + run.stderr
+    assert "pip install 'laspy'" in run.stdout
+
+
+def _qgis_process_env(profile: Path) -> dict:
+    site = sysconfig.get_paths()["purelib"]
+    return {**os.environ, "QT_QPA_PLATFORM": "offscreen", "QGIS_CUSTOM_CONFIG_PATH": str(profile),
+            "PYTHONPATH": os.pathsep.join([site, str(ROOT)])}
+
+
+@pytest.fixture(scope="module")
+def qgis_process_profile(plugin_zip, tmp_path_factory):
+    if not QGIS_PROCESS.exists():
+        if os.environ.get("CI"):
+            pytest.fail(f"{QGIS_PROCESS} is missing: the test command installs Debian's qgis package")
+        pytest.skip(f"{QGIS_PROCESS} is absent (apt-get install qgis)")
+    base = tmp_path_factory.mktemp("qgis_config")
+    build_plugin.install(plugin_zip, base / "profiles" / "default")
+    return base
+
+
+def test_zip_installs_into_a_fresh_profile_and_qgis_process_lists_it(qgis_process_profile):
+    run = subprocess.run([str(QGIS_PROCESS), "list"], capture_output=True, text=True, timeout=300,
+                         env=_qgis_process_env(qgis_process_profile))
+    listed = {line.strip().split()[0].split(":", 1)[1] for line in run.stdout.splitlines()
+              if line.strip().startswith("gistools:")}
+    assert listed == ALGORITHMS, run.stdout[-3000:] + run.stderr[-3000:]
+
+
+def test_qgis_process_dsm_equals_the_cli(qgis_process_profile, sample_tiles, tmp_path):
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    tile = sample_tiles[0]
+    run = subprocess.run([str(QGIS_PROCESS), "run", "gistools:dsm", "--", f"INPUT={tile}", "CELL_SIZE=5ft",
+                          f"OUTPUT_FOLDER={tmp_path / 'qp'}"], capture_output=True, text=True, timeout=300,
+                         env=_qgis_process_env(qgis_process_profile))
+    assert run.returncode == 0, run.stdout[-3000:] + run.stderr[-3000:]
+    result = CliRunner().invoke(cli, ["rasters", str(tile), "--out", str(tmp_path / "cli"), "--products", "dsm", "-q"])
+    assert result.exit_code == 0, result.output
+    dsm = same_cells(tmp_path / "qp" / "dsm.vrt", tmp_path / "cli" / "dsm.vrt")
+    assert (dsm != -9999).sum() > 30_000
+    shutil.rmtree(tmp_path / "qp")
