@@ -150,6 +150,21 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             return None
         return f"{path}:{layer}" if layer and path.lower().endswith(".gpkg") else path
 
+    def output_path(self, parameters, name, context, optional=False):
+        """A destination's file; None for an optional one left out; a temporary file when a model leaves it empty."""
+        if optional and parameters.get(name) in (None, ""):
+            return None
+        path = self.parameterAsOutputLayer(parameters, name, context)
+        if not path:
+            path = self.parameterDefinition(name).generateTemporaryDestination()
+        return path
+
+    def output_folder(self, parameters, context, name="OUTPUT_FOLDER"):
+        path = self.parameterAsString(parameters, name, context)
+        if not path or path == "TEMPORARY_OUTPUT":
+            path = self.parameterDefinition(name).generateTemporaryDestination()
+        return path
+
     def raster_path(self, parameters, name, context):
         if parameters.get(name) in (None, ""):
             return None
@@ -259,7 +274,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.points import points_from_tiles
 
-        out = self.parameterAsString(parameters, "OUTPUT_FOLDER", context)
+        out = self.output_folder(parameters, context)
         result = points_from_tiles(self.text(parameters, "INPUT", context), out,
                                    classes=_ints(self.parameterAsString(parameters, "CLASSES", context), "Classes"),
                                    returns=RETURNS[self.parameterAsEnum(parameters, "RETURNS", context)],
@@ -295,7 +310,7 @@ class _RastersBase(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
 
-        out = self.parameterAsString(parameters, "OUTPUT_FOLDER", context)
+        out = self.output_folder(parameters, context)
         kwargs = {"cell_size": self.text(parameters, "CELL_SIZE", context), "crs": self.crs_text(parameters, context),
                   "products": self.products}
         if "dsm" in self.products:
@@ -357,7 +372,7 @@ class NdsmAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import ndsm_from_rasters
 
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
+        out = self.output_path(parameters, "OUTPUT", context)
         ndsm_from_rasters(self.raster_path(parameters, "DSM", context), self.raster_path(parameters, "DEM", context), out,
                           progress=self.progress(feedback))
         return {"OUTPUT": out}
@@ -387,8 +402,8 @@ class BandsAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import bands_from_ndsm
 
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
-        points = self.parameterAsOutputLayer(parameters, "OUTPUT_POINTS", context) if parameters.get("OUTPUT_POINTS") else None
+        out = self.output_path(parameters, "OUTPUT", context)
+        points = self.output_path(parameters, "OUTPUT_POINTS", context, optional=True)
         z = self.parameterAsEnum(parameters, "Z_UNIT", context)
         result = bands_from_ndsm(self.raster_path(parameters, "NDSM", context), out,
                                  top_class=self.raster_path(parameters, "TOP_CLASS", context),
@@ -429,8 +444,8 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import breakline_polygons
 
-        roads_out = self.parameterAsOutputLayer(parameters, "OUTPUT_ROADS", context)
-        water_out = self.parameterAsOutputLayer(parameters, "OUTPUT_WATER", context)
+        roads_out = self.output_path(parameters, "OUTPUT_ROADS", context)
+        water_out = self.output_path(parameters, "OUTPUT_WATER", context)
         result = breakline_polygons(
             roads=self.layer_spec(parameters, "ROADS", context, feedback),
             hydro=self.layer_spec(parameters, "HYDRO", context, feedback),
@@ -467,8 +482,8 @@ class ClipAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import clip_bands
 
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
-        wet = self.parameterAsOutputLayer(parameters, "OUTPUT_WETLAND", context) if parameters.get("OUTPUT_WETLAND") else None
+        out = self.output_path(parameters, "OUTPUT", context)
+        wet = self.output_path(parameters, "OUTPUT_WETLAND", context, optional=True)
         clip_bands(self.raster_path(parameters, "BANDS", context), out,
                    road_polygons=self.layer_spec(parameters, "ROAD_POLYGONS", context, feedback),
                    water_polygons=self.layer_spec(parameters, "WATER_POLYGONS", context, feedback),
@@ -495,8 +510,8 @@ class DensityAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import density_from_vegetation
 
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
-        dens = self.parameterAsOutputLayer(parameters, "OUTPUT_DENSITY", context) if parameters.get("OUTPUT_DENSITY") else None
+        out = self.output_path(parameters, "OUTPUT", context)
+        dens = self.output_path(parameters, "OUTPUT_DENSITY", context, optional=True)
         bands = tuple(i + 1 for i in self.parameterAsEnums(parameters, "DENSITY_BANDS", context)) or (1, 2, 3)
         result = density_from_vegetation(self.raster_path(parameters, "VEGETATION", context), out, density_out=dens,
                                          radius=self.text(parameters, "RADIUS", context), density_bands=bands,
@@ -523,8 +538,8 @@ class ClassifyAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import classes_from_cover
 
-        out = self.parameterAsOutputLayer(parameters, "OUTPUT", context)
-        polys = self.parameterAsOutputLayer(parameters, "OUTPUT_POLYGONS", context) if parameters.get("OUTPUT_POLYGONS") else None
+        out = self.output_path(parameters, "OUTPUT", context)
+        polys = self.output_path(parameters, "OUTPUT_POLYGONS", context, optional=True)
         result = classes_from_cover(self.raster_path(parameters, "COVER", context), out,
                                     veg=self.raster_path(parameters, "VEGETATION", context), polygons_out=polys,
                                     method=CLASSIFY[self.parameterAsEnum(parameters, "METHOD", context)],
@@ -581,7 +596,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.rasters import RasterSettings
         from gistools.tasks.shrub import ShrubSettings, shrub_from_tiles
 
-        out = Path(self.parameterAsString(parameters, "OUTPUT_FOLDER", context))
+        out = Path(self.output_folder(parameters, context))
         bands = tuple(i + 1 for i in self.parameterAsEnums(parameters, "DENSITY_BANDS", context)) or (1, 2, 3)
         settings = ShrubSettings(
             raster=RasterSettings(cell_size=self.text(parameters, "CELL_SIZE", context),

@@ -137,7 +137,14 @@ def test_provider_lists_every_algorithm(qgis):
     assert provider is not None and provider.name() == "gistools"
     assert {a.name() for a in provider.algorithms()} == ALGORITHMS
     model = QgsApplication.processingRegistry().algorithmById("gistools:shrub_density")
-    assert [c for c in model.childAlgorithms()] and "ndsm" in model.childAlgorithms()
+    children = model.childAlgorithms()
+    assert {c.algorithmId() for c in children.values()} == {
+        f"gistools:{n}" for n in ("points", "dsm", "dem", "ndsm", "bands", "breaklines", "clip", "density", "classify")}
+    # each step is wired to the one before it, as the ModelBuilder chain was
+    assert children["ndsm"].parameterSources()["DSM"][0].outputChildId() == "dsm"
+    assert children["bands"].parameterSources()["TOP_CLASS"][0].outputChildId() == "dsm"
+    assert children["clip"].parameterSources()["ROAD_POLYGONS"][0].outputChildId() == "breaklines"
+    assert children["classify"].parameterSources()["COVER"][0].outputChildId() == "density"
 
 
 def test_info_counts_every_point(qgis, sample_tiles):
