@@ -28,6 +28,7 @@ from qgis.core import (
     QgsProcessingParameterFile,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
@@ -111,7 +112,23 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
 
     def add_tiles(self):
         self.add(QgsProcessingParameterFile("INPUT", "LAS/LAZ tiles (a folder, or one file)",
-                                            behavior=QgsProcessingParameterFile.Folder))
+                                            behavior=QgsProcessingParameterFile.Folder, optional=True))
+        self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", "Or point cloud layers (LAS/LAZ files)",
+                                                      layerType=QgsProcessing.TypePointCloud, optional=True))
+
+    def tiles(self, parameters, context):
+        """The tile folder and / or the files of the chosen point cloud layers, as gistools inputs."""
+        inputs = []
+        folder = self.text(parameters, "INPUT", context)
+        if folder:
+            inputs.append(folder)
+        if parameters.get("POINT_CLOUDS"):
+            for layer in self.parameterAsLayerList(parameters, "POINT_CLOUDS", context):
+                inputs.append(layer.source().split("|")[0])
+        if not inputs:
+            raise QgsProcessingException("no tiles: give a folder of LAS/LAZ tiles (INPUT) or point cloud layers "
+                                         "(POINT_CLOUDS)")
+        return inputs
 
     def add_crs(self):
         self.add(QgsProcessingParameterCrs("CRS", "Input CRS (overrides the tiles' own; needed for tiles that carry none)",
@@ -238,7 +255,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
         from gistools.io.raster import atomic_path
         from gistools.tasks.info import tiles_summary
 
-        result = tiles_summary(self.text(parameters, "INPUT", context), crs=self.crs_text(parameters, context),
+        result = tiles_summary(self.tiles(parameters, context), crs=self.crs_text(parameters, context),
                                progress=self.progress(feedback))
         for t in result["tiles"]:
             if t["status"] == "ok":
@@ -275,7 +292,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.points import points_from_tiles
 
         out = self.output_folder(parameters, context)
-        result = points_from_tiles(self.text(parameters, "INPUT", context), out,
+        result = points_from_tiles(self.tiles(parameters, context), out,
                                    classes=_ints(self.parameterAsString(parameters, "CLASSES", context), "Classes"),
                                    returns=RETURNS[self.parameterAsEnum(parameters, "RETURNS", context)],
                                    fmt=["gpkg", "parquet"][self.parameterAsEnum(parameters, "FORMAT", context)],
@@ -319,7 +336,7 @@ class _RastersBase(GistoolsAlgorithm):
             kwargs["dem_method"] = DEM_METHODS[self.parameterAsEnum(parameters, "DEM_METHOD", context)]
             kwargs["dem_max_distance"] = self.text(parameters, "DEM_MAX_DISTANCE", context)
         settings = RasterSettings(**kwargs)
-        result = rasters_from_tiles(self.text(parameters, "INPUT", context), out, settings, overwrite=True,
+        result = rasters_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
                                     jobs=self.parameterAsInt(parameters, "JOBS", context),
                                     scheduler=self.text(parameters, "SCHEDULER", context),
                                     progress=self.progress(feedback))
@@ -609,7 +626,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
             max_road_width=self.text(parameters, "MAX_ROAD_WIDTH", context), snap=self.text(parameters, "SNAP", context),
             tile_field=self.parameterAsString(parameters, "TILE_FIELD", context) or "TILE_ID")
         result = shrub_from_tiles(
-            self.text(parameters, "INPUT", context), out, settings,
+            self.tiles(parameters, context), out, settings,
             roads=self.layer_spec(parameters, "ROADS", context, feedback),
             hydro=self.layer_spec(parameters, "HYDRO", context, feedback),
             waterbodies=self.layer_spec(parameters, "WATERBODIES", context, feedback),

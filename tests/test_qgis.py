@@ -388,3 +388,19 @@ def test_qgis_process_dsm_equals_the_cli(qgis_process_profile, sample_tiles, tmp
     dsm = same_cells(tmp_path / "qp" / "dsm.vrt", tmp_path / "cli" / "dsm.vrt")
     assert (dsm != -9999).sum() > 30_000
     shutil.rmtree(tmp_path / "qp")
+
+
+def test_point_cloud_layers_as_input(qgis, reference, sample_tiles, tmp_path):
+    """Tiles picked as point cloud layers (Debian's QGIS 3.22 has no PDAL provider, so the layers are not valid
+    here; their file is what gistools reads, which is what this checks)."""
+    from qgis.core import QgsPointCloudLayer, QgsProject
+
+    layers = [QgsPointCloudLayer(str(p), p.stem, "pdal") for p in sample_tiles]
+    QgsProject.instance().addMapLayers(layers)
+    try:
+        result = qgis.run("gistools:dsm", {"POINT_CLOUDS": layers, "OUTPUT_FOLDER": str(tmp_path / "pc")})
+        same_cells(result["OUTPUT"], reference / "dsm.vrt")
+    finally:
+        QgsProject.instance().removeMapLayers([lyr.id() for lyr in layers])
+    with pytest.raises(QgsProcessingException, match="no tiles"):
+        qgis.run("gistools:dsm", {"OUTPUT_FOLDER": str(tmp_path / "none")})
