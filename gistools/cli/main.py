@@ -34,7 +34,7 @@ class GistoolsGroup(click.Group):
 @click.version_option(__version__, prog_name="gistools")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose):
-    """Open tools for LiDAR shrub mapping and terrain models."""
+    """Open tools for LiDAR shrub mapping, aquifer models and terrain models."""
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
                         format="%(levelname)s %(name)s: %(message)s")
 
@@ -43,9 +43,11 @@ from . import info as _info  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
 from . import points as _points  # noqa: E402
 from . import shrub as _shrub  # noqa: E402
+from . import aquifer as _aquifer  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_rasters.rasters)
+cli.add_command(_aquifer.aquifer)
 for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
     cli.add_command(_command)
 

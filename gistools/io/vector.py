@@ -10,7 +10,7 @@ import pyproj
 from ..errors import CRSMismatchError, DataFileError, InputError
 from .points import crs_label
 
-__all__ = ["read_layer", "check_crs", "write_layer"]
+__all__ = ["read_layer", "check_crs", "write_layer", "write_layers"]
 
 
 def _split(spec) -> tuple[Path, str | None]:
@@ -61,6 +61,25 @@ def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = Tr
         tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
         try:
             gdf.to_file(tmp_gpkg, layer=layer, driver="GPKG")
+            tmp_gpkg.replace(tmp)
+        finally:
+            if tmp_gpkg.exists():
+                tmp_gpkg.unlink()
+    return path
+
+
+def write_layers(layers: dict, path, *, overwrite: bool = True) -> Path:
+    """Write several layers ({name: GeoDataFrame}) into one GeoPackage, atomically (all or nothing)."""
+    import pyogrio
+
+    from .raster import atomic_path
+
+    path = Path(path)
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
+        try:
+            for k, (name, gdf) in enumerate(layers.items()):
+                pyogrio.write_dataframe(gdf, tmp_gpkg, layer=name, driver="GPKG", append=k > 0)
             tmp_gpkg.replace(tmp)
         finally:
             if tmp_gpkg.exists():

@@ -1,0 +1,194 @@
+"""Reading layer contacts (S0): one table ``id, x, y, z, layer[, borehole_id]`` or one file per layer.
+
+Accepted: a CSV (comma, semicolon or tab), a point layer (GeoPackage ``file.gpkg:LAYER``,
+shapefile) whose z comes from a ``z`` column or the 3D geometry, or the dissertation's
+four-file form (``ID East North Height`` per layer, whitespace or comma separated, the layer
+named by the file: ``LS=LSInput.txt``). Every row is checked: a malformed row, a layer not in
+the order, a non-numeric value is refused naming the file, the line and the fix.
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyproj
+
+from ..errors import DataFileError, InputError
+from ..io.points import parse_crs_text
+
+__all__ = ["read_contacts", "ALIASES"]
+
+# accepted column names (lower case) for each field
+ALIASES = {
+    "id": ("id", "point_id", "fid_", "pid"),
+    "x": ("x", "east", "easting", "e"),
+    "y": ("y", "north", "northing", "n"),
+    "z": ("z", "height", "height_m", "elevation", "elev", "h"),
+    "layer": ("layer", "surface", "horizon", "formation", "unit"),
+    "borehole_id": ("borehole_id", "borehole", "well", "hole_id", "bh"),
+}
+
+
+def _find(columns, field):
+    low = {str(c).strip().lower(): c for c in columns}
+    for name in ALIASES[field]:
+        if name in low:
+            return low[name]
+    return None
+
+
+def _numbers(values, path, field, lines) -> np.ndarray:
+    out = pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(np.float64)
+    bad = np.flatnonzero(~np.isfinite(out))
+    if bad.size:
+        k = int(bad[0])
+        raise InputError(f"line {lines[k]}: {field} {values[k]!r} is not a number", path=path,
+                         hint=f"Fix or remove that row ({bad.size} such row(s) in all)")
+    return out
+
+
+def _sniff(path: Path) -> str:
+    head = path.read_text(errors="replace")[:4096]
+    try:
+        return csv.Sniffer().sniff(head, delimiters=",;\t").delimiter
+    except csv.Error:
+        return ","
+
+
+def _read_table_spec(spec: str):
+    return _read_table(Path(spec), spec)
+
+
+def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.ndarray]:
+    """A CSV or vector layer as a frame of strings, with the file line of each row."""
+    text = spec or str(path)
+    if spec is None and path.suffix.lower() in (".csv", ".txt", ".tsv", ".xyz", ".dat"):
+        try:
+            df = pd.read_csv(path, sep=_sniff(path), dtype=str, skipinitialspace=True, keep_default_na=False)
+        except Exception as err:
+            raise DataFileError(f"cannot read as CSV ({err})", path=path, hint="Give a CSV with a header row") from None
+        return df, np.arange(len(df)) + 2
+    from ..io.vector import read_layer
+
+    gdf = read_layer(text)
+    df = pd.DataFrame(gdf.drop(columns="geometry"))
+    geom = gdf.geometry
+    if _find(df.columns, "x") is None:
+        df["x"] = geom.x
+        df["y"] = geom.y
+    if _find(df.columns, "z") is None and geom.has_z.all():
+        df["z"] = geom.z
+    df.attrs["crs"] = gdf.crs
+    return df, np.arange(len(df)) + 1
+
+
+def _from_frame(df, lines, path, swap_xy) -> pd.DataFrame:
+    cols = {f: _find(df.columns, f) for f in ALIASES}
+    missing = [f for f in ("x", "y", "z", "layer") if cols[f] is None]
+    if missing:
+        raise InputError(f"no {', '.join(missing)} column (columns: {', '.join(map(str, df.columns))})", path=path,
+                         hint="Name the columns id, x, y, z, layer (borehole_id optional)")
+    out = pd.DataFrame({
+        "x": _numbers(df[cols["x"]].to_numpy(), path, "x", lines),
+        "y": _numbers(df[cols["y"]].to_numpy(), path, "y", lines),
+        "z": _numbers(df[cols["z"]].to_numpy(), path, "z", lines),
+        "layer": df[cols["layer"]].astype(str).str.strip().to_numpy(),
+    })
+    if cols["id"] is not None:
+        out.insert(0, "id", _numbers(df[cols["id"]].to_numpy(), path, "id", lines).astype(np.int64))
+    else:
+        out.insert(0, "id", np.arange(1, len(out) + 1, dtype=np.int64))
+    if cols["borehole_id"] is not None:
+        out["borehole_id"] = df[cols["borehole_id"]].astype(str).to_numpy()
+    if swap_xy:
+        out["x"], out["y"] = out["y"].to_numpy(), out["x"].to_numpy()
+    out["line"] = lines
+    return out
+
+
+def _read_layer_file(path: Path, layer: str, swap_xy: bool) -> pd.DataFrame:
+    """The dissertation's per-layer file: ``ID East North Height`` rows (a header row is allowed)."""
+    rows, lines = [], []
+    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), start=1):
+        parts = raw.replace(",", " ").replace(";", " ").split()
+        if not parts or raw.lstrip().startswith("#"):
+            continue
+        if len(parts) != 4:
+            raise InputError(f"line {n}: {len(parts)} values, expected 4 (ID East North Height)", path=path,
+                             hint="One point per line: ID East North Height")
+        try:
+            rows.append((int(float(parts[0])), float(parts[1]), float(parts[2]), float(parts[3])))
+        except ValueError:
+            if not rows and n == 1:  # a header line
+                continue
+            raise InputError(f"line {n}: {raw.strip()!r} holds a value that is not a number", path=path,
+                             hint="Fix or remove that row") from None
+        lines.append(n)
+    if not rows:
+        raise InputError("no points", path=path, hint="One point per line: ID East North Height")
+    a = np.asarray(rows, np.float64)
+    x, y = (a[:, 2], a[:, 1]) if swap_xy else (a[:, 1], a[:, 2])
+    return pd.DataFrame({"id": a[:, 0].astype(np.int64), "x": x, "y": y, "z": a[:, 3], "layer": layer, "line": lines})
+
+
+def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points: int = 3):
+    """(points, crs): points has id, x, y, z, layer (in ``layers`` order, top to bottom), borehole_id?, source, line.
+
+    ``source``: a table path (CSV, GeoPackage layer, shapefile) or a dict / list ``LAYER=path`` of
+    per-layer files. ``crs``: EPSG code or WKT, required unless the layer carries one.
+    """
+    layers = [str(lay).strip() for lay in layers]
+    if len(layers) < 2 or len(set(layers)) != len(layers):
+        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint="e.g. --layers LS,AU,AD,AQ")
+    frames = []
+    found_crs = None
+    if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
+        items = source.items() if isinstance(source, dict) else (str(s).split("=", 1) for s in source)
+        for layer, p in items:
+            path = Path(p)
+            if not path.is_file():
+                raise DataFileError("file not found", path=path, hint="Check the path")
+            df = _read_layer_file(path, str(layer).strip(), swap_xy)
+            df["source"] = str(path)
+            frames.append(df)
+    else:
+        src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
+        path = Path(src)
+        if not path.exists() and ":" in src:
+            path = Path(src.rsplit(":", 1)[0])
+        if not path.exists():
+            raise DataFileError("file not found", path=path, hint="Check the path")
+        df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
+        found_crs = df.attrs.get("crs")
+        out = _from_frame(df, lines, path, swap_xy)
+        out["source"] = str(path)
+        frames.append(out)
+    pts = pd.concat(frames, ignore_index=True)
+    unknown = sorted(set(pts["layer"]) - set(layers))
+    if unknown:
+        k = int(np.flatnonzero(pts["layer"].isin(unknown).to_numpy())[0])
+        raise InputError(f"line {pts['line'].iloc[k]}: layer {unknown[0]!r} is not in --layers {','.join(layers)}",
+                         path=pts["source"].iloc[k],
+                         hint=f"Add it to --layers in its place top to bottom, or remove its rows (unknown: {', '.join(unknown)})")
+    for layer in layers:
+        n = int((pts["layer"] == layer).sum())
+        if n < min_points:
+            raise InputError(f"layer {layer} has {n} point(s); a surface needs at least {min_points}",
+                             path=pts["source"].iloc[0], hint="Check the layer names in the file and in --layers")
+    if crs is not None:
+        out_crs = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
+    elif found_crs is not None:
+        out_crs = pyproj.CRS.from_user_input(found_crs)
+    else:
+        raise InputError("the contacts carry no CRS", path=pts["source"].iloc[0],
+                         hint="Give one with --crs (the Milan data: EPSG:3003, Monte Mario / Italy zone 1)")
+    if out_crs.is_geographic:
+        raise InputError(f"CRS {out_crs.name!r} is geographic (degrees)", path=pts["source"].iloc[0],
+                         hint="Give the contacts in a projected CRS in metres or feet")
+    pts["layer"] = pd.Categorical(pts["layer"], categories=layers, ordered=True)
+    pts = pts.sort_values(["layer", "id"], kind="stable").reset_index(drop=True)
+    pts["layer"] = pts["layer"].astype(str)
+    return pts, out_crs

@@ -1,0 +1,390 @@
+"""The aquifer model (dissertation ch. 8): layer contacts to cleaned TIN surfaces, walls, closed units,
+thickness and volume. ``gistools aquifer model`` / ``query`` and the QGIS algorithms call these.
+
+Everything is computed before anything is written, so bad input leaves no output; every file is
+written atomically. Lengths take a unit ("0.5m") or are CRS units; volumes are cubic CRS units.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyproj
+import shapely
+
+from ..aquifer.contacts import read_contacts
+from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
+from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside
+from ..aquifer.volume import common_footprint, overlay_volume
+from ..aquifer.walls import match_rings, unit_mesh, wall, write_obj, write_ply
+from ..errors import InputError, OutputExistsError
+from ..grid import snapped_grid
+from ..io.raster import atomic_path, write_raster
+from ..io.vector import check_crs, read_layer, write_layers
+from ..progress import ProgressCallback, report
+from ..units import horizontal_unit, length_to_crs_units
+
+__all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "unit_name"]
+
+
+@dataclass(frozen=True)
+class AquiferSettings:
+    """Parameters of the aquifer model. Lengths: "0.5m" or CRS units.
+
+    Outlier rules (see gistools.aquifer.outliers): xy_tol, k, abs_thr, c, f_nn, order_tol.
+    concave_ratio: clip each surface to shapely's concave hull of its points (0-1; None = convex,
+    the dissertation's). n_per_edge: densified points per TIN edge (2 reproduces the dissertation's
+    counts). cell_size: thickness rasters (None: about 500 cells across). matching: "3d" or "2d".
+    mesh_format: "ply" or "obj". figures: draw the PNG figures (needs matplotlib).
+    """
+
+    xy_tol: str | float = "0.5m"
+    k: int = 12
+    abs_thr: str | float = "8m"
+    c: float = 5.0
+    f_nn: float = 5.0
+    order_tol: str | float = "1m"
+    concave_ratio: float | None = None
+    n_per_edge: int = 2
+    cell_size: str | float | None = None
+    matching: str = "3d"
+    mesh_format: str = "ply"
+    figures: bool = True
+
+
+def unit_name(upper: str, lower: str) -> str:
+    return f"{upper}/{lower}"
+
+
+@dataclass
+class Model:
+    """What aquifer_model computes: cleaned points, flags, surfaces and per-unit results."""
+
+    layers: list
+    crs: pyproj.CRS
+    points: pd.DataFrame
+    flags: pd.DataFrame
+    surfaces: dict
+    units: dict = field(default_factory=dict)
+    links: pd.DataFrame | None = None
+
+
+def _nice(step: float) -> float:
+    e = 10 ** np.floor(np.log10(step))
+    for m in (1, 2, 5, 10):
+        if step <= m * e:
+            return float(m * e)
+    return float(10 * e)
+
+
+def _surfaces(points, layers, clip_polygon, concave_ratio) -> dict:
+    surfaces = {}
+    for layer in layers:
+        g = points[points["layer"] == layer]
+        s = build_surface(layer, g["id"].to_numpy(), g["x"].to_numpy(), g["y"].to_numpy(), g["z"].to_numpy())
+        if concave_ratio is not None:
+            s = mask_outside(s, shapely.concave_hull(shapely.multipoints(np.column_stack([s.x, s.y])), ratio=concave_ratio))
+        if clip_polygon is not None:
+            s = mask_outside(s, clip_polygon)
+        surfaces[layer] = s
+    return surfaces
+
+
+def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSettings | None = None, clip=None,
+                progress: ProgressCallback | None = None) -> Model:
+    """Read, clean and triangulate (S0-S5); the in-memory model the outputs and queries use."""
+    s = settings or AquiferSettings()
+    points, crs_obj = read_contacts(source, layers, crs=crs, swap_xy=swap_xy)
+    unit = horizontal_unit(crs_obj)
+    length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
+    osets = OutlierSettings(xy_tol=length(s.xy_tol, "xy tolerance"), k=int(s.k), abs_thr=length(s.abs_thr, "outlier threshold"),
+                            c=float(s.c), f_nn=float(s.f_nn), order_tol=length(s.order_tol, "order tolerance"))
+    report(progress, 0.05, "outliers")
+    kept, flags = find_outliers(points, layers, osets)
+    report(progress, 0.2, "surfaces")
+    clip_polygon = None
+    if clip is not None:
+        gdf = check_crs(read_layer(clip), crs_obj, str(clip), against="the contacts'")
+        clip_polygon = shapely.union_all(gdf.geometry.to_numpy())
+    surfaces = _surfaces(kept, layers, clip_polygon, s.concave_ratio)
+    ov = order_violations(kept, surfaces, layers, osets.order_tol)
+    if len(ov):
+        flags = pd.concat([flags, ov], ignore_index=True)
+    return Model(list(layers), crs_obj, kept, flags, surfaces)
+
+
+def _links(model: Model, metric: str) -> pd.DataFrame:
+    rows = []
+    for a, b in zip(model.layers[:-1], model.layers[1:]):
+        for p, q in ((a, b), (b, a)):
+            sp, sq = model.surfaces[p], model.surfaces[q]
+            rp, rq = sp.ring(), sq.ring()
+            i, j, d = match_rings(sp.xyz[rp], sq.xyz[rq], metric)
+            for ii, jj, dd in zip(i, j, d):
+                pa, qb = rp[ii], rq[jj]
+                rows.append((p, int(sp.ids[pa]), q, int(sq.ids[qb]), float(dd), sp.x[pa], sp.y[pa], sp.z[pa], sq.x[qb],
+                             sq.y[qb], sq.z[qb]))
+    return pd.DataFrame(rows, columns=["from_layer", "from_id", "to_layer", "to_id", "distance", "x0", "y0", "z0", "x1", "y1",
+                                       "z1"])
+
+
+def _thickness_grid(upper: Surface, lower: Surface, footprint, cell: float, crs):
+    b = footprint.bounds
+    grid = snapped_grid(b, cell, crs)
+    xs = grid.transform.c + (np.arange(grid.width) + 0.5) * cell
+    out = np.full(grid.shape, np.nan)
+    for r0 in range(0, grid.height, 256):
+        r1 = min(grid.height, r0 + 256)
+        ys = grid.transform.f - (np.arange(r0, r1) + 0.5) * cell
+        X, Y = np.meshgrid(xs, ys)
+        zu, _ = height_at(upper, X.ravel(), Y.ravel())
+        zl, _ = height_at(lower, X.ravel(), Y.ravel())
+        out[r0:r1] = (zu - zl).reshape(X.shape)
+    return out, grid
+
+
+def _thickness_range(upper: Surface, lower: Surface, footprint) -> tuple[float, float]:
+    """Min and max thickness: a piecewise linear function's extremes lie on the overlay's vertices;
+    the TIN vertices of both surfaces inside the footprint (plus its ring) stand for them."""
+    xs = np.concatenate([upper.x, lower.x])
+    ys = np.concatenate([upper.y, lower.y])
+    ring = shapely.get_coordinates(footprint.exterior) if hasattr(footprint, "exterior") else np.empty((0, 2))
+    xs, ys = np.concatenate([xs, ring[:, 0]]), np.concatenate([ys, ring[:, 1]])
+    zu, a = height_at(upper, xs, ys)
+    zl, b = height_at(lower, xs, ys)
+    t = zu - zl
+    t = t[a & b & np.isfinite(t)]
+    return (float(t.min()), float(t.max())) if t.size else (float("nan"), float("nan"))
+
+
+def compute_units(model: Model, settings: AquiferSettings, within=None, progress: ProgressCallback | None = None) -> None:
+    """Walls, closed meshes, volumes and thickness of each unit (S6, S9); links (S6)."""
+    s = settings
+    model.links = _links(model, s.matching)
+    unit_len = horizontal_unit(model.crs)
+    within_poly = None
+    if within is not None:
+        gdf = check_crs(read_layer(within), model.crs, str(within), against="the contacts'")
+        within_poly = shapely.union_all(gdf.geometry.to_numpy())
+    pairs = list(zip(model.layers[:-1], model.layers[1:]))
+    for k, (up, lo) in enumerate(pairs):
+        report(progress, 0.3 + 0.5 * k / len(pairs), f"unit {unit_name(up, lo)}")
+        U, L = model.surfaces[up], model.surfaces[lo]
+        footprint = common_footprint(U, L)
+        region = footprint if within_poly is None else footprint.intersection(within_poly)
+        vol = overlay_volume(U, L, region)
+        tmin, tmax = _thickness_range(U, L, region) if not region.is_empty else (float("nan"), float("nan"))
+        verts, faces = unit_mesh(U, L)
+        extent = max(footprint.bounds[2] - footprint.bounds[0], footprint.bounds[3] - footprint.bounds[1])
+        cell = length_to_crs_units(s.cell_size, unit_len, name="cell size") if s.cell_size else _nice(extent / 500)
+        grid_t, grid = _thickness_grid(U, L, footprint, cell, model.crs)
+        model.units[unit_name(up, lo)] = {
+            "upper": up, "lower": lo, "volume": vol, "thickness_min": tmin, "thickness_max": tmax,
+            "thickness_mean": vol["volume"] / vol["area"] if vol["area"] > 0 else float("nan"),
+            "mesh": (verts, faces), "thickness": (grid_t, grid), "footprint": footprint, "region": region,
+            "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles),
+        }
+
+
+def _layers_gpkg(model: Model, densified: dict) -> dict:
+    import geopandas as gpd
+
+    crs = model.crs
+    out = {}
+    p = model.points
+    out["points"] = gpd.GeoDataFrame(p.drop(columns=[c for c in ("line", "source") if c in p.columns]),
+                                     geometry=shapely.points(p["x"], p["y"], p["z"]), crs=crs)
+    f = model.flags
+    out["flags"] = gpd.GeoDataFrame(f, geometry=shapely.points(f["x"], f["y"], f["z"]) if len(f) else [], crs=crs)
+    for layer, s in model.surfaces.items():
+        t = s.triangles
+        coords = np.stack([s.xyz[t[:, i]] for i in (0, 1, 2, 0)], axis=1)
+        out[f"tin_{layer}"] = gpd.GeoDataFrame({"layer": [layer] * len(t), "v0": s.ids[t[:, 0]], "v1": s.ids[t[:, 1]],
+                                                "v2": s.ids[t[:, 2]]}, geometry=shapely.polygons(coords), crs=crs)
+        ring = s.ring()
+        rc = np.vstack([s.xyz[ring], s.xyz[ring[:1]]])
+        out[f"boundary_{layer}"] = gpd.GeoDataFrame(
+            {"layer": [layer], "vertices": [len(ring)], "area": [s.outline().area], "ids": [",".join(map(str, s.ids[ring]))]},
+            geometry=[shapely.Polygon(rc)], crs=crs)
+        d = densified[layer]
+        out[f"densified_{layer}"] = gpd.GeoDataFrame({"layer": [layer] * len(d), "z": d[:, 2]},
+                                                     geometry=shapely.points(d[:, 0], d[:, 1], d[:, 2]), crs=crs)
+    lk = model.links
+    out["links"] = gpd.GeoDataFrame(lk.drop(columns=["x0", "y0", "z0", "x1", "y1", "z1"]),
+                                    geometry=shapely.linestrings(np.stack([lk[["x0", "y0", "z0"]].to_numpy(),
+                                                                           lk[["x1", "y1", "z1"]].to_numpy()], axis=1)),
+                                    crs=crs)
+    walls = []
+    for name, u in model.units.items():
+        U, L = model.surfaces[u["upper"]], model.surfaces[u["lower"]]
+        ru, rl = U.ring(), L.ring()
+        a, b = U.xyz[ru], L.xyz[rl]
+        w = wall(a, b)
+        pts = np.vstack([a, b])
+        tri = np.stack([pts[w[:, i]] for i in (0, 1, 2, 0)], axis=1)
+        walls.append(gpd.GeoDataFrame({"unit": [name] * len(tri)}, geometry=shapely.polygons(tri), crs=crs))
+    out["walls"] = pd.concat(walls, ignore_index=True) if walls else gpd.GeoDataFrame({"unit": []}, geometry=[], crs=crs)
+    return out
+
+
+def _figures(model: Model, out: Path) -> list[Path]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = []
+    fig = plt.figure(figsize=(9, 7))
+    ax = fig.add_subplot(projection="3d")
+    cmap = plt.get_cmap("viridis", len(model.layers))
+    for k, layer in enumerate(model.layers):
+        s = model.surfaces[layer]
+        t = s.triangles
+        if len(t) > 20000:  # a readable view: every n-th triangle
+            t = t[:: int(np.ceil(len(t) / 20000))]
+        ax.plot_trisurf(s.x, s.y, s.z, triangles=t, color=cmap(k), alpha=0.6, linewidth=0, label=layer)
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.set_title("Aquifer surfaces: " + ", ".join(model.layers))
+    target = out / "surfaces_3d.png"
+    with atomic_path(target, overwrite=True) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    paths.append(target)
+    for name, u in model.units.items():
+        grid_t, grid = u["thickness"]
+        fig, ax = plt.subplots(figsize=(7, 6))
+        w, s_, e, n = grid.bounds
+        im = ax.imshow(grid_t, extent=(w, e, s_, n), origin="upper", cmap="YlGnBu")
+        fig.colorbar(im, ax=ax, label="thickness (CRS units)")
+        ax.set_title(f"Thickness of {name}")
+        ax.set_aspect("equal")
+        target = out / f"thickness_{name.replace('/', '_')}.png"
+        with atomic_path(target, overwrite=True) as tmp:
+            fig.savefig(tmp, dpi=110, format="png")
+        plt.close(fig)
+        paths.append(target)
+    return paths
+
+
+def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, settings: AquiferSettings | None = None,
+                  within=None, clip=None, overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+    """The whole aquifer model; writes under ``out`` and returns the report (also ``out/report.json``).
+
+    ``source``: a contacts table (CSV / GeoPackage layer / shapefile) or per-layer files ``LAYER=path``.
+    ``layers``: names top to bottom. ``within``: a polygon layer; volumes and thickness statistics
+    inside it (default: each unit's common footprint). ``clip``: a polygon layer the surfaces are
+    cut to (the dissertation's concave / hole rule).
+    """
+    started = time.time()
+    s = settings or AquiferSettings()
+    if s.mesh_format not in ("ply", "obj"):
+        raise InputError(f"mesh format {s.mesh_format!r} is not ply or obj")
+    out = Path(out)
+    if (out / "report.json").exists() and not overwrite:
+        raise OutputExistsError("an aquifer model is already there", path=out, hint="Pass --overwrite, or choose another --out")
+    model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress)
+    compute_units(model, s, within=within, progress=progress)
+    report(progress, 0.85, "writing")
+    densified = {layer: densify(model.surfaces[layer], s.n_per_edge) for layer in model.layers}
+    out.mkdir(parents=True, exist_ok=True)
+    write_layers(_layers_gpkg(model, densified), out / "aquifer.gpkg", overwrite=True)
+    files = {"gpkg": str(out / "aquifer.gpkg"), "meshes": {}, "thickness": {}}
+    for name, u in model.units.items():
+        slug = name.replace("/", "_")
+        verts, faces = u["mesh"]
+        writer = write_ply if s.mesh_format == "ply" else write_obj
+        files["meshes"][name] = str(writer(out / f"unit_{slug}.{s.mesh_format}", verts, faces))
+        grid_t, grid = u["thickness"]
+        files["thickness"][name] = str(write_raster(out / f"thickness_{slug}.tif", grid_t, grid, overwrite=True,
+                                                    tags={"GISTOOLS_PRODUCT": "thickness", "GISTOOLS_UNIT": name},
+                                                    description=f"thickness of {name}"))
+    if s.figures:
+        try:
+            files["figures"] = [str(p) for p in _figures(model, out)]
+        except ImportError:
+            files["figures"] = []
+    counts = model.flags[~model.flags["kept"].astype(bool)].groupby("layer").size() if len(model.flags) else pd.Series(dtype=int)
+    by_flag = model.flags.groupby(["layer", "flag"]).size() if len(model.flags) else pd.Series(dtype=int)
+    unit_len = horizontal_unit(model.crs)
+    rep = {
+        "tool": "gistools aquifer model",
+        "crs": model.crs.to_string(),
+        "crs_wkt": model.crs.to_wkt(),
+        "length_unit": unit_len.name,
+        "volume_unit": f"cubic {unit_len.name}",
+        "layers": {},
+        "units": {},
+        "settings": {**{k: v for k, v in s.__dict__.items()}, "swap_xy": swap_xy, "within": str(within) if within else None,
+                     "clip": str(clip) if clip else None},
+        "outputs": files,
+    }
+    for layer in model.layers:
+        surf = model.surfaces[layer]
+        rep["layers"][layer] = {
+            "points": int((model.points["layer"] == layer).sum()),
+            "input_points": int((model.points["layer"] == layer).sum() + counts.get(layer, 0)),
+            "flagged": int(counts.get(layer, 0)),
+            "flags": {f: int(n) for (lay, f), n in by_flag.items() if lay == layer},
+            "triangles": int(len(surf.triangles)),
+            "boundary_vertices": int(len(surf.ring())),
+            "boundary_area": float(surf.outline().area),
+            "densified_points": int(len(densified[layer])),
+        }
+    for name, u in model.units.items():
+        v = u["volume"]
+        rep["units"][name] = {
+            "volume": v["volume"], "volume_positive": v["volume_positive"], "volume_negative": v["volume_negative"],
+            "area": v["area"], "thickness_min": u["thickness_min"], "thickness_mean": u["thickness_mean"],
+            "thickness_max": u["thickness_max"], "wall_triangles": int(u["wall_triangles"]),
+            "mesh_faces": int(len(u["mesh"][1])),
+        }
+    rep["seconds"] = round(time.time() - started, 3)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(rep, indent=2, default=float))
+    report(progress, 1.0, "done")
+    return rep
+
+
+def load_model(out) -> Model:
+    """The surfaces of a written model (``out/aquifer.gpkg`` cleaned points + report.json settings)."""
+    import geopandas as gpd
+
+    out = Path(out)
+    path = out / "report.json"
+    if not path.exists():
+        raise InputError(f"{out}: no report.json of an aquifer model", hint="Run gistools aquifer model first")
+    rep = json.loads(path.read_text())
+    pts = gpd.read_file(out / "aquifer.gpkg", layer="points")
+    layers = list(rep["layers"])
+    st = rep["settings"]
+    clip = None
+    if st.get("clip"):
+        clip = shapely.union_all(read_layer(st["clip"]).geometry.to_numpy())
+    surfaces = _surfaces(pd.DataFrame(pts.drop(columns="geometry")), layers, clip, st.get("concave_ratio"))
+    return Model(layers, pyproj.CRS.from_wkt(rep["crs_wkt"]), pts, pd.DataFrame(), surfaces)
+
+
+def aquifer_query(out, x, y, method: str = "tin", *, k: int = 10) -> dict:
+    """Each surface's height and each unit's thickness at (x, y) of a written model (S8)."""
+    if method not in HEIGHT_METHODS:
+        raise InputError(f"--method {method!r} is not one of {', '.join(HEIGHT_METHODS)}")
+    model = load_model(out)
+    heights = {}
+    for layer in model.layers:
+        z, inside = height_at(model.surfaces[layer], [x], [y], method, k=k)
+        heights[layer] = {"z": None if not np.isfinite(z[0]) else float(z[0]), "inside": bool(inside[0])}
+    thick = {}
+    for up, lo in zip(model.layers[:-1], model.layers[1:]):
+        a, b = heights[up]["z"], heights[lo]["z"]
+        thick[unit_name(up, lo)] = None if a is None or b is None else a - b
+    return {"x": x, "y": y, "method": method, "heights": heights, "thickness": thick}
+
+
+
