@@ -110,7 +110,8 @@ def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
     footprint = common_footprint(upper, lower)
     region = footprint if within is None else footprint.intersection(within)
     if region.is_empty or region.area <= 0:
-        return {"volume": 0.0, "volume_positive": 0.0, "volume_negative": 0.0, "area": 0.0}
+        return {"volume": 0.0, "volume_positive": 0.0, "volume_negative": 0.0, "area": 0.0,
+                "thickness_min": float("nan"), "thickness_max": float("nan")}
     w = shapely.affinity.translate(region, -origin[0], -origin[1])
     shapely.prepare(w)
     iu_total, area = _integral(upper, w, origin)
@@ -130,6 +131,8 @@ def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
     on_a = d[:, None, 0] * ux[ta] + d[:, None, 1] * uy[ta] + d[:, None, 2]
     on_b = d[:, None, 0] * lx[tb] + d[:, None, 1] * ly[tb] + d[:, None, 2]
     lower_bound = np.maximum(on_a.min(axis=1), on_b.min(axis=1))  # min of a linear function on ta n tb
+    upper_bound = np.minimum(on_a.max(axis=1), on_b.max(axis=1))
+    t_min, t_max = _extremes(upper, lower, w, origin, pu[ia], pl[ib], d, lower_bound, upper_bound)
     cand = lower_bound < 0
     negative = 0.0
     if cand.any():
@@ -150,4 +153,32 @@ def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
             if ok.any():
                 c = shapely.get_coordinates(shapely.centroid(neg[ok]))
                 negative = -float(np.sum(na[ok] * (dn[ok, 0] * c[:, 0] + dn[ok, 1] * c[:, 1] + dn[ok, 2])))
-    return {"volume": volume, "volume_positive": volume - negative, "volume_negative": negative, "area": area}
+    return {"volume": volume, "volume_positive": volume - negative, "volume_negative": negative, "area": area,
+            "thickness_min": t_min, "thickness_max": t_max}
+
+
+def _extremes(upper, lower, w, origin, pa, pb, d, lower_bound, upper_bound) -> tuple[float, float]:
+    """Exact min and max thickness in W: a piecewise linear function's extremes lie on the overlay's vertices.
+
+    Values at the TIN vertices inside W bound them; only the triangle pairs whose bounds pass those
+    values are overlaid (shapely) and evaluated at their pieces' vertices.
+    """
+    from .surface import height_at
+
+    xs = np.concatenate([upper.x, lower.x])
+    ys = np.concatenate([upper.y, lower.y])
+    inside_w = shapely.contains_xy(w, xs - origin[0], ys - origin[1])
+    zu, a = height_at(upper, xs[inside_w], ys[inside_w])
+    zl, b = height_at(lower, xs[inside_w], ys[inside_w])
+    t = (zu - zl)[a & b]
+    lo = float(t.min()) if t.size else np.inf
+    hi = float(t.max()) if t.size else -np.inf
+    cand = (lower_bound < lo) | (upper_bound > hi)
+    if cand.any():
+        pieces = shapely.intersection(shapely.intersection(pa[cand], pb[cand]), w)
+        xy, idx = shapely.get_coordinates(pieces, return_index=True)
+        if len(xy):
+            dc = d[cand][idx]
+            tv = dc[:, 0] * xy[:, 0] + dc[:, 1] * xy[:, 1] + dc[:, 2]
+            lo, hi = min(lo, float(tv.min())), max(hi, float(tv.max()))
+    return (lo if np.isfinite(lo) else float("nan")), (hi if np.isfinite(hi) else float("nan"))

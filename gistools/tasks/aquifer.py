@@ -148,20 +148,6 @@ def _thickness_grid(upper: Surface, lower: Surface, footprint, cell: float, crs)
     return out, grid
 
 
-def _thickness_range(upper: Surface, lower: Surface, footprint) -> tuple[float, float]:
-    """Min and max thickness: a piecewise linear function's extremes lie on the overlay's vertices;
-    the TIN vertices of both surfaces inside the footprint (plus its ring) stand for them."""
-    xs = np.concatenate([upper.x, lower.x])
-    ys = np.concatenate([upper.y, lower.y])
-    ring = shapely.get_coordinates(footprint.exterior) if hasattr(footprint, "exterior") else np.empty((0, 2))
-    xs, ys = np.concatenate([xs, ring[:, 0]]), np.concatenate([ys, ring[:, 1]])
-    zu, a = height_at(upper, xs, ys)
-    zl, b = height_at(lower, xs, ys)
-    t = zu - zl
-    t = t[a & b & np.isfinite(t)]
-    return (float(t.min()), float(t.max())) if t.size else (float("nan"), float("nan"))
-
-
 def compute_units(model: Model, settings: AquiferSettings, within=None, progress: ProgressCallback | None = None) -> None:
     """Walls, closed meshes, volumes and thickness of each unit (S6, S9); links (S6)."""
     s = settings
@@ -178,13 +164,12 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         footprint = common_footprint(U, L)
         region = footprint if within_poly is None else footprint.intersection(within_poly)
         vol = overlay_volume(U, L, region)
-        tmin, tmax = _thickness_range(U, L, region) if not region.is_empty else (float("nan"), float("nan"))
         verts, faces = unit_mesh(U, L)
         extent = max(footprint.bounds[2] - footprint.bounds[0], footprint.bounds[3] - footprint.bounds[1])
         cell = length_to_crs_units(s.cell_size, unit_len, name="cell size") if s.cell_size else _nice(extent / 500)
         grid_t, grid = _thickness_grid(U, L, footprint, cell, model.crs)
         model.units[unit_name(up, lo)] = {
-            "upper": up, "lower": lo, "volume": vol, "thickness_min": tmin, "thickness_max": tmax,
+            "upper": up, "lower": lo, "volume": vol, "thickness_min": vol["thickness_min"], "thickness_max": vol["thickness_max"],
             "thickness_mean": vol["volume"] / vol["area"] if vol["area"] > 0 else float("nan"),
             "mesh": (verts, faces), "thickness": (grid_t, grid), "footprint": footprint, "region": region,
             "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles),
