@@ -20,7 +20,7 @@ from gistools.aquifer.synthetic import E0, N0, surfaces_uv, synthetic_aquifer
 from gistools.aquifer.volume import overlay_volume
 from gistools.aquifer.walls import match_rings, mesh_volume, unit_mesh
 from gistools.cli.main import cli
-from gistools.tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query
+from gistools.tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query, load_model, query_model
 
 DESIGN = SHARED_DATA.parent / "design"
 LAYERS = ["LS", "AU", "AD", "AQ"]
@@ -226,7 +226,7 @@ def test_model_outputs_meshes_and_report(tmp_path):
             assert float(t.mean()) == pytest.approx(u["thickness_mean"], rel=0.01)
     assert rep["units"]["AD/AQ"]["volume"] == pytest.approx(4.8375e10, rel=5e-3)
     layers = set(gpd.list_layers(tmp_path / "m" / "aquifer.gpkg")["name"])
-    assert {"points", "flags", "links", "walls", "tin_LS", "boundary_AQ", "densified_AD"} <= layers
+    assert {"points", "flags", "links", "walls", "tin_LS", "boundary_AQ"} <= layers
     tin = gpd.read_file(tmp_path / "m" / "aquifer.gpkg", layer="tin_AU")
     assert len(tin) == rep["layers"]["AU"]["triangles"] and tin.has_z.all()
     walls = gpd.read_file(tmp_path / "m" / "aquifer.gpkg", layer="walls")
@@ -256,7 +256,11 @@ def test_within_polygon_and_four_file_input(tmp_path):
         files.append(f"{layer}={path}")
     gpd.GeoDataFrame({"name": ["R"]}, geometry=[R], crs=3003).to_file(tmp_path / "area.gpkg", layer="AREA")
     rep = aquifer_model(files, LAYERS, tmp_path / "m", crs="EPSG:3003", swap_xy=True, within=f"{tmp_path / 'area.gpkg'}:AREA",
-                        settings=AquiferSettings(figures=False, mesh_format="obj"))
+                        settings=AquiferSettings(figures=False, mesh_format="obj", densify=True))
+    dens = pd.read_csv(rep["outputs"]["densified"]["AQ"])
+    assert len(dens) == rep["layers"]["AQ"]["densified_points"] and set(dens["layer"]) == {"AQ"}
+    truth = surfaces_uv((dens["x"] - E0) / 1000, (dens["y"] - N0) / 1000, planar=True)["AQ"]
+    np.testing.assert_allclose(dens["z"], truth, atol=1e-6)  # on the (planar) TIN
     assert rep["units"]["LS/AU"]["volume"] == pytest.approx(1.5e10, rel=1e-9)
     assert rep["units"]["AU/AD"]["volume"] == pytest.approx(2.4e9, rel=1e-9)
     assert rep["units"]["AU/AD"]["thickness_min"] == pytest.approx(6.0, abs=1e-6)
@@ -311,6 +315,7 @@ def test_claudius_horizons_through_the_whole_model(tmp_path):
     rep = aquifer_model(tmp_path / "claudius.csv", layers, tmp_path / "m", crs=local,
                         settings=AquiferSettings(figures=False))
     kept = gpd.read_file(tmp_path / "m" / "aquifer.gpkg", layer="points")
+    model = load_model(tmp_path / "m")
     assert len(kept) + sum(rep["layers"][L]["flagged"] for L in layers) == len(table)
     rng = np.random.default_rng(3)
     interp = {}
@@ -333,7 +338,7 @@ def test_claudius_horizons_through_the_whole_model(tmp_path):
             return f(x - c[0], y - c[1])
 
         expect = at(up, qx, qy) - at(lo, qx, qy)
-        got = np.array([aquifer_query(tmp_path / "m", x, y)["thickness"][name] or np.nan for x, y in zip(qx, qy)])
+        got = np.array([query_model(model, x, y)["thickness"][name] or np.nan for x, y in zip(qx, qy)])
         ok = np.isfinite(expect)
         assert ok.sum() > 20
         np.testing.assert_allclose(got[ok], expect[ok], atol=1e-6)

@@ -8,6 +8,7 @@ are stored counter-clockwise seen from above. Lengths and heights are in CRS uni
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import shapely
@@ -39,13 +40,18 @@ class Surface:
     def xyz(self) -> np.ndarray:
         return np.column_stack([self.x, self.y, self.z])
 
+    @cached_property
+    def rings(self) -> list[np.ndarray]:
+        """Boundary rings (vertex indices, CCW), the outer one first."""
+        return boundary_rings(self.triangles, self.x, self.y)
+
     def ring(self) -> np.ndarray:
         """Vertex indices of the outer boundary ring, CCW, first vertex not repeated."""
-        return boundary_rings(self.triangles, self.x, self.y)[0]
+        return self.rings[0]
 
     def outline(self) -> shapely.Polygon:
         """The boundary as a polygon (outer ring, and holes where masking opened them)."""
-        rings = boundary_rings(self.triangles, self.x, self.y)
+        rings = self.rings
         shells = [np.column_stack([self.x[r], self.y[r]]) for r in rings]
         return shapely.Polygon(shells[0], shells[1:])
 

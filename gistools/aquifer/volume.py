@@ -74,9 +74,9 @@ def _halfplane(bounds, a, b, c):
     return np.asarray(out, dtype=object)
 
 
-def _integral(surface: Surface, w, origin) -> tuple[float, float]:
-    """(integral of z over W, area of W covered) for one TIN: whole triangles inside W by their vertex mean,
-    the few that cross W's boundary clipped."""
+def _integral(surface: Surface, w, origin):
+    """(integral of z over W, area of W covered, triangle inside W flags, triangle polygons) for one TIN:
+    whole triangles inside W by their vertex mean, the few that cross W's boundary clipped."""
     polys = _triangle_polygons(surface, origin)
     t = surface.triangles
     inside = shapely.contains(w, polys)
@@ -96,15 +96,79 @@ def _integral(surface: Surface, w, origin) -> tuple[float, float]:
             coef = planes(surface, origin)[touch][ok]
             total += float(np.sum(pa[ok] * (coef[:, 0] * c[:, 0] + coef[:, 1] * c[:, 1] + coef[:, 2])))
             covered += float(np.sum(pa[ok]))
-    return total, covered
+    return total, covered, inside, polys
+
+
+def clip_triangles(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Intersections of triangle pairs a[i] n b[i] ((n, 3, 2) each, counter-clockwise), vectorised
+    Sutherland-Hodgman: (vertices (n, 9, 2), vertex counts (n,)); a convex polygon each, count < 3 if empty."""
+    n = len(a)
+    m = 9
+    poly = np.zeros((n, m, 2))
+    poly[:, :3] = a
+    k = np.full(n, 3)
+    rows = np.arange(n)
+    for e in range(3):
+        p, q = b[:, e], b[:, (e + 1) % 3]
+        ex, ey = q[:, 0] - p[:, 0], q[:, 1] - p[:, 1]
+        side = ex[:, None] * (poly[:, :, 1] - p[:, None, 1]) - ey[:, None] * (poly[:, :, 0] - p[:, None, 0])
+        new = np.zeros_like(poly)
+        nk = np.zeros(n, np.int64)
+        for i in range(int(k.max()) if n else 0):
+            valid = i < k
+            j = np.where(i + 1 < k, i + 1, 0)
+            s_cur, s_nxt = side[:, i], side[rows, j]
+            cur, nxt = poly[:, i], poly[rows, j]
+            emit = valid & (s_cur >= 0)
+            new[rows[emit], nk[emit]] = cur[emit]
+            nk += emit
+            cross = valid & ((s_cur >= 0) != (s_nxt >= 0))
+            if cross.any():
+                t = s_cur[cross] / (s_cur[cross] - s_nxt[cross])
+                new[rows[cross], nk[cross]] = cur[cross] + t[:, None] * (nxt[cross] - cur[cross])
+                nk += cross
+        poly, k = new, nk
+    return poly, k
+
+
+def _negative_part(v: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Integral of min(f, 0) over triangles v (m, 3, 2), f linear with values f (m, 3) at the vertices (exact)."""
+    area = 0.5 * np.abs((v[:, 1, 0] - v[:, 0, 0]) * (v[:, 2, 1] - v[:, 0, 1])
+                        - (v[:, 1, 1] - v[:, 0, 1]) * (v[:, 2, 0] - v[:, 0, 0]))
+    d = np.sort(f, axis=1)
+    d1, d2, d3 = d[:, 0], d[:, 1], d[:, 2]
+    out = np.zeros(len(v))
+    allneg = d3 <= 0
+    out[allneg] = area[allneg] * (d1 + d2 + d3)[allneg] / 3
+    one = (d1 < 0) & (d2 >= 0)
+    out[one] = area[one] * d1[one] ** 3 / (3 * (d1[one] - d2[one]) * (d1[one] - d3[one]))
+    two = (d2 < 0) & (d3 > 0)
+    pos = area[two] * d3[two] ** 3 / (3 * (d3[two] - d1[two]) * (d3[two] - d2[two]))
+    out[two] = area[two] * (d1 + d2 + d3)[two] / 3 - pos
+    return out
+
+
+def _fan(poly: np.ndarray, k: np.ndarray):
+    """Fan triangles (m, 3, 2) of convex polygons and the index of their polygon."""
+    tris, owner = [], []
+    for j in range(1, int(k.max()) - 1 if len(k) else 0):
+        ok = k > j + 1
+        idx = np.flatnonzero(ok)
+        tris.append(np.stack([poly[idx, 0], poly[idx, j], poly[idx, j + 1]], axis=1))
+        owner.append(idx)
+    if not tris:
+        return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
+    return np.concatenate(tris), np.concatenate(owner)
 
 
 def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
     """Exact volume between two TINs inside ``within`` (clipped to where both surfaces are; default: all of it).
 
-    Returns {"volume", "volume_positive", "volume_negative" (<= 0), "area"} in CRS units. The net volume is
-    the difference of the two surfaces' exact integrals over W; the negative part comes from the overlay of
-    the triangle pairs where the upper surface can be below the lower one (bounded by their vertex values).
+    Returns {"volume", "volume_positive", "volume_negative" (<= 0), "area", "thickness_min", "thickness_max"}
+    in CRS units. The net volume is the difference of the two surfaces' exact integrals over W. The
+    negative part and the extremes come from the overlay of the triangle pairs that can hold them
+    (bounded by the thickness at their vertices): pairs inside W are clipped with numpy, pairs on W's
+    edge with shapely.
     """
     origin = upper.centre
     footprint = common_footprint(upper, lower)
@@ -114,37 +178,54 @@ def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
                 "thickness_min": float("nan"), "thickness_max": float("nan")}
     w = shapely.affinity.translate(region, -origin[0], -origin[1])
     shapely.prepare(w)
-    iu_total, area = _integral(upper, w, origin)
-    il_total, _ = _integral(lower, w, origin)
+    iu_total, area, in_u, pu = _integral(upper, w, origin)
+    il_total, _, in_l, pl = _integral(lower, w, origin)
     volume = iu_total - il_total
-    # negative part: overlay only the pairs whose thickness plane may go below 0 on their intersection
-    pu, pl = _triangle_polygons(upper, origin), _triangle_polygons(lower, origin)
-    iu = np.flatnonzero(shapely.intersects(w, pu))
-    il = np.flatnonzero(shapely.intersects(w, pl))
-    a_idx, b_idx = shapely.STRtree(pl[il]).query(pu[iu])
-    ia, ib = iu[a_idx], il[b_idx]
+    near_u = np.flatnonzero(in_u | shapely.intersects(w, pu))
+    near_l = np.flatnonzero(in_l | shapely.intersects(w, pl))
+    a_idx, b_idx = shapely.STRtree(pl[near_l]).query(pu[near_u])
+    ia, ib = near_u[a_idx], near_l[b_idx]
     cu, cl = planes(upper, origin), planes(lower, origin)
-    d = cu[ia] - cl[ib]
+    d = cu[ia] - cl[ib]  # thickness = d0 x + d1 y + d2 on the pair's intersection
     ux, uy = upper.x - origin[0], upper.y - origin[1]
     lx, ly = lower.x - origin[0], lower.y - origin[1]
     ta, tb = upper.triangles[ia], lower.triangles[ib]
     on_a = d[:, None, 0] * ux[ta] + d[:, None, 1] * uy[ta] + d[:, None, 2]
     on_b = d[:, None, 0] * lx[tb] + d[:, None, 1] * ly[tb] + d[:, None, 2]
-    lower_bound = np.maximum(on_a.min(axis=1), on_b.min(axis=1))  # min of a linear function on ta n tb
+    lower_bound = np.maximum(on_a.min(axis=1), on_b.min(axis=1))  # a linear function's min on ta n tb
     upper_bound = np.minimum(on_a.max(axis=1), on_b.max(axis=1))
-    t_min, t_max = _extremes(upper, lower, w, origin, pu[ia], pl[ib], d, lower_bound, upper_bound)
-    cand = lower_bound < 0
+    lo, hi = _vertex_extremes(upper, lower, w, origin)
+    want = (lower_bound < 0) | (lower_bound < lo) | (upper_bound > hi)
+    inside = in_u[ia] & in_l[ib]
     negative = 0.0
-    if cand.any():
-        pieces = shapely.intersection(pu[ia[cand]], pl[ib[cand]])
-        dn = -d[cand]
-        nonempty = ~shapely.is_empty(pieces)
-        pieces, dn = pieces[nonempty], dn[nonempty]
-        inside = shapely.covers(w, pieces)
-        if not inside.all():
-            pieces[~inside] = shapely.intersection(pieces[~inside], w)
-        keep = shapely.area(pieces) > 0
-        pieces, dn = pieces[keep], dn[keep]
+    # pairs inside W: numpy
+    sel = np.flatnonzero(want & inside)
+    if sel.size:
+        A = np.stack([ux[ta[sel]], uy[ta[sel]]], axis=2)
+        B = np.stack([lx[tb[sel]], ly[tb[sel]]], axis=2)
+        poly, k = clip_triangles(A, B)
+        ds = d[sel]
+        vals = ds[:, None, 0] * poly[:, :, 0] + ds[:, None, 1] * poly[:, :, 1] + ds[:, None, 2]
+        valid = (np.arange(poly.shape[1])[None, :] < k[:, None]) & (k[:, None] >= 3)
+        if valid.any():
+            lo = min(lo, float(vals[valid].min()))
+            hi = max(hi, float(vals[valid].max()))
+        tris, owner = _fan(poly, k)
+        if len(tris):
+            do = ds[owner]
+            f = do[:, None, 0] * tris[:, :, 0] + do[:, None, 1] * tris[:, :, 1] + do[:, None, 2]
+            negative += float(_negative_part(tris, f).sum())
+    # pairs on W's edge: shapely
+    sel = np.flatnonzero(want & ~inside)
+    if sel.size:
+        pieces = shapely.intersection(shapely.intersection(pu[ia[sel]], pl[ib[sel]]), w)
+        ds = d[sel]
+        xy, idx = shapely.get_coordinates(pieces, return_index=True)
+        if len(xy):
+            tv = ds[idx, 0] * xy[:, 0] + ds[idx, 1] * xy[:, 1] + ds[idx, 2]
+            lo, hi = min(lo, float(tv.min())), max(hi, float(tv.max()))
+        keep = ~shapely.is_empty(pieces) & (shapely.area(pieces) > 0)
+        pieces, dn = pieces[keep], -ds[keep]
         if len(pieces):
             half = _halfplane(shapely.bounds(pieces), dn[:, 0], dn[:, 1], dn[:, 2])  # where thickness <= 0
             neg = shapely.intersection(pieces, half)
@@ -152,17 +233,13 @@ def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
             ok = na > 0
             if ok.any():
                 c = shapely.get_coordinates(shapely.centroid(neg[ok]))
-                negative = -float(np.sum(na[ok] * (dn[ok, 0] * c[:, 0] + dn[ok, 1] * c[:, 1] + dn[ok, 2])))
+                negative -= float(np.sum(na[ok] * (dn[ok, 0] * c[:, 0] + dn[ok, 1] * c[:, 1] + dn[ok, 2])))
     return {"volume": volume, "volume_positive": volume - negative, "volume_negative": negative, "area": area,
-            "thickness_min": t_min, "thickness_max": t_max}
+            "thickness_min": lo if np.isfinite(lo) else float("nan"), "thickness_max": hi if np.isfinite(hi) else float("nan")}
 
 
-def _extremes(upper, lower, w, origin, pa, pb, d, lower_bound, upper_bound) -> tuple[float, float]:
-    """Exact min and max thickness in W: a piecewise linear function's extremes lie on the overlay's vertices.
-
-    Values at the TIN vertices inside W bound them; only the triangle pairs whose bounds pass those
-    values are overlaid (shapely) and evaluated at their pieces' vertices.
-    """
+def _vertex_extremes(upper, lower, w, origin) -> tuple[float, float]:
+    """Thickness range at the TIN vertices inside W: bounds the exact extremes (which lie on overlay vertices)."""
     from .surface import height_at
 
     xs = np.concatenate([upper.x, lower.x])
@@ -171,14 +248,4 @@ def _extremes(upper, lower, w, origin, pa, pb, d, lower_bound, upper_bound) -> t
     zu, a = height_at(upper, xs[inside_w], ys[inside_w])
     zl, b = height_at(lower, xs[inside_w], ys[inside_w])
     t = (zu - zl)[a & b]
-    lo = float(t.min()) if t.size else np.inf
-    hi = float(t.max()) if t.size else -np.inf
-    cand = (lower_bound < lo) | (upper_bound > hi)
-    if cand.any():
-        pieces = shapely.intersection(shapely.intersection(pa[cand], pb[cand]), w)
-        xy, idx = shapely.get_coordinates(pieces, return_index=True)
-        if len(xy):
-            dc = d[cand][idx]
-            tv = dc[:, 0] * xy[:, 0] + dc[:, 1] * xy[:, 1] + dc[:, 2]
-            lo, hi = min(lo, float(tv.min())), max(hi, float(tv.max()))
-    return (lo if np.isfinite(lo) else float("nan")), (hi if np.isfinite(hi) else float("nan"))
+    return (float(t.min()), float(t.max())) if t.size else (np.inf, -np.inf)

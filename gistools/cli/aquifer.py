@@ -34,6 +34,7 @@ def aquifer():
 @click.option("--f-nn", default=5.0, show_default=True, help="Outside the cloud: NN distance over f-nn x the median.")
 @click.option("--order-tol", default="1m", show_default=True, help="Report points beyond a neighbour layer by more than this.")
 @click.option("--n-per-edge", default=2, show_default=True, help="Densified points per TIN edge.")
+@click.option("--densify", is_flag=True, help="Write the densified points (densified_<layer>.csv).")
 @click.option("--cell-size", default=None, help="Thickness raster cell (default: about 500 cells across).")
 @click.option("--matching", type=click.Choice(["3d", "2d"]), default="3d", show_default=True)
 @click.option("--mesh", "mesh_format", type=click.Choice(["ply", "obj"]), default="ply", show_default=True)
@@ -41,7 +42,7 @@ def aquifer():
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol, k, abs_thr, c, f_nn, order_tol,
-          n_per_edge, cell_size, matching, mesh_format, no_figures, overwrite, quiet):
+          n_per_edge, densify, cell_size, matching, mesh_format, no_figures, overwrite, quiet):
     """Cleaned TIN surfaces, boundaries, walls, closed unit meshes, thickness and volumes.
 
     INPUTS is one table (CSV or point layer: id, x, y, z, layer[, borehole_id]) or one file per
@@ -55,7 +56,8 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
     """
     names = [s.strip() for s in layers.split(",") if s.strip()]
     settings = AquiferSettings(xy_tol=xy_tol, k=k, abs_thr=abs_thr, c=c, f_nn=f_nn, order_tol=order_tol,
-                               concave_ratio=concave_ratio, n_per_edge=n_per_edge, cell_size=cell_size, matching=matching,
+                               concave_ratio=concave_ratio, n_per_edge=n_per_edge, densify=densify, cell_size=cell_size,
+                               matching=matching,
                                mesh_format=mesh_format, figures=not no_figures)
     source = list(inputs) if any("=" in i for i in inputs) else inputs[0]
     with tqdm(total=100, unit="%", disable=True if quiet else None,

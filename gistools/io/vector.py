@@ -68,8 +68,12 @@ def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = Tr
     return path
 
 
-def write_layers(layers: dict, path, *, overwrite: bool = True) -> Path:
-    """Write several layers ({name: GeoDataFrame}) into one GeoPackage, atomically (all or nothing)."""
+def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_max: int = 100_000) -> Path:
+    """Write several layers ({name: GeoDataFrame}) into one GeoPackage, atomically (all or nothing).
+
+    Layers of more than ``spatial_index_max`` features get no R-tree index: building it row by row
+    costs GDAL < 3.7 more than the write itself (QGIS can add it: Layer Properties > Create Spatial Index).
+    """
     import pyogrio
 
     from .raster import atomic_path
@@ -79,7 +83,9 @@ def write_layers(layers: dict, path, *, overwrite: bool = True) -> Path:
         tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
         try:
             for k, (name, gdf) in enumerate(layers.items()):
-                pyogrio.write_dataframe(gdf, tmp_gpkg, layer=name, driver="GPKG", append=k > 0)
+                index = "YES" if len(gdf) <= spatial_index_max else "NO"
+                pyogrio.write_dataframe(gdf, tmp_gpkg, layer=name, driver="GPKG", append=k > 0,
+                                        layer_options={"SPATIAL_INDEX": index})
             tmp_gpkg.replace(tmp)
         finally:
             if tmp_gpkg.exists():

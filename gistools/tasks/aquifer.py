@@ -19,7 +19,7 @@ import shapely
 
 from ..aquifer.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
-from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside
+from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
 from ..aquifer.volume import common_footprint, overlay_volume
 from ..aquifer.walls import match_rings, unit_mesh, wall, write_obj, write_ply
 from ..errors import InputError, OutputExistsError
@@ -29,7 +29,7 @@ from ..io.vector import check_crs, read_layer, write_layers
 from ..progress import ProgressCallback, report
 from ..units import horizontal_unit, length_to_crs_units
 
-__all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "unit_name"]
+__all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "query_model", "unit_name"]
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,9 @@ class AquiferSettings:
     concave_ratio: clip each surface to shapely's concave hull of its points (0-1; None = convex,
     the dissertation's). n_per_edge: densified points per TIN edge (2 reproduces the dissertation's
     counts). cell_size: thickness rasters (None: about 500 cells across). matching: "3d" or "2d".
-    mesh_format: "ply" or "obj". figures: draw the PNG figures (needs matplotlib).
+    mesh_format: "ply" or "obj". figures: draw the PNG figures (needs matplotlib). densify: also write
+    the densified points (``densified_<layer>.csv``, the dissertation's NewPoints files); their count
+    is always in the report.
     """
 
     xy_tol: str | float = "0.5m"
@@ -55,6 +57,7 @@ class AquiferSettings:
     matching: str = "3d"
     mesh_format: str = "ply"
     figures: bool = True
+    densify: bool = False
 
 
 def unit_name(upper: str, lower: str) -> str:
@@ -176,7 +179,7 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         }
 
 
-def _layers_gpkg(model: Model, densified: dict) -> dict:
+def _layers_gpkg(model: Model) -> dict:
     import geopandas as gpd
 
     crs = model.crs
@@ -196,9 +199,6 @@ def _layers_gpkg(model: Model, densified: dict) -> dict:
         out[f"boundary_{layer}"] = gpd.GeoDataFrame(
             {"layer": [layer], "vertices": [len(ring)], "area": [s.outline().area], "ids": [",".join(map(str, s.ids[ring]))]},
             geometry=[shapely.Polygon(rc)], crs=crs)
-        d = densified[layer]
-        out[f"densified_{layer}"] = gpd.GeoDataFrame({"layer": [layer] * len(d), "z": d[:, 2]},
-                                                     geometry=shapely.points(d[:, 0], d[:, 1], d[:, 2]), crs=crs)
     lk = model.links
     out["links"] = gpd.GeoDataFrame(lk.drop(columns=["x0", "y0", "z0", "x1", "y1", "z1"]),
                                     geometry=shapely.linestrings(np.stack([lk[["x0", "y0", "z0"]].to_numpy(),
@@ -277,10 +277,22 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress)
     compute_units(model, s, within=within, progress=progress)
     report(progress, 0.85, "writing")
-    densified = {layer: densify(model.surfaces[layer], s.n_per_edge) for layer in model.layers}
     out.mkdir(parents=True, exist_ok=True)
-    write_layers(_layers_gpkg(model, densified), out / "aquifer.gpkg", overwrite=True)
-    files = {"gpkg": str(out / "aquifer.gpkg"), "meshes": {}, "thickness": {}}
+    write_layers(_layers_gpkg(model), out / "aquifer.gpkg", overwrite=True)
+    files = {"gpkg": str(out / "aquifer.gpkg"), "meshes": {}, "thickness": {}, "densified": {}}
+    densified_counts = {}
+    for layer in model.layers:
+        surf = model.surfaces[layer]
+        densified_counts[layer] = int(s.n_per_edge * len(unique_edges(surf.triangles)))
+        if s.densify:
+            pts = densify(surf, s.n_per_edge)
+            start = int(model.points["id"].max()) + 1 + sum(densified_counts[x] for x in model.layers[:model.layers.index(layer)])
+            frame = pd.DataFrame({"id": start + np.arange(len(pts)), "x": pts[:, 0], "y": pts[:, 1], "z": pts[:, 2],
+                                  "layer": layer})
+            target = out / f"densified_{layer}.csv"
+            with atomic_path(target, overwrite=True) as tmp:
+                frame.to_csv(tmp, index=False)
+            files["densified"][layer] = str(target)
     for name, u in model.units.items():
         slug = name.replace("/", "_")
         verts, faces = u["mesh"]
@@ -320,7 +332,7 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
             "triangles": int(len(surf.triangles)),
             "boundary_vertices": int(len(surf.ring())),
             "boundary_area": float(surf.outline().area),
-            "densified_points": int(len(densified[layer])),
+            "densified_points": densified_counts[layer],
         }
     for name, u in model.units.items():
         v = u["volume"]
@@ -358,9 +370,13 @@ def load_model(out) -> Model:
 
 def aquifer_query(out, x, y, method: str = "tin", *, k: int = 10) -> dict:
     """Each surface's height and each unit's thickness at (x, y) of a written model (S8)."""
+    return query_model(load_model(out), x, y, method, k=k)
+
+
+def query_model(model: Model, x, y, method: str = "tin", *, k: int = 10) -> dict:
+    """:func:`aquifer_query` on a loaded model (load it once for many points)."""
     if method not in HEIGHT_METHODS:
         raise InputError(f"--method {method!r} is not one of {', '.join(HEIGHT_METHODS)}")
-    model = load_model(out)
     heights = {}
     for layer in model.layers:
         z, inside = height_at(model.surfaces[layer], [x], [y], method, k=k)
