@@ -24,9 +24,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
+import shapely
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
-from scipy.spatial import Delaunay, cKDTree
+from scipy.spatial import cKDTree
 
 __all__ = ["OutlierSettings", "plane_residuals", "find_outliers", "order_violations", "FLAGS"]
 
@@ -58,7 +59,7 @@ class _Neighbours:
         self.x, self.y, self.k = x, y, k
         self.active = active
         n = len(x)
-        self.kq = min(n - 1, k + 16)
+        self.kq = min(n - 1, k + 6)
         self.tree = cKDTree(np.column_stack([x, y]))
         _, nb = self.tree.query(np.column_stack([x, y]), self.kq + 1)
         nb = nb.reshape(n, self.kq + 1)
@@ -143,14 +144,14 @@ def _duplicates(x, y, z, ids, s: OutlierSettings):
     grouped = np.flatnonzero(sizes[label] > 1)
     active = np.ones(n, bool)
     active[grouped] = False  # neighbours for the residuals: points at other positions
-    k = min(s.k, int(active.sum()))
+    others = np.flatnonzero(active)
+    k = min(s.k, len(others))
     flagged = []
+    r = np.zeros(n)
     if k >= 3:
-        nbs = _Neighbours(x, y, k, active)
-        r = np.full(n, np.nan)
-        r[grouped] = _res(x, y, z, grouped, nbs)
-    else:
-        r = np.zeros(n)
+        _, j = cKDTree(np.column_stack([x[others], y[others]])).query(np.column_stack([x[grouped], y[grouped]]), k)
+        sel = others[np.asarray(j).reshape(len(grouped), k)]
+        r[grouped] = _plane_at_zero(x[sel] - x[grouped, None], y[sel] - y[grouped, None], z[sel], z[grouped])
     for lab in np.unique(label[grouped]):
         members = np.flatnonzero(label == lab)
         keep = members[np.argmin(np.abs(r[members]))]
@@ -189,12 +190,10 @@ def find_outliers(points: pd.DataFrame, layers, settings: OutlierSettings | None
             d, _ = cKDTree(np.column_stack([x[sub], y[sub]])).query(np.column_stack([x[sub], y[sub]]), 2)
             far = d[:, 1] > s.f_nn * np.median(d[:, 1])
             if far.any():
-                ox, oy = x[other], y[other]
-                cx, cy = ox.mean(), oy.mean()
-                try:
-                    hull = Delaunay(np.column_stack([ox - cx, oy - cy]))
-                    outside = hull.find_simplex(np.column_stack([x[sub][far] - cx, y[sub][far] - cy])) < 0
-                except Exception:  # the other layers do not span an area: no hull to be outside of
+                hull = shapely.convex_hull(shapely.multipoints(np.column_stack([x[other], y[other]])))
+                if hull.area > 0:
+                    outside = ~shapely.intersects_xy(hull, x[sub][far], y[sub][far])
+                else:  # the other layers do not span an area: no hull to be outside of
                     outside = np.zeros(int(far.sum()), bool)
                 for i, d_nn in zip(sub[far][outside], d[far, 1][outside]):
                     keep[i] = False

@@ -150,11 +150,33 @@ def mask_outside(surface: Surface, polygon) -> Surface:
                    kept)
 
 
+def _morton_order(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """A Z-order (Morton) permutation of points: neighbours in the order are neighbours in space."""
+    def spread(v):
+        v = v.astype(np.uint64)
+        for shift, mask in ((16, 0x0000FFFF0000FFFF), (8, 0x00FF00FF00FF00FF), (4, 0x0F0F0F0F0F0F0F0F),
+                            (2, 0x3333333333333333), (1, 0x5555555555555555)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        return v
+
+    def quantise(v):
+        lo, hi = np.nanmin(v), np.nanmax(v)
+        return np.nan_to_num((v - lo) / (hi - lo if hi > lo else 1.0) * 65535, nan=0).astype(np.uint64)
+
+    return np.argsort(spread(quantise(x)) | (spread(quantise(y)) << np.uint64(1)), kind="stable")
+
+
 def _locate(surface: Surface, qx, qy):
     """(simplex index, barycentric weights (n, 3)) of query points; simplex -1 outside the surface."""
     cx, cy = surface.centre
     q = np.column_stack([np.asarray(qx, np.float64) - cx, np.asarray(qy, np.float64) - cy])
-    s = surface.delaunay.find_simplex(q)
+    if len(q) > 1000:
+        # Qhull's point location walks from the previous point's triangle: spatially sorted queries walk little
+        order = _morton_order(q[:, 0], q[:, 1])
+        s = np.empty(len(q), np.int64)
+        s[order] = surface.delaunay.find_simplex(q[order])
+    else:
+        s = surface.delaunay.find_simplex(q)
     inside = s >= 0
     s = np.where(inside & surface.kept[np.maximum(s, 0)], s, -1)
     T = surface.delaunay.transform[np.maximum(s, 0)]
