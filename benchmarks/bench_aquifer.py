@@ -67,7 +67,7 @@ def main() -> int:
     for name, u in rep["units"].items():
         print(f"  {name}: volume {u['volume']:.6e} m3, analytic {exact[name]:.6e}, error {100 * (u['volume'] / exact[name] - 1):+.4f} %")
     for layer, info in rep["layers"].items():
-        print(f"  {layer}: {info['points']:,} points, {info['triangles']:,} triangles, {info['flagged']} flagged")
+        print(f"  {layer}: {info['points']:,} points, {info['triangles']:,} triangles, flags {info['flags']}")
     return 0
 
 

@@ -41,7 +41,10 @@ def _find(columns, field):
 
 
 def _numbers(values, path, field, lines) -> np.ndarray:
-    out = pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(np.float64)
+    if np.issubdtype(np.asarray(values).dtype, np.number):
+        out = np.asarray(values, np.float64)
+    else:
+        out = pd.to_numeric(pd.Series(values), errors="coerce").to_numpy(np.float64)
     bad = np.flatnonzero(~np.isfinite(out))
     if bad.size:
         k = int(bad[0])
@@ -67,7 +70,7 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
     text = spec or str(path)
     if spec is None and path.suffix.lower() in (".csv", ".txt", ".tsv", ".xyz", ".dat"):
         try:
-            df = pd.read_csv(path, sep=_sniff(path), dtype=str, skipinitialspace=True, keep_default_na=False)
+            df = pd.read_csv(path, sep=_sniff(path), skipinitialspace=True, keep_default_na=False, low_memory=False)
         except Exception as err:
             raise DataFileError(f"cannot read as CSV ({err})", path=path, hint="Give a CSV with a header row") from None
         return df, np.arange(len(df)) + 2

@@ -74,7 +74,8 @@ def build_surface(name: str, ids, x, y, z) -> Surface:
                          hint="Check the layer names and the outlier flags")
     cx, cy = float(np.mean(x)), float(np.mean(y))
     xy = np.column_stack([x - cx, y - cy])
-    if np.unique(xy, axis=0).shape[0] < xy.shape[0]:
+    order = np.lexsort((xy[:, 1], xy[:, 0]))
+    if (np.diff(xy[order], axis=0) == 0).all(axis=1).any():
         raise InputError(f"layer {name}: repeated x, y positions", hint="Flag duplicates first (aquifer outliers)")
     try:
         tri = Delaunay(xy)
@@ -85,11 +86,17 @@ def build_surface(name: str, ids, x, y, z) -> Surface:
     return Surface(name, ids, x, y, z, triangles, (cx, cy), tri, np.ones(len(tri.simplices), bool))
 
 
+def _edge_keys(edges: np.ndarray) -> np.ndarray:
+    """One int64 per undirected edge (vertex indices below 2**31)."""
+    lo, hi = np.minimum(edges[:, 0], edges[:, 1]), np.maximum(edges[:, 0], edges[:, 1])
+    return (lo.astype(np.int64) << 32) | hi.astype(np.int64)
+
+
 def unique_edges(triangles: np.ndarray) -> np.ndarray:
     """Undirected edges (i < j) of a triangle list, each once."""
     e = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    e.sort(axis=1)
-    return np.unique(e, axis=0)
+    keys = np.unique(_edge_keys(e))
+    return np.column_stack([keys >> 32, keys & 0xFFFFFFFF])
 
 
 def boundary_rings(triangles: np.ndarray, x=None, y=None) -> list[np.ndarray]:
@@ -99,8 +106,7 @@ def boundary_rings(triangles: np.ndarray, x=None, y=None) -> list[np.ndarray]:
     are boundary sides, chained into rings. For an unmasked Delaunay TIN this is the convex hull.
     """
     directed = np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]])
-    key = np.sort(directed, axis=1)
-    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    _, inverse, counts = np.unique(_edge_keys(directed), return_inverse=True, return_counts=True)
     boundary = directed[counts[inverse.ravel()] == 1]  # directed as in their (CCW) triangle: interior on the left
     nxt: dict[int, list[int]] = {}
     for a, b in boundary:

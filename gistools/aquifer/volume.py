@@ -49,6 +49,15 @@ def planes(surface: Surface, origin) -> np.ndarray:
 
 
 def _triangle_polygons(surface: Surface, origin) -> np.ndarray:
+    cache = surface.__dict__.setdefault("_polygons", {})
+    key = (float(origin[0]), float(origin[1]), len(surface.triangles))
+    if key not in cache:
+        cache.clear()
+        cache[key] = _make_triangle_polygons(surface, origin)
+    return cache[key]
+
+
+def _make_triangle_polygons(surface: Surface, origin) -> np.ndarray:
     ox, oy = origin
     t = surface.triangles
     coords = np.stack([np.column_stack([surface.x[t[:, i]] - ox, surface.y[t[:, i]] - oy]) for i in (0, 1, 2, 0)], axis=1)
@@ -161,16 +170,17 @@ def _fan(poly: np.ndarray, k: np.ndarray):
     return np.concatenate(tris), np.concatenate(owner)
 
 
-def overlay_volume(upper: Surface, lower: Surface, within=None) -> dict:
+def overlay_volume(upper: Surface, lower: Surface, within=None, *, origin=None) -> dict:
     """Exact volume between two TINs inside ``within`` (clipped to where both surfaces are; default: all of it).
 
     Returns {"volume", "volume_positive", "volume_negative" (<= 0), "area", "thickness_min", "thickness_max"}
     in CRS units. The net volume is the difference of the two surfaces' exact integrals over W. The
     negative part and the extremes come from the overlay of the triangle pairs that can hold them
     (bounded by the thickness at their vertices): pairs inside W are clipped with numpy, pairs on W's
-    edge with shapely.
+    edge with shapely. ``origin``: where coordinates are centred (default: the upper surface's centre;
+    one origin for all units lets them share the triangle polygons).
     """
-    origin = upper.centre
+    origin = upper.centre if origin is None else origin
     footprint = common_footprint(upper, lower)
     region = footprint if within is None else footprint.intersection(within)
     if region.is_empty or region.area <= 0:

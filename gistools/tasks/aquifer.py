@@ -161,12 +161,13 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         gdf = check_crs(read_layer(within), model.crs, str(within), against="the contacts'")
         within_poly = shapely.union_all(gdf.geometry.to_numpy())
     pairs = list(zip(model.layers[:-1], model.layers[1:]))
+    origin = tuple(np.mean([model.surfaces[layer].centre for layer in model.layers], axis=0))
     for k, (up, lo) in enumerate(pairs):
         report(progress, 0.3 + 0.5 * k / len(pairs), f"unit {unit_name(up, lo)}")
         U, L = model.surfaces[up], model.surfaces[lo]
         footprint = common_footprint(U, L)
         region = footprint if within_poly is None else footprint.intersection(within_poly)
-        vol = overlay_volume(U, L, region)
+        vol = overlay_volume(U, L, region, origin=origin)
         verts, faces = unit_mesh(U, L)
         extent = max(footprint.bounds[2] - footprint.bounds[0], footprint.bounds[3] - footprint.bounds[1])
         cell = length_to_crs_units(s.cell_size, unit_len, name="cell size") if s.cell_size else _nice(extent / 500)
