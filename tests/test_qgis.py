@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -404,3 +404,33 @@ def test_point_cloud_layers_as_input(qgis, reference, sample_tiles, tmp_path):
         QgsProject.instance().removeMapLayers([lyr.id() for lyr in layers])
     with pytest.raises(QgsProcessingException, match="no tiles"):
         qgis.run("gistools:dsm", {"OUTPUT_FOLDER": str(tmp_path / "none")})
+
+
+def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
+    import geopandas as gpd
+    import shapely as shp
+
+    from gistools.aquifer.synthetic import E0, N0, synthetic_aquifer
+    from gistools.tasks.aquifer import AquiferSettings, aquifer_model
+
+    points, _ = synthetic_aquifer(2012)
+    gdf = gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003)
+    gdf.to_file(tmp_path / "contacts.gpkg", layer="contacts")
+    lib = aquifer_model(f"{tmp_path / 'contacts.gpkg'}:contacts", ["LS", "AU", "AD", "AQ"], tmp_path / "lib",
+                        settings=AquiferSettings(figures=False))
+    result = qgis.run("gistools:aquifer", {"INPUT": f"{tmp_path / 'contacts.gpkg'}|layername=contacts",
+                                           "LAYERS": "LS,AU,AD,AQ", "OUTPUT_FOLDER": str(tmp_path / "q")})
+    rep = json.loads(Path(result["REPORT"]).read_text())
+    assert rep["crs"] == "EPSG:3003"
+    for name, unit in lib["units"].items():
+        assert rep["units"][name]["volume"] == pytest.approx(unit["volume"], rel=1e-12)
+        assert rep["units"][name]["thickness_min"] == pytest.approx(unit["thickness_min"], rel=1e-12)
+    assert {k: v["flagged"] for k, v in rep["layers"].items()} == {k: v["flagged"] for k, v in lib["layers"].items()}
+    same_cells(rep["outputs"]["thickness"]["LS/AU"], lib["outputs"]["thickness"]["LS/AU"])
+    q = qgis.run("gistools:aquiferquery", {"MODEL": str(tmp_path / "q"), "X": E0 + 17365.0, "Y": N0 + 7638.0})
+    answer = json.loads(q["RESULT"])
+    assert answer["thickness"]["LS/AU"] == pytest.approx(33.689, abs=5e-4)
+    with pytest.raises(QgsProcessingException) as err:  # a layer name not in the contacts: the library's one line
+        qgis.run("gistools:aquifer", {"INPUT": f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "LAYERS": "LS,AU,AD",
+                                      "OUTPUT_FOLDER": str(tmp_path / "bad")})
+    assert "layer 'AQ' is not in --layers" in str(err.value)
