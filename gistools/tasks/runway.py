@@ -1,0 +1,301 @@
+"""Runway earthworks (dissertation ch. 7): survey + ICAO code to design model, sections, areas and mass haul.
+
+``gistools runway`` and the QGIS algorithm call :func:`runway_earthworks`; :func:`compute_earthworks`
+does the work in memory (no files) for scripts. Lengths in CRS units (metres: the ICAO template is
+in metres, and a feet CRS is refused unless its lengths are converted first).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pyproj
+import shapely
+from scipy.interpolate import LinearNDInterpolator
+
+from ..errors import InputError, OutputExistsError
+from ..grid import snapped_grid
+from ..io.points import parse_crs_text
+from ..io.raster import atomic_path, write_raster
+from ..io.vector import write_layers
+from ..progress import ProgressCallback, report
+from ..runway.earthworks import (balance_points, brueckner, compensate, dissertation_strip_areas, overhaul, section_areas,
+                                 station_volumes)
+from ..runway.icao import template as make_template
+from ..runway.survey import SurveyChecks, check_survey, estimate_spacing, fit_frame, read_survey
+from ..units import horizontal_unit
+
+__all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks"]
+
+
+@dataclass(frozen=True)
+class RunwaySettings:
+    """code / runway_type / template: the cross section (gistools.runway.icao). spacing: stations and lateral grid
+    (None: s = sqrt(A / N) of the survey). origin: chainage 0 at the "low", "high" or "first" light.
+    profile_window: running mean of this many light heights for the design grade (1: the lights' own).
+    f_cut / f_fill: swell of cut and compaction of fill (1.0: none). free_haul: metres (None: no overhaul).
+    area_method: "exact" (signed, split where ground crosses design) or "dissertation" (unsigned hull + Heron)."""
+
+    code: str = "4E"
+    runway_type: str = "precision"
+    template: str = "icao"
+    spacing: float | None = None
+    origin: str = "low"
+    profile_window: int = 5
+    f_cut: float = 1.0
+    f_fill: float = 1.0
+    free_haul: float | None = None
+    area_method: str = "exact"
+    checks: SurveyChecks = field(default_factory=SurveyChecks)
+
+
+@dataclass
+class Earthworks:
+    points: pd.DataFrame
+    removed: pd.DataFrame
+    frame: object
+    template: object
+    spacing: float
+    stations: np.ndarray
+    offsets: np.ndarray
+    ground: np.ndarray
+    design: np.ndarray
+    strip_cut: np.ndarray
+    strip_fill: np.ndarray
+    area_cut: np.ndarray
+    area_fill: np.ndarray
+    area_net: np.ndarray
+    brueckner: np.ndarray
+    balance: np.ndarray
+    totals: dict
+
+
+def _lateral_grid(s: float, tpl) -> np.ndarray:
+    half = tpl.half_width
+    ks = np.arange(0, half + 1e-9, s)
+    ys = np.concatenate([ks, -ks, np.asarray(tpl.breakpoints), -np.asarray(tpl.breakpoints)])
+    ys = ys[np.abs(ys) <= half + 1e-9]
+    return np.unique(np.round(ys, 9))
+
+
+def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = None,
+                       progress: ProgressCallback | None = None) -> Earthworks:
+    """All the steps in memory on survey points (id, type, x, y, z)."""
+    st = settings or RunwaySettings()
+    if st.area_method not in ("exact", "dissertation"):
+        raise InputError(f"area method {st.area_method!r} is not exact or dissertation")
+    tpl = make_template(st.code, st.runway_type, st.template)
+    report(progress, 0.05, "checks")
+    kept, removed = check_survey(points, st.checks)
+    frame = fit_frame(kept, origin=st.origin, profile_window=st.profile_window)
+    ch, off = frame.local(kept["x"].to_numpy(), kept["y"].to_numpy())
+    kept = kept.assign(chainage=ch, offset=off)
+    ground_pts = kept[kept["type"] == 2]
+    s = float(st.spacing) if st.spacing else estimate_spacing(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy())
+    if not s > 0:
+        raise InputError(f"spacing {s} must be positive", hint="e.g. --spacing 10")
+    length = frame.line.length
+    n = int(np.floor(length / s + 1e-9))
+    stations = np.arange(n + 1) * s
+    if length - stations[-1] > 1e-6 * s:
+        stations = np.append(stations, length)
+    offsets = _lateral_grid(s, tpl)
+    report(progress, 0.3, "ground model")
+    gx, gy = ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy()
+    tin = LinearNDInterpolator(np.column_stack([gx, gy]), ground_pts["z"].to_numpy())
+    X, Y = np.meshgrid(stations, offsets, indexing="ij")
+    ground = tin(X, Y)
+    gap = np.isnan(ground)
+    if gap.any():  # just outside the survey's hull (an edge of the strip): the nearest point within s / 2
+        from scipy.spatial import cKDTree
+
+        dist, idx = cKDTree(np.column_stack([gx, gy])).query(np.column_stack([X[gap], Y[gap]]))
+        near = dist <= s / 2
+        filled = np.full(dist.shape, np.nan)
+        filled[near] = ground_pts["z"].to_numpy()[idx[near]]
+        ground[gap] = filled
+    design = frame.z_centre(X) - tpl.drop(Y)
+    kept = kept.assign(design=frame.z_centre(ch) - tpl.drop(off))
+    kept["ground_minus_design"] = kept["z"] - kept["design"]
+    report(progress, 0.6, "sections")
+    d = ground - design
+    cut, fill, a_cut, a_fill = section_areas(offsets, d)
+    if st.area_method == "dissertation":
+        y0 = np.broadcast_to(offsets[:-1], cut.shape)
+        y1 = np.broadcast_to(offsets[1:], cut.shape)
+        unsigned = dissertation_strip_areas(y0, y1, np.nan_to_num(ground[:, :-1]), np.nan_to_num(ground[:, 1:]),
+                                            design[:, :-1], design[:, 1:])
+        unsigned[np.isnan(ground[:, :-1]) | np.isnan(ground[:, 1:])] = 0
+        cut, fill = unsigned, np.zeros_like(unsigned)  # the dissertation calls every area cut
+        a_cut, a_fill = cut.sum(axis=1), fill.sum(axis=1)
+    net = compensate(a_cut, a_fill, st.f_cut, st.f_fill)
+    b = brueckner(stations, net)
+    v_cut, v_fill = station_volumes(stations, net)
+    dx = np.diff(stations)
+    transverse = np.minimum(st.f_cut * a_cut, st.f_fill * a_fill)
+    totals = {
+        "cut": float(v_cut.sum()), "fill": float(v_fill.sum()), "net": float(v_cut.sum() - v_fill.sum()),
+        "gross_cut": float(np.sum(dx * (a_cut[:-1] + a_cut[1:]) / 2)),
+        "gross_fill": float(np.sum(dx * (a_fill[:-1] + a_fill[1:]) / 2)),
+        "transverse": float(np.sum(dx * (transverse[:-1] + transverse[1:]) / 2)),
+        "uncovered_cells": int(np.isnan(ground).sum()),
+    }
+    if st.free_haul is not None:
+        totals.update(overhaul(stations, b, st.free_haul))
+    report(progress, 0.7, "done computing")
+    return Earthworks(kept, removed, frame, tpl, s, stations, offsets, ground, design, cut, fill, a_cut, a_fill, net, b,
+                      balance_points(stations, b), totals)
+
+
+def _diagrams(ew: Earthworks, out: Path, title: str) -> dict:
+    """The area diagram and the Brueckner diagram (PNG and PDF); returns the figures' plotted arrays."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    paths = {}
+    fig, ax = plt.subplots(figsize=(11, 4.5))
+    ax.fill_between(ew.stations, ew.area_cut, 0, color="#c0504d", alpha=0.5, label="cut")
+    ax.fill_between(ew.stations, -ew.area_fill, 0, color="#4f81bd", alpha=0.5, label="fill")
+    ax.plot(ew.stations, ew.area_net, color="k", lw=1, label="net (after transverse compensation)")
+    ax.axhline(0, color="0.4", lw=0.6)
+    ax.set_xlabel("chainage (m)")
+    ax.set_ylabel("section area (m²): cut +, fill −")
+    ax.set_title(f"Area diagram - {title}")
+    ax.legend(loc="upper right")
+    for ext in ("png", "pdf"):
+        target = out / f"area_diagram.{ext}"
+        with atomic_path(target, overwrite=True) as tmp:
+            fig.savefig(tmp, format=ext, dpi=120)
+        paths[f"area_diagram_{ext}"] = str(target)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(11, 4.5))
+    ax.plot(ew.stations, ew.brueckner, color="k", lw=1.2, label="Brückner (cumulative volume)")
+    ax.axhline(0, color="0.4", lw=0.6, label="balance line")
+    if len(ew.balance):
+        ax.plot(ew.balance, np.interp(ew.balance, ew.stations, ew.brueckner), "o", color="#c0504d", label="balance points")
+    ax.set_xlabel("chainage (m)")
+    ax.set_ylabel("cumulative volume (m³): rising = cut")
+    ax.set_title(f"Brückner diagram - {title}")
+    ax.legend(loc="best")
+    for ext in ("png", "pdf"):
+        target = out / f"brueckner.{ext}"
+        with atomic_path(target, overwrite=True) as tmp:
+            fig.savefig(tmp, format=ext, dpi=120)
+        paths[f"brueckner_{ext}"] = str(target)
+    plt.close(fig)
+    return paths
+
+
+def _design_raster(ew: Earthworks, crs, cell: float):
+    line = ew.frame.line
+    half = ew.template.half_width
+    region = line.buffer(half, cap_style="flat")
+    grid = snapped_grid(region.bounds, cell, crs)
+    xs = grid.transform.c + (np.arange(grid.width) + 0.5) * cell
+    out = np.full(grid.shape, np.nan)
+    for r0 in range(0, grid.height, 256):
+        r1 = min(grid.height, r0 + 256)
+        ys = grid.transform.f - (np.arange(r0, r1) + 0.5) * cell
+        X, Y = np.meshgrid(xs, ys)
+        inside = shapely.contains_xy(region, X, Y)
+        if not inside.any():
+            continue
+        ch, off = ew.frame.local(X[inside], Y[inside])
+        z = ew.frame.z_centre(ch) - ew.template.drop(off)
+        block = np.full(X.shape, np.nan)
+        block[inside] = z
+        out[r0:r1] = block
+    return out, grid
+
+
+def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, crs=None, overwrite: bool = False,
+                      progress: ProgressCallback | None = None) -> dict:
+    """The whole pipeline on a survey file; writes under ``out`` and returns the report (``out/report.json``)."""
+    started = time.time()
+    st = settings or RunwaySettings()
+    out = Path(out)
+    if (out / "report.json").exists() and not overwrite:
+        raise OutputExistsError("a runway run is already there", path=out, hint="Pass --overwrite, or choose another --out")
+    make_template(st.code, st.runway_type, st.template)  # refuse an unknown code before reading anything
+    points, file_crs = read_survey(source)
+    if crs is not None:
+        crs_obj = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
+    elif file_crs is not None:
+        crs_obj = pyproj.CRS.from_user_input(file_crs)
+    else:
+        raise InputError("the survey carries no CRS", path=source, hint="Give one with --crs (Orio al Serio: EPSG:3003)")
+    unit = horizontal_unit(crs_obj)
+    if abs(unit.metres - 1.0) > 1e-12:
+        raise InputError(f"the CRS is in {unit.name}; the ICAO template is in metres", path=source,
+                         hint="Reproject the survey to a metre CRS first")
+    ew = compute_earthworks(points, st, progress=progress)
+    report(progress, 0.75, "writing")
+    import geopandas as gpd
+
+    out.mkdir(parents=True, exist_ok=True)
+    P = ew.points
+    removed = ew.removed.merge(points[["id", "x", "y", "z", "line"]].drop_duplicates("id"), on="id", how="left")
+    sx0, sy0 = ew.frame.world(ew.stations, np.full(len(ew.stations), -ew.template.half_width))
+    sx1, sy1 = ew.frame.world(ew.stations, np.full(len(ew.stations), ew.template.half_width))
+    layers = {
+        "points": gpd.GeoDataFrame(P, geometry=shapely.points(P["x"], P["y"], P["z"]), crs=crs_obj),
+        "removed": gpd.GeoDataFrame(removed, geometry=shapely.points(removed["x"], removed["y"], removed["z"]), crs=crs_obj),
+        "centre_line": gpd.GeoDataFrame({"length": [ew.frame.line.length], "bearing": [ew.frame.bearing]},
+                                        geometry=[ew.frame.line], crs=crs_obj),
+        "stations": gpd.GeoDataFrame({"chainage": ew.stations, "area_cut": ew.area_cut, "area_fill": ew.area_fill,
+                                      "area_net": ew.area_net, "brueckner": ew.brueckner},
+                                     geometry=shapely.linestrings(np.stack([np.column_stack([sx0, sy0]),
+                                                                            np.column_stack([sx1, sy1])], axis=1)), crs=crs_obj),
+    }
+    write_layers(layers, out / "runway.gpkg", overwrite=True)
+    cell = max(ew.spacing / 2, 0.5)
+    design_grid, grid = _design_raster(ew, crs_obj, cell)
+    write_raster(out / "design_surface.tif", design_grid, grid, overwrite=True, units="m",
+                 tags={"GISTOOLS_PRODUCT": "runway design surface", "GISTOOLS_CODE": ew.template.code},
+                 description="design surface")
+    i, j = np.meshgrid(np.arange(len(ew.stations)), np.arange(len(ew.offsets) - 1), indexing="ij")
+    table = pd.DataFrame({
+        "station": ew.stations[i.ravel()], "y0": ew.offsets[j.ravel()], "y1": ew.offsets[j.ravel() + 1],
+        "ground0": ew.ground[i, j].ravel(), "ground1": ew.ground[i, j + 1].ravel(),
+        "design0": ew.design[i, j].ravel(), "design1": ew.design[i, j + 1].ravel(),
+        "cut": ew.strip_cut.ravel(), "fill": ew.strip_fill.ravel()})
+    with atomic_path(out / "sections.csv", overwrite=True) as tmp:
+        table.to_csv(tmp, index=False, float_format="%.4f")
+    files = {"gpkg": str(out / "runway.gpkg"), "design_surface": str(out / "design_surface.tif"),
+             "sections": str(out / "sections.csv")}
+    files.update(_diagrams(ew, out, f"{ew.template.code} {ew.template.runway_type}, {ew.template.kind} template"))
+    counts = ew.removed["reason"].value_counts().to_dict()
+    rep = {
+        "tool": "gistools runway",
+        "code": ew.template.code,
+        "runway_type": ew.template.runway_type,
+        "template": ew.template.kind,
+        "zones": [{"name": z.name, "outer_offset": z.outer, "slope": z.slope} for z in ew.template.zones],
+        "crs": crs_obj.to_string(),
+        "cut": ew.totals["cut"], "fill": ew.totals["fill"], "net": ew.totals["net"],
+        "totals": ew.totals,
+        "balance_points": [float(v) for v in ew.balance],
+        "stations": int(len(ew.stations)),
+        "spacing": ew.spacing,
+        "length": float(ew.frame.line.length),
+        "bearing": ew.frame.bearing,
+        "factors": {"cut": st.f_cut, "fill": st.f_fill},
+        "area_method": st.area_method,
+        "removed": {"duplicates": int(counts.get("duplicate", 0)), "renumbered": int(counts.get("renumbered", 0)),
+                    "outliers": int(sum(v for k, v in counts.items() if k not in ("duplicate", "renumbered"))),
+                    "by_reason": {k: int(v) for k, v in counts.items()}},
+        "points": {"lights": int((ew.points["type"] == 1).sum()), "other": int((ew.points["type"] == 2).sum())},
+        "outputs": files,
+    }
+    rep["seconds"] = round(time.time() - started, 3)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(rep, indent=2))
+    report(progress, 1.0, "done")
+    return rep
