@@ -30,7 +30,7 @@ from ..runway.icao import template as make_template
 from ..runway.survey import SurveyChecks, check_survey, estimate_spacing, fit_frame, read_survey
 from ..units import horizontal_unit
 
-__all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks"]
+__all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks", "area_diagram", "brueckner_diagram"]
 
 
 @dataclass(frozen=True)
@@ -106,7 +106,9 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
         stations = np.append(stations, length)
     offsets = _lateral_grid(s, tpl)
     report(progress, 0.3, "ground model")
-    gx, gy = ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy()
+    # local coordinates snapped to 1 micrometre: a rotation leaves points of one survey line 1e-9 m apart,
+    # and the TIN would otherwise close such a jagged edge with slivers that skip the middle point
+    gx, gy = np.round(ground_pts["chainage"].to_numpy(), 6), np.round(ground_pts["offset"].to_numpy(), 6)
     tin = LinearNDInterpolator(np.column_stack([gx, gy]), ground_pts["z"].to_numpy())
     X, Y = np.meshgrid(stations, offsets, indexing="ij")
     ground = tin(X, Y)
@@ -152,44 +154,57 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
                       balance_points(stations, b), totals)
 
 
-def _diagrams(ew: Earthworks, out: Path, title: str) -> dict:
-    """The area diagram and the Brueckner diagram (PNG and PDF); returns the figures' plotted arrays."""
+def area_diagram(ew: Earthworks, title: str = ""):
+    """The area diagram (matplotlib Figure): cut areas up, fill areas down, the net area after transverse
+    compensation as a line, against chainage."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    paths = {}
     fig, ax = plt.subplots(figsize=(11, 4.5))
+    ax.plot(ew.stations, ew.area_net, color="k", lw=1, label="net (after transverse compensation)")
     ax.fill_between(ew.stations, ew.area_cut, 0, color="#c0504d", alpha=0.5, label="cut")
     ax.fill_between(ew.stations, -ew.area_fill, 0, color="#4f81bd", alpha=0.5, label="fill")
-    ax.plot(ew.stations, ew.area_net, color="k", lw=1, label="net (after transverse compensation)")
     ax.axhline(0, color="0.4", lw=0.6)
     ax.set_xlabel("chainage (m)")
     ax.set_ylabel("section area (m²): cut +, fill −")
     ax.set_title(f"Area diagram - {title}")
     ax.legend(loc="upper right")
-    for ext in ("png", "pdf"):
-        target = out / f"area_diagram.{ext}"
-        with atomic_path(target, overwrite=True) as tmp:
-            fig.savefig(tmp, format=ext, dpi=120)
-        paths[f"area_diagram_{ext}"] = str(target)
-    plt.close(fig)
+    return fig
+
+
+def brueckner_diagram(ew: Earthworks, title: str = ""):
+    """The Brueckner (mass-haul) diagram (matplotlib Figure), balance points marked."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(11, 4.5))
     ax.plot(ew.stations, ew.brueckner, color="k", lw=1.2, label="Brückner (cumulative volume)")
+    ax.plot(ew.balance, np.interp(ew.balance, ew.stations, ew.brueckner), "o", color="#c0504d", label="balance points")
     ax.axhline(0, color="0.4", lw=0.6, label="balance line")
-    if len(ew.balance):
-        ax.plot(ew.balance, np.interp(ew.balance, ew.stations, ew.brueckner), "o", color="#c0504d", label="balance points")
     ax.set_xlabel("chainage (m)")
     ax.set_ylabel("cumulative volume (m³): rising = cut")
     ax.set_title(f"Brückner diagram - {title}")
     ax.legend(loc="best")
-    for ext in ("png", "pdf"):
-        target = out / f"brueckner.{ext}"
-        with atomic_path(target, overwrite=True) as tmp:
-            fig.savefig(tmp, format=ext, dpi=120)
-        paths[f"brueckner_{ext}"] = str(target)
-    plt.close(fig)
+    return fig
+
+
+def _diagrams(ew: Earthworks, out: Path, title: str) -> dict:
+    """Write the area and Brueckner diagrams as PNG and PDF."""
+    import matplotlib.pyplot as plt
+
+    paths = {}
+    for name, make in (("area_diagram", area_diagram), ("brueckner", brueckner_diagram)):
+        fig = make(ew, title)
+        for ext in ("png", "pdf"):
+            target = out / f"{name}.{ext}"
+            with atomic_path(target, overwrite=True) as tmp:
+                fig.savefig(tmp, format=ext, dpi=120)
+            paths[f"{name}_{ext}"] = str(target)
+        plt.close(fig)
     return paths
 
 
