@@ -186,48 +186,53 @@ class Frame:
     z_cl: np.ndarray  # light heights at those chainages
     bearing: float  # grid bearing of the axis, degrees clockwise from north (chainage direction)
 
-    def _ends(self):
-        c = shapely.get_coordinates(self.line)
-        u0 = (c[1] - c[0]) / np.linalg.norm(c[1] - c[0])
-        u1 = (c[-1] - c[-2]) / np.linalg.norm(c[-1] - c[-2])
-        return c[0], u0, c[-1], u1
-
-    def _foot_and_direction(self, ch):
-        """Foot point and unit direction at chainages, the end segments extended beyond the ends."""
-        L = self.line.length
-        inner = np.clip(ch, 0, L)
-        foot = shapely.get_coordinates(shapely.line_interpolate_point(self.line, inner))
-        ahead = shapely.get_coordinates(shapely.line_interpolate_point(self.line, np.minimum(inner + 0.01, L)))
-        behind = shapely.get_coordinates(shapely.line_interpolate_point(self.line, np.maximum(inner - 0.01, 0)))
-        d = ahead - behind
-        d /= np.hypot(d[:, 0], d[:, 1])[:, None]
-        s0, u0, s1, u1 = self._ends()
-        before, after = ch < 0, ch > L
-        foot[before] = s0 + ch[before, None] * u0
-        d[before] = u0
-        foot[after] = s1 + (ch[after, None] - L) * u1
-        d[after] = u1
-        return foot, d
+    def _arrays(self):
+        cache = self.__dict__.get("_cache")
+        if cache is None:
+            v = shapely.get_coordinates(self.line)
+            seg = np.diff(v, axis=0)
+            length = np.hypot(seg[:, 0], seg[:, 1])
+            u = seg / length[:, None]
+            start = np.concatenate([[0.0], np.cumsum(length)])
+            axis = (v[-1] - v[0]) / np.linalg.norm(v[-1] - v[0])
+            along = (v - v[0]) @ axis
+            cache = self.__dict__["_cache"] = (v, u, length, start, axis, along)
+        return cache
 
     def local(self, x, y) -> tuple[np.ndarray, np.ndarray]:
         """(chainage, offset) of points; offsets positive to the left of the direction of increasing chainage.
         Beyond the ends the end segments are extended (chainage < 0 or > length)."""
-        x, y = np.asarray(x, np.float64), np.asarray(y, np.float64)
-        ch = shapely.line_locate_point(self.line, shapely.points(x, y))
-        L = self.line.length
-        s0, u0, s1, u1 = self._ends()
-        at0, at1 = ch <= 0, ch >= L
-        ch[at0] = (x[at0] - s0[0]) * u0[0] + (y[at0] - s0[1]) * u0[1]
-        ch[at1] = L + (x[at1] - s1[0]) * u1[0] + (y[at1] - s1[1]) * u1[1]
-        foot, d = self._foot_and_direction(ch)
-        px, py = x - foot[:, 0], y - foot[:, 1]
-        return ch, d[:, 0] * py - d[:, 1] * px
+        v, u, length, start, axis, along = self._arrays()
+        p = np.column_stack([np.asarray(x, np.float64), np.asarray(y, np.float64)])
+        m = len(u)
+        t = (p - v[0]) @ axis
+        guess = np.clip(np.searchsorted(along, t) - 1, 0, m - 1)
+        best_d = np.full(len(p), np.inf)
+        ch = np.zeros(len(p))
+        off = np.zeros(len(p))
+        for k in (-1, 0, 1):  # the segment under the point's axis position and its neighbours
+            s_ = np.clip(guess + k, 0, m - 1)
+            rel = p - v[s_]
+            lam = np.einsum("ij,ij->i", rel, u[s_])
+            lo = np.where(s_ == 0, -np.inf, 0.0)
+            hi = np.where(s_ == m - 1, np.inf, length[s_])
+            lam_c = np.clip(lam, lo, hi)
+            foot = v[s_] + lam_c[:, None] * u[s_]
+            d = np.hypot(p[:, 0] - foot[:, 0], p[:, 1] - foot[:, 1])
+            better = d < best_d
+            best_d[better] = d[better]
+            ch[better] = start[s_][better] + lam_c[better]
+            off[better] = (u[s_, 0] * rel[:, 1] - u[s_, 1] * rel[:, 0])[better]
+        return ch, off
 
     def world(self, chain, offset) -> tuple[np.ndarray, np.ndarray]:
         """CRS (x, y) of local (chainage, offset)."""
-        foot, d = self._foot_and_direction(np.asarray(chain, np.float64))
+        v, u, length, start, axis, along = self._arrays()
+        ch = np.asarray(chain, np.float64)
+        s_ = np.clip(np.searchsorted(start, ch, side="right") - 1, 0, len(u) - 1)
+        foot = v[s_] + (ch - start[s_])[:, None] * u[s_]
         off = np.asarray(offset, np.float64)
-        return foot[:, 0] - d[:, 1] * off, foot[:, 1] + d[:, 0] * off
+        return foot[:, 0] - u[s_, 1] * off, foot[:, 1] + u[s_, 0] * off
 
     def z_centre(self, chain) -> np.ndarray:
         """Centre-line height at chainages: linear between lights, constant beyond the ends."""

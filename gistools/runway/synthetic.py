@@ -31,13 +31,13 @@ def to_world(x, y, origin=ORIGIN, bearing=BEARING):
 
 def synthetic_runway(seed: int = 8, *, grid: float = 10.0, cut: float = 0.2, wave: float = 0.5, x_end: float = 2930.0,
                      half_width: float = 150.0, code: str = "4E", kind: str = "icao", outliers: bool = True,
-                     world: bool = True, noise: bool = True, breakpoint_lines: bool = False):
+                     world: bool = True, noise: bool = True, breakpoint_lines: bool = False, lights: int = 196):
     """(points id, type, x, y, z; truth: planted anomalies id, reason). Coordinates in the world frame unless ``world`` is False."""
     rng = np.random.default_rng(seed)
     tpl = make_template(code, "precision", kind)
-    lx = np.arange(196) * 15.0
-    ly = rng.normal(0, 0.02, 196) if noise else np.zeros(196)
-    lz = 230 + 0.0025 * lx + (rng.normal(0, 0.02, 196) if noise else 0)
+    lx = np.arange(lights) * 15.0
+    ly = rng.normal(0, 0.02, lights) if noise else np.zeros(lights)
+    lz = 230 + 0.0025 * lx + (rng.normal(0, 0.02, lights) if noise else 0)
     ys = np.arange(-half_width, half_width + 1e-9, grid)
     if breakpoint_lines:  # survey lines along the template's breakpoints too: the ground's kinks are surveyed
         ys = np.unique(np.concatenate([ys, np.asarray(tpl.breakpoints), -np.asarray(tpl.breakpoints)]))
@@ -46,24 +46,24 @@ def synthetic_runway(seed: int = 8, *, grid: float = 10.0, cut: float = 0.2, wav
     gz = 230 + 0.0025 * gx - tpl.drop(gy) + cut + wave * np.sin(2 * np.pi * gx / 1000)
     if noise:
         gz = gz + rng.normal(0, 0.01, gz.size)
-    pts = pd.DataFrame({"id": np.concatenate([np.arange(1, 197), 1001 + np.arange(gx.size)]),
-                        "type": np.concatenate([np.ones(196, int), np.full(gx.size, 2)]),
+    pts = pd.DataFrame({"id": np.concatenate([np.arange(1, lights + 1), 100001 + np.arange(gx.size)]),
+                        "type": np.concatenate([np.ones(lights, int), np.full(gx.size, 2)]),
                         "x": np.concatenate([lx, gx]), "y": np.concatenate([ly, gy]), "z": np.concatenate([lz, gz])})
     truth = []
     if outliers:
-        lateral = rng.choice(np.arange(3, 193), 5, replace=False)
+        lateral = rng.choice(np.arange(3, lights - 3), 5, replace=False)
         for k, shift in zip(lateral[:4], (5.0, -8.0, 12.0, 20.0)):
             pts.loc[k, "y"] += shift
             truth.append((int(pts.at[k, "id"]), "light_off_axis"))
         pts.loc[lateral[4], "z"] += 3.0
         truth.append((int(pts.at[lateral[4], "id"]), "light_height"))
-        dup_row = 196 + int(rng.integers(0, gx.size))
+        dup_row = lights + int(rng.integers(0, gx.size))
         dup = pts.loc[[dup_row]].copy()
-        dup["id"] = 20001
-        reused_row = 196 + int(rng.integers(0, gx.size))
+        dup["id"] = 20_000_001
+        reused_row = lights + int(rng.integers(0, gx.size))
         pts.loc[reused_row, "id"] = 7  # the id of a light, at another position
         pts = pd.concat([pts, dup], ignore_index=True)
-        truth += [(20001, "duplicate"), (7, "renumbered")]
+        truth += [(20_000_001, "duplicate"), (7, "renumbered")]
     if world:
         pts["x"], pts["y"] = to_world(pts["x"].to_numpy(), pts["y"].to_numpy())
     return pts, pd.DataFrame(truth, columns=["id", "reason"])

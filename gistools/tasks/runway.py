@@ -270,7 +270,7 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
                                                                             np.column_stack([sx1, sy1])], axis=1)), crs=crs_obj),
     }
     write_layers(layers, out / "runway.gpkg", overwrite=True)
-    cell = max(ew.spacing / 2, 0.5)
+    cell = max(ew.spacing, 0.5)
     design_grid, grid = _design_raster(ew, crs_obj, cell)
     write_raster(out / "design_surface.tif", design_grid, grid, overwrite=True, units="m",
                  tags={"GISTOOLS_PRODUCT": "runway design surface", "GISTOOLS_CODE": ew.template.code},
