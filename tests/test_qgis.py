@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -434,3 +434,22 @@ def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
         qgis.run("gistools:aquifer", {"INPUT": f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "LAYERS": "LS,AU,AD",
                                       "OUTPUT_FOLDER": str(tmp_path / "bad")})
     assert "layer 'AQ' is not in --layers" in str(err.value)
+
+
+def test_runway_algorithm_equals_the_library(qgis, tmp_path):
+    import geopandas as gpd
+    import shapely as shp
+
+    from gistools.runway.synthetic import synthetic_runway
+    from gistools.tasks.runway import RunwaySettings, runway_earthworks
+
+    points, _ = synthetic_runway(8)
+    gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003).to_file(tmp_path / "s.gpkg",
+                                                                                            layer="survey")
+    lib = runway_earthworks(f"{tmp_path / 's.gpkg'}:survey", tmp_path / "lib", RunwaySettings(spacing=10.0))
+    result = qgis.run("gistools:runway", {"INPUT": f"{tmp_path / 's.gpkg'}|layername=survey", "SPACING": 10.0,
+                                          "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert result["CUT"] == pytest.approx(lib["cut"], rel=1e-12) and result["FILL"] == pytest.approx(lib["fill"], rel=1e-12)
+    rep = json.loads(Path(result["REPORT"]).read_text())
+    assert rep["balance_points"] == lib["balance_points"] and rep["removed"] == lib["removed"]
+    same_cells(result["DESIGN"], lib["outputs"]["design_surface"])
