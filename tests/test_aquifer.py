@@ -353,3 +353,43 @@ def test_claudius_horizons_through_the_whole_model(tmp_path):
         assert rep["units"][name]["volume"] == pytest.approx(grid_volume, rel=5e-3), name
         assert rep["units"][name]["thickness_min"] <= np.nanmin(t) + 1e-6
         assert rep["units"][name]["thickness_max"] >= np.nanmax(t) - 1e-6
+        import trimesh
+
+        mesh = trimesh.load(rep["outputs"]["meshes"][name], process=False)
+        assert mesh.is_watertight and mesh.is_winding_consistent
+
+
+def test_clip_polygon_and_concave_outline_cut_the_surfaces(tmp_path):
+    import geopandas as gpd
+
+    from gistools.aquifer.surface import mask_outside
+
+    points, _ = synthetic_aquifer(2012, planar=True, outliers=False)
+    g = points[points["layer"] == "LS"]
+    s = build_surface("LS", g["id"], g["x"], g["y"], g["z"])
+    # an L-shaped outline with a hole: the dissertation's concave / hole rule
+    outline = shapely.Polygon([(E0, N0), (E0 + 30000, N0), (E0 + 30000, N0 + 15000), (E0 + 15000, N0 + 15000),
+                               (E0 + 15000, N0 + 30000), (E0, N0 + 30000)],
+                              [[(E0 + 3000, N0 + 3000), (E0 + 8000, N0 + 3000), (E0 + 8000, N0 + 8000), (E0 + 3000, N0 + 8000)]])
+    cut = mask_outside(s, outline)
+    assert len(cut.triangles) < len(s.triangles) and len(cut.rings) == 2  # outer ring and the hole
+    assert cut.outline().area == pytest.approx(outline.area, rel=0.05)
+    z, inside = height_at(cut, [E0 + 5500, E0 + 25000, E0 + 10000], [N0 + 5500, N0 + 25000, N0 + 10000])
+    assert list(inside) == [False, False, True] and np.isnan(z[:2]).all()
+    gpd.GeoDataFrame({"n": [1]}, geometry=[outline], crs=3003).to_file(tmp_path / "clip.gpkg", layer="clip")
+    pts = tmp_path / "p.csv"
+    points.to_csv(pts, index=False)
+    rep = aquifer_model(pts, LAYERS, tmp_path / "m", crs="EPSG:3003", clip=f"{tmp_path / 'clip.gpkg'}:clip",
+                        settings=AquiferSettings(figures=False))
+    # planar surfaces: the unit's volume is its (clipped) area times the exact mean thickness
+    area = rep["units"]["LS/AU"]["area"]
+    assert area == pytest.approx(rep["layers"]["LS"]["boundary_area"] - 25e6, rel=0.05)
+    assert rep["units"]["AU/AD"]["volume"] == pytest.approx(6.0 * rep["units"]["AU/AD"]["area"], rel=1e-9)
+    import trimesh
+
+    for name in rep["units"]:  # walls close the outer outline and the hole
+        mesh = trimesh.load(rep["outputs"]["meshes"][name], process=False)
+        assert mesh.is_watertight and mesh.is_winding_consistent and rep["units"][name]["mesh_closed"]
+    concave = aquifer_model(pts, LAYERS, tmp_path / "c", crs="EPSG:3003",
+                            settings=AquiferSettings(figures=False, concave_ratio=0.3))
+    assert all(concave["layers"][L]["boundary_area"] <= 9e8 + 1 for L in LAYERS)

@@ -49,11 +49,19 @@ class Surface:
         """Vertex indices of the outer boundary ring, CCW, first vertex not repeated."""
         return self.rings[0]
 
-    def outline(self) -> shapely.Polygon:
+    @cached_property
+    def _outline(self):
+        if len(self.rings) == 1:
+            r = self.rings[0]
+            return shapely.Polygon(np.column_stack([self.x[r], self.y[r]]))
+        # masked: the union of the triangles (valid whatever the rings look like: holes, pinched vertices)
+        t = self.triangles
+        coords = np.stack([np.column_stack([self.x[t[:, i]], self.y[t[:, i]]]) for i in (0, 1, 2, 0)], axis=1)
+        return shapely.coverage_union_all(shapely.polygons(coords))
+
+    def outline(self):
         """The boundary as a polygon (outer ring, and holes where masking opened them)."""
-        rings = self.rings
-        shells = [np.column_stack([self.x[r], self.y[r]]) for r in rings]
-        return shapely.Polygon(shells[0], shells[1:])
+        return self._outline
 
 
 def _ccw(x, y, tris) -> np.ndarray:

@@ -20,7 +20,7 @@ from ..errors import InputError
 from ..io.raster import atomic_path
 from .surface import Surface
 
-__all__ = ["match_rings", "wall", "unit_mesh", "mesh_volume", "write_ply", "write_obj"]
+__all__ = ["match_rings", "wall", "unit_mesh", "is_closed", "mesh_volume", "write_ply", "write_obj"]
 
 
 def match_rings(a_xyz: np.ndarray, b_xyz: np.ndarray, metric: str = "3d", max_distance: float | None = None):
@@ -66,17 +66,43 @@ def wall(a_xyz: np.ndarray, b_xyz: np.ndarray) -> np.ndarray:
     return np.asarray(tris, np.int64)
 
 
+def _ring_pairs(upper: Surface, lower: Surface) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Outer ring with outer ring; each hole of the upper surface with the lower surface's hole of nearest centroid."""
+    pairs = [(upper.rings[0], lower.rings[0])]
+    holes_l = list(lower.rings[1:])
+    for hu in upper.rings[1:]:
+        if not holes_l:
+            break
+        cu = upper.xyz[hu, :2].mean(axis=0)
+        k = int(np.argmin([np.linalg.norm(lower.xyz[h, :2].mean(axis=0) - cu) for h in holes_l]))
+        pairs.append((hu, holes_l.pop(k)))
+    return pairs
+
+
 def unit_mesh(upper: Surface, lower: Surface) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (n, 3), faces (m, 3)) of the closed unit between two surfaces: upper TIN, wall, lower TIN flipped."""
-    ru, rl = upper.ring(), lower.ring()
+    """(vertices (n, 3), faces (m, 3)) of the closed unit between two surfaces: upper TIN, walls, lower TIN flipped.
+
+    Walls join the outer rings and, where masking opened holes in both surfaces, the holes (paired by
+    nearest centroid); :func:`is_closed` says whether the result is watertight (holes in one surface only
+    leave it open)."""
     nu = len(upper.x)
     vertices = np.vstack([upper.xyz, lower.xyz])
-    top = upper.triangles
-    bottom = lower.triangles[:, ::-1] + nu
-    w = wall(upper.xyz[ru], lower.xyz[rl])
-    ring_index = np.concatenate([ru, rl + nu])
-    side = ring_index[w]
-    return vertices, np.vstack([top, side, bottom])
+    faces = [upper.triangles, lower.triangles[:, ::-1] + nu]
+    for ru, rl in _ring_pairs(upper, lower):
+        w = wall(upper.xyz[ru], lower.xyz[rl])
+        faces.append(np.concatenate([ru, rl + nu])[w])
+    return vertices, np.vstack(faces)
+
+
+def is_closed(faces: np.ndarray) -> bool:
+    """Every directed edge has exactly one reverse partner: watertight with consistent winding."""
+    e = np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]).astype(np.int64)
+    fwd = (e[:, 0] << 32) | e[:, 1]
+    rev = (e[:, 1] << 32) | e[:, 0]
+    uf, cf = np.unique(fwd, return_counts=True)
+    if (cf != 1).any():
+        return False
+    return bool(np.isin(rev, uf).all())
 
 
 def mesh_volume(vertices: np.ndarray, faces: np.ndarray) -> float:

@@ -21,7 +21,7 @@ from ..aquifer.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
 from ..aquifer.volume import common_footprint, overlay_volume
-from ..aquifer.walls import match_rings, unit_mesh, wall, write_obj, write_ply
+from ..aquifer.walls import _ring_pairs, is_closed, match_rings, unit_mesh, wall, write_obj, write_ply
 from ..errors import InputError, OutputExistsError
 from ..grid import snapped_grid
 from ..io.raster import atomic_path, write_raster
@@ -176,7 +176,7 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
             "upper": up, "lower": lo, "volume": vol, "thickness_min": vol["thickness_min"], "thickness_max": vol["thickness_max"],
             "thickness_mean": vol["volume"] / vol["area"] if vol["area"] > 0 else float("nan"),
             "mesh": (verts, faces), "thickness": (grid_t, grid), "footprint": footprint, "region": region,
-            "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles),
+            "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles),  # outer wall (+ hole walls)
         }
 
 
@@ -208,12 +208,12 @@ def _layers_gpkg(model: Model) -> dict:
     walls = []
     for name, u in model.units.items():
         U, L = model.surfaces[u["upper"]], model.surfaces[u["lower"]]
-        ru, rl = U.ring(), L.ring()
-        a, b = U.xyz[ru], L.xyz[rl]
-        w = wall(a, b)
-        pts = np.vstack([a, b])
-        tri = np.stack([pts[w[:, i]] for i in (0, 1, 2, 0)], axis=1)
-        walls.append(gpd.GeoDataFrame({"unit": [name] * len(tri)}, geometry=shapely.polygons(tri), crs=crs))
+        for ru, rl in _ring_pairs(U, L):
+            a, b = U.xyz[ru], L.xyz[rl]
+            w = wall(a, b)
+            pts = np.vstack([a, b])
+            tri = np.stack([pts[w[:, i]] for i in (0, 1, 2, 0)], axis=1)
+            walls.append(gpd.GeoDataFrame({"unit": [name] * len(tri)}, geometry=shapely.polygons(tri), crs=crs))
     out["walls"] = pd.concat(walls, ignore_index=True) if walls else gpd.GeoDataFrame({"unit": []}, geometry=[], crs=crs)
     return out
 
@@ -342,6 +342,7 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
             "area": v["area"], "thickness_min": u["thickness_min"], "thickness_mean": u["thickness_mean"],
             "thickness_max": u["thickness_max"], "wall_triangles": int(u["wall_triangles"]),
             "mesh_faces": int(len(u["mesh"][1])),
+            "mesh_closed": is_closed(u["mesh"][1]),
         }
     rep["seconds"] = round(time.time() - started, 3)
     with atomic_path(out / "report.json", overwrite=True) as tmp:
