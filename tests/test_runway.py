@@ -123,6 +123,17 @@ def test_t8_synthetic_runway_checks_frame_and_volumes():
     assert ew.totals["fill"] == pytest.approx(fill, rel=2e-2)
 
 
+def test_t8_with_the_ground_drawn_against_the_surveyed_grade_all_volumes_within_half_a_percent():
+    # the same T8 survey, its ground drawn against the grade the (noisy) lights give, i.e. the design the
+    # survey defines: cut, fill and net within 0.5 % of the closed form
+    points, truth = synthetic_runway(8, design_from="lights")
+    ew = compute_earthworks(points, RunwaySettings(profile_window=1))
+    assert set(zip(ew.removed["id"], ew.removed["reason"])) == set(zip(truth["id"], truth["reason"]))
+    cut, fill = closed_form(ew.frame.line.length)
+    for key, value in (("cut", cut), ("fill", fill), ("net", cut - fill)):
+        assert ew.totals[key] == pytest.approx(value, rel=5e-3), key
+
+
 @pytest.mark.parametrize("grid,kinks,tol", [(2.0, False, 5e-3), (10.0, False, 5e-3), (15.0, False, 1.5e-2), (15.0, True, 5e-3)])
 def test_t8_without_noise_volumes_on_dense_and_sparse_grids(grid, kinks, tol):
     # a 15 m survey cannot see the ground's kinks at the template breakpoints (22.5, 30, 75 m): its TIN cuts

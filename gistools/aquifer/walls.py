@@ -20,7 +20,7 @@ from ..errors import InputError
 from ..io.raster import atomic_path
 from .surface import Surface
 
-__all__ = ["match_rings", "wall", "unit_mesh", "is_closed", "mesh_volume", "write_ply", "write_obj"]
+__all__ = ["match_rings", "wall", "ring_pairs", "unit_mesh", "is_closed", "mesh_volume", "write_ply", "write_obj"]
 
 
 def match_rings(a_xyz: np.ndarray, b_xyz: np.ndarray, metric: str = "3d", max_distance: float | None = None):
@@ -66,7 +66,7 @@ def wall(a_xyz: np.ndarray, b_xyz: np.ndarray) -> np.ndarray:
     return np.asarray(tris, np.int64)
 
 
-def _ring_pairs(upper: Surface, lower: Surface) -> list[tuple[np.ndarray, np.ndarray]]:
+def ring_pairs(upper: Surface, lower: Surface) -> list[tuple[np.ndarray, np.ndarray]]:
     """Outer ring with outer ring; each hole of the upper surface with the lower surface's hole of nearest centroid."""
     pairs = [(upper.rings[0], lower.rings[0])]
     holes_l = list(lower.rings[1:])
@@ -88,7 +88,7 @@ def unit_mesh(upper: Surface, lower: Surface) -> tuple[np.ndarray, np.ndarray]:
     nu = len(upper.x)
     vertices = np.vstack([upper.xyz, lower.xyz])
     faces = [upper.triangles, lower.triangles[:, ::-1] + nu]
-    for ru, rl in _ring_pairs(upper, lower):
+    for ru, rl in ring_pairs(upper, lower):
         w = wall(upper.xyz[ru], lower.xyz[rl])
         faces.append(np.concatenate([ru, rl + nu])[w])
     return vertices, np.vstack(faces)

@@ -4,7 +4,8 @@ Local frame: x chainage (m) from the low end, y offset (m, left +). 196 centre-l
 (x 0 ... 2925), z_CL = 230 + 0.0025 x, noise N(0, 0.02 m) laterally and vertically; other points on a
 ``grid`` m grid, x in [0, 2930], y in [-150, 150], ground = template design + ``cut`` + ``wave`` sin(2 pi x /
 1000) + N(0, 0.01 m). Planted: 4 lateral light outliers (+5, -8, +12, +20 m), 1 light height outlier (+3 m),
-1 duplicate (x, y, z) under a new id, 1 reused id. ``breakpoint_lines`` adds survey lines along the
+1 duplicate (x, y, z) under a new id, 1 reused id. ``design_from="lights"`` draws the ground against the
+grade of the surveyed (noisy) lights instead of the true one, the design the pipeline itself can know. ``breakpoint_lines`` adds survey lines along the
 template's breakpoints (so the ground's kinks are surveyed and closed forms hold exactly). ``to_world`` rotates to EPSG:3003-like coordinates
 (origin E 1 553 700, N 5 057 760, axis bearing 103.8 degrees).
 """
@@ -31,7 +32,8 @@ def to_world(x, y, origin=ORIGIN, bearing=BEARING):
 
 def synthetic_runway(seed: int = 8, *, grid: float = 10.0, cut: float = 0.2, wave: float = 0.5, x_end: float = 2930.0,
                      half_width: float = 150.0, code: str = "4E", kind: str = "icao", outliers: bool = True,
-                     world: bool = True, noise: bool = True, breakpoint_lines: bool = False, lights: int = 196):
+                     world: bool = True, noise: bool = True, breakpoint_lines: bool = False, lights: int = 196,
+                     design_from: str = "truth"):
     """(points id, type, x, y, z; truth: planted anomalies id, reason). Coordinates in the world frame unless ``world`` is False."""
     rng = np.random.default_rng(seed)
     tpl = make_template(code, "precision", kind)
@@ -43,7 +45,9 @@ def synthetic_runway(seed: int = 8, *, grid: float = 10.0, cut: float = 0.2, wav
         ys = np.unique(np.concatenate([ys, np.asarray(tpl.breakpoints), -np.asarray(tpl.breakpoints)]))
     gx, gy = np.meshgrid(np.arange(0, x_end + 1e-9, grid), ys, indexing="ij")
     gx, gy = gx.ravel(), gy.ravel()
-    gz = 230 + 0.0025 * gx - tpl.drop(gy) + cut + wave * np.sin(2 * np.pi * gx / 1000)
+    # the design the ground is drawn against: the true grade line, or the grade the surveyed lights give
+    grade = 230 + 0.0025 * gx if design_from == "truth" else np.interp(gx, lx, lz)
+    gz = grade - tpl.drop(gy) + cut + wave * np.sin(2 * np.pi * gx / 1000)
     if noise:
         gz = gz + rng.normal(0, 0.01, gz.size)
     pts = pd.DataFrame({"id": np.concatenate([np.arange(1, lights + 1), 100001 + np.arange(gx.size)]),

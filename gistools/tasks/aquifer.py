@@ -21,7 +21,7 @@ from ..aquifer.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
 from ..aquifer.volume import common_footprint, overlay_volume
-from ..aquifer.walls import _ring_pairs, is_closed, match_rings, unit_mesh, wall, write_obj, write_ply
+from ..aquifer.walls import ring_pairs, is_closed, match_rings, unit_mesh, wall, write_obj, write_ply
 from ..errors import InputError, OutputExistsError
 from ..grid import snapped_grid
 from ..io.raster import atomic_path, write_raster
@@ -208,7 +208,7 @@ def _layers_gpkg(model: Model) -> dict:
     walls = []
     for name, u in model.units.items():
         U, L = model.surfaces[u["upper"]], model.surfaces[u["lower"]]
-        for ru, rl in _ring_pairs(U, L):
+        for ru, rl in ring_pairs(U, L):
             a, b = U.xyz[ru], L.xyz[rl]
             w = wall(a, b)
             pts = np.vstack([a, b])
