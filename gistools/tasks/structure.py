@@ -1,0 +1,177 @@
+"""Structure reconstruction (dissertation ch. 6): a building's point cloud to levels, clusters, loops, matched
+walls and a closed 3D mesh. ``reconstruct`` works in memory; ``structure_model`` writes the outputs.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import shapely
+
+from ..errors import InputError, OutputExistsError
+from ..io.raster import atomic_path
+from ..structure.analysis import (Cluster, check_points, classify_cluster, cluster_level, estimate_parameters,
+                                  read_points, split_levels)
+from ..structure.envelope import chain_loops, envelope, match_clusters, sown_footprint
+from ..progress import ProgressCallback, report
+
+__all__ = ["Structure", "reconstruct", "mesh_from_triangles", "structure_model"]
+
+
+@dataclass
+class Structure:
+    points: pd.DataFrame
+    log: pd.DataFrame
+    parameters: object
+    levels: list  # [(z, [clusters])]
+    pairs: list = field(default_factory=list)
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+
+    @property
+    def clusters(self):
+        return [c for _, cs in self.levels for c in cs]
+
+
+def mesh_from_triangles(tris: np.ndarray, decimals: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """(vertices, faces) with vertices shared where triangles meet (coordinates equal to ``decimals``)."""
+    flat = tris.reshape(-1, 3)
+    key = np.round(flat, decimals)
+    vertices, inverse = np.unique(key, axis=0, return_inverse=True)
+    faces = inverse.reshape(-1, 3)
+    good = (faces[:, 0] != faces[:, 1]) & (faces[:, 1] != faces[:, 2]) & (faces[:, 0] != faces[:, 2])
+    return vertices, faces[good]
+
+
+def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 0.1, check: bool = True,
+                progress: ProgressCallback | None = None) -> Structure:
+    """S1-S8 in memory on points id, x, y, z."""
+    if len(points) < 2:
+        raise InputError(f"{len(points)} point(s): a structure needs levels of points", hint="Give the building's cloud")
+    pts, log = check_points(points, eps_z=eps_z) if check else (points.reset_index(drop=True), pd.DataFrame())
+    level = split_levels(pts["z"].to_numpy(), eps_z)
+    if level.max() + 1 < 3:
+        raise InputError(f"{level.max() + 1} level(s); a structure needs at least 3 (floor, walls, roof)",
+                         hint="Check the heights (levels are split where z jumps by more than eps_z)")
+    params = estimate_parameters(pts, h=h, d=d, t=t, eps_z=eps_z)
+    report(progress, 0.2, "clusters")
+    spacing = params.estimated["spacing"]
+    levels = []
+    index = 0
+    xy_all = pts[["x", "y"]].to_numpy(np.float64)
+    for lev in range(int(level.max()) + 1):
+        sel = np.flatnonzero(level == lev)
+        z = float(pts["z"].to_numpy()[sel].mean())
+        labels = cluster_level(xy_all[sel], params.d)
+        clusters = []
+        for lab in np.unique(labels):
+            idx = sel[labels == lab]
+            xy = xy_all[idx]
+            c = Cluster(index, lev, z, pts["id"].to_numpy()[idx], xy)
+            index += 1
+            try:
+                loops = chain_loops(xy)
+                hull = shapely.Polygon(xy[loops[0]]) if len(loops) == 1 else None
+            except InputError:
+                loops, hull = None, None
+            foot = sown_footprint(xy) if len(xy) >= 3 else shapely.Polygon()
+            c.kind = classify_cluster(xy, hull if hull is not None else foot, spacing, params.t) if loops else "sown"
+            if c.kind == "chain" and loops is None:
+                raise InputError(f"level at z = {z:.2f}: a chain cluster has no closed loop", hint="Adjust d or t")
+            c.rings = [xy[r] for r in loops] if c.kind == "chain" else [np.asarray(r.coords)[:-1] for r in
+                                                                         shapely.get_parts(foot.boundary)]
+            c.footprint = shapely.Polygon(c.rings[0]) if c.kind == "chain" else foot
+            clusters.append(c)
+        # even-odd nesting of the chain loops of a level: a loop inside another is a hole, wound clockwise
+        chains = [c for c in clusters if c.kind == "chain"]
+        for c in chains:
+            inside = sum(1 for o in chains if o is not c and o.footprint.contains(c.footprint))
+            if inside % 2 == 1:
+                c.rings = [r[::-1] for r in c.rings]
+                c.hole = True
+            else:
+                c.hole = False
+        levels.append((z, clusters))
+    report(progress, 0.5, "matching")
+    pairs = []
+    for i in range(len(levels) - 1):
+        if levels[i + 1][0] - levels[i][0] > params.h + 1e-9:
+            continue
+        for lc in levels[i][1]:
+            for uc in levels[i + 1][1]:
+                if lc.kind == "sown" and uc.kind == "sown":
+                    continue
+                if match_clusters(lc, uc, params.t):
+                    pairs.append((i, lc, i + 1, uc))
+    report(progress, 0.7, "envelope")
+    tris = envelope(levels, pairs, params.t)
+    vertices, faces = mesh_from_triangles(tris)
+    return Structure(pts, log, params, levels, pairs, vertices, faces)
+
+
+def _mesh_stats(vertices, faces) -> dict:
+    from ..aquifer.walls import is_closed, mesh_volume
+
+    e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
+    n_edges = len(np.unique(e, axis=0))
+    a, b, c = vertices[faces[:, 0]], vertices[faces[:, 1]], vertices[faces[:, 2]]
+    area = float(0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    return {"vertices": int(len(vertices)), "faces": int(len(faces)), "edges": int(n_edges),
+            "euler": int(len(vertices) - n_edges + len(faces)), "watertight": is_closed(faces),
+            "volume": mesh_volume(vertices, faces), "surface_area": area}
+
+
+def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scales=(1, 1, 1), rotations=(0, 0, 0),
+                    overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+    """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json."""
+    started = time.time()
+    out = Path(out)
+    if (out / "report.json").exists() and not overwrite:
+        raise OutputExistsError("a structure is already there", path=out, hint="Pass --overwrite, or choose another --out")
+    pts = read_points(source, columns=columns, scales=scales, rotations=rotations)
+    s = reconstruct(pts, h=h, d=d, t=t, progress=progress)
+    stats = _mesh_stats(s.vertices, s.faces)
+    out.mkdir(parents=True, exist_ok=True)
+    from ..aquifer.walls import write_obj, write_ply
+
+    write_ply(out / "structure.ply", s.vertices, s.faces)
+    write_obj(out / "structure.obj", s.vertices, s.faces)
+    import geopandas as gpd
+
+    from ..io.vector import write_layers
+
+    rows = []
+    for z, clusters in s.levels:
+        for c in clusters:
+            for r in c.rings:
+                rc = np.vstack([r, r[:1]])
+                rows.append({"cluster": c.index, "z": z, "kind": c.kind, "points": len(c.ids),
+                             "geometry": shapely.LineString(np.column_stack([rc, np.full(len(rc), z)]))})
+    levels_df = pd.DataFrame([{"level": i, "z": z, "clusters": len(cs), "points": int(sum(len(c.ids) for c in cs))}
+                              for i, (z, cs) in enumerate(s.levels)])
+    write_layers({"loops": gpd.GeoDataFrame(rows, geometry="geometry"),
+                  "levels": gpd.GeoDataFrame(levels_df, geometry=shapely.points(np.zeros(len(levels_df)),
+                                                                                 np.zeros(len(levels_df)), levels_df["z"]))},
+                 out / "structure.gpkg")
+    chain_chain = sum(1 for _, a, _, b in s.pairs if a.kind == b.kind == "chain")
+    rep = {
+        "tool": "gistools structure",
+        "levels": len(s.levels), "clusters": len(s.clusters),
+        "sowns": sum(c.kind == "sown" for c in s.clusters), "chains": sum(c.kind == "chain" for c in s.clusters),
+        "matched_pairs": len(s.pairs), "matched_chain_chain": chain_chain, "matched_sown_chain": len(s.pairs) - chain_chain,
+        "triangles": stats["faces"], "volume": stats["volume"], "surface_area": stats["surface_area"],
+        "watertight": stats["watertight"], "euler": stats["euler"],
+        "parameters": {"height_interval": s.parameters.h, "distance": s.parameters.d, "tolerance": s.parameters.t},
+        "estimated": s.parameters.estimated, "voxel_counts": s.parameters.voxel_counts, "k_opt": s.parameters.k_opt,
+        "log": {k: int(v) for k, v in s.log["change"].value_counts().items()} if len(s.log) else {},
+        "outputs": {"ply": str(out / "structure.ply"), "obj": str(out / "structure.obj"), "gpkg": str(out / "structure.gpkg")},
+    }
+    rep["seconds"] = round(time.time() - started, 3)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(rep, indent=2, default=float))
+    return rep
