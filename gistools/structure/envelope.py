@@ -21,7 +21,7 @@ from scipy.spatial import Delaunay, cKDTree
 from ..aquifer.walls import wall
 from ..errors import InputError
 
-__all__ = ["chain_loops", "sown_footprint", "level_region", "match_clusters", "band", "envelope"]
+__all__ = ["chain_loops", "sown_footprint", "level_region", "match_clusters", "band", "envelope", "winding_number"]
 
 
 def _short_edges(xy: np.ndarray, factor: float = 1.25):
@@ -202,3 +202,18 @@ def envelope(levels: list, pairs: list, t: float = 4.0) -> np.ndarray:
                 if flat:
                     triangles.append(np.stack(flat))
     return np.concatenate(triangles) if triangles else np.zeros((0, 3, 3))
+
+
+def winding_number(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Generalised winding number of points about a closed triangle mesh (1 inside, 0 outside, for outward
+    normals): the solid angles of the triangles seen from each point (van Oosterom and Strackee), summed."""
+    pts = np.atleast_2d(np.asarray(points, np.float64))
+    out = np.zeros(len(pts))
+    for k, p in enumerate(pts):
+        a, b, c = (vertices[faces[:, i]] - p for i in range(3))
+        la, lb, lc = (np.linalg.norm(v, axis=1) for v in (a, b, c))
+        num = np.einsum("ij,ij->i", a, np.cross(b, c))
+        den = la * lb * lc + np.einsum("ij,ij->i", a, b) * lc + np.einsum("ij,ij->i", b, c) * la + \
+            np.einsum("ij,ij->i", c, a) * lb
+        out[k] = np.sum(2 * np.arctan2(num, den)) / (4 * np.pi)
+    return out

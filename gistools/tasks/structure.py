@@ -126,6 +126,34 @@ def _mesh_stats(vertices, faces) -> dict:
             "volume": mesh_volume(vertices, faces), "surface_area": area}
 
 
+def _figure(s: Structure, out: Path) -> Path:
+    """A 3D view of the mesh (matplotlib), PNG."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from mpl_toolkits.mplot3d.art3d import Poly3DCollection
+
+    fig = plt.figure(figsize=(8, 8))
+    ax = fig.add_subplot(projection="3d")
+    tri = s.vertices[s.faces]
+    ax.add_collection3d(Poly3DCollection(tri, facecolor="#9fb8d8", edgecolor="#3b5a80", linewidths=0.2, alpha=0.9))
+    lo, hi = s.vertices.min(axis=0), s.vertices.max(axis=0)
+    ax.set_xlim(lo[0], hi[0])
+    ax.set_ylim(lo[1], hi[1])
+    ax.set_zlim(lo[2], hi[2])
+    ax.set_box_aspect(np.maximum(hi - lo, 1e-9))
+    ax.set_xlabel("x")
+    ax.set_ylabel("y")
+    ax.set_zlabel("z")
+    ax.set_title(f"{len(s.levels)} levels, {len(s.faces)} triangles")
+    target = out / "structure_3d.png"
+    with atomic_path(target, overwrite=True) as tmp:
+        fig.savefig(tmp, dpi=110, format="png")
+    plt.close(fig)
+    return target
+
+
 def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scales=(1, 1, 1), rotations=(0, 0, 0),
                     overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json."""
@@ -154,10 +182,14 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
                              "geometry": shapely.LineString(np.column_stack([rc, np.full(len(rc), z)]))})
     levels_df = pd.DataFrame([{"level": i, "z": z, "clusters": len(cs), "points": int(sum(len(c.ids) for c in cs))}
                               for i, (z, cs) in enumerate(s.levels)])
-    write_layers({"loops": gpd.GeoDataFrame(rows, geometry="geometry"),
-                  "levels": gpd.GeoDataFrame(levels_df, geometry=shapely.points(np.zeros(len(levels_df)),
-                                                                                 np.zeros(len(levels_df)), levels_df["z"]))},
-                 out / "structure.gpkg")
+    import warnings
+
+    with warnings.catch_warnings():  # a local frame: the layers carry no CRS, on purpose
+        warnings.filterwarnings("ignore", message=".*crs.*was not provided")
+        write_layers({"loops": gpd.GeoDataFrame(rows, geometry="geometry"),
+                      "levels": gpd.GeoDataFrame(levels_df, geometry=shapely.points(np.zeros(len(levels_df)),
+                                                                                     np.zeros(len(levels_df)), levels_df["z"]))},
+                     out / "structure.gpkg")
     chain_chain = sum(1 for _, a, _, b in s.pairs if a.kind == b.kind == "chain")
     rep = {
         "tool": "gistools structure",
@@ -171,6 +203,10 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
         "log": {k: int(v) for k, v in s.log["change"].value_counts().items()} if len(s.log) else {},
         "outputs": {"ply": str(out / "structure.ply"), "obj": str(out / "structure.obj"), "gpkg": str(out / "structure.gpkg")},
     }
+    try:
+        rep["outputs"]["figure"] = str(_figure(s, out))
+    except ImportError:
+        pass
     rep["seconds"] = round(time.time() - started, 3)
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(rep, indent=2, default=float))
