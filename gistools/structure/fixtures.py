@@ -43,44 +43,52 @@ def lattice_points(polygon, step: float = 10.0) -> np.ndarray:
     return pts[keep]
 
 
-def _chain(polygon) -> np.ndarray:
-    parts = [perimeter_points(polygon.exterior.coords)]
-    parts += [perimeter_points(r.coords) for r in polygon.interiors]
+def _chain(polygon, step: float = 10.0) -> np.ndarray:
+    parts = [perimeter_points(polygon.exterior.coords, step)]
+    parts += [perimeter_points(r.coords, step) for r in polygon.interiors]
     return np.vstack(parts)
 
 
-def _levels(name: str):
-    """[(z, xy points)] of a building."""
+def _levels(name: str, step: float = 10.0):
+    """[(z, xy points)] of a building; ``step`` is the point spacing along outlines and on plates."""
     out = []
+
+    def lattice(poly):
+        return lattice_points(poly, step)
+
+    def chain(poly):
+        return _chain(poly, step)
+
     if name in ("F1", "F2", "F3"):
         foot = {"F1": F1, "F2": P, "F3": F3}[name]
         for z in range(0, 31, 5):
-            out.append((float(z), lattice_points(foot) if z in (0, 30) else _chain(foot)))
+            out.append((float(z), lattice(foot) if z in (0, 30) else chain(foot)))
         return out
     for z in (-20, -15, -10, -5):
-        out.append((float(z), _chain(S0)))
-    out.append((0.0, lattice_points(S0)))
+        out.append((float(z), chain(S0)))
+    out.append((0.0, lattice(S0)))
     for z in range(5, 41, 5):
-        out.append((float(z), _chain(P)))
-    out.append((45.0, lattice_points(P)))
+        out.append((float(z), chain(P)))
+    out.append((45.0, lattice(P)))
     for z in range(50, 201, 5):
         shift = 0.5 * (z - 50) / 5
-        out.append((float(z), np.vstack([_chain(shapely.affinity.translate(t, 0, shift)) for t in (T1, T2)])))
-    out.append((205.0, lattice_points(B)))
+        out.append((float(z), np.vstack([chain(shapely.affinity.translate(t, 0, shift)) for t in (T1, T2)])))
+    out.append((205.0, lattice(B)))
     for z in range(210, 231, 5):
-        out.append((float(z), _chain(B)))
-    out.append((235.0, lattice_points(B)))
+        out.append((float(z), chain(B)))
+    out.append((235.0, lattice(B)))
     return out
 
 
-def building(name: str = "F4", *, jitter: float = 0.0, shuffle: bool = False, corrupt: bool = False, seed: int = 1):
+def building(name: str = "F4", *, jitter: float = 0.0, shuffle: bool = False, corrupt: bool = False, seed: int = 1,
+             step: float = 10.0):
     """(points id, x, y, z; log of the planted corruptions: id, change) of building F1-F4."""
     import shapely.affinity  # noqa: F401 (used by _levels)
 
     if name not in BUILDINGS:
         raise ValueError(f"building {name!r} is not one of {', '.join(BUILDINGS)}")
     rng = np.random.default_rng(seed)
-    rows = [np.column_stack([xy, np.full(len(xy), z)]) for z, xy in _levels(name)]
+    rows = [np.column_stack([xy, np.full(len(xy), z)]) for z, xy in _levels(name, step)]
     xyz = np.vstack(rows)
     if jitter:
         xyz[:, :2] += rng.normal(0, jitter, (len(xyz), 2))
