@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -453,3 +453,20 @@ def test_runway_algorithm_equals_the_library(qgis, tmp_path):
     rep = json.loads(Path(result["REPORT"]).read_text())
     assert rep["balance_points"] == lib["balance_points"] and rep["removed"] == lib["removed"]
     same_cells(result["DESIGN"], lib["outputs"]["design_surface"])
+
+
+def test_structure_algorithm_equals_the_library(qgis, tmp_path):
+    from gistools.structure.fixtures import building
+    from gistools.tasks.structure import structure_model
+
+    pts, _ = building("F3")
+    src = tmp_path / "f3.txt"
+    src.write_text("\n".join(f"{i} {x} {y} {z}" for i, x, y, z in pts.itertuples(index=False)))
+    lib = structure_model(src, tmp_path / "lib", h=8, d=15, t=4)
+    result = qgis.run("gistools:structure", {"INPUT": str(src), "HEIGHT_INTERVAL": 8, "DISTANCE": 15, "TOLERANCE": 4,
+                                             "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert result["VOLUME"] == pytest.approx(lib["volume"], rel=1e-12) == 1_008_000
+    assert result["WATERTIGHT"] == "True"
+    rep = json.loads((tmp_path / "q" / "report.json").read_text())
+    assert {k: rep[k] for k in ("levels", "clusters", "triangles", "euler")} == \
+        {k: lib[k] for k in ("levels", "clusters", "triangles", "euler")}
