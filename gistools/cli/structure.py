@@ -29,9 +29,11 @@ def _triple(ctx, param, value):
 @click.option("--columns", default="123", show_default=True, help="Which input columns are x, y, z (213 swaps x and y).")
 @click.option("--scales", callback=_triple, default="1,1,1", show_default=True, help="Signed scale per axis.")
 @click.option("--rotations", callback=_triple, default="0,0,0", show_default=True, help="Degrees about x, y, z.")
+@click.option("--loop-mode", type=click.Choice(["classic", "catmull-rom"]), default="classic", show_default=True,
+              help="catmull-rom: also write the dissertation's Catmull-Rom loops (new points and lines).")
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
-def structure(source, out, h, d, t, columns, scales, rotations, overwrite, quiet):
+def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overwrite, quiet):
     """Closed 3D mesh of a structure from SOURCE, ``ID X Y Z`` rows (text / CSV) or a LAS/LAZ file:
     levels by height, clusters by distance, floor plates ("sown") and outlines ("chain"), loops with
     holes, matched walls, and the watertight envelope (PLY, OBJ), with the loops as a GeoPackage.
@@ -44,7 +46,7 @@ def structure(source, out, h, d, t, columns, scales, rotations, overwrite, quiet
     with tqdm(total=100, unit="%", disable=True if quiet else None,
               bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
         rep = structure_model(source, out, h=h, d=d, t=t, columns=columns, scales=scales, rotations=rotations,
-                              overwrite=overwrite, progress=None if bar.disable else tqdm_progress(bar))
+                              loop_mode=loop_mode, overwrite=overwrite, progress=None if bar.disable else tqdm_progress(bar))
     p = rep["parameters"]
     click.echo(f"{rep['levels']} levels, {rep['clusters']} clusters ({rep['sowns']} sown, {rep['chains']} chain), "
                f"{rep['matched_pairs']} matched pairs; h {p['height_interval']:.3f}, d {p['distance']:.3f}, t {p['tolerance']:.3f} m")

@@ -21,7 +21,7 @@ from scipy.spatial import Delaunay, cKDTree
 from ..aquifer.walls import wall
 from ..errors import InputError
 
-__all__ = ["chain_loops", "sown_footprint", "level_region", "match_clusters", "band", "envelope", "winding_number"]
+__all__ = ["chain_loops", "sown_footprint", "level_region", "match_clusters", "band", "envelope", "winding_number", "catmull_rom_loop"]
 
 
 def _short_edges(xy: np.ndarray, factor: float = 1.25):
@@ -217,3 +217,35 @@ def winding_number(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) 
             np.einsum("ij,ij->i", c, a) * lb
         out[k] = np.sum(2 * np.arctan2(num, den)) / (4 * np.pi)
     return out
+
+
+def catmull_rom_loop(ring: np.ndarray, *, eps: float = 1e-12):
+    """The dissertation's piecewise Catmull-Rom loop (ch. 2.4.2) of a closed loop (n, 2), loop_mode 1.
+
+    Through every vertex P_i runs the line parallel to P_i+1 - P_i-1; the new points are the intersections
+    of consecutive lines (quadratic Bezier control points between P_i and P_i+1). Returns (points (n, 2),
+    with NaN where two consecutive lines are parallel: a straight side, "no intersection"; lines: one row
+    per vertex (kind "y" for y = a x + b, "x" for x = c y + d), slope, intercept).
+    """
+    r = np.asarray(ring, np.float64)
+    n = len(r)
+    d = np.roll(r, -1, axis=0) - np.roll(r, 1, axis=0)  # direction of the line through P_i
+    lines = []
+    for (px, py), (dx, dy) in zip(r, d):
+        if abs(dx) >= abs(dy):
+            a = dy / dx
+            lines.append(("y", a, py - a * px))
+        else:
+            c = dx / dy
+            lines.append(("x", c, px - c * py))
+    pts = np.full((n, 2), np.nan)
+    for i in range(n):
+        j = (i + 1) % n
+        p, u = r[i], d[i]
+        q, v = r[j], d[j]
+        den = u[0] * v[1] - u[1] * v[0]
+        if abs(den) <= eps * max(np.hypot(*u) * np.hypot(*v), 1.0):
+            continue  # parallel lines: no intersection, the side stays straight
+        s_ = ((q[0] - p[0]) * v[1] - (q[1] - p[1]) * v[0]) / den
+        pts[i] = p + s_ * u
+    return pts, lines

@@ -155,8 +155,13 @@ def _figure(s: Structure, out: Path) -> Path:
 
 
 def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scales=(1, 1, 1), rotations=(0, 0, 0),
-                    overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
-    """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json."""
+                    loop_mode: str = "classic", overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+    """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json.
+
+    ``loop_mode``: "classic" (loops through the points as they are, the mesh's) or "catmull-rom" (also the
+    dissertation's piecewise Catmull-Rom loops: the new points and the lines through each vertex)."""
+    if loop_mode not in ("classic", "catmull-rom"):
+        raise InputError(f"loop mode {loop_mode!r} is not classic or catmull-rom")
     started = time.time()
     out = Path(out)
     if (out / "report.json").exists() and not overwrite:
@@ -180,6 +185,22 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
                 rc = np.vstack([r, r[:1]])
                 rows.append({"cluster": c.index, "z": z, "kind": c.kind, "points": len(c.ids),
                              "geometry": shapely.LineString(np.column_stack([rc, np.full(len(rc), z)]))})
+    extra = {}
+    if loop_mode == "catmull-rom":
+        from ..structure.envelope import catmull_rom_loop
+
+        new_pts, line_rows = [], []
+        for z, clusters in s.levels:
+            for c in clusters:
+                for r in c.rings:
+                    cr, lines = catmull_rom_loop(r)
+                    for k, ((px, py), (kind, slope, icpt)) in enumerate(zip(cr, lines)):
+                        line_rows.append({"cluster": c.index, "z": z, "vertex": k, "kind": kind, "slope": slope,
+                                          "intercept": icpt, "geometry": shapely.Point(r[k, 0], r[k, 1], z)})
+                        if np.isfinite(px):
+                            new_pts.append({"cluster": c.index, "z": z, "side": k, "geometry": shapely.Point(px, py, z)})
+        extra = {"catmull_rom_points": gpd.GeoDataFrame(new_pts, geometry="geometry"),
+                 "catmull_rom_lines": gpd.GeoDataFrame(line_rows, geometry="geometry")}
     levels_df = pd.DataFrame([{"level": i, "z": z, "clusters": len(cs), "points": int(sum(len(c.ids) for c in cs))}
                               for i, (z, cs) in enumerate(s.levels)])
     import warnings
@@ -188,7 +209,8 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
         warnings.filterwarnings("ignore", message=".*crs.*was not provided")
         write_layers({"loops": gpd.GeoDataFrame(rows, geometry="geometry"),
                       "levels": gpd.GeoDataFrame(levels_df, geometry=shapely.points(np.zeros(len(levels_df)),
-                                                                                     np.zeros(len(levels_df)), levels_df["z"]))},
+                                                                                     np.zeros(len(levels_df)), levels_df["z"])),
+                      **extra},
                      out / "structure.gpkg")
     chain_chain = sum(1 for _, a, _, b in s.pairs if a.kind == b.kind == "chain")
     rep = {
@@ -200,6 +222,7 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
         "watertight": stats["watertight"], "euler": stats["euler"],
         "parameters": {"height_interval": s.parameters.h, "distance": s.parameters.d, "tolerance": s.parameters.t},
         "estimated": s.parameters.estimated, "voxel_counts": s.parameters.voxel_counts, "k_opt": s.parameters.k_opt,
+        "loop_mode": loop_mode,
         "log": {k: int(v) for k, v in s.log["change"].value_counts().items()} if len(s.log) else {},
         "outputs": {"ply": str(out / "structure.ply"), "obj": str(out / "structure.obj"), "gpkg": str(out / "structure.gpkg")},
     }
