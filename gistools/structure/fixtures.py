@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import shapely
+import shapely.affinity
 
 __all__ = ["building", "VOLUMES", "EULER", "BUILDINGS"]
 
@@ -83,8 +84,6 @@ def _levels(name: str, step: float = 10.0):
 def building(name: str = "F4", *, jitter: float = 0.0, shuffle: bool = False, corrupt: bool = False, seed: int = 1,
              step: float = 10.0):
     """(points id, x, y, z; log of the planted corruptions: id, change) of building F1-F4."""
-    import shapely.affinity  # noqa: F401 (used by _levels)
-
     if name not in BUILDINGS:
         raise ValueError(f"building {name!r} is not one of {', '.join(BUILDINGS)}")
     rng = np.random.default_rng(seed)
