@@ -16,12 +16,17 @@ AUTZEN = SHARED_DATA / "lidar" / "autzen" / "autzen_trim.las"
 MEGAPLOT = SHARED_DATA / "lidar" / "megaplot" / "Megaplot.laz"
 
 
-def _need_shared():
-    if SHARED_DATA.is_dir():
+def need_shared(path: Path = SHARED_DATA, what: str = "real-data test"):
+    """Skip (with the reason) when ``path`` under ../shared is absent; fail instead in CI (CI=true)."""
+    if path.exists():
         return
     if os.environ.get("CI"):
-        pytest.fail(f"{SHARED_DATA} is missing: CI must run the real-data tests (clone with ../shared beside it)")
-    pytest.skip(f"real-data test: {SHARED_DATA} is absent (a fresh clone without ../shared)")
+        pytest.fail(f"{path} is missing: CI must run the {what}s (clone with ../shared beside it)")
+    pytest.skip(f"{what}: {path} is absent (a fresh clone without ../shared)")
+
+
+def _need_shared():
+    need_shared(SHARED_DATA)
 
 
 @pytest.fixture

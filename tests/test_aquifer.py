@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from scipy.interpolate import LinearNDInterpolator
 from scipy.spatial import ConvexHull
 
-from conftest import SHARED_DATA
+from conftest import SHARED_DATA, need_shared
 from gistools.aquifer.outliers import find_outliers
 from gistools.aquifer.surface import build_surface, densify, height_at, unique_edges
 from gistools.aquifer.synthetic import E0, N0, surfaces_uv, synthetic_aquifer
@@ -30,11 +30,7 @@ QUERY = (E0 + 17365.0, N0 + 7638.0)  # the dissertation's query point
 
 
 def _need_design():
-    if DESIGN.is_dir():
-        return
-    if os.environ.get("CI"):
-        pytest.fail(f"{DESIGN} is missing: CI must run the dissertation fixture tests")
-    pytest.skip(f"dissertation fixtures: {DESIGN} is absent (a fresh clone without ../shared)")
+    need_shared(DESIGN, "dissertation fixture test")
 
 
 def surfaces_of(points):
@@ -297,10 +293,7 @@ def test_bad_input_is_one_line_and_writes_nothing(tmp_path, case):
 # ---------------------------------------------------------------- real data: seismic horizons
 
 def test_claudius_horizons_through_the_whole_model(tmp_path):
-    if not SHARED_DATA.is_dir():
-        if os.environ.get("CI"):
-            pytest.fail(f"{SHARED_DATA} is missing: CI must run the real-data tests")
-        pytest.skip(f"real-data test: {SHARED_DATA} is absent")
+    need_shared(SHARED_DATA / "aquifer" / "claudius.csv")
     import geopandas as gpd
 
     raw = pd.read_csv(SHARED_DATA / "aquifer" / "claudius.csv")

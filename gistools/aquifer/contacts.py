@@ -18,6 +18,7 @@ import pyproj
 
 from ..errors import DataFileError, InputError
 from ..io.points import parse_crs_text
+from ..io.text import read_id_xyz
 
 __all__ = ["read_contacts", "ALIASES"]
 
@@ -114,25 +115,7 @@ def _from_frame(df, lines, path, swap_xy) -> pd.DataFrame:
 
 def _read_layer_file(path: Path, layer: str, swap_xy: bool) -> pd.DataFrame:
     """The dissertation's per-layer file: ``ID East North Height`` rows (a header row is allowed)."""
-    rows, lines = [], []
-    for n, raw in enumerate(path.read_text(errors="replace").splitlines(), start=1):
-        parts = raw.replace(",", " ").replace(";", " ").split()
-        if not parts or raw.lstrip().startswith("#"):
-            continue
-        if len(parts) != 4:
-            raise InputError(f"line {n}: {len(parts)} values, expected 4 (ID East North Height)", path=path,
-                             hint="One point per line: ID East North Height")
-        try:
-            rows.append((int(float(parts[0])), float(parts[1]), float(parts[2]), float(parts[3])))
-        except ValueError:
-            if not rows and n == 1:  # a header line
-                continue
-            raise InputError(f"line {n}: {raw.strip()!r} holds a value that is not a number", path=path,
-                             hint="Fix or remove that row") from None
-        lines.append(n)
-    if not rows:
-        raise InputError("no points", path=path, hint="One point per line: ID East North Height")
-    a = np.asarray(rows, np.float64)
+    a, lines = read_id_xyz(path, "ID East North Height")
     x, y = (a[:, 2], a[:, 1]) if swap_xy else (a[:, 1], a[:, 2])
     return pd.DataFrame({"id": a[:, 0].astype(np.int64), "x": x, "y": y, "z": a[:, 3], "layer": layer, "line": lines})
 

@@ -45,25 +45,9 @@ def read_points(path, *, columns: str = "123", scales=(1.0, 1.0, 1.0), rotations
         xyz = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
         ids = np.arange(1, len(xyz) + 1)
     else:
-        rows, lines = [], []
-        for n, raw in enumerate(p.read_text(errors="replace").splitlines(), start=1):
-            parts = raw.replace(",", " ").replace(";", " ").split()
-            if not parts or raw.lstrip().startswith("#"):
-                continue
-            if len(parts) != 4:
-                raise InputError(f"line {n}: {len(parts)} values, expected 4 (ID X Y Z)", path=p,
-                                 hint="One point per line: ID X Y Z")
-            try:
-                rows.append([float(v) for v in parts])
-            except ValueError:
-                if not rows and n == 1:
-                    continue  # a header
-                bad = next(v for v in parts if not _is_number(v))
-                raise InputError(f"line {n}: {bad!r} is not a number", path=p, hint="Fix or remove that row") from None
-            lines.append(n)
-        if not rows:
-            raise InputError("no points", path=p, hint="One point per line: ID X Y Z")
-        a = np.asarray(rows)
+        from ..io.text import read_id_xyz
+
+        a, _ = read_id_xyz(p)
         ids, xyz = a[:, 0].astype(np.int64), a[:, 1:4]
     order = [int(c) - 1 for c in str(columns)]
     if sorted(order) != [0, 1, 2]:
@@ -76,12 +60,15 @@ def read_points(path, *, columns: str = "123", scales=(1.0, 1.0, 1.0), rotations
     return pd.DataFrame({"id": ids, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]})
 
 
-def _is_number(v: str) -> bool:
-    try:
-        float(v)
-        return True
-    except ValueError:
-        return False
+def level_spacing(xyz: np.ndarray, level: np.ndarray) -> float:
+    """Median nearest-neighbour distance in plan between points of the same level (inf with none)."""
+    nn = []
+    for lev in np.unique(level):
+        p = xyz[level == lev, :2]
+        if len(p) > 1:
+            dd, _ = cKDTree(p).query(p, 2)
+            nn.append(dd[:, 1])
+    return float(np.median(np.concatenate(nn))) if nn else np.inf
 
 
 def check_points(points: pd.DataFrame, *, eps: float = 1e-6, near: float = 0.01, eps_z: float = 0.1,
@@ -124,13 +111,7 @@ def check_points(points: pd.DataFrame, *, eps: float = 1e-6, near: float = 0.01,
     pts, level = pts[~drop].reset_index(drop=True), level[~drop]
     xyz = pts[["x", "y", "z"]].to_numpy()
     if isolated_distance is None:  # 3 x the median in-level spacing
-        nn = []
-        for lev in np.unique(level):
-            p = xyz[level == lev, :2]
-            if len(p) > 1:
-                dd, _ = cKDTree(p).query(p, 2)
-                nn.append(dd[:, 1])
-        isolated_distance = 3 * float(np.median(np.concatenate(nn))) if nn else np.inf
+        isolated_distance = 3 * level_spacing(xyz, level)
     counts = np.asarray([len(nb) for nb in cKDTree(xyz).query_ball_point(xyz, isolated_distance)])
     flagged = counts <= 1  # nobody else within the distance, on any level
     for i in np.flatnonzero(flagged):
@@ -187,13 +168,8 @@ def estimate_parameters(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: 
     level = split_levels(xyz[:, 2], eps_z)
     zs = np.array([xyz[level == lev, 2].mean() for lev in np.unique(level)])
     gap = float(np.median(np.diff(np.sort(zs)))) if len(zs) > 1 else float(span[2] or 1.0)
-    nn = []
-    for lev in np.unique(level):
-        p = xyz[level == lev, :2]
-        if len(p) > 1:
-            dd, _ = cKDTree(p).query(p, 2)
-            nn.append(dd[:, 1])
-    s_xy = float(np.median(np.concatenate(nn))) if nn else 1.0
+    s_xy = level_spacing(xyz, level)
+    s_xy = s_xy if np.isfinite(s_xy) else 1.0
     diag = float(np.hypot(span[0], span[1]))
     kz = max(k for k in range(0, 40) if span[2] / 2 ** k >= gap) if span[2] >= gap else 0
     kxy = max(k for k in range(0, 40) if diag / 2 ** k >= s_xy) if diag >= s_xy else 0

@@ -1,0 +1,44 @@
+"""Plain-text point files: one ``ID X Y Z`` row per line (whitespace, comma or semicolon separated)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataFileError, InputError
+
+__all__ = ["read_id_xyz"]
+
+
+def _is_number(v: str) -> bool:
+    try:
+        float(v)
+        return True
+    except ValueError:
+        return False
+
+
+def read_id_xyz(path, names: str = "ID X Y Z") -> tuple[np.ndarray, np.ndarray]:
+    """(rows (n, 4) float64, file line of each row). A header line and ``#`` comments are skipped;
+    a row without 4 values or with a value that is not a number is refused naming the file and line."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataFileError("file not found", path=p, hint="Check the path")
+    rows, lines = [], []
+    for n, raw in enumerate(p.read_text(errors="replace").splitlines(), start=1):
+        parts = raw.replace(",", " ").replace(";", " ").split()
+        if not parts or raw.lstrip().startswith("#"):
+            continue
+        if len(parts) != 4:
+            raise InputError(f"line {n}: {len(parts)} values, expected 4 ({names})", path=p, hint=f"One point per line: {names}")
+        if not all(_is_number(v) for v in parts):
+            if not rows and n == 1:
+                continue  # a header
+            bad = next(v for v in parts if not _is_number(v))
+            raise InputError(f"line {n}: {bad!r} is not a number", path=p, hint="Fix or remove that row")
+        rows.append([float(v) for v in parts])
+        lines.append(n)
+    if not rows:
+        raise InputError("no points", path=p, hint=f"One point per line: {names}")
+    return np.asarray(rows, np.float64), np.asarray(lines)
