@@ -10,6 +10,7 @@ Lengths are in CRS units.
 
 from __future__ import annotations
 
+import numpy as np
 import shapely
 from shapely.geometry import MultiPolygon, Polygon
 from shapely.ops import polygonize
@@ -40,7 +41,8 @@ def faces_from_lines(lines, frame: Polygon, *, snap: float = 0.2, max_width: flo
     2 * area / perimeter <= ``max_width`` and at least ``min_line_share`` of its
     boundary lies on the lines (not on the frame).
     """
-    clipped = [g for g in (shapely.intersection(ln, frame) for ln in _lines(lines)) if not g.is_empty]
+    with np.errstate(invalid="ignore"):  # GEOS 3.11 reports empty pieces with NaN coordinates
+        clipped = [g for g in (shapely.intersection(ln, frame) for ln in _lines(lines)) if not g.is_empty]
     if not clipped:
         return []
     lines_union = shapely.set_precision(shapely.union_all(_lines(clipped)), snap)
@@ -70,13 +72,15 @@ def water_polygons(hydro_lines, waterbodies, frame: Polygon, *, snap: float = 0.
                    single_line_width: float = 8.0):
     """Water of one tile: WATERBODY polygons (islands stay holes), faces between dual-line
     banks, and single-line features (lines bounding no face) buffered to ``single_line_width``."""
-    parts = [shapely.intersection(g, frame) for g in waterbodies if g is not None and not g.is_empty]
+    with np.errstate(invalid="ignore"):
+        parts = [shapely.intersection(g, frame) for g in waterbodies if g is not None and not g.is_empty]
     lines = _lines(hydro_lines)
     faces = faces_from_lines(lines, frame, snap=snap, max_width=max_width)
     parts += faces
     face_edges = shapely.union_all([f.boundary for f in faces]).buffer(snap * 4) if faces else None
     for ln in lines:
-        piece = shapely.intersection(ln, frame)
+        with np.errstate(invalid="ignore"):
+            piece = shapely.intersection(ln, frame)
         if piece.is_empty:
             continue
         if face_edges is not None and piece.difference(face_edges).length < 0.5 * piece.length:
