@@ -187,3 +187,22 @@ def test_las_input_and_catmull_rom_output(tmp_path):
     lines = gpd.read_file(tmp_path / "o" / "structure.gpkg", layer="catmull_rom_lines")
     assert len(lines) == sum(len(g) for g in gpd.read_file(tmp_path / "o" / "structure.gpkg", layer="loops").geometry.apply(
         lambda g: list(g.coords)[:-1]))
+
+
+def test_outlines_digitised_by_their_corners():
+    """Chain levels with only the corners of an L (sides 100 and 200 m) and full plates at floor and roof."""
+    import pandas as pd
+
+    from gistools.structure.fixtures import P, lattice_points
+
+    rows = []
+    corners = np.asarray(P.exterior.coords)[:-1]
+    for z in range(0, 31, 5):
+        for x, y in (lattice_points(P) if z in (0, 30) else corners):
+            rows.append((len(rows) + 1, x, y, float(z)))
+    s = reconstruct(pd.DataFrame(rows, columns=["id", "x", "y", "z"]), h=8, d=150, t=4)
+    assert [c.kind for c in s.clusters] == ["sown"] + ["chain"] * 5 + ["sown"]
+    assert all(len(c.rings[0]) == 6 for c in s.clusters if c.kind == "chain")
+    mesh = trimesh.Trimesh(s.vertices, s.faces, process=False)
+    assert mesh.is_watertight and mesh.is_winding_consistent and mesh.euler_number == 2
+    assert mesh.volume == pytest.approx(900_000, rel=1e-9)

@@ -36,11 +36,46 @@ def _short_edges(xy: np.ndarray, factor: float = 1.25):
     return e[length <= limit + 1e-9]
 
 
+def _insertion_loop(xy: np.ndarray) -> np.ndarray | None:
+    """One simple loop through all points by cheapest insertion into their convex hull (outlines digitised by
+    their corners, whose sides differ in length); None when no simple loop comes out."""
+    from scipy.spatial import ConvexHull
+
+    try:
+        ring = list(ConvexHull(xy).vertices)
+    except Exception:
+        return None
+    rest = [i for i in range(len(xy)) if i not in set(ring)]
+    while rest:
+        best = None
+        for p in rest:
+            for k in range(len(ring)):
+                a, b = ring[k], ring[(k + 1) % len(ring)]
+                cost = (np.hypot(*(xy[a] - xy[p])) + np.hypot(*(xy[p] - xy[b])) - np.hypot(*(xy[a] - xy[b])))
+                if best is None or cost < best[0]:
+                    trial = ring[: k + 1] + [p] + ring[k + 1:]
+                    if shapely.LinearRing(xy[trial]).is_simple:
+                        best = (cost, p, trial)
+        if best is None:
+            return None
+        ring = best[2]
+        rest.remove(best[1])
+    return np.asarray(ring)
+
+
 def chain_loops(xy: np.ndarray) -> list[np.ndarray]:
-    """Closed loops (vertex indices, counter-clockwise) through every point of a chain cluster."""
+    """Closed loops (vertex indices, counter-clockwise) through every point of a chain cluster: the cycle of
+    its short Delaunay edges, or, when those do not form one (an outline digitised by its corners), the
+    cheapest-insertion loop."""
     e = _short_edges(xy)
     deg = np.bincount(e.ravel(), minlength=len(xy))
     if (deg != 2).any():
+        ring = _insertion_loop(xy) if len(xy) <= 500 else None
+        if ring is not None:
+            x, y = xy[ring, 0], xy[ring, 1]
+            if np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) < 0:
+                ring = ring[::-1]
+            return [ring]
         bad = int(np.flatnonzero(deg != 2)[0])
         raise InputError(f"chain point {bad} at ({xy[bad, 0]:.2f}, {xy[bad, 1]:.2f}) has {deg[bad]} loop sides, not 2",
                          hint="The points of a chain must follow one closed outline at a regular spacing; adjust d or t")

@@ -74,15 +74,10 @@ def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 
             xy = xy_all[idx]
             c = Cluster(index, lev, z, pts["id"].to_numpy()[idx], xy)
             index += 1
-            try:
-                loops = chain_loops(xy)
-                hull = shapely.Polygon(xy[loops[0]]) if len(loops) == 1 else None
-            except InputError:
-                loops, hull = None, None
+            # a plate ("sown") closes faces between its points and has points off their outline; else an outline
             foot = sown_footprint(xy) if len(xy) >= 3 else shapely.Polygon()
-            c.kind = classify_cluster(xy, hull if hull is not None else foot, spacing, params.t) if loops else "sown"
-            if c.kind == "chain" and loops is None:
-                raise InputError(f"level at z = {z:.2f}: a chain cluster has no closed loop", hint="Adjust d or t")
+            c.kind = classify_cluster(xy, foot, spacing, params.t) if not foot.is_empty else "chain"
+            loops = chain_loops(xy) if c.kind == "chain" else None
             c.rings = [xy[r] for r in loops] if c.kind == "chain" else [np.asarray(r.coords)[:-1] for r in
                                                                          shapely.get_parts(foot.boundary)]
             c.footprint = shapely.Polygon(c.rings[0]) if c.kind == "chain" else foot
