@@ -21,7 +21,7 @@ from rasterio.transform import from_origin
 
 from .errors import InputError
 
-__all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "lattice_offset"]
+__all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "lattice_offset", "evaluate_on_grid"]
 
 
 @dataclass(frozen=True)
@@ -125,3 +125,14 @@ def cell_centres(grid: Grid) -> tuple[np.ndarray, np.ndarray]:
     xs = (grid.col0 + np.arange(grid.width) + 0.5) * cs
     ys = (grid.row_top - np.arange(grid.height) - 0.5) * cs
     return xs, ys
+
+
+def evaluate_on_grid(grid: Grid, fn, *, rows: int = 256) -> np.ndarray:
+    """fn(x, y) (2-D arrays of cell-centre coordinates, float result, NaN = nodata) on every cell, a block of
+    ``rows`` rows at a time so memory stays bounded."""
+    xs, ys = cell_centres(grid)
+    out = np.full(grid.shape, np.nan)
+    for r0 in range(0, grid.height, rows):
+        X, Y = np.meshgrid(xs, ys[r0:r0 + rows])
+        out[r0:r0 + rows] = fn(X, Y)
+    return out

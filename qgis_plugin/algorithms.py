@@ -182,6 +182,13 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             path = self.parameterDefinition(name).generateTemporaryDestination()
         return path
 
+    def layer_crs(self, parameters, name, context):
+        """The CRS of a vector layer parameter as gistools takes it (authority id, else WKT), None if it has none."""
+        layer = self.parameterAsVectorLayer(parameters, name, context)
+        if layer is None or not layer.crs().isValid():
+            return None
+        return layer.crs().authid() or layer.crs().toWkt()
+
     def raster_path(self, parameters, name, context):
         if parameters.get(name) in (None, ""):
             return None
@@ -215,7 +222,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             raise QgsProcessingException(str(err)) from None
 
     def run_gistools(self, parameters, context, feedback):  # pragma: no cover - every algorithm overrides it
-        raise NotImplementedError
+        raise NotImplementedError(f"{type(self).__name__} declares no gistools call")
 
     def report_tiles(self, result, feedback, what="tiles"):
         """Failed tiles are reported (the batch goes on); a run where every tile failed is an error."""
@@ -688,8 +695,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
                                    abs_thr=self.text(parameters, "ABS_THR", context),
                                    mesh_format=["ply", "obj"][self.parameterAsEnum(parameters, "MESH", context)])
         source = self.layer_spec(parameters, "INPUT", context, feedback)
-        layer = self.parameterAsVectorLayer(parameters, "INPUT", context)
-        crs = layer.crs().authid() or layer.crs().toWkt() if layer is not None and layer.crs().isValid() else None
+        crs = self.layer_crs(parameters, "INPUT", context)
         rep = aquifer_model(source, layers, out, crs=crs, swap_xy=self.parameterAsBool(parameters, "SWAP_XY", context),
                             settings=settings, within=self.layer_spec(parameters, "WITHIN", context, feedback),
                             clip=self.layer_spec(parameters, "CLIP", context, feedback), overwrite=True,
@@ -783,8 +789,7 @@ class RunwayAlgorithm(GistoolsAlgorithm):
                                   template=TEMPLATES[self.parameterAsEnum(parameters, "TEMPLATE", context)],
                                   spacing=spacing or None, f_cut=self.parameterAsDouble(parameters, "SWELL", context),
                                   f_fill=self.parameterAsDouble(parameters, "COMPACTION", context), free_haul=free or None)
-        layer = self.parameterAsVectorLayer(parameters, "INPUT", context)
-        crs = (layer.crs().authid() or layer.crs().toWkt()) if layer is not None and layer.crs().isValid() else None
+        crs = self.layer_crs(parameters, "INPUT", context)
         rep = runway_earthworks(self.layer_spec(parameters, "INPUT", context, feedback), out, settings, crs=crs,
                                 overwrite=True, progress=self.progress(feedback))
         feedback.pushInfo(f"cut {rep['cut']:,.1f} m3, fill {rep['fill']:,.1f} m3, net {rep['net']:,.1f} m3; "

@@ -170,9 +170,6 @@ def check_survey(points: pd.DataFrame, checks: SurveyChecks | None = None) -> tu
         for i in np.flatnonzero(bad):
             log.append((int(pts.at[others[i], "id"]), None, 2, "ground_height", float(r[i])))
             keep[others[i]] = False
-    removed_xyz = {}
-    for row in log:
-        removed_xyz[row[0]] = row
     logdf = pd.DataFrame(log, columns=["id", "new_id", "type", "reason", "residual"])
     return pts[keep].reset_index(drop=True), logdf
 

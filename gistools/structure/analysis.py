@@ -72,7 +72,7 @@ def level_spacing(xyz: np.ndarray, level: np.ndarray) -> float:
 
 
 def check_points(points: pd.DataFrame, *, eps: float = 1e-6, near: float = 0.01, eps_z: float = 0.1,
-                 isolated_distance: float | None = None, isolated_height: float | None = None):
+                 isolated_distance: float | None = None):
     """(kept points, log) of S1: exact duplicates (same x, y, z) keep the lowest id; a reused id at another
     position is renumbered (max + 1, ...); points within ``near`` of another in plan on the same level
     are merged (the lowest id kept); a point with no other point (any level) within ``isolated_distance``
@@ -116,7 +116,6 @@ def check_points(points: pd.DataFrame, *, eps: float = 1e-6, near: float = 0.01,
     flagged = counts <= 1  # nobody else within the distance, on any level
     for i in np.flatnonzero(flagged):
         log.append((int(pts.at[i, "id"]), None, "outlier"))
-    del isolated_height
     return pts[~flagged].reset_index(drop=True), pd.DataFrame(log, columns=["id", "new_id", "change"])
 
 
@@ -212,14 +211,10 @@ def cluster_level(xy: np.ndarray, d: float) -> np.ndarray:
 
 
 def classify_cluster(xy: np.ndarray, footprint, spacing: float, t: float) -> str:
-    """"chain" (all points on the footprint's boundary) or "sown" (a plate of points), the spec's S5 rule."""
-    n = len(xy)
+    """"chain" (every point within t of the footprint's outline) or "sown" (a plate of points), the spec's S5
+    rule: with points off the outline it is a sown whether or not the share / count tests decide it, as
+    "non-classified" clusters become sowns in the dissertation; so ``spacing`` does not change the answer."""
     if footprint is None or footprint.is_empty:
         return "chain"
-    nb = int(np.count_nonzero(shapely.distance(footprint.boundary, shapely.points(xy)) <= t))
-    inner = n - nb
-    if inner == 0:
-        return "chain"
-    if inner / n >= 0.1 or n >= 1.5 * footprint.boundary.length / spacing:
-        return "sown"
-    return "sown"
+    on_outline = shapely.distance(footprint.boundary, shapely.points(xy)) <= t
+    return "chain" if on_outline.all() else "sown"

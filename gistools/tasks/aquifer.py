@@ -21,9 +21,9 @@ from ..aquifer.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
 from ..aquifer.volume import common_footprint, overlay_volume
-from ..aquifer.walls import ring_pairs, is_closed, match_rings, unit_mesh, wall, write_obj, write_ply
+from ..aquifer.walls import is_closed, match_rings, unit_mesh, write_obj, write_ply
 from ..errors import InputError, OutputExistsError
-from ..grid import snapped_grid
+from ..grid import evaluate_on_grid, snapped_grid
 from ..io.raster import atomic_path, write_raster
 from ..io.vector import check_crs, read_layer, write_layers
 from ..progress import ProgressCallback, report
@@ -137,18 +137,14 @@ def _links(model: Model, metric: str) -> pd.DataFrame:
 
 
 def _thickness_grid(upper: Surface, lower: Surface, footprint, cell: float, crs):
-    b = footprint.bounds
-    grid = snapped_grid(b, cell, crs)
-    xs = grid.transform.c + (np.arange(grid.width) + 0.5) * cell
-    out = np.full(grid.shape, np.nan)
-    for r0 in range(0, grid.height, 256):
-        r1 = min(grid.height, r0 + 256)
-        ys = grid.transform.f - (np.arange(r0, r1) + 0.5) * cell
-        X, Y = np.meshgrid(xs, ys)
+    grid = snapped_grid(footprint.bounds, cell, crs)
+
+    def thickness(X, Y):
         zu, _ = height_at(upper, X.ravel(), Y.ravel())
         zl, _ = height_at(lower, X.ravel(), Y.ravel())
-        out[r0:r1] = (zu - zl).reshape(X.shape)
-    return out, grid
+        return (zu - zl).reshape(X.shape)
+
+    return evaluate_on_grid(grid, thickness), grid
 
 
 def compute_units(model: Model, settings: AquiferSettings, within=None, progress: ProgressCallback | None = None) -> None:
@@ -208,12 +204,10 @@ def _layers_gpkg(model: Model) -> dict:
     walls = []
     for name, u in model.units.items():
         U, L = model.surfaces[u["upper"]], model.surfaces[u["lower"]]
-        for ru, rl in ring_pairs(U, L):
-            a, b = U.xyz[ru], L.xyz[rl]
-            w = wall(a, b)
-            pts = np.vstack([a, b])
-            tri = np.stack([pts[w[:, i]] for i in (0, 1, 2, 0)], axis=1)
-            walls.append(gpd.GeoDataFrame({"unit": [name] * len(tri)}, geometry=shapely.polygons(tri), crs=crs))
+        verts, faces = u["mesh"]  # unit_mesh puts the walls after the two surfaces
+        tri = verts[faces[len(U.triangles) + len(L.triangles):]]
+        tri = np.concatenate([tri, tri[:, :1]], axis=1)
+        walls.append(gpd.GeoDataFrame({"unit": [name] * len(tri)}, geometry=shapely.polygons(tri), crs=crs))
     out["walls"] = pd.concat(walls, ignore_index=True) if walls else gpd.GeoDataFrame({"unit": []}, geometry=[], crs=crs)
     return out
 

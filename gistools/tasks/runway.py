@@ -19,7 +19,7 @@ import shapely
 from scipy.interpolate import LinearNDInterpolator
 
 from ..errors import InputError, OutputExistsError
-from ..grid import snapped_grid
+from ..grid import evaluate_on_grid, snapped_grid
 from ..io.points import parse_crs_text
 from ..io.raster import atomic_path, write_raster
 from ..io.vector import write_layers
@@ -213,21 +213,17 @@ def _design_raster(ew: Earthworks, crs, cell: float):
     half = ew.template.half_width
     region = line.buffer(half, cap_style="flat")
     grid = snapped_grid(region.bounds, cell, crs)
-    xs = grid.transform.c + (np.arange(grid.width) + 0.5) * cell
-    out = np.full(grid.shape, np.nan)
-    for r0 in range(0, grid.height, 256):
-        r1 = min(grid.height, r0 + 256)
-        ys = grid.transform.f - (np.arange(r0, r1) + 0.5) * cell
-        X, Y = np.meshgrid(xs, ys)
-        inside = shapely.contains_xy(region, X, Y)
-        if not inside.any():
-            continue
-        ch, off = ew.frame.local(X[inside], Y[inside])
-        z = ew.frame.z_centre(ch) - ew.template.drop(off)
+    shapely.prepare(region)
+
+    def design(X, Y):
         block = np.full(X.shape, np.nan)
-        block[inside] = z
-        out[r0:r1] = block
-    return out, grid
+        inside = shapely.contains_xy(region, X, Y)
+        if inside.any():
+            ch, off = ew.frame.local(X[inside], Y[inside])
+            block[inside] = ew.frame.z_centre(ch) - ew.template.drop(off)
+        return block
+
+    return evaluate_on_grid(grid, design), grid
 
 
 def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, crs=None, overwrite: bool = False,
