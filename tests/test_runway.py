@@ -127,11 +127,29 @@ def test_t8_with_the_ground_drawn_against_the_surveyed_grade_all_volumes_within_
     # the same T8 survey, its ground drawn against the grade the (noisy) lights give, i.e. the design the
     # survey defines: cut, fill and net within 0.5 % of the closed form
     points, truth = synthetic_runway(8, design_from="lights")
-    ew = compute_earthworks(points, RunwaySettings(profile_window=1))
+    ew = compute_earthworks(points, RunwaySettings())  # the spec's grade: the lights' heights interpolated
     assert set(zip(ew.removed["id"], ew.removed["reason"])) == set(zip(truth["id"], truth["reason"]))
     cut, fill = closed_form(ew.frame.line.length)
     for key, value in (("cut", cut), ("fill", fill), ("net", cut - fill)):
         assert ew.totals[key] == pytest.approx(value, rel=5e-3), key
+
+
+def test_t8_over_many_surveys_every_anomaly_found_no_good_light_removed_volumes_unbiased():
+    # T8 drawn with 12 other seeds: 196 lights with 2 cm noise put a good light beyond robust z 3.5 about one run
+    # in ten (seed 23: 7.6 cm off the line); --min-offset (10 cm) keeps such lights. Volumes: each survey's own
+    # errors spread by ~0.2 % (ground noise, and the noisy lights' grade kinks between the 10 m survey lines);
+    # the 10 m grid misses the template's kink at 22.5 m, a -0.31 % bias of the net (spec T4's regression note);
+    # the mean over the seeds is within 0.5 % for cut, fill and net
+    errors = []
+    for seed in (0, 5, 7, 11, 17, 21, 23, 29, 31, 37, 41, 43):
+        points, truth = synthetic_runway(seed, design_from="lights")
+        ew = compute_earthworks(points, RunwaySettings())
+        assert set(zip(ew.removed["id"], ew.removed["reason"])) == set(zip(truth["id"], truth["reason"])), seed
+        cut, fill = closed_form(ew.frame.line.length)
+        errors.append([ew.totals["cut"] / cut - 1, ew.totals["fill"] / fill - 1, ew.totals["net"] / (cut - fill) - 1])
+    errors = np.array(errors)
+    assert np.all(np.abs(errors) < 0.012)
+    assert np.all(np.abs(errors.mean(axis=0)) < 5e-3), errors.mean(axis=0)
 
 
 @pytest.mark.parametrize("grid,kinks,tol", [(2.0, False, 5e-3), (10.0, False, 5e-3), (15.0, False, 1.5e-2), (15.0, True, 5e-3)])

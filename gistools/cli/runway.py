@@ -37,18 +37,20 @@ def _metres(ctx, param, value):
 @click.option("--crs", default=None, help="CRS of the survey when the file has none (Orio al Serio: EPSG:3003).")
 @click.option("--origin", type=click.Choice(["low", "high", "first"]), default="low", show_default=True,
               help="Chainage 0 at the low end, the high end, or the first light of the file.")
-@click.option("--profile-window", default=5, show_default=True, help="Running mean of this many light heights (1: none).")
+@click.option("--profile-window", default=1, show_default=True, help="Design grade: running mean of this many light heights (1: the lights themselves, the spec).")
 @click.option("--swell", "f_cut", default=1.0, show_default=True, help="Factor on cut volumes (swell of dug material).")
 @click.option("--compaction", "f_fill", default=1.0, show_default=True, help="Factor on fill volumes (compaction).")
 @click.option("--free-haul", callback=_metres, default=None, help="Free-haul distance, e.g. 150m: reports the overhaul.")
 @click.option("--areas", "area_method", type=click.Choice(["exact", "dissertation"]), default="exact", show_default=True,
               help="exact: signed, split where ground crosses design; dissertation: unsigned hull + Heron.")
 @click.option("--max-offset", callback=_metres, default="1.0", show_default=True, help="Lights farther off the axis are anomalies.")
+@click.option("--min-offset", callback=_metres, default="0.1", show_default=True,
+              help="Lights closer to the axis are never anomalies, however high their robust z-score.")
 @click.option("--z-max", default=3.5, show_default=True, help="Robust z-score limit of the checks.")
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, profile_window, f_cut, f_fill, free_haul,
-           area_method, max_offset, z_max, overwrite, quiet):
+           area_method, max_offset, min_offset, z_max, overwrite, quiet):
     """Cut and fill of a runway: SURVEY (id, type, x, y, z; type 1 = centre-line light, 2 = other) and the
     aerodrome reference code to a design model, cross sections, area diagram and Brueckner curve.
 
@@ -59,7 +61,7 @@ def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, 
     """
     settings = RunwaySettings(code=code, runway_type=runway_type, template=template_kind, spacing=spacing, origin=origin,
                               profile_window=profile_window, f_cut=f_cut, f_fill=f_fill, free_haul=free_haul,
-                              area_method=area_method, checks=SurveyChecks(z_max=z_max, max_offset=max_offset))
+                              area_method=area_method, checks=SurveyChecks(z_max=z_max, max_offset=max_offset, min_offset=min_offset))
     with tqdm(total=100, unit="%", disable=True if quiet else None,
               bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
         rep = runway_earthworks(survey, out, settings, crs=crs, overwrite=overwrite,

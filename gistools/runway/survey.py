@@ -4,8 +4,9 @@ Points have ``id, type, x, y, z``: type 1 a centre-line light, 2 any other point
 dissertation gives no numeric outlier rule; gistools' (design spec step 1), every threshold
 a parameter: exact duplicates (same x, y, z, another id) keep the first; a reused id at
 another position is renumbered; lights: perpendicular residual r to the total-least-squares
-line, robust z = 0.6745 (r - median r) / MAD, removed while |z| > ``z_max`` or |r| > ``max_offset``
-(the worst first, the line refitted); light heights: residual to the running median of
+line, robust z = 0.6745 (r - median r) / MAD, removed while |r| > ``max_offset``, or |z| > ``z_max`` and
+|r| > ``min_offset`` (the worst first, the line refitted: a light closer to the line than ``min_offset`` is never
+an anomaly, however precise the rest of the survey); light heights: residual to the running median of
 height along the chainage (window 5), same robust rule (with ``max_height_step``); other
 points: height against the median of their k = 8 nearest neighbours, same robust rule with
 ``max_height_jump``. Lengths in CRS units (metres for the ICAO template).
@@ -92,6 +93,7 @@ class SurveyChecks:
 
     z_max: float = 3.5
     max_offset: float = 1.0
+    min_offset: float = 0.1
     max_height_step: float = 0.5
     max_height_jump: float = 1.0
     k: int = 8
@@ -140,7 +142,7 @@ def check_survey(points: pd.DataFrame, checks: SurveyChecks | None = None) -> tu
         r = (x[active] - cx - c[0]) * u[1] - (y[active] - cy - c[1]) * u[0]
         zr = _robust_z(r)
         k = int(np.argmax(np.abs(zr)))
-        if abs(zr[k]) <= s.z_max and abs(r[k]) <= s.max_offset:
+        if abs(r[k]) <= s.max_offset and (abs(zr[k]) <= s.z_max or abs(r[k]) <= s.min_offset):
             break
         log.append((int(pts.at[active[k], "id"]), None, 1, "light_off_axis", float(r[k])))
         keep[active[k]] = False
@@ -236,7 +238,7 @@ class Frame:
         return np.interp(np.asarray(chain, np.float64), self.chain, self.z_cl)
 
 
-def fit_frame(points: pd.DataFrame, *, origin: str = "low", profile_window: int = 5) -> Frame:
+def fit_frame(points: pd.DataFrame, *, origin: str = "low", profile_window: int = 1) -> Frame:
     """The centre line from the surviving lights (step 2): ordered by their projection on the principal axis,
     joined into a line. ``origin``: chainage 0 at the "low" end (the lower light height, the dissertation's
     reading), the "high" end, or "first" (the first light of the file). ``profile_window``: the centre-line

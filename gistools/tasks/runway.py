@@ -46,7 +46,7 @@ class RunwaySettings:
     template: str = "icao"
     spacing: float | None = None
     origin: str = "low"
-    profile_window: int = 5
+    profile_window: int = 1
     f_cut: float = 1.0
     f_fill: float = 1.0
     free_haul: float | None = None
