@@ -1,0 +1,451 @@
+/*
+ * Delaunay triangulation of 2-D points and its linear interpolation at grid cell centres.
+ *
+ * The triangulation is the sweep-hull algorithm of Delaunator (Mapbox, ISC licence; this is a
+ * port of its published algorithm, v4/v5): points sorted by distance from a seed circumcircle
+ * are added outside a convex hull kept in a linked list with an angular hash, and triangles are
+ * legalised by edge flips. The predicates are exact: coordinates are integers (the caller
+ * quantises them to at most 2^26 steps), orientation is evaluated in 64-bit integers, the
+ * in-circle test in doubles with an error bound and, when that is not conclusive, in 128-bit
+ * integers. So the result is a Delaunay triangulation of the quantised points whatever their
+ * degeneracy (collinear, cocircular, repeated).
+ *
+ * Called through ctypes (gistools/lidar/tin.py); the Python module init only makes the
+ * shared object importable and locatable.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef __int128 i128;
+
+/* sign of cross(q - p, r - p): > 0 when p, q, r turn counter-clockwise */
+static inline int ccw(int64_t px, int64_t py, int64_t qx, int64_t qy, int64_t rx, int64_t ry) {
+    int64_t d = (qx - px) * (ry - py) - (qy - py) * (rx - px);
+    return (d > 0) - (d < 0);
+}
+
+/* sign of the in-circle determinant of (a, b, c) and p: > 0 when p is inside the circle of a
+ * counter-clockwise a, b, c */
+static int incircle(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t cx, int64_t cy, int64_t px, int64_t py) {
+    int64_t dx = ax - px, dy = ay - py, ex = bx - px, ey = by - py, fx = cx - px, fy = cy - py;
+    double Dx = (double)dx, Dy = (double)dy, Ex = (double)ex, Ey = (double)ey, Fx = (double)fx, Fy = (double)fy;
+    double ap = Dx * Dx + Dy * Dy, bp = Ex * Ex + Ey * Ey, cp = Fx * Fx + Fy * Fy;
+    double t1 = Ey * cp - bp * Fy, t2 = Ex * cp - bp * Fx, t3 = Ex * Fy - Ey * Fx;
+    double det = Dx * t1 - Dy * t2 + ap * t3;
+    double perm = fabs(Dx) * (fabs(Ey * cp) + fabs(bp * Fy)) + fabs(Dy) * (fabs(Ex * cp) + fabs(bp * Fx)) +
+                  ap * (fabs(Ex * Fy) + fabs(Ey * Fx));
+    double bound = 1e-13 * perm;
+    if (det > bound) return 1;
+    if (det < -bound) return -1;
+    i128 AP = (i128)dx * dx + (i128)dy * dy, BP = (i128)ex * ex + (i128)ey * ey, CP = (i128)fx * fx + (i128)fy * fy;
+    i128 T1 = (i128)ey * CP - BP * fy, T2 = (i128)ex * CP - BP * fx, T3 = (i128)ex * fy - (i128)ey * fx;
+    i128 D = dx * T1 - dy * T2 + AP * T3;
+    return (D > 0) - (D < 0);
+}
+
+typedef struct {
+    const int64_t *p; /* coordinates in insertion order, interleaved x, y */
+    int32_t *tri, *half;
+    int64_t tlen;
+    int32_t *hprev, *hnext, *htri, *hhash;
+    int32_t hsize, hstart;
+    double cx, cy;
+    int32_t *stack;
+    int64_t scap;
+} Del;
+
+static inline int32_t hash_key(const Del *d, double x, double y) {
+    double dx = x - d->cx, dy = y - d->cy;
+    double s = fabs(dx) + fabs(dy);
+    double p = s > 0 ? dx / s : 0;
+    double a = (dy > 0 ? 3 - p : 1 + p) / 4; /* pseudo-angle in [0, 1] */
+    int32_t k = (int32_t)floor(a * d->hsize);
+    return ((k % d->hsize) + d->hsize) % d->hsize;
+}
+
+static inline void link_he(Del *d, int64_t a, int64_t b) {
+    d->half[a] = (int32_t)b;
+    if (b != -1) d->half[b] = (int32_t)a;
+}
+
+static inline int64_t add_tri(Del *d, int32_t i0, int32_t i1, int32_t i2, int64_t a, int64_t b, int64_t c) {
+    int64_t t = d->tlen;
+    d->tri[t] = i0;
+    d->tri[t + 1] = i1;
+    d->tri[t + 2] = i2;
+    link_he(d, t, a);
+    link_he(d, t + 1, b);
+    link_he(d, t + 2, c);
+    d->tlen += 3;
+    return t;
+}
+
+static int push(Del *d, int64_t *n, int32_t v) {
+    if (*n >= d->scap) {
+        int64_t cap = d->scap * 2;
+        int32_t *s = (int32_t *)realloc(d->stack, (size_t)cap * sizeof(int32_t));
+        if (!s) return -1;
+        d->stack = s;
+        d->scap = cap;
+    }
+    d->stack[(*n)++] = v;
+    return 0;
+}
+
+/* Flip edges from half-edge a until the Delaunay condition holds; returns the half-edge the
+ * caller tracks (as Delaunator's _legalize). Triangles are clockwise in a y-up frame. */
+static int64_t legalize(Del *d, int64_t a) {
+    int64_t n = 0, ar = 0;
+    for (;;) {
+        int64_t b = d->half[a];
+        int64_t a0 = a - a % 3;
+        ar = a0 + (a + 2) % 3;
+        if (b == -1) {
+            if (n == 0) break;
+            a = d->stack[--n];
+            continue;
+        }
+        int64_t b0 = b - b % 3;
+        int64_t al = a0 + (a + 1) % 3;
+        int64_t bl = b0 + (b + 2) % 3;
+        int32_t p0 = d->tri[ar], pr = d->tri[a], pl = d->tri[al], p1 = d->tri[bl];
+        /* (p0, pr, pl) is clockwise: p1 inside its circle <=> incircle(p0, pl, pr, p1) > 0 */
+        const int64_t *P = d->p;
+        int illegal = incircle(P[2 * p0], P[2 * p0 + 1], P[2 * pl], P[2 * pl + 1], P[2 * pr], P[2 * pr + 1], P[2 * p1], P[2 * p1 + 1]) > 0;
+        if (illegal) {
+            d->tri[a] = p1;
+            d->tri[b] = p0;
+            int32_t hbl = d->half[bl];
+            if (hbl == -1) { /* the flipped edge was on the hull: fix the hull's triangle reference */
+                int32_t e = d->hstart;
+                do {
+                    if (d->htri[e] == bl) {
+                        d->htri[e] = (int32_t)a;
+                        break;
+                    }
+                    e = d->hprev[e];
+                } while (e != d->hstart);
+            }
+            link_he(d, a, hbl);
+            link_he(d, b, d->half[ar]);
+            link_he(d, ar, bl);
+            int64_t br = b0 + (b + 1) % 3;
+            if (push(d, &n, (int32_t)br)) return -2;
+        } else {
+            if (n == 0) break;
+            a = d->stack[--n];
+        }
+    }
+    return ar;
+}
+
+/* sort (key, id) pairs by key: LSD radix sort on the key's bits (keys >= 0) */
+typedef struct {
+    uint64_t key;
+    int32_t id;
+} Pair;
+
+static int radix_sort(Pair *a, int64_t n) {
+    Pair *tmp = (Pair *)malloc((size_t)n * sizeof(Pair));
+    if (!tmp) return -1;
+    enum { BITS = 11, BUCKETS = 1 << BITS };
+    int64_t *count = (int64_t *)malloc(BUCKETS * sizeof(int64_t));
+    if (!count) {
+        free(tmp);
+        return -1;
+    }
+    uint64_t maxkey = 0;
+    for (int64_t i = 0; i < n; i++)
+        if (a[i].key > maxkey) maxkey = a[i].key;
+    Pair *src = a, *dst = tmp;
+    for (int shift = 0; shift < 64 && (maxkey >> shift); shift += BITS) {
+        memset(count, 0, BUCKETS * sizeof(int64_t));
+        for (int64_t i = 0; i < n; i++) count[(src[i].key >> shift) & (BUCKETS - 1)]++;
+        int64_t s = 0;
+        for (int k = 0; k < BUCKETS; k++) {
+            int64_t c = count[k];
+            count[k] = s;
+            s += c;
+        }
+        for (int64_t i = 0; i < n; i++) dst[count[(src[i].key >> shift) & (BUCKETS - 1)]++] = src[i];
+        Pair *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, (size_t)n * sizeof(Pair));
+    free(tmp);
+    free(count);
+    return 0;
+}
+
+static double circumradius2(double ax, double ay, double bx, double by, double cx, double cy) {
+    double dx = bx - ax, dy = by - ay, ex = cx - ax, ey = cy - ay;
+    double bl = dx * dx + dy * dy, cl = ex * ex + ey * ey, dd = dx * ey - dy * ex;
+    if (dd == 0) return INFINITY;
+    double x = (ey * bl - dy * cl) * 0.5 / dd, y = (dx * cl - ex * bl) * 0.5 / dd;
+    return x * x + y * y;
+}
+
+/*
+ * Delaunay triangles of n points with integer coordinates (|x|, |y| < 2^26 after the caller's
+ * quantisation). triangles: room for 3 * (2n) int32 vertex indices (into the input order).
+ * Returns the number of triangles (0 when all points are collinear or repeated), -1 when
+ * memory runs out. Repeated points: one of them is used, the others are in no triangle.
+ */
+int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *triangles) {
+    if (n < 3) return 0;
+    int64_t result = -1;
+    Pair *order = NULL;
+    int64_t *pts = NULL;
+    int32_t *half = NULL, *hprev = NULL, *hnext = NULL, *htri = NULL, *hhash = NULL, *stack = NULL;
+    /* seed: the point nearest the bounding-box centre, its nearest neighbour, and the point making
+     * the smallest circumcircle with them */
+    int64_t minx = xin[0], maxx = xin[0], miny = yin[0], maxy = yin[0];
+    for (int64_t i = 1; i < n; i++) {
+        if (xin[i] < minx) minx = xin[i];
+        if (xin[i] > maxx) maxx = xin[i];
+        if (yin[i] < miny) miny = yin[i];
+        if (yin[i] > maxy) maxy = yin[i];
+    }
+    double bcx = 0.5 * ((double)minx + (double)maxx), bcy = 0.5 * ((double)miny + (double)maxy);
+    int64_t i0 = 0, i1 = -1, i2 = -1;
+    double best = INFINITY;
+    for (int64_t i = 0; i < n; i++) {
+        double dx = (double)xin[i] - bcx, dy = (double)yin[i] - bcy, dd = dx * dx + dy * dy;
+        if (dd < best) {
+            best = dd;
+            i0 = i;
+        }
+    }
+    best = INFINITY;
+    for (int64_t i = 0; i < n; i++) {
+        if (xin[i] == xin[i0] && yin[i] == yin[i0]) continue;
+        double dx = (double)(xin[i] - xin[i0]), dy = (double)(yin[i] - yin[i0]), dd = dx * dx + dy * dy;
+        if (dd < best) {
+            best = dd;
+            i1 = i;
+        }
+    }
+    if (i1 < 0) return 0; /* all points at one position */
+    best = INFINITY;
+    for (int64_t i = 0; i < n; i++) {
+        if (ccw(xin[i0], yin[i0], xin[i1], yin[i1], xin[i], yin[i]) == 0) continue;
+        double r = circumradius2((double)xin[i0], (double)yin[i0], (double)xin[i1], (double)yin[i1], (double)xin[i],
+                                 (double)yin[i]);
+        if (r < best) {
+            best = r;
+            i2 = i;
+        }
+    }
+    if (i2 < 0) return 0; /* collinear */
+    if (ccw(xin[i0], yin[i0], xin[i1], yin[i1], xin[i2], yin[i2]) > 0) { /* seed clockwise (y-up) */
+        int64_t t = i1;
+        i1 = i2;
+        i2 = t;
+    }
+    /* circumcentre of the seed */
+    double ax = (double)xin[i0], ay = (double)yin[i0];
+    double dx = (double)xin[i1] - ax, dy = (double)yin[i1] - ay, ex = (double)xin[i2] - ax, ey = (double)yin[i2] - ay;
+    double bl = dx * dx + dy * dy, cl = ex * ex + ey * ey, dd = dx * ey - dy * ex;
+    double ccx = ax + (ey * bl - dy * cl) * 0.5 / dd, ccy = ay + (dx * cl - ex * bl) * 0.5 / dd;
+
+    /* insertion order: by squared distance from the seed's circumcentre (seed first) */
+    order = (Pair *)malloc((size_t)n * sizeof(Pair));
+    if (!order) goto done;
+    for (int64_t i = 0; i < n; i++) {
+        double qx = (double)xin[i] - ccx, qy = (double)yin[i] - ccy;
+        double q = qx * qx + qy * qy;
+        uint64_t key;
+        memcpy(&key, &q, sizeof key); /* non-negative doubles sort as their bit patterns */
+        order[i].key = key;
+        order[i].id = (int32_t)i;
+    }
+    if (radix_sort(order, n)) goto done;
+    pts = (int64_t *)malloc((size_t)n * 2 * sizeof(int64_t));
+    int64_t maxhe = 3 * (2 * n);
+    half = (int32_t *)malloc((size_t)maxhe * sizeof(int32_t));
+    hprev = (int32_t *)malloc((size_t)n * sizeof(int32_t));
+    hnext = (int32_t *)malloc((size_t)n * sizeof(int32_t));
+    htri = (int32_t *)malloc((size_t)n * sizeof(int32_t));
+    int32_t hsize = (int32_t)ceil(sqrt((double)n));
+    hhash = (int32_t *)malloc((size_t)hsize * sizeof(int32_t));
+    stack = (int32_t *)malloc(1024 * sizeof(int32_t));
+    if (!pts || !half || !hprev || !hnext || !htri || !hhash || !stack) goto done;
+    int32_t s0 = -1, s1 = -1, s2 = -1; /* the seed's positions in insertion order */
+    for (int64_t k = 0; k < n; k++) {
+        int32_t id = order[k].id;
+        pts[2 * k] = xin[id];
+        pts[2 * k + 1] = yin[id];
+        if (id == i0) s0 = (int32_t)k;
+        if (id == i1) s1 = (int32_t)k;
+        if (id == i2) s2 = (int32_t)k;
+    }
+#define X(k) pts[2 * (k)]
+#define Y(k) pts[2 * (k) + 1]
+#define FAIL            \
+    do {                \
+        stack = d.stack; \
+        goto done;      \
+    } while (0)
+    Del d = {pts, triangles, half, 0, hprev, hnext, htri, hhash, hsize, s0, ccx, ccy, stack, 1024};
+    for (int32_t k = 0; k < hsize; k++) hhash[k] = -1;
+    hnext[s0] = hprev[s2] = s1;
+    hnext[s1] = hprev[s0] = s2;
+    hnext[s2] = hprev[s1] = s0;
+    htri[s0] = 0;
+    htri[s1] = 1;
+    htri[s2] = 2;
+    hhash[hash_key(&d, (double)X(s0), (double)Y(s0))] = s0;
+    hhash[hash_key(&d, (double)X(s1), (double)Y(s1))] = s1;
+    hhash[hash_key(&d, (double)X(s2), (double)Y(s2))] = s2;
+    add_tri(&d, s0, s1, s2, -1, -1, -1);
+
+    int64_t xp = 0, yp = 0;
+    for (int64_t k = 0; k < n; k++) {
+        int32_t i = (int32_t)k;
+        int64_t x = X(k), y = Y(k);
+        if (k > 0 && x == xp && y == yp) continue; /* a repeat of the previous point */
+        xp = x;
+        yp = y;
+        if (i == s0 || i == s1 || i == s2) continue;
+        /* a visible hull edge, found from the angular hash */
+        int32_t start = 0;
+        int32_t key = hash_key(&d, (double)x, (double)y);
+        for (int32_t j = 0; j < hsize; j++) {
+            start = hhash[(key + j) % hsize];
+            if (start != -1 && start != hnext[start]) break;
+        }
+        start = hprev[start];
+        int32_t e = start, q;
+        /* hull edges run clockwise: e -> q is visible from the point when (point, e, q) turns counter-clockwise */
+        while (q = hnext[e], ccw(x, y, X(e), Y(e), X(q), Y(q)) <= 0) {
+            e = q;
+            if (e == start) {
+                e = -1;
+                break;
+            }
+        }
+        if (e == -1) continue; /* on or inside the hull: a repeated point */
+        int64_t t = add_tri(&d, e, i, hnext[e], -1, -1, htri[e]);
+        int64_t r = legalize(&d, t + 2);
+        if (r < -1) FAIL;
+        htri[i] = (int32_t)r;
+        htri[e] = (int32_t)t;
+        int32_t nn = hnext[e];
+        while (q = hnext[nn], ccw(x, y, X(nn), Y(nn), X(q), Y(q)) > 0) {
+            t = add_tri(&d, nn, i, q, htri[i], -1, htri[nn]);
+            r = legalize(&d, t + 2);
+            if (r < -1) FAIL;
+            htri[i] = (int32_t)r;
+            hnext[nn] = nn; /* removed from the hull */
+            nn = q;
+        }
+        if (e == start) {
+            while (q = hprev[e], ccw(x, y, X(q), Y(q), X(e), Y(e)) > 0) {
+                t = add_tri(&d, q, i, e, -1, htri[e], htri[q]);
+                if (legalize(&d, t + 2) < -1) FAIL;
+                htri[q] = (int32_t)t;
+                hnext[e] = e;
+                e = q;
+            }
+        }
+        d.hstart = hprev[i] = e;
+        hnext[e] = hprev[nn] = i;
+        hnext[i] = nn;
+        hhash[hash_key(&d, (double)x, (double)y)] = i;
+        hhash[hash_key(&d, (double)X(e), (double)Y(e))] = e;
+    }
+    for (int64_t k = 0; k < d.tlen; k++) triangles[k] = order[triangles[k]].id; /* back to input indices */
+    result = d.tlen / 3;
+    stack = d.stack;
+done:
+    free(order);
+    free(pts);
+    free(half);
+    free(hprev);
+    free(hnext);
+    free(htri);
+    free(hhash);
+    free(stack);
+    return result;
+}
+
+/*
+ * Linear interpolation of z over triangles at the cell centres they cover. u, v: positions in
+ * cell units from the grid's west / north edge (a centre is at col + 0.5, row + 0.5). A centre
+ * on an edge (barycentric weights >= -1e-9) takes the value of the last triangle holding it.
+ * Triangles with an edge longer than sqrt(max_edge2) (cell units; < 0: no limit) are skipped.
+ * out: height x width, row-major; only covered cells are written. Returns the cells written.
+ */
+int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
+                     int32_t height, double max_edge2, double *out) {
+    int64_t written = 0;
+    const double eps = -1e-9;
+    for (int64_t t = 0; t < ntri; t++) {
+        int32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
+        double ax = u[a], ay = v[a], bx = u[b], by = v[b], cx = u[c], cy = v[c];
+        double xmin = fmin(ax, fmin(bx, cx)), xmax = fmax(ax, fmax(bx, cx));
+        double ymin = fmin(ay, fmin(by, cy)), ymax = fmax(ay, fmax(by, cy));
+        int64_t r0 = (int64_t)ceil(ymin - 0.5), r1 = (int64_t)floor(ymax - 0.5);
+        int64_t c0 = (int64_t)ceil(xmin - 0.5), c1 = (int64_t)floor(xmax - 0.5);
+        if (r1 < r0 || c1 < c0) continue; /* no centre in the bounding box: most triangles */
+        if (r0 < 0) r0 = 0;
+        if (r1 > height - 1) r1 = height - 1;
+        if (c0 < 0) c0 = 0;
+        if (c1 > width - 1) c1 = width - 1;
+        if (r1 < r0 || c1 < c0) continue;
+        if (max_edge2 >= 0) {
+            double e1 = (ax - bx) * (ax - bx) + (ay - by) * (ay - by);
+            double e2 = (bx - cx) * (bx - cx) + (by - cy) * (by - cy);
+            double e3 = (cx - ax) * (cx - ax) + (cy - ay) * (cy - ay);
+            if (fmax(e1, fmax(e2, e3)) > max_edge2) continue;
+        }
+        double det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy);
+        if (det == 0) continue;
+        double inv = 1.0 / det;
+        double za = z[a], zb = z[b], zc = z[c];
+        for (int64_t r = r0; r <= r1; r++) {
+            double py = r + 0.5 - cy;
+            /* the columns of this row inside the triangle: from the edges the row line crosses */
+            double lo = INFINITY, hi = -INFINITY, yy = r + 0.5;
+            const double px_[3] = {ax, bx, cx}, py_[3] = {ay, by, cy};
+            for (int k = 0; k < 3; k++) {
+                double x1 = px_[k], y1 = py_[k], x2 = px_[(k + 1) % 3], y2 = py_[(k + 1) % 3];
+                if ((y1 - yy) * (y2 - yy) > 0) continue;
+                if (y1 == y2) {
+                    lo = fmin(lo, fmin(x1, x2));
+                    hi = fmax(hi, fmax(x1, x2));
+                } else {
+                    double xx = x1 + (yy - y1) * (x2 - x1) / (y2 - y1);
+                    lo = fmin(lo, xx);
+                    hi = fmax(hi, xx);
+                }
+            }
+            if (!(hi >= lo)) continue;
+            int64_t k0 = (int64_t)ceil(lo - 0.5) - 1, k1 = (int64_t)floor(hi - 0.5) + 1; /* one spare each side */
+            if (k0 < c0) k0 = c0;
+            if (k1 > c1) k1 = c1;
+            for (int64_t col = k0; col <= k1; col++) {
+                double px = col + 0.5 - cx;
+                double w1 = ((by - cy) * px + (cx - bx) * py) * inv;
+                double w2 = ((cy - ay) * px + (ax - cx) * py) * inv;
+                double w3 = 1.0 - w1 - w2;
+                if (w1 >= eps && w2 >= eps && w3 >= eps) {
+                    out[r * (int64_t)width + col] = w1 * za + w2 * zb + w3 * zc;
+                    written++;
+                }
+            }
+        }
+    }
+    return written;
+}
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_tinkernel",
+                                    "Compiled Delaunay triangulation and TIN rasterisation (called through ctypes).", -1,
+                                    NULL};
+
+PyMODINIT_FUNC PyInit__tinkernel(void) { return PyModule_Create(&module); }

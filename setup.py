@@ -1,0 +1,13 @@
+"""Build of the optional compiled TIN kernel (everything else is in pyproject.toml).
+
+The kernel needs a C compiler with 128-bit integers (GCC or Clang). Where it cannot be built the
+install still succeeds and gistools uses Triangle for TINs (``gistools.lidar.tin.tin_engine()``).
+"""
+
+import sys
+
+from setuptools import Extension, setup
+
+flags = [] if sys.platform == "win32" else ["-O3", "-std=c99"]
+setup(ext_modules=[Extension("gistools.lidar._tinkernel", ["gistools/lidar/_tinkernel.c"],
+                             extra_compile_args=flags, optional=True)])

@@ -1,0 +1,113 @@
+"""gistools' compiled Delaunay kernel against Triangle, scipy and the empty-circle property."""
+
+import os
+
+import numpy as np
+import pytest
+from scipy.spatial import ConvexHull, cKDTree
+
+from gistools.grid import snapped_grid
+from gistools.lidar import tin
+from gistools.lidar.tin import delaunay_triangles, tin_engine, tin_to_grid
+
+
+def test_the_kernel_is_built_where_ci_runs():
+    # the install (tools/run.sh: pip install -e .) compiles it; without it TINs fall back to Triangle, 3x slower
+    if os.environ.get("CI") and os.environ.get("GISTOOLS_TIN", "") != "triangle":
+        assert tin_engine() == "kernel"
+    elif tin_engine() != "kernel":
+        pytest.skip("the compiled TIN kernel is not built here (no C compiler at install): Triangle is used")
+
+
+pytestmark_kernel = pytest.mark.skipif(tin.tin_engine() != "kernel", reason="the compiled TIN kernel is not built")
+
+
+def _triangle_engine(monkeypatch):
+    monkeypatch.setenv("GISTOOLS_TIN", "triangle")
+
+
+def _check_delaunay(x, y, tris):
+    """Every triangle counter-clockwise or clockwise consistently, no point strictly inside a circumcircle,
+    and the triangles tile the convex hull (areas sum to the hull's)."""
+    p = np.column_stack([x, y])
+    a, b, c = p[tris[:, 0]], p[tris[:, 1]], p[tris[:, 2]]
+    cross = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+    assert (cross < 0).all() or (cross > 0).all()
+    hull = ConvexHull(p)
+    assert np.abs(cross).sum() / 2 == pytest.approx(hull.volume, rel=1e-9)
+    # circumcircles
+    d = 2 * cross
+    al, bl, cl = (v[:, 0] ** 2 + v[:, 1] ** 2 for v in (a, b, c))
+    ux = (al * (b[:, 1] - c[:, 1]) + bl * (c[:, 1] - a[:, 1]) + cl * (a[:, 1] - b[:, 1])) / d
+    uy = (al * (c[:, 0] - b[:, 0]) + bl * (a[:, 0] - c[:, 0]) + cl * (b[:, 0] - a[:, 0])) / d
+    r = np.hypot(a[:, 0] - ux, a[:, 1] - uy)
+    tree = cKDTree(p)
+    inside = tree.query_ball_point(np.column_stack([ux, uy]), r * (1 - 1e-9))
+    vertex_xy = {(x[v], y[v]) for v in np.unique(tris)}
+    for k, pts in enumerate(inside):
+        extra = [q for q in pts if q not in tris[k] and (x[q], y[q]) not in vertex_xy]  # repeats of a vertex aside
+        assert not extra, f"triangle {k} is not Delaunay: points {extra} inside"
+
+
+@pytestmark_kernel
+def test_random_points_give_triangles_identical_to_triangle(monkeypatch):
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(400000, 401500, 20000), rng.uniform(1.8e6, 1.8e6 + 900, 20000)
+    ours = delaunay_triangles(x, y)
+    _triangle_engine(monkeypatch)
+    theirs = delaunay_triangles(x, y)
+    assert {tuple(sorted(t)) for t in ours.tolist()} == {tuple(sorted(t)) for t in theirs.tolist()}
+    _check_delaunay(x, y, ours)
+
+
+@pytestmark_kernel
+@pytest.mark.parametrize("case", ["lattice", "quantised", "repeats", "circle", "clustered"])
+def test_degenerate_inputs_give_a_delaunay_triangulation(case):
+    rng = np.random.default_rng(11)
+    if case == "lattice":  # every quad cocircular, many collinear triples
+        g = np.arange(60.0)
+        x, y = (a.ravel() for a in np.meshgrid(g, g))
+    elif case == "quantised":  # LAS-like 0.01 ft steps on large coordinates (a few positions repeat)
+        x = np.round(rng.uniform(0, 60, 30000), 2) + 412345.0
+        y = np.round(rng.uniform(0, 60, 30000), 2) + 1812345.0
+    elif case == "repeats":
+        x, y = rng.uniform(0, 100, 5000), rng.uniform(0, 100, 5000)
+        x, y = np.r_[x, x[:1000], x[:10]], np.r_[y, y[:1000], y[:10]]
+    elif case == "circle":  # all points on one circle, plus its centre
+        t = np.linspace(0, 2 * np.pi, 360, endpoint=False)
+        x, y = np.r_[np.cos(t) * 100, 0.0], np.r_[np.sin(t) * 100, 0.0]
+    else:  # dense clusters far apart
+        c = rng.uniform(0, 1e5, (20, 2))
+        p = (c[:, None, :] + rng.normal(0, 0.5, (20, 500, 2))).reshape(-1, 2)
+        x, y = p[:, 0], p[:, 1]
+    tris = delaunay_triangles(x, y)
+    if case == "lattice":  # quantisation may split cocircular quads either way, never leave a gap
+        assert len(tris) == 2 * 59 * 59
+    _check_delaunay(x, y, tris)
+    # every distinct position is a vertex, once (repeats: one of them)
+    assert len(np.unique(tris)) == len(np.unique(np.column_stack([x, y]), axis=0))
+
+
+@pytestmark_kernel
+def test_collinear_and_tiny_inputs_give_no_area():
+    assert len(delaunay_triangles(np.arange(2.0), np.arange(2.0))) == 0
+    assert len(delaunay_triangles(np.zeros(5), np.zeros(5))) == 0
+    g = snapped_grid((0, 0, 10, 10), 1.0)
+    dem = tin_to_grid(np.arange(10.0), np.arange(10.0), np.arange(10.0), g)
+    assert np.isnan(dem).all()  # a line covers no cell centre's triangle
+
+
+@pytestmark_kernel
+@pytest.mark.parametrize("max_edge", [None, 9.0])
+def test_kernel_grid_equals_the_triangle_engine(monkeypatch, max_edge):
+    rng = np.random.default_rng(5)
+    x = np.r_[rng.uniform(0, 300, 40000), rng.uniform(300, 600, 800)]  # a sparse half: long edges there
+    y = np.r_[rng.uniform(0, 300, 40000), rng.uniform(0, 300, 800)]
+    z = np.sin(x / 17) + 0.01 * y + rng.normal(0, 0.05, x.size)
+    g = snapped_grid((-10, -10, 610, 310), 2.0)
+    ours = tin_to_grid(x, y, z, g, max_edge=max_edge)
+    _triangle_engine(monkeypatch)
+    theirs = tin_to_grid(x, y, z, g, max_edge=max_edge)
+    assert np.array_equal(np.isnan(ours), np.isnan(theirs))
+    assert np.nanmax(np.abs(ours - theirs)) < 1e-9
+    assert np.isfinite(ours).sum() > 0.4 * ours.size
