@@ -190,13 +190,11 @@ static double circumradius2(double ax, double ay, double bx, double by, double c
     return x * x + y * y;
 }
 
-/*
- * Delaunay triangles of n points with integer coordinates (|x|, |y| < 2^26 after the caller's
- * quantisation). triangles: room for 3 * (2n) int32 vertex indices (into the input order).
- * Returns the number of triangles (0 when all points are collinear or repeated), -1 when
- * memory runs out. Repeated points: one of them is used, the others are in no triangle.
- */
-int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *triangles) {
+/* The triangulation; triangles index the insertion order, which *order_out gives (input index per position). */
+static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *triangles, int64_t *repeats,
+                           Pair **order_out) {
+    *repeats = 0;
+    *order_out = NULL;
     if (n < 3) return 0;
     int64_t result = -1;
     Pair *order = NULL;
@@ -308,7 +306,10 @@ int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *
     for (int64_t k = 0; k < n; k++) {
         int32_t i = (int32_t)k;
         int64_t x = X(k), y = Y(k);
-        if (k > 0 && x == xp && y == yp) continue; /* a repeat of the previous point */
+        if (k > 0 && x == xp && y == yp) { /* a repeat of the previous point */
+            (*repeats)++;
+            continue;
+        }
         xp = x;
         yp = y;
         if (i == s0 || i == s1 || i == s2) continue;
@@ -329,7 +330,10 @@ int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *
                 break;
             }
         }
-        if (e == -1) continue; /* on or inside the hull: a repeated point */
+        if (e == -1) { /* on or inside the hull: a repeated point */
+            (*repeats)++;
+            continue;
+        }
         int64_t t = add_tri(&d, e, i, hnext[e], -1, -1, htri[e]);
         int64_t r = legalize(&d, t + 2);
         if (r < -1) FAIL;
@@ -359,9 +363,10 @@ int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *
         hhash[hash_key(&d, (double)x, (double)y)] = i;
         hhash[hash_key(&d, (double)X(e), (double)Y(e))] = e;
     }
-    for (int64_t k = 0; k < d.tlen; k++) triangles[k] = order[triangles[k]].id; /* back to input indices */
     result = d.tlen / 3;
     stack = d.stack;
+    *order_out = order; /* the caller maps insertion positions to input indices, and frees it */
+    order = NULL;
 done:
     free(order);
     free(pts);
@@ -371,6 +376,103 @@ done:
     free(htri);
     free(hhash);
     free(stack);
+    return result;
+}
+
+/*
+ * Delaunay triangles of n points with integer coordinates (|x|, |y| < 2^26 after the caller's
+ * quantisation). triangles: room for 3 * (2n) int32 vertex indices (into the input order).
+ * Returns the number of triangles (0 when all points are collinear or repeated), -1 when
+ * memory runs out. Repeated points: one of them is used, the others are in no triangle; *repeats
+ * is set to the number left out.
+ */
+int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *triangles, int64_t *repeats) {
+    Pair *order = NULL;
+    int64_t m = triangulate(n, xin, yin, triangles, repeats, &order);
+    if (m > 0)
+        for (int64_t k = 0; k < 3 * m; k++) triangles[k] = order[triangles[k]].id; /* back to input indices */
+    free(order);
+    return m;
+}
+
+/* integer coordinates of v: rint((v - v0) * scale); returns the largest distance to an integer */
+double gt_quantise(int64_t n, const double *v, double v0, double scale, int64_t *out) {
+    double worst = 0;
+    for (int64_t i = 0; i < n; i++) {
+        double r = (v[i] - v0) * scale;
+        double q = nearbyint(r);
+        double e = fabs(r - q);
+        if (e > worst) worst = e;
+        out[i] = (int64_t)q;
+    }
+    return worst;
+}
+
+int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
+                     int32_t height, double max_edge2, double *out);
+
+/*
+ * The TIN of (x, y, z) evaluated at the cell centres of a grid: gt_delaunay + repeats merged
+ * (mean z) + gt_rasterize, with every array in insertion order (cache friendly). ix, iy: integer
+ * coordinates; u, v: positions in cell units (see gt_rasterize); out: height x width. Returns
+ * the number of triangles (-1: out of memory); *repeats: points merged into another.
+ */
+int64_t gt_tin_grid(int64_t n, const int64_t *ix, const int64_t *iy, const double *u, const double *v, const double *z,
+                    int32_t width, int32_t height, double max_edge2, double *out, int64_t *repeats) {
+    int64_t result = -1;
+    Pair *order = NULL;
+    int32_t *tri = (int32_t *)malloc((size_t)(6 * (n > 0 ? n : 1)) * sizeof(int32_t));
+    double *us = NULL, *vs = NULL, *zs = NULL, *cnt = NULL;
+    uint8_t *used = NULL;
+    if (!tri) return -1;
+    int64_t m = triangulate(n, ix, iy, tri, repeats, &order);
+    if (m <= 0) {
+        result = m;
+        goto done;
+    }
+    us = (double *)malloc((size_t)n * sizeof(double));
+    vs = (double *)malloc((size_t)n * sizeof(double));
+    zs = (double *)malloc((size_t)n * sizeof(double));
+    if (!us || !vs || !zs) goto done;
+    for (int64_t k = 0; k < n; k++) {
+        int32_t id = order[k].id;
+        us[k] = u[id];
+        vs[k] = v[id];
+        zs[k] = z[id];
+    }
+    if (*repeats > 0) { /* a repeat takes no part: its z joins the mean of the copy that does */
+        used = (uint8_t *)calloc((size_t)n, 1);
+        cnt = (double *)malloc((size_t)n * sizeof(double));
+        if (!used || !cnt) goto done;
+        for (int64_t k = 0; k < 3 * m; k++) used[tri[k]] = 1;
+        for (int64_t k = 0; k < n; k++) cnt[k] = 1;
+        for (int64_t k = 0; k < n; k++) {
+            if (used[k]) continue;
+            int64_t master = -1; /* a used point at the same position has the same key: search the run of equal keys */
+            for (int64_t j = k - 1; j >= 0 && order[j].key == order[k].key; j--)
+                if (used[j] && ix[order[j].id] == ix[order[k].id] && iy[order[j].id] == iy[order[k].id]) {
+                    master = j;
+                    break;
+                }
+            for (int64_t j = k + 1; master < 0 && j < n && order[j].key == order[k].key; j++)
+                if (used[j] && ix[order[j].id] == ix[order[k].id] && iy[order[j].id] == iy[order[k].id]) master = j;
+            if (master < 0) continue;
+            zs[master] += zs[k];
+            cnt[master] += 1;
+        }
+        for (int64_t k = 0; k < n; k++)
+            if (cnt[k] > 1) zs[k] /= cnt[k];
+    }
+    gt_rasterize(m, tri, us, vs, zs, width, height, max_edge2, out);
+    result = m;
+done:
+    free(order);
+    free(tri);
+    free(us);
+    free(vs);
+    free(zs);
+    free(cnt);
+    free(used);
     return result;
 }
 

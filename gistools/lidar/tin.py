@@ -29,10 +29,15 @@ def _load_kernel():
         return None
     lib = ctypes.CDLL(_tinkernel.__file__)
     i64, f64, i32 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.float64, np.int32))
-    lib.gt_delaunay.argtypes = [ctypes.c_int64, i64, i64, i32]
+    lib.gt_delaunay.argtypes = [ctypes.c_int64, i64, i64, i32, ctypes.POINTER(ctypes.c_int64)]
     lib.gt_delaunay.restype = ctypes.c_int64
     lib.gt_rasterize.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64]
     lib.gt_rasterize.restype = ctypes.c_int64
+    lib.gt_quantise.argtypes = [ctypes.c_int64, f64, ctypes.c_double, ctypes.c_double, i64]
+    lib.gt_quantise.restype = ctypes.c_double
+    lib.gt_tin_grid.argtypes = [ctypes.c_int64, i64, i64, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
+                                ctypes.POINTER(ctypes.c_int64)]
+    lib.gt_tin_grid.restype = ctypes.c_int64
     return lib
 
 
@@ -106,13 +111,14 @@ def _lattice_step(x: np.ndarray, y: np.ndarray, x0: float, y0: float, extent: fl
 
 
 def _to_integers(v: np.ndarray, v0: float, scale: float) -> tuple[np.ndarray, float]:
-    r = (v - v0) * scale
-    i = np.rint(r)
-    return i.astype(np.int64), float(np.abs(r - i).max()) if len(r) else 0.0
+    """(rint((v - v0) * scale) as int64, the largest distance of (v - v0) * scale to an integer)."""
+    out = np.empty(len(v), np.int64)
+    worst = _KERNEL.gt_quantise(len(v), np.ascontiguousarray(v, np.float64), v0, scale, out)
+    return out, worst
 
 
-def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Delaunay triangles from the compiled kernel, on integer coordinates.
+def _integer_coordinates(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The kernel's integer coordinates of the points (None when they are all at one position).
 
     Points on a decimal lattice (LAS files: integers times the header scale) keep their exact
     positions. Other coordinates are quantised to extent / 2^26 (8e-5 ft on a 5000 ft tile): points
@@ -124,20 +130,25 @@ def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     x0, y0 = float(x.min()), float(y.min())
     extent = max(float(x.max()) - x0, float(y.max()) - y0)
     if not np.isfinite(extent) or extent == 0:
-        return np.empty((0, 3), np.int32)
+        return None
     step = _lattice_step(x, y, x0, y0, extent)
-    ix = iy = None
     if step is not None:
         ix, ex = _to_integers(x, x0, 1.0 / step)
         iy, ey = _to_integers(y, y0, 1.0 / step)
-        if max(ex, ey) >= 1e-3:  # not all on the lattice after all
-            ix = iy = None
-    if ix is None:
-        scale = _QUANTUM_STEPS / extent
-        ix, _ = _to_integers(x, x0, scale)
-        iy, _ = _to_integers(y, y0, scale)
+        if max(ex, ey) < 1e-3:
+            return ix, iy
+    scale = _QUANTUM_STEPS / extent  # not all on the lattice after all
+    return _to_integers(x, x0, scale)[0], _to_integers(y, y0, scale)[0]
+
+
+def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Delaunay triangles from the compiled kernel (see _integer_coordinates); repeats are in none."""
+    coords = _integer_coordinates(x, y)
+    if coords is None:
+        return np.empty((0, 3), np.int32)
     tris = np.empty(6 * len(x), np.int32)
-    m = _KERNEL.gt_delaunay(len(x), ix, iy, tris)
+    repeats = ctypes.c_int64(0)
+    m = _KERNEL.gt_delaunay(len(x), coords[0], coords[1], tris, ctypes.byref(repeats))
     if m < 0:
         raise MemoryError(f"not enough memory to triangulate {len(x)} points")
     return tris[: 3 * m].reshape(-1, 3)
@@ -158,24 +169,28 @@ def tin_to_grid(
     """
     if out is None:
         out = np.full(grid.shape, np.nan)
-    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
-    tris = delaunay_triangles(x, y)
-    if len(tris) == 0:
-        return out
-    z = merge_repeats(x, y, z, tris)
+    x, y, z = (np.ascontiguousarray(a, np.float64) for a in (x, y, z))
     cs = grid.cell_size
     # Work in cell units relative to the grid's west/north edge: u = col + 0.5 at a centre, v = row + 0.5.
     u = (x / cs) - grid.col0
     v = grid.row_top - (y / cs)
-    flat_out = out.reshape(-1)
     max_edge_cells = None if max_edge is None else max_edge / cs
     if tin_engine() == "kernel":
-        if out.dtype != np.float64 or not out.flags.c_contiguous:
-            raise ValueError("out must be a C-contiguous float64 array")
-        _KERNEL.gt_rasterize(len(tris), np.ascontiguousarray(tris, np.int32), np.ascontiguousarray(u),
-                             np.ascontiguousarray(v), np.ascontiguousarray(z, np.float64), grid.width, grid.height,
-                             -1.0 if max_edge_cells is None else max_edge_cells**2, out)
+        if len(x) < 3 or (coords := _integer_coordinates(x, y)) is None:
+            return out
+        if out.dtype != np.float64 or not out.flags.c_contiguous or out.shape != grid.shape:
+            raise ValueError("out must be a C-contiguous float64 array of the grid's shape")
+        repeats = ctypes.c_int64(0)
+        m = _KERNEL.gt_tin_grid(len(x), coords[0], coords[1], u, v, z, grid.width, grid.height,
+                                -1.0 if max_edge_cells is None else max_edge_cells**2, out, ctypes.byref(repeats))
+        if m < 0:
+            raise MemoryError(f"not enough memory to triangulate {len(x)} points")
         return out
+    tris = delaunay_triangles(x, y)
+    if len(tris) == 0:
+        return out
+    z = merge_repeats(x, y, z, tris)
+    flat_out = out.reshape(-1)
     # Per vertex, the first and last cell centre at or beyond it (int32): a triangle's range of
     # centres is the min / max of its vertices', so most triangles, which hold no centre when
     # points are dense, are dropped with integer work only.

@@ -73,7 +73,7 @@ class RasterSettings:
     crs: str | None = None
     chunk_size: int = DEFAULT_CHUNK_SIZE
     products: tuple[str, ...] = DEFAULT_PRODUCTS
-    tin_block_points: int = 2_500_000
+    tin_block_points: int = 5_000_000
     return_band_breaks: tuple | None = None
 
     def validate(self) -> None:
@@ -120,7 +120,7 @@ class _Run:
     crs_wkt: str
     z_unit: str
     products: tuple[str, ...] = DEFAULT_PRODUCTS
-    tin_block_points: int = 2_500_000
+    tin_block_points: int = 5_000_000
     return_breaks: tuple[float, ...] | None = None
 
 
