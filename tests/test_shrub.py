@@ -137,6 +137,7 @@ def test_class_polygons_layer(shrub_run, shrub_area=None):
     gdf = gpd.read_file(out / "shrub_classes.gpkg", layer="shrub_classes")
     assert gdf.crs.to_epsg() == 2882
     assert set(gdf["class"]) == {"light", "medium", "heavy", "road", "water"}
+    assert gdf.is_valid.all() and (gdf.groupby(["tile", "class"]).size() == 1).all()  # one dissolved row per tile and class
     for name in ("light", "medium", "heavy"):
         assert gdf.loc[gdf["class"] == name, "area"].sum() == pytest.approx(report["class_area"][name], rel=1e-6)
     assert np.allclose(gdf["area_acres"], gdf["area"] * (1200 / 3937) ** 2 / 4046.8564224)

@@ -225,9 +225,11 @@ def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
     polys = []
     for geom, value in shapes(classes, mask=(classes >= 1) & (classes <= 5), transform=grid.transform):
         polys.append((int(value), shapely.geometry.shape(geom)))
+    # shapes() gives the maximal 4-connected regions of each class, so one class's regions meet at most
+    # at a corner: their MultiPolygon is already the dissolved, valid geometry (no union needed)
     dissolved = []
     for c in sorted({v for v, _ in polys}):
-        dissolved.append((c, shapely.to_wkb(shapely.union_all([g for v, g in polys if v == c]))))
+        dissolved.append((c, shapely.to_wkb(shapely.multipolygons([g for v, g in polys if v == c]))))
     return {"outputs": {"classes": str(path)}, "class_area": class_area, "polygons": dissolved}
 
 

@@ -24,7 +24,7 @@ from rasterio.features import rasterize, shapes
 from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
-from ..io.raster import NODATA, atomic_path
+from ..io.raster import DEFLATE_LEVEL, NODATA, atomic_path
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
@@ -100,7 +100,7 @@ def _windows(width: int, height: int, block: int):
 
 def _profile(base, dtype: str, nodata) -> dict:
     return dict(driver="GTiff", width=base.width, height=base.height, count=1, dtype=dtype, crs=base.crs,
-                transform=base.transform, nodata=nodata, compress="deflate", predictor=3 if dtype.startswith("float") else 2,
+                transform=base.transform, nodata=nodata, compress="deflate", zlevel=DEFLATE_LEVEL, predictor=3 if dtype.startswith("float") else 2,
                 tiled=True, blockxsize=256, blockysize=256, BIGTIFF="IF_SAFER")
 
 
