@@ -6,6 +6,7 @@ one-line message, and the other tiles go on.
 
 from __future__ import annotations
 
+import ctypes
 import multiprocessing
 import os
 import shutil
@@ -48,6 +49,34 @@ def timed(fn, args):
     t = time.perf_counter()
     value = fn(*args)
     return value, time.perf_counter() - t
+
+
+_MEMORY_KEPT = False
+
+
+def keep_freed_memory() -> None:
+    """Make glibc keep freed memory in this process for reuse (Linux; once per process).
+
+    Each tile allocates and frees the same few hundred MB (points, TIN arrays); by default glibc
+    hands blocks this big back to the OS and the next tile pays the page faults again (about
+    12 % of a TIN's time). Called in worker processes only, whose memory is the run's anyway.
+    """
+    global _MEMORY_KEPT
+    if _MEMORY_KEPT or not sys.platform.startswith("linux"):
+        return
+    _MEMORY_KEPT = True
+    try:
+        libc = ctypes.CDLL(None)
+        libc.mallopt(-3, 1 << 30)  # M_MMAP_THRESHOLD: blocks up to 1 GiB come from the heap
+        libc.mallopt(-1, (1 << 31) - 1)  # M_TRIM_THRESHOLD: the heap is not trimmed
+    except (OSError, AttributeError):  # not glibc
+        pass
+
+
+def worker_timed(fn, args):
+    """timed() in a worker process (local pool or Dask worker), with keep_freed_memory()."""
+    keep_freed_memory()
+    return timed(fn, args)
 
 
 class ProcessPool:
@@ -128,7 +157,7 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb) -> None:
                 fail(results[name], err)
             tick(f"{name} {verb}")
         return
-    pending = {pool.submit(timed, fn, args): (name, args) for name, args in zip(names, arglist)
+    pending = {pool.submit(worker_timed, fn, args): (name, args) for name, args in zip(names, arglist)
                if results[name].status != "failed"}
     try:
         while pending:

@@ -33,7 +33,7 @@ from ..io.raster import atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
 from ..progress import ProgressCallback, report
-from .batch import fail, make_pool, timed
+from .batch import fail, make_pool, timed, worker_timed
 from ..units import length_to_crs_units
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
@@ -583,7 +583,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
                 return
             finish(kind, name, value, seconds, None)
         else:
-            pending[pool.submit(timed, fn, args)] = (kind, name)
+            pending[pool.submit(worker_timed, fn, args)] = (kind, name)
 
     def next_task():
         for n in grid_order:
