@@ -4,10 +4,10 @@
  * The triangulation is the sweep-hull algorithm of Delaunator (Mapbox, ISC licence; this is a
  * port of its published algorithm, v4/v5): points sorted by distance from a seed circumcircle
  * are added outside a convex hull kept in a linked list with an angular hash, and triangles are
- * legalised by edge flips. The predicates are exact: coordinates are integers (the caller
- * quantises them to at most 2^26 steps), orientation is evaluated in 64-bit integers, the
- * in-circle test in doubles with an error bound and, when that is not conclusive, in 128-bit
- * integers. So the result is a Delaunay triangulation of the quantised points whatever their
+ * legalised by edge flips. The predicates are exact: coordinates are integers spanning at most
+ * 2^30 steps (the caller quantises them; the largest span for which the arithmetic below stays
+ * exact), orientation is evaluated in 64-bit integers, the in-circle test in doubles with an error
+ * bound and, when that is not conclusive, in 128-bit integers. So the result is a Delaunay triangulation of the quantised points whatever their
  * degeneracy (collinear, cocircular, repeated).
  *
  * Called through ctypes (gistools/lidar/tin.py); the Python module init only makes the
@@ -380,8 +380,8 @@ done:
 }
 
 /*
- * Delaunay triangles of n points with integer coordinates (|x|, |y| < 2^26 after the caller's
- * quantisation). triangles: room for 3 * (2n) int32 vertex indices (into the input order).
+ * Delaunay triangles of n points with integer coordinates (differences below 2^30 after the
+ * caller's quantisation). triangles: room for 3 * (2n) int32 vertex indices (into the input order).
  * Returns the number of triangles (0 when all points are collinear or repeated), -1 when
  * memory runs out. Repeated points: one of them is used, the others are in no triangle; *repeats
  * is set to the number left out.
@@ -409,16 +409,18 @@ double gt_quantise(int64_t n, const double *v, double v0, double scale, int64_t 
 }
 
 int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
-                     int32_t height, double max_edge2, double *out);
+                     int32_t height, double max_edge2, double *out, const double *box, uint8_t *exact);
 
 /*
  * The TIN of (x, y, z) evaluated at the cell centres of a grid: gt_delaunay + repeats merged
  * (mean z) + gt_rasterize, with every array in insertion order (cache friendly). ix, iy: integer
- * coordinates; u, v: positions in cell units (see gt_rasterize); out: height x width. Returns
- * the number of triangles (-1: out of memory); *repeats: points merged into another.
+ * coordinates; u, v: positions in cell units (see gt_rasterize); out: height x width; box, exact:
+ * see gt_rasterize. Returns the number of triangles (-1: out of memory); *repeats: points merged
+ * into another.
  */
 int64_t gt_tin_grid(int64_t n, const int64_t *ix, const int64_t *iy, const double *u, const double *v, const double *z,
-                    int32_t width, int32_t height, double max_edge2, double *out, int64_t *repeats) {
+                    int32_t width, int32_t height, double max_edge2, double *out, int64_t *repeats, const double *box,
+                    uint8_t *exact) {
     int64_t result = -1;
     Pair *order = NULL;
     int32_t *tri = (int32_t *)malloc((size_t)(6 * (n > 0 ? n : 1)) * sizeof(int32_t));
@@ -463,7 +465,7 @@ int64_t gt_tin_grid(int64_t n, const int64_t *ix, const int64_t *iy, const doubl
         for (int64_t k = 0; k < n; k++)
             if (cnt[k] > 1) zs[k] /= cnt[k];
     }
-    gt_rasterize(m, tri, us, vs, zs, width, height, max_edge2, out);
+    gt_rasterize(m, tri, us, vs, zs, width, height, max_edge2, out, box, exact);
     result = m;
 done:
     free(order);
@@ -482,9 +484,15 @@ done:
  * on an edge (barycentric weights >= -1e-9) takes the value of the last triangle holding it.
  * Triangles with an edge longer than sqrt(max_edge2) (cell units; < 0: no limit) are skipped.
  * out: height x width, row-major; only covered cells are written. Returns the cells written.
+ *
+ * box (u0, v0, u1, v1; or NULL) and exact (height x width, or NULL): when the points given are
+ * all the points inside the box, a triangle whose circumcircle lies inside the box is a Delaunay
+ * triangle of every larger point set too; exact[cell] is set to 1 for the centres such triangles
+ * hold (whether written or skipped for a long edge), so the caller knows which cells a TIN of a
+ * wider area would give the same value (or nodata).
  */
 int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
-                     int32_t height, double max_edge2, double *out) {
+                     int32_t height, double max_edge2, double *out, const double *box, uint8_t *exact) {
     int64_t written = 0;
     const double eps = -1e-9;
     for (int64_t t = 0; t < ntri; t++) {
@@ -500,14 +508,23 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
         if (c0 < 0) c0 = 0;
         if (c1 > width - 1) c1 = width - 1;
         if (r1 < r0 || c1 < c0) continue;
+        int write = 1, safe = 0;
         if (max_edge2 >= 0) {
             double e1 = (ax - bx) * (ax - bx) + (ay - by) * (ay - by);
             double e2 = (bx - cx) * (bx - cx) + (by - cy) * (by - cy);
             double e3 = (cx - ax) * (cx - ax) + (cy - ay) * (cy - ay);
-            if (fmax(e1, fmax(e2, e3)) > max_edge2) continue;
+            if (fmax(e1, fmax(e2, e3)) > max_edge2) write = 0;
         }
         double det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy);
         if (det == 0) continue;
+        if (exact) { /* circumcircle inside the box, with a margin for rounding */
+            double dx = bx - ax, dy = by - ay, ex = cx - ax, ey = cy - ay;
+            double bl = dx * dx + dy * dy, cl = ex * ex + ey * ey, dd = dx * ey - dy * ex;
+            double ox = ax + (ey * bl - dy * cl) * 0.5 / dd, oy = ay + (dx * cl - ex * bl) * 0.5 / dd;
+            double r = sqrt((ox - ax) * (ox - ax) + (oy - ay) * (oy - ay)) * (1 + 1e-9) + 1e-9;
+            safe = ox - r > box[0] && oy - r > box[1] && ox + r < box[2] && oy + r < box[3];
+        }
+        if (!write && !safe) continue;
         double inv = 1.0 / det;
         double za = z[a], zb = z[b], zc = z[c];
         for (int64_t r = r0; r <= r1; r++) {
@@ -537,8 +554,11 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
                 double w2 = ((cy - ay) * px + (ax - cx) * py) * inv;
                 double w3 = 1.0 - w1 - w2;
                 if (w1 >= eps && w2 >= eps && w3 >= eps) {
-                    out[r * (int64_t)width + col] = w1 * za + w2 * zb + w3 * zc;
-                    written++;
+                    if (write) {
+                        out[r * (int64_t)width + col] = w1 * za + w2 * zb + w3 * zc;
+                        written++;
+                    }
+                    if (safe) exact[r * (int64_t)width + col] = 1;
                 }
             }
         }

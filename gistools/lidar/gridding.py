@@ -13,13 +13,14 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..grid import Grid, cell_centres, cell_index
-from .tin import tin_to_grid
+from .tin import tin_engine, tin_to_grid, tin_to_grid_exact
 
 __all__ = [
     "DEM_METHODS",
     "cell_statistic",
     "dsm_from_points",
     "dem_from_ground_points",
+    "tin_dem_with_halo",
     "ndsm_from",
     "within_distance",
 ]
@@ -154,6 +155,99 @@ def dem_from_ground_points(
     if water is not None:
         dem[water] = np.nan
     return dem
+
+
+def _windows(todo: np.ndarray, gap: int = 2, limit: int = 64) -> list[tuple[slice, slice]]:
+    """Row / column windows around clusters of the True cells of ``todo`` (cells closer than ``gap`` joined)."""
+    labels, count = ndimage.label(ndimage.binary_dilation(todo, np.ones((3, 3), bool), iterations=gap))
+    boxes = [b for b in ndimage.find_objects(labels) if b is not None]
+    if len(boxes) > limit:
+        return _windows(todo, gap * 4, limit)
+    return boxes
+
+
+def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, water: np.ndarray | None = None,
+                      inner_halo: float | None = None) -> np.ndarray:
+    """TIN DEM of ground points given with a halo around ``grid`` (neighbouring tiles): the values of
+    ``dem_from_ground_points(..., method="tin")`` on all of them, computed on fewer points.
+
+    ``halo`` (CRS units): how far beyond the grid the points reach (at least 2 x ``max_distance``, the
+    longest triangle edge kept). The TIN is first built on the points within ``inner_halo`` of the grid
+    (default: 10 point spacings, at least 2 cells); a cell whose triangle has its circumcircle inside that
+    area (or beyond it only on sides where no point lies farther out) has the value (or nodata) the TIN of
+    all the points gives. The few others (gaps near the edges) are computed again from the points around
+    them, in growing halos until their triangles are known to be Delaunay for all the points.
+    ``water``: cells that stay nodata.
+    """
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    cs = grid.cell_size
+    w, s, e, n = grid.bounds
+    max_edge = 2 * max_distance
+    dem = np.full(grid.shape, np.nan)
+    if len(x) == 0:
+        return dem
+    needed = within_distance(grid, x, y, max_distance)
+    if water is not None:
+        needed &= ~water
+    if inner_halo is None:
+        in_grid = np.count_nonzero((x >= w) & (x <= e) & (y >= s) & (y <= n))
+        spacing = np.sqrt((e - w) * (n - s) / max(in_grid, 1))
+        inner_halo = float(np.clip(10 * spacing, 2 * cs, halo))
+    if tin_engine() != "kernel" or inner_halo >= halo:
+        tin_to_grid(x, y, z, grid, dem, max_edge=max_edge)
+        dem[~needed] = np.nan
+        return dem
+    extent = (x.min(), y.min(), x.max(), y.max())
+    box = _open_box((w - inner_halo, s - inner_halo, e + inner_halo, n + inner_halo), extent)
+    sel = (x >= w - inner_halo) & (x <= e + inner_halo) & (y >= s - inner_halo) & (y <= n + inner_halo)
+    dem, exact = tin_to_grid_exact(x[sel], y[sel], z[sel], grid, box, max_edge=max_edge)
+    # centres outside the points' bounding box are outside every TIN of them (the edge of a block of tiles)
+    xs, ys = cell_centres(grid)
+    exact |= ((xs < extent[0]) | (xs > extent[2]))[None, :] | ((ys < extent[1]) | (ys > extent[3]))[:, None]
+    todo = needed & ~exact
+    if not todo.any():
+        dem[~needed] = np.nan
+        return dem
+    # windows around the cells left, and the points within the halo of a window (read again when a halo grows past it)
+    windows = _windows(todo)
+    reach = int(np.ceil(halo / cs)) + 1
+    padded = Grid(grid.transform * Affine.translation(-reach, -reach), grid.width + 2 * reach, grid.height + 2 * reach,
+                  grid.crs)
+    near = np.zeros(padded.shape, bool)
+    for rows, cols in windows:
+        near[rows.start:rows.stop + 2 * reach, cols.start:cols.stop + 2 * reach] = True
+    flat = cell_index(padded, x, y)
+    cand = np.flatnonzero((flat >= 0) & near.reshape(-1)[np.maximum(flat, 0)])
+    cx, cy, cz = x[cand], y[cand], z[cand]
+    for rows, cols in windows:
+        sub = Grid(grid.transform * Affine.translation(cols.start, rows.start), cols.stop - cols.start,
+                   rows.stop - rows.start, grid.crs)
+        sw, ss, se, sn = sub.bounds
+        left = todo[rows, cols].copy()
+        h = 4 * inner_halo
+        while left.any():
+            px, py, pz = (cx, cy, cz) if h <= halo else (x, y, z)
+            pick = (px >= sw - h) & (px <= se + h) & (py >= ss - h) & (py <= sn + h)
+            wbox = _open_box((sw - h, ss - h, se + h, sn + h), extent)
+            part, ex = tin_to_grid_exact(px[pick], py[pick], pz[pick], sub, wbox, max_edge=max_edge)
+            if wbox[0] < -1e299 and wbox[1] < -1e299 and wbox[2] > 1e299 and wbox[3] > 1e299:
+                done = left  # every point is in: the TIN of all of them (cells outside its hull stay nodata)
+            else:
+                done = left & ex
+            dem[rows, cols][done] = part[done]
+            left &= ~done
+            h *= 2
+    dem[~needed] = np.nan
+    return dem
+
+
+def _open_box(box, extent) -> list[float]:
+    """``box`` with each side that no point lies beyond (``extent``: the points' west, south, east, north)
+    moved to infinity: it bounds no circumcircle."""
+    w, s, e, n = box
+    big = 1e300
+    return [w if extent[0] < w else -big, s if extent[1] < s else -big, e if extent[2] > e else big,
+            n if extent[3] > n else big]
 
 
 def ndsm_from(dsm: np.ndarray, dem: np.ndarray) -> np.ndarray:

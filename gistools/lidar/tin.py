@@ -19,7 +19,7 @@ import triangle as _triangle
 
 from ..grid import Grid
 
-__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid", "tin_engine"]
+__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid", "tin_to_grid_exact", "tin_engine"]
 
 
 def _load_kernel():
@@ -31,18 +31,19 @@ def _load_kernel():
     i64, f64, i32 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.float64, np.int32))
     lib.gt_delaunay.argtypes = [ctypes.c_int64, i64, i64, i32, ctypes.POINTER(ctypes.c_int64)]
     lib.gt_delaunay.restype = ctypes.c_int64
-    lib.gt_rasterize.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64]
+    lib.gt_rasterize.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
+                                 ctypes.c_void_p, ctypes.c_void_p]
     lib.gt_rasterize.restype = ctypes.c_int64
     lib.gt_quantise.argtypes = [ctypes.c_int64, f64, ctypes.c_double, ctypes.c_double, i64]
     lib.gt_quantise.restype = ctypes.c_double
     lib.gt_tin_grid.argtypes = [ctypes.c_int64, i64, i64, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
-                                ctypes.POINTER(ctypes.c_int64)]
+                                ctypes.POINTER(ctypes.c_int64), ctypes.c_void_p, ctypes.c_void_p]
     lib.gt_tin_grid.restype = ctypes.c_int64
     return lib
 
 
 _KERNEL = _load_kernel()
-_QUANTUM_STEPS = 2**26  # the kernel's integer coordinates span at most this many steps
+_QUANTUM_STEPS = 2**30  # the kernel's integer coordinates span at most this many steps (its exact predicates allow 2^30)
 
 
 def tin_engine() -> str:
@@ -121,9 +122,9 @@ def _integer_coordinates(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.n
     """The kernel's integer coordinates of the points (None when they are all at one position).
 
     Points on a decimal lattice (LAS files: integers times the header scale) keep their exact
-    positions. Other coordinates are quantised to extent / 2^26 (8e-5 ft on a 5000 ft tile): points
-    closer than that count as one (repeats), and ties between cocircular points are broken on the
-    quantised positions.
+    positions. Other coordinates are quantised to the power of two at or above extent / 2^30 (4e-6 ft
+    on a 3000 ft tile), on absolute positions: points closer than that count as one (repeats), and ties
+    between (nearly) cocircular points are broken on the quantised positions.
     """
     if len(x) >= 2**31 // 6:
         raise MemoryError(f"{len(x)} points are too many for one TIN; split the area")
@@ -137,8 +138,10 @@ def _integer_coordinates(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.n
         iy, ey = _to_integers(y, y0, 1.0 / step)
         if max(ex, ey) < 1e-3:
             return ix, iy
-    scale = _QUANTUM_STEPS / extent  # not all on the lattice after all
-    return _to_integers(x, x0, scale)[0], _to_integers(y, y0, scale)[0]
+    # a power-of-two quantum from the extent's order of magnitude, on absolute coordinates: the same point
+    # gets the same integers in every point set of a similar extent (a tile with a wide or a thin halo)
+    scale = 2.0 ** -(int(np.ceil(np.log2(extent))) - int(np.log2(_QUANTUM_STEPS)))
+    return _to_integers(x, 0.0, scale)[0], _to_integers(y, 0.0, scale)[0]
 
 
 def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -154,8 +157,24 @@ def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return tris[: 3 * m].reshape(-1, 3)
 
 
+def tin_to_grid_exact(x, y, z, grid: Grid, box, *, max_edge: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(tin_to_grid(...), exact): ``exact`` marks the cells whose value (or nodata) any TIN of a point set
+    that adds only points outside ``box`` would give too (their triangle's circumcircle lies inside ``box``).
+
+    Give all the points inside ``box`` (west, south, east, north, CRS units). ``exact`` is None when
+    the compiled kernel is not in use (no cell is known exact then).
+    """
+    out = np.full(grid.shape, np.nan)
+    if tin_engine() != "kernel":
+        return tin_to_grid(x, y, z, grid, out, max_edge=max_edge), None
+    exact = np.zeros(grid.shape, np.uint8)
+    tin_to_grid(x, y, z, grid, out, max_edge=max_edge, exact=exact, exact_box=box)
+    return out, exact.view(bool)
+
+
 def tin_to_grid(
-    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np.ndarray | None = None, *, max_edge: float | None = None
+    x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np.ndarray | None = None, *, max_edge: float | None = None,
+    exact: np.ndarray | None = None, exact_box=None,
 ) -> np.ndarray:
     """Linear TIN interpolation of (x, y, z) at the cell centres of ``grid``.
 
@@ -181,8 +200,14 @@ def tin_to_grid(
         if out.dtype != np.float64 or not out.flags.c_contiguous or out.shape != grid.shape:
             raise ValueError("out must be a C-contiguous float64 array of the grid's shape")
         repeats = ctypes.c_int64(0)
+        box_cells = exact_ptr = None
+        if exact is not None:
+            w, s, e, n = exact_box
+            box_cells = np.array([w / cs - grid.col0, grid.row_top - n / cs, e / cs - grid.col0, grid.row_top - s / cs])
+            exact_ptr = exact.ctypes.data
         m = _KERNEL.gt_tin_grid(len(x), coords[0], coords[1], u, v, z, grid.width, grid.height,
-                                -1.0 if max_edge_cells is None else max_edge_cells**2, out, ctypes.byref(repeats))
+                                -1.0 if max_edge_cells is None else max_edge_cells**2, out, ctypes.byref(repeats),
+                                None if box_cells is None else box_cells.ctypes.data, exact_ptr)
         if m < 0:
             raise MemoryError(f"not enough memory to triangulate {len(x)} points")
         return out

@@ -31,7 +31,7 @@ from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.raster import atomic_path, write_raster, write_vrt
 from ..io.tiles import find_tiles
-from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from
+from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
 from .batch import fail, make_pool, timed, worker_timed
 from ..units import length_to_crs_units
@@ -355,10 +355,14 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
             strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
             w, s, e, n = strip.bounds
             pts = _read_ground(files, (w - b, s - b, e + b, n + b))
-            dem[r0:r1] = dem_from_ground_points(
-                pts[:, 0], pts[:, 1], pts[:, 2], strip,
-                method=run.dem_method, max_distance=run.max_distance, water=water[r0:r1],
-            )
+            if run.dem_method == "tin":  # the same values as one TIN of all the points, on fewer of them
+                dem[r0:r1] = tin_dem_with_halo(pts[:, 0], pts[:, 1], pts[:, 2], strip, halo=b,
+                                               max_distance=run.max_distance, water=water[r0:r1])
+            else:
+                dem[r0:r1] = dem_from_ground_points(
+                    pts[:, 0], pts[:, 1], pts[:, 2], strip,
+                    method=run.dem_method, max_distance=run.max_distance, water=water[r0:r1],
+                )
             del pts
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
