@@ -49,7 +49,7 @@ if [ ! -x "$VENV/bin/python" ]; then
   "$PY" -m venv --system-site-packages "$VENV"
 fi
 STAMP="$VENV/.gistools-installed"
-WANT=$( (cat pyproject.toml; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)
+WANT=$( (cat pyproject.toml setup.py gistools/lidar/_tinkernel.c; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)  # a changed kernel is rebuilt
 pipq() {  # pip install, quiet on success, the whole log on failure
   local log; log=$(mktemp)
   if ! "$VENV/bin/python" -m pip install -q "$@" >"$log" 2>&1; then cat "$log" >&2; rm -f "$log"; return 1; fi
