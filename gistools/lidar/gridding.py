@@ -176,7 +176,8 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
     (default: 10 point spacings, at least 2 cells); a cell whose triangle has its circumcircle inside that
     area (or beyond it only on sides where no point lies farther out) has the value (or nodata) the TIN of
     all the points gives. The few others (gaps near the edges) are computed again from the points around
-    them, in growing halos until their triangles are known to be Delaunay for all the points.
+    them, in growing halos until their triangles are known to be Delaunay for all the points, or from the
+    full ``halo`` around them (as a tile's TIN of its buffered points gives them).
     ``water``: cells that stay nodata.
     """
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
@@ -226,17 +227,17 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
         left = todo[rows, cols].copy()
         h = 4 * inner_halo
         while left.any():
-            px, py, pz = (cx, cy, cz) if h <= halo else (x, y, z)
+            px, py, pz = cx, cy, cz
             pick = (px >= sw - h) & (px <= se + h) & (py >= ss - h) & (py <= sn + h)
             wbox = _open_box((sw - h, ss - h, se + h, sn + h), extent)
             part, ex = tin_to_grid_exact(px[pick], py[pick], pz[pick], sub, wbox, max_edge=max_edge)
-            if wbox[0] < -1e299 and wbox[1] < -1e299 and wbox[2] > 1e299 and wbox[3] > 1e299:
-                done = left  # every point is in: the TIN of all of them (cells outside its hull stay nodata)
+            if h >= halo or (wbox[0] < -1e299 and wbox[1] < -1e299 and wbox[2] > 1e299 and wbox[3] > 1e299):
+                done = left  # the full halo (or every point) around them: what one TIN of the tile's points gives
             else:
                 done = left & ex
             dem[rows, cols][done] = part[done]
             left &= ~done
-            h *= 2
+            h = min(2 * h, halo)
     dem[~needed] = np.nan
     return dem
 
