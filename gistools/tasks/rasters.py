@@ -414,6 +414,7 @@ def rasters_from_tiles(
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
     scheduler: str | None = None,
+    pool=None,
 ) -> dict:
     """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
 
@@ -426,7 +427,8 @@ def rasters_from_tiles(
     ``jobs``: tiles in parallel on local processes. ``scheduler``: run the tiles as tasks on a
     dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
     ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
-    ``out`` (where the scratch folder lives) at the same paths.
+    ``out`` (where the scratch folder lives) at the same paths. ``pool``: a worker pool to use
+    instead of starting one (``gistools.tasks.batch.make_pool``; the caller closes it).
     """
     settings = settings or RasterSettings()
     settings.validate()
@@ -469,7 +471,7 @@ def rasters_from_tiles(
                 length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
         )
         try:
-            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler)
+            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     else:
@@ -505,7 +507,8 @@ def rasters_from_tiles(
     return summary
 
 
-def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None) -> None:
+def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
+                shared_pool=None) -> None:
     out = Path(run.out)
     todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name, run.products)}
     for i in infos:
@@ -604,7 +607,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
                 return "scan", n
         return None
 
-    pool = make_pool(jobs, scheduler, len(scan))
+    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan))
     in_flight = 1 if pool is None else 2 * max(jobs, 1)
     try:
         while True:
@@ -623,10 +626,13 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
                 except Exception as err:  # incl. a worker crash: reported per tile
                     finish(kind, name, None, 0.0, err)
     except BaseException:
-        if pool is not None:
+        if pool is not None and shared_pool is None:
             pool.close(list(pending))
+        elif pool is not None:  # the caller's pool: cancel this run's tasks, the caller closes it
+            for fut in pending:
+                fut.cancel()
         raise
     finally:
-        if pool is not None:
+        if pool is not None and shared_pool is None:
             pool.close()
     return state["scratch_peak"]

@@ -304,37 +304,52 @@ def shrub_from_tiles(
     if from_stage == "rasters":
         rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass"),
                                "return_band_breaks": (settings.noise_floor, *_band_break_lengths(settings))})
-        summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
-                                     progress=sub_progress(progress, 0, 0.6))
+        pool = make_pool(jobs, scheduler, 2)  # one pool for the rasters and the steps: workers start once
+        try:
+            summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
+                                         progress=sub_progress(progress, 0, 0.6), pool=pool)
+        except BaseException:
+            if pool is not None:
+                pool.close()
+            raise
     else:
+        pool = None
         summary = _previous_run(out)
     if summary["crs_wkt"] is None:
+        if pool is not None:
+            pool.close()
         return summary
-    crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
-    unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
-    z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
-    length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
-    redo = {stage: overwrite or STAGES.index(stage) >= STAGES.index(from_stage) for stage in STAGES}
-    params = {
-        "thresholds": band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
-        "noise_floor": length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
-        "snap": length(settings.snap, "snap"),
-        "max_road_width": length(settings.max_road_width, "max road width"),
-        "max_hydro_width": length(settings.max_hydro_width, "max hydro width"),
-        "single_line_width": length(settings.single_line_width, "single-line hydro width"),
-        "radius": length(settings.radius, "density radius"),
-        "density_bands": tuple(settings.density_bands),
-        "overwrite": redo,
-        "band_points": band_points,
-        "crs_wkt": (crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt(),
-    }
-    vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
-    base = {t["name"]: t for t in summary["tiles"]}
-    states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t.get("error")) for t in summary["tiles"]}
-    names = [n for n, t in base.items() if t["status"] in ("ok", "skipped")]
-    for n in names:
-        states[n].status, states[n].error = "ok", None
-    pool = make_pool(jobs, scheduler, len(names))
+    try:  # the rasters' pool is closed if anything below fails before the steps' own try
+        crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
+        unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+        z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
+        length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
+        redo = {stage: overwrite or STAGES.index(stage) >= STAGES.index(from_stage) for stage in STAGES}
+        params = {
+            "thresholds": band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
+            "noise_floor": length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
+            "snap": length(settings.snap, "snap"),
+            "max_road_width": length(settings.max_road_width, "max road width"),
+            "max_hydro_width": length(settings.max_hydro_width, "max hydro width"),
+            "single_line_width": length(settings.single_line_width, "single-line hydro width"),
+            "radius": length(settings.radius, "density radius"),
+            "density_bands": tuple(settings.density_bands),
+            "overwrite": redo,
+            "band_points": band_points,
+            "crs_wkt": (crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt(),
+        }
+        vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
+        base = {t["name"]: t for t in summary["tiles"]}
+        states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t.get("error")) for t in summary["tiles"]}
+        names = [n for n, t in base.items() if t["status"] in ("ok", "skipped")]
+        for n in names:
+            states[n].status, states[n].error = "ok", None
+    except BaseException:
+        if pool is not None:
+            pool.close()
+        raise
+    if pool is None:
+        pool = make_pool(jobs, scheduler, len(names))
     done = {"n": 0}
     total = max(4 * len(names), 1)
     start = 0.6 if from_stage == "rasters" else 0.0
