@@ -51,10 +51,11 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
                         resampling=rasterio.enums.Resampling.mode)
         west, south, east, north = src.bounds
         crs = src.crs
-    rgb = np.ones(data.shape + (3,))
+    lut = np.full((256, 3), 255, np.uint8)  # class code -> RGB, one gather for the whole image
     for code, (_, colour) in SHRUB_COLOURS.items():
-        rgb[data == code] = matplotlib.colors.to_rgb(colour)
-    rgb[data == 255] = (0.85, 0.85, 0.85)
+        lut[code] = np.round(np.array(matplotlib.colors.to_rgb(colour)) * 255)
+    lut[255] = round(0.85 * 255)
+    rgb = lut[data]
     aspect = (north - south) / max(east - west, 1e-9)
     fig, ax = plt.subplots(figsize=(11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
     ax.imshow(rgb, extent=(west, east, south, north), interpolation="nearest")
@@ -83,7 +84,8 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     fig.text(0.01, 0.01, f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius.",
              fontsize=8)
     fig.tight_layout()
-    fig.canvas.draw()
+    if probes:  # pixel positions need the final layout drawn once
+        fig.canvas.draw()
     height_px = fig.get_size_inches()[1] * dpi
     pixels = []
     for x, y in probes:
