@@ -128,3 +128,20 @@ def test_unknown_method_is_refused():
     g = snapped_grid((0, 0, 10, 10), 5.0)
     with pytest.raises(ValueError, match="tin"):
         dem_from_ground_points([1.0], [1.0], [1.0], g, method="kriging")
+
+
+@pytest.mark.parametrize("radius,cell", [(25.0, 5.0), (7.62, 1.0), (3.0, 5.0), (10.0, 2.5), (25.0 * 1200 / 3937, 1.5)])
+def test_disk_count_equals_scipy_correlate_and_cover_is_exact(radius, cell):
+    from scipy import ndimage
+
+    from gistools.lidar.density import disk_count, disk_kernel, point_density
+
+    rng = np.random.default_rng(4)
+    mask = rng.uniform(size=(157, 203)) < 0.4
+    kernel = disk_kernel(radius, cell)
+    ref = ndimage.correlate(mask.astype(np.float64), kernel.astype(np.float64), mode="constant", cval=0.0)
+    assert np.array_equal(disk_count(mask, kernel), np.rint(ref).astype(np.int32))
+    count, density, cover = point_density(np.ones((40, 40), bool), cell, radius)
+    k = kernel.shape[0] // 2
+    inner = (slice(k, 40 - k), slice(k, 40 - k))  # cells whose whole disk is inside the mask
+    assert np.all(cover[inner] == 1.0) and np.allclose(density[inner], kernel.sum() / (np.pi * radius**2))

@@ -11,11 +11,10 @@ and crop it afterwards, so density does not drop at tile edges.
 from __future__ import annotations
 
 import numpy as np
-from scipy import ndimage
 
 from ..errors import InputError
 
-__all__ = ["disk_kernel", "point_density", "halo_cells"]
+__all__ = ["disk_kernel", "disk_count", "point_density", "halo_cells"]
 
 
 def halo_cells(radius: float, cell_size: float) -> int:
@@ -39,6 +38,30 @@ def disk_kernel(radius: float, cell_size: float) -> np.ndarray:
     return (off[:, None] ** 2 + off[None, :] ** 2) <= radius * radius * (1 + 2e-5)
 
 
+def disk_count(mask: np.ndarray, kernel: np.ndarray) -> np.ndarray:
+    """Number of True cells of ``mask`` under ``kernel`` (a disk_kernel) centred on every cell; 0 beyond the edges.
+
+    The same as ``scipy.ndimage.correlate(mask, kernel, mode="constant")``, in integers: each kernel row is a
+    run of cells, summed as the difference of two row-wise cumulative sums (4x faster on a 25 ft / 5 ft disk).
+    """
+    k = kernel.shape[0] // 2
+    m = np.asarray(mask, np.int32)
+    height, width = m.shape
+    # csum[r, j]: sum of padded row r over the columns before j (a zero column first)
+    padded = np.zeros((height + 2 * k, width + 2 * k + 1), np.int32)
+    padded[k:k + height, k + 1:k + 1 + width] = m
+    csum = np.cumsum(padded, axis=1, dtype=np.int32)
+    out = np.zeros((height, width), np.int32)
+    for dy in range(-k, k + 1):
+        row = kernel[dy + k]
+        if not row.any():
+            continue
+        w = (int(row.sum()) - 1) // 2  # the row's run: columns -w .. w (disks are symmetric and convex)
+        rows = csum[k + dy:k + dy + height]
+        out += rows[:, k + w + 1:k + w + 1 + width] - rows[:, k - w:k - w + width]
+    return out
+
+
 def point_density(mask: np.ndarray, cell_size: float, radius: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(count, density, cover) of the True cells of ``mask`` around every cell.
 
@@ -46,8 +69,7 @@ def point_density(mask: np.ndarray, cell_size: float, radius: float) -> tuple[np
     cover: count / kernel size. density and cover are NaN where count is 0.
     """
     kernel = disk_kernel(radius, cell_size)
-    count = ndimage.correlate(np.asarray(mask, np.float32), kernel.astype(np.float32), mode="constant", cval=0.0)
-    count = np.rint(count)  # sums of ones: exact, rounding removes float noise
+    count = disk_count(mask, kernel).astype(np.float32)
     with np.errstate(invalid="ignore", divide="ignore"):
         density = np.where(count > 0, count / (np.pi * radius * radius), np.nan)
         cover = np.where(count > 0, count / kernel.sum(), np.nan)
