@@ -30,8 +30,10 @@ from rasterio.features import rasterize, shapes
 from rasterio.windows import from_bounds
 from shapely.geometry import box
 
-from ..errors import InputError
+from ..errors import GistoolsError, InputError
 from ..grid import Grid
+from ..io.points import parse_crs_text, read_tile_info
+from ..io.tiles import find_tiles
 from ..io.raster import atomic_path, read_raster, write_raster, write_vrt
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
@@ -233,6 +235,22 @@ def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
     return {"outputs": {"classes": str(path)}, "class_area": class_area, "polygons": dissolved}
 
 
+def _early_vectors(inputs, crs_text, layers, settings, reproject):
+    """(tile CRS, _vectors(...)) for the first tile whose header reads, or None (the raster stage reports why)."""
+    try:
+        paths = find_tiles(inputs)
+    except GistoolsError:
+        return None
+    override = parse_crs_text(crs_text) if crs_text else None
+    for path in paths:
+        try:
+            crs = read_tile_info(path, override).crs
+        except GistoolsError:
+            continue
+        return crs, _vectors(*layers, crs, settings, reproject)
+    return None
+
+
 def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject):
     def load(spec, name):
         if spec is None:
@@ -304,6 +322,9 @@ def shrub_from_tiles(
     if from_stage == "rasters":
         rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass"),
                                "return_band_breaks": (settings.noise_floor, *_band_break_lengths(settings))})
+        # the vector layers are read and checked against the first readable tile's CRS before the long raster
+        # stage, so a CRS mismatch or a missing field is reported in seconds, not after the county's rasters
+        early = _early_vectors(inputs, rs.crs, (roads, hydro, waterbodies, wetlands, tile_index), settings, reproject_vectors)
         pool = make_pool(jobs, scheduler, 2)  # one pool for the rasters and the steps: workers start once
         try:
             summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
@@ -313,7 +334,7 @@ def shrub_from_tiles(
                 pool.close()
             raise
     else:
-        pool = None
+        pool, early = None, None
         summary = _previous_run(out)
     if summary["crs_wkt"] is None:
         if pool is not None:
@@ -338,7 +359,10 @@ def shrub_from_tiles(
             "band_points": band_points,
             "crs_wkt": (crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt(),
         }
-        vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
+        if early is not None and early[0] == crs:
+            vec = early[1]
+        else:
+            vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
         base = {t["name"]: t for t in summary["tiles"]}
         states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t.get("error")) for t in summary["tiles"]}
         names = [n for n, t in base.items() if t["status"] in ("ok", "skipped")]
