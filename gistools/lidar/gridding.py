@@ -225,7 +225,7 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
                    rows.stop - rows.start, grid.crs)
         sw, ss, se, sn = sub.bounds
         left = todo[rows, cols].copy()
-        h = 4 * inner_halo
+        h = min(2 * inner_halo, halo)
         while left.any():
             px, py, pz = cx, cy, cz
             pick = (px >= sw - h) & (px <= se + h) & (py >= ss - h) & (py <= sn + h)
