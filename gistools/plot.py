@@ -83,7 +83,9 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
         pass
     fig.text(0.01, 0.01, f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius.",
              fontsize=8)
-    fig.tight_layout()
+    # a fixed frame, not tight_layout: with an equal-aspect image it clipped the legend (outside the axes, right)
+    ax.set_position([0.1, 0.08, 0.7, 0.85])
+    ax.set_anchor("W")
     if probes:  # pixel positions need the final layout drawn once
         fig.canvas.draw()
     height_px = fig.get_size_inches()[1] * dpi
