@@ -170,7 +170,7 @@ def test_ctrl_c_leaves_no_partial_file(sample_tiles, tmp_path):
                              "--out", str(out), "-q", "--chunk-size", "5000", "--jobs", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
-    while not list(out.glob(".gistools-scratch-*/*.npz")) and time.time() < deadline:
+    while not list(out.glob(".gistools-scratch-*/*.grids")) and time.time() < deadline:
         time.sleep(0.05)  # wait until the run is under way
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)

@@ -79,11 +79,35 @@ def worker_timed(fn, args):
     return timed(fn, args)
 
 
+# Thread pools of numeric libraries in worker processes: one thread each, as Dask's nanny sets them. The
+# processes are the parallelism; OpenBLAS's idle threads otherwise spin on the cores the other workers need.
+WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
+                     "NUMEXPR_NUM_THREADS")
+
+
+class _OneThreadProcess(multiprocessing.context.SpawnProcess):
+    """A spawned process whose numeric libraries start with one thread (variables the user set are kept)."""
+
+    def start(self):
+        added = [k for k in WORKER_THREAD_ENV if k not in os.environ]
+        for k in added:
+            os.environ[k] = "1"
+        try:
+            super().start()
+        finally:
+            for k in added:
+                os.environ.pop(k, None)
+
+
+class _SpawnContext(multiprocessing.context.SpawnContext):
+    Process = _OneThreadProcess
+
+
 class ProcessPool:
     """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
 
     def __init__(self, jobs: int):
-        ctx = multiprocessing.get_context("spawn")
+        ctx = _SpawnContext()
         python = python_executable()
         if python != sys.executable:
             ctx.set_executable(python)

@@ -14,8 +14,10 @@ So cells near tile edges get the same values as if the block were one file.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
+import os
 import shutil
 import tempfile
 import time
@@ -128,9 +130,57 @@ def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
     return snapped_grid(info.bounds, run.cell_size, crs)
 
 
-def _ground_file(scratch, name, halo: bool = False) -> Path:
-    """Scratch file of a tile's ground points (x, y, z float64); ``halo``: only those within the buffer of its edges."""
-    return Path(scratch) / f"{name}.{'halo' if halo else 'ground'}.f8"
+# Ground points in the scratch folder: the LAS file's own integers (X, Y, Z int32, 12 bytes a point, half
+# of float64 x, y, z), scaled back with the tile's scale and offset exactly as laspy scales them. A tile
+# writes all its ground points, and again those within the buffer of its edges in four strips (west and
+# east whole, south and north between them), so a neighbour reads only the strips beside it.
+_GROUND_DTYPE = np.dtype([("X", "<i4"), ("Y", "<i4"), ("Z", "<i4")])
+_HALO_SIDES = ("W", "E", "S", "N")
+
+
+def _ground_file(scratch, name, side: str | None = None) -> Path:
+    """Scratch file of a tile's ground points; ``side`` (W, E, S, N): its strip of points near that edge."""
+    return Path(scratch) / f"{name}.{'halo' + side if side else 'ground'}.i4"
+
+
+def _ground_meta_file(scratch, name) -> Path:
+    """Scale, offset and strip extents of a tile's ground files, written last (none: its pass 1 failed)."""
+    return Path(scratch) / f"{name}.ground.json"
+
+
+class _Extent:
+    """Running bounding box of points (west, south, east, north); None while empty."""
+
+    def __init__(self):
+        self.box = None
+
+    def add(self, x, y):
+        if len(x):
+            b = (float(x.min()), float(y.min()), float(x.max()), float(y.max()))
+            self.box = b if self.box is None else (min(self.box[0], b[0]), min(self.box[1], b[1]),
+                                                   max(self.box[2], b[2]), max(self.box[3], b[3]))
+
+
+def _grids_folder(scratch, name) -> Path:
+    """Scratch folder of a tile's partial grids of pass 1: one ``.npy`` file per array."""
+    return Path(scratch) / f"{name}.grids"
+
+
+def _save_grids(folder: Path, **arrays) -> None:
+    """Write the arrays as ``folder/<name>.npy``, atomically: the folder appears only once complete."""
+    tmp = folder.with_name(folder.name + ".partial")
+    shutil.rmtree(tmp, ignore_errors=True)
+    tmp.mkdir(parents=True)
+    for key, a in arrays.items():
+        np.save(tmp / f"{key}.npy", a)
+    shutil.rmtree(folder, ignore_errors=True)
+    os.replace(tmp, folder)
+
+
+def _load_grid(folder: Path, key: str, mmap: bool = False) -> np.ndarray:
+    """One array of a tile's partial grids; ``mmap``: memory-mapped, so a window reads only its own pages
+    (a neighbour shares a row or column of cells: reading its whole grids cost 8 reads of 25 MB per tile)."""
+    return np.load(folder / f"{key}.npy", mmap_mode="r" if mmap else None)
 
 
 def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
@@ -154,9 +204,12 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     west, south, east, north = info.bounds
     b = run.buffer
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
-    with open(_ground_file(run.scratch, info.name), "wb") as ground_out, \
-            open(_ground_file(run.scratch, info.name, halo=True), "wb") as halo_out, \
-            open(first_path, "wb") as first_out:
+    sides = {k: _Extent() for k in ("ground", *_HALO_SIDES)}
+    scale_offset = None
+    with contextlib.ExitStack() as files:
+        ground_out = files.enter_context(open(_ground_file(run.scratch, info.name), "wb"))
+        halo_out = {k: files.enter_context(open(_ground_file(run.scratch, info.name, k), "wb")) for k in _HALO_SIDES}
+        first_out = files.enter_context(open(first_path, "wb"))
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
         if run.dsm_classes is None:
             surface_class = np.ones(256, bool)
@@ -193,16 +246,28 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
                 water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
-                gx, gy, gz = chunk.x[ground], chunk.y[ground], scaled(chunk, "z", ground)
-                xyz = np.column_stack([gx, gy, gz])
-                xyz.tofile(ground_out)
-                near_edge = (gx < west + b) | (gx > east - b) | (gy < south + b) | (gy > north - b)
-                xyz[near_edge].tofile(halo_out)  # what the neighbours read
+                raw = chunk.raw
+                scale_offset = ([float(v) for v in raw.scales], [float(v) for v in raw.offsets])
+                rec = np.empty(int(np.count_nonzero(ground)), dtype=_GROUND_DTYPE)
+                for axis in "XYZ":
+                    rec[axis] = np.asarray(getattr(raw, axis))[ground]
+                rec.tofile(ground_out)
+                gx, gy = chunk.x[ground], chunk.y[ground]
+                sides["ground"].add(gx, gy)
+                west_edge, east_edge = gx < west + b, gx > east - b
+                between = ~(west_edge | east_edge)
+                for side, m in (("W", west_edge), ("E", east_edge), ("S", between & (gy < south + b)),
+                                ("N", between & (gy > north - b))):
+                    rec[m].tofile(halo_out[side])  # what the neighbours read
+                    sides[side].add(gx[m], gy[m])
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
+    meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
+    with atomic_path(_ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
+        tmp.write_text(json.dumps(meta))
     dsm[np.isinf(dsm)] = np.nan
-    np.savez(
-        Path(run.scratch) / f"{info.name}.grids.npz",
+    _save_grids(
+        _grids_folder(run.scratch, info.name),
         dsm=dsm.reshape(grid.shape),
         top_class=top_class.reshape(grid.shape),
         bare_first=bare_first.reshape(grid.shape).astype(np.int32),
@@ -283,21 +348,51 @@ def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[
     return out
 
 
-def _read_ground(files: list[Path], bounds, chunk_points: int = 2_000_000) -> np.ndarray:
-    """Ground points (n, 3) of scratch files that fall inside ``bounds``, read a chunk at a time."""
+def _ground_sources(scratch, name, bounds, deep: bool = True) -> list[tuple[Path, list, list, tuple]]:
+    """The ground files of tile ``name`` that hold points inside ``bounds``: (path, scale, offset, extent);
+    ``deep``: its whole ground file, else the halo strips. None when its pass 1 did not complete."""
+    meta_file = _ground_meta_file(scratch, name)
+    if not meta_file.exists():
+        return []
+    meta = json.loads(meta_file.read_text())
+    if meta["scale_offset"] is None:  # no ground point
+        return []
+    scale, offset = meta["scale_offset"]
+    west, south, east, north = bounds
+    out = []
+    for key in ("ground",) if deep else _HALO_SIDES:
+        ext = meta["extents"][key]
+        if ext is not None and ext[0] <= east and ext[2] >= west and ext[1] <= north and ext[3] >= south:
+            out.append((_ground_file(scratch, name, None if key == "ground" else key), scale, offset, tuple(ext)))
+    return out
+
+
+def _read_ground(sources, bounds, chunk_points: int = 4_000_000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """x, y, z (float64) of the ground points of ``sources`` (from _ground_sources) inside ``bounds``,
+    read a chunk at a time; a file whose extent lies inside ``bounds`` is taken whole."""
     west, south, east, north = bounds
     parts = []
-    for f in files:
-        if not f.exists():
-            continue
-        total = f.stat().st_size // 24
-        with open(f, "rb") as fh:
-            for _ in range(0, total, chunk_points):
-                pts = np.fromfile(fh, dtype=np.float64, count=3 * chunk_points).reshape(-1, 3)
-                m = (pts[:, 0] >= west) & (pts[:, 0] <= east) & (pts[:, 1] >= south) & (pts[:, 1] <= north)
-                if m.any():
-                    parts.append(pts[m])
-    return np.concatenate(parts) if parts else np.empty((0, 3))
+    for path, scale, offset, ext in sources:
+        whole = ext[0] >= west and ext[2] <= east and ext[1] >= south and ext[3] <= north
+        with open(path, "rb") as fh:
+            while True:
+                raw = np.fromfile(fh, dtype=_GROUND_DTYPE, count=chunk_points)
+                if raw.size == 0:
+                    break
+                x = raw["X"] * scale[0] + offset[0]  # as laspy scales them: raw * scale + offset
+                y = raw["Y"] * scale[1] + offset[1]
+                if whole:
+                    z = raw["Z"] * scale[2] + offset[2]
+                else:
+                    m = (x >= west) & (x <= east) & (y >= south) & (y <= north)
+                    x, y, z = x[m], y[m], raw["Z"][m] * scale[2] + offset[2]
+                if len(x):
+                    parts.append((x, y, z))
+    if not parts:
+        return np.empty(0), np.empty(0), np.empty(0)
+    if len(parts) == 1:
+        return parts[0]
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
 
 
 def _strips(counts_per_row: np.ndarray, max_points: int) -> list[tuple[int, int]]:
@@ -321,49 +416,49 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     crs = pyproj.CRS.from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
     scratch = Path(run.scratch)
-    with np.load(scratch / f"{info.name}.grids.npz") as own:
-        dsm, ground_count, water_count = own["dsm"].copy(), own["ground_count"].astype(np.int64), own["water_count"].astype(np.int64)
-        top_class = own["top_class"].copy()
-        bare_first = own["bare_first"]
+    own = _grids_folder(scratch, info.name)
+    dsm, top_class, bare_first = (_load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
+    ground_count, water_count = (_load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
     for other in neighbours:
-        grids_file = scratch / f"{other.name}.grids.npz"
-        if not grids_file.exists():  # the neighbour failed in pass 1
+        folder = _grids_folder(scratch, other.name)
+        if not folder.is_dir():  # the neighbour failed in pass 1
             continue
         window = grid.window_in(_tile_grid(other, run))
         if window is not None:
             rs, cs_, ro, co = window
-            with np.load(grids_file) as nb:
-                _merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"][ro, co], nb["dsm"][ro, co])
-                dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"][ro, co])
-                ground_count[rs, cs_] += nb["ground_count"][ro, co]
-                water_count[rs, cs_] += nb["water_count"][ro, co]
+            nb = {k: _load_grid(folder, k, mmap=True)[ro, co] for k in ("dsm", "top_class", "ground_count", "water_count")}
+            _merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"], nb["dsm"])
+            dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"])
+            ground_count[rs, cs_] += nb["ground_count"]
+            water_count[rs, cs_] += nb["water_count"]
+            del nb
     arrays = {"dsm": dsm, "topclass": top_class}
     return_bands = None
     if run.products != ("dsm",):
         water = (water_count > 0) & (ground_count == 0)
         b = run.buffer
         gw, gs, ge, gn = grid.bounds
-        files = [_ground_file(scratch, info.name)]
+        deep = {}
         for o in neighbours:
-            # a neighbour's halo holds its points within the buffer of its edges; tiles that overlap
+            # a neighbour's halo strips hold its points within the buffer of its edges; tiles that overlap
             # this one beyond that strip (overlapping deliveries) are read whole
             ow, os_, oe, on = o.bounds
-            deep = (ow + b < ge + b) and (oe - b > gw - b) and (os_ + b < gn + b) and (on - b > gs - b)
-            files.append(_ground_file(scratch, o.name, halo=not deep))
+            deep[o.name] = (ow + b < ge + b) and (oe - b > gw - b) and (os_ + b < gn + b) and (on - b > gs - b)
         dem = np.full(grid.shape, np.nan)
         for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
             strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
             w, s, e, n = strip.bounds
-            pts = _read_ground(files, (w - b, s - b, e + b, n + b))
+            box = (w - b, s - b, e + b, n + b)
+            sources = _ground_sources(scratch, info.name, box)
+            for o in neighbours:
+                sources += _ground_sources(scratch, o.name, box, deep=deep[o.name])
+            x, y, z = _read_ground(sources, box)
             if run.dem_method == "tin":  # the same values as one TIN of all the points, on fewer of them
-                dem[r0:r1] = tin_dem_with_halo(pts[:, 0], pts[:, 1], pts[:, 2], strip, halo=b,
-                                               max_distance=run.max_distance, water=water[r0:r1])
+                dem[r0:r1] = tin_dem_with_halo(x, y, z, strip, halo=b, max_distance=run.max_distance, water=water[r0:r1])
             else:
-                dem[r0:r1] = dem_from_ground_points(
-                    pts[:, 0], pts[:, 1], pts[:, 2], strip,
-                    method=run.dem_method, max_distance=run.max_distance, water=water[r0:r1],
-                )
-            del pts
+                dem[r0:r1] = dem_from_ground_points(x, y, z, strip, method=run.dem_method,
+                                                    max_distance=run.max_distance, water=water[r0:r1])
+            del x, y, z
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
         if run.return_breaks is not None:
@@ -559,7 +654,10 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         for v in names:
             if users[v] <= gridded:
                 for f in Path(run.scratch).glob(f"{v}.*"):
-                    f.unlink()
+                    if f.is_dir():
+                        shutil.rmtree(f, ignore_errors=True)
+                    else:
+                        f.unlink()
 
     def finish(kind, name, value, seconds, err):
         info = by_name[name]
