@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import html
 import os
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +20,24 @@ import rasterio
 from ..errors import OutputExistsError
 from ..grid import Grid
 
-__all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "NODATA"]
+__all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "crs_from_wkt", "NODATA"]
 
 NODATA = -9999.0
+_CRS_CACHE = threading.local()
+
+
+def crs_from_wkt(wkt: str) -> pyproj.CRS:
+    """pyproj CRS of a WKT string, parsed once per thread (a compound CRS takes milliseconds to parse,
+    and a tile's steps open a dozen rasters of the same CRS)."""
+    cache = getattr(_CRS_CACHE, "crs", None)
+    if cache is None:
+        cache = _CRS_CACHE.crs = {}
+    crs = cache.get(wkt)
+    if crs is None:
+        if len(cache) > 32:
+            cache.clear()
+        crs = cache[wkt] = pyproj.CRS.from_wkt(wkt)
+    return crs
 
 
 @contextlib.contextmanager
@@ -40,7 +56,18 @@ def atomic_path(path, *, overwrite: bool = False):
             tmp.unlink()
 
 
-DEFLATE_LEVEL = 3  # GeoTIFF DEFLATE level of every raster gistools writes
+DEFLATE_LEVEL = 1  # GeoTIFF DEFLATE level of every raster gistools writes
+# Products of few distinct values (point density, cover fraction) compress better, and faster, without the
+# floating-point predictor, which suits smooth surfaces (DSM, DEM, nDSM): 0.2 MB a tile instead of 0.47.
+NO_PREDICTOR = frozenset({"density", "cover"})
+
+
+def predictor_for(dtype: str, product: str | None = None) -> int:
+    """TIFF predictor: 3 (floating point) for float surfaces, 2 (horizontal) for integer codes, 1 (none)
+    for the products of NO_PREDICTOR."""
+    if product in NO_PREDICTOR:
+        return 1
+    return 3 if dtype.startswith("float") else 2
 
 
 def write_raster(
@@ -57,7 +84,8 @@ def write_raster(
 ) -> Path:
     """Write one band as a tiled, DEFLATE-compressed GeoTIFF, atomically. NaN becomes ``nodata``.
 
-    DEFLATE level 3, not GDAL's 6: 2.7x faster on a float DEM tile for files about 1.5 % larger.
+    DEFLATE level 1, not GDAL's 6: 2.5x faster on a float DEM tile (32 ms, not 81) for files 2.5 % larger.
+    The predictor follows the ``GISTOOLS_PRODUCT`` tag (predictor_for).
     """
     path = Path(path)
     data = np.asarray(array)
@@ -75,7 +103,7 @@ def write_raster(
         nodata=nodata,
         compress="deflate",
         zlevel=DEFLATE_LEVEL,
-        predictor=3 if dtype.startswith("float") else 2,
+        predictor=predictor_for(dtype, (tags or {}).get("GISTOOLS_PRODUCT")),
         tiled=grid.width >= 256 and grid.height >= 256,
         blockxsize=256,
         blockysize=256,
@@ -99,7 +127,7 @@ def read_raster(path) -> tuple[np.ndarray, Grid, float | None]:
     """(array, grid, nodata) of band 1; float arrays get NaN where nodata."""
     with rasterio.open(path) as src:
         data = src.read(1)
-        grid = Grid(src.transform, src.width, src.height, pyproj.CRS.from_wkt(src.crs.to_wkt()) if src.crs else None)
+        grid = Grid(src.transform, src.width, src.height, crs_from_wkt(src.crs.to_wkt()) if src.crs else None)
         nodata = src.nodata
     if np.issubdtype(data.dtype, np.floating):
         data = data.astype(np.float64)

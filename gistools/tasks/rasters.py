@@ -31,7 +31,7 @@ from affine import Affine
 from ..errors import Cancelled, GistoolsError, InputError
 from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
-from ..io.raster import atomic_path, write_raster, write_vrt
+from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
@@ -46,6 +46,8 @@ PRODUCTS = ("dsm", "dem", "ndsm", "topclass")
 DEFAULT_PRODUCTS = ("dsm", "dem", "ndsm")
 TOPCLASS_NODATA = 255
 GROUNDISH = (2, 9)  # ground and water: a cell topped by these is bare (band B0)
+_IS_GROUNDISH = np.zeros(256, bool)  # class code -> bare, one gather (np.isin sorts each call)
+_IS_GROUNDISH[list(GROUNDISH)] = True
 NOISE_CLASSES = (7, 18)
 GROUND_CLASS = 2
 WATER_CLASS = 9
@@ -231,7 +233,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             if run.return_breaks is not None:
                 # first returns for band counts: bare ones (ground / water) counted per cell, the others kept as
                 # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
-                bare = surface & np.isin(cls, GROUNDISH)
+                bare = surface & _IS_GROUNDISH[cls]
                 bare_first += np.bincount(cell[bare], minlength=n)
                 other = surface & ~bare
                 rec = np.empty(int(np.count_nonzero(other)), dtype=_FIRST_DTYPE)
@@ -293,12 +295,12 @@ def _max_with_class(dsm, top_class, cell, z, cls) -> None:
     top = z == cm[cell]
     tcell, tcls = cell[top], cls[top]
     tc = np.full(n, TOPCLASS_NODATA, np.uint8)
-    bare = np.isin(tcls, GROUNDISH)
+    bare = _IS_GROUNDISH[tcls]
     tc[tcell[~bare]] = tcls[~bare]
     tc[tcell[bare]] = tcls[bare]
     higher = cm > dsm
     top_class[higher] = tc[higher]
-    tie = (cm == dsm) & np.isin(tc, GROUNDISH)
+    tie = (cm == dsm) & _IS_GROUNDISH[tc]
     top_class[tie] = tc[tie]
     np.maximum(dsm, cm, out=dsm)
 
@@ -307,7 +309,7 @@ def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
     """In place: take the neighbour's top class where its DSM is higher, or equal and bare."""
     higher = other_dsm > dsm
     higher |= np.isnan(dsm) & ~np.isnan(other_dsm)
-    tie = (other_dsm == dsm) & np.isin(other_class, GROUNDISH)
+    tie = (other_dsm == dsm) & _IS_GROUNDISH[other_class]
     take = higher | tie
     top_class[take] = other_class[take]
 
@@ -413,7 +415,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     The DEM is computed in strips of at most ``run.tin_block_points`` ground points (plus
     the buffer), so memory stays bounded whatever the tile size.
     """
-    crs = pyproj.CRS.from_wkt(run.crs_wkt)
+    crs = crs_from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
     scratch = Path(run.scratch)
     own = _grids_folder(scratch, info.name)

@@ -24,7 +24,7 @@ from rasterio.features import rasterize, shapes
 from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
-from ..io.raster import DEFLATE_LEVEL, NODATA, atomic_path
+from ..io.raster import DEFLATE_LEVEL, NODATA, atomic_path, crs_from_wkt, predictor_for
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
@@ -55,7 +55,7 @@ def _open(path, what: str):
 def _crs(src, path) -> pyproj.CRS:
     if src.crs is None:
         raise InputError("raster has no CRS", path=path, hint="Assign one (gdal_edit.py -a_srs) or rerun the step that wrote it")
-    return pyproj.CRS.from_wkt(src.crs.to_wkt())
+    return crs_from_wkt(src.crs.to_wkt())
 
 
 def _same_grid(base, base_path, other, other_path) -> None:
@@ -98,9 +98,10 @@ def _windows(width: int, height: int, block: int):
             yield Window(col, row, min(block, width - col), min(block, height - row))
 
 
-def _profile(base, dtype: str, nodata) -> dict:
+def _profile(base, dtype: str, nodata, product: str | None = None) -> dict:
     return dict(driver="GTiff", width=base.width, height=base.height, count=1, dtype=dtype, crs=base.crs,
-                transform=base.transform, nodata=nodata, compress="deflate", zlevel=DEFLATE_LEVEL, predictor=3 if dtype.startswith("float") else 2,
+                transform=base.transform, nodata=nodata, compress="deflate", zlevel=DEFLATE_LEVEL,
+                predictor=predictor_for(dtype, product),
                 tiled=True, blockxsize=256, blockysize=256, BIGTIFF="IF_SAFER")
 
 
@@ -123,7 +124,7 @@ def _blockwise(base, outputs: dict, compute, *, progress, label: str, overwrite:
         dsts = {}
         for name, (path, dtype, nodata, tags) in wanted.items():
             tmp = stack.enter_context(atomic_path(path, overwrite=overwrite))
-            dst = stack.enter_context(rasterio.open(tmp, "w", **_profile(base, dtype, nodata)))
+            dst = stack.enter_context(rasterio.open(tmp, "w", **_profile(base, dtype, nodata, (tags or {}).get("GISTOOLS_PRODUCT"))))
             dst.update_tags(**{k: str(v) for k, v in (tags or {}).items()})
             if (tags or {}).get("units"):
                 dst.units = (tags["units"],)
