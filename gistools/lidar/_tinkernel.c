@@ -491,6 +491,10 @@ done:
  * hold (whether written or skipped for a long edge), so the caller knows which cells a TIN of a
  * wider area would give the same value (or nodata).
  */
+/* min / max of finite doubles (fmin / fmax are library calls without -ffast-math, for NaN rules not needed here) */
+static inline double dmin(double a, double b) { return a < b ? a : b; }
+static inline double dmax(double a, double b) { return a > b ? a : b; }
+
 int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
                      int32_t height, double max_edge2, double *out, const double *box, uint8_t *exact) {
     int64_t written = 0;
@@ -498,8 +502,8 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
     for (int64_t t = 0; t < ntri; t++) {
         int32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
         double ax = u[a], ay = v[a], bx = u[b], by = v[b], cx = u[c], cy = v[c];
-        double xmin = fmin(ax, fmin(bx, cx)), xmax = fmax(ax, fmax(bx, cx));
-        double ymin = fmin(ay, fmin(by, cy)), ymax = fmax(ay, fmax(by, cy));
+        double xmin = dmin(ax, dmin(bx, cx)), xmax = dmax(ax, dmax(bx, cx));
+        double ymin = dmin(ay, dmin(by, cy)), ymax = dmax(ay, dmax(by, cy));
         int64_t r0 = (int64_t)ceil(ymin - 0.5), r1 = (int64_t)floor(ymax - 0.5);
         int64_t c0 = (int64_t)ceil(xmin - 0.5), c1 = (int64_t)floor(xmax - 0.5);
         if (r1 < r0 || c1 < c0) continue; /* no centre in the bounding box: most triangles */
@@ -513,7 +517,7 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
             double e1 = (ax - bx) * (ax - bx) + (ay - by) * (ay - by);
             double e2 = (bx - cx) * (bx - cx) + (by - cy) * (by - cy);
             double e3 = (cx - ax) * (cx - ax) + (cy - ay) * (cy - ay);
-            if (fmax(e1, fmax(e2, e3)) > max_edge2) write = 0;
+            if (dmax(e1, dmax(e2, e3)) > max_edge2) write = 0;
         }
         double det = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy);
         if (det == 0) continue;
@@ -536,12 +540,12 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
                 double x1 = px_[k], y1 = py_[k], x2 = px_[(k + 1) % 3], y2 = py_[(k + 1) % 3];
                 if ((y1 - yy) * (y2 - yy) > 0) continue;
                 if (y1 == y2) {
-                    lo = fmin(lo, fmin(x1, x2));
-                    hi = fmax(hi, fmax(x1, x2));
+                    lo = dmin(lo, dmin(x1, x2));
+                    hi = dmax(hi, dmax(x1, x2));
                 } else {
                     double xx = x1 + (yy - y1) * (x2 - x1) / (y2 - y1);
-                    lo = fmin(lo, xx);
-                    hi = fmax(hi, xx);
+                    lo = dmin(lo, xx);
+                    hi = dmax(hi, xx);
                 }
             }
             if (!(hi >= lo)) continue;
