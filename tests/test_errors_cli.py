@@ -170,8 +170,9 @@ def test_ctrl_c_leaves_no_partial_file(sample_tiles, tmp_path):
                              "--out", str(out), "-q", "--chunk-size", "5000", "--jobs", "2"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 60
-    while not list(out.glob(".gistools-scratch-*/*.grids")) and time.time() < deadline:
-        time.sleep(0.05)  # wait until the run is under way
+    while not list(out.glob(".gistools-scratch-*/*")) and time.time() < deadline:
+        time.sleep(0.01)  # wait until the run is under way: a tile's scratch files are being written
+    assert proc.poll() is None, "the run ended before it could be interrupted"
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
