@@ -150,11 +150,19 @@ def dem_from_ground_points(
         if max_edge is None and max_distance is not None:
             max_edge = 2 * max_distance
         dem = tin_to_grid(x, y, z, grid, max_edge=max_edge)
-    if method in ("tin", "idw") and max_distance is not None and len(x):
-        dem[~within_distance(grid, x, y, max_distance)] = np.nan
-    if water is not None:
+    if method in ("tin", "idw") and len(x):
+        dem[~_kept_cells(grid, x, y, max_distance, water)] = np.nan
+    elif water is not None:
         dem[water] = np.nan
     return dem
+
+
+def _kept_cells(grid: Grid, x, y, max_distance: float | None, water: np.ndarray | None) -> np.ndarray:
+    """Cells an interpolated DEM keeps: centre within ``max_distance`` of a ground point (None: any), not water."""
+    kept = within_distance(grid, x, y, max_distance) if max_distance is not None else np.ones(grid.shape, bool)
+    if water is not None:
+        kept &= ~water
+    return kept
 
 
 def _windows(todo: np.ndarray, gap: int = 2, limit: int = 64) -> list[tuple[slice, slice]]:
@@ -187,9 +195,7 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
     dem = np.full(grid.shape, np.nan)
     if len(x) == 0:
         return dem
-    needed = within_distance(grid, x, y, max_distance)
-    if water is not None:
-        needed &= ~water
+    needed = _kept_cells(grid, x, y, max_distance, water)
     if inner_halo is None:
         in_grid = np.count_nonzero((x >= w) & (x <= e) & (y >= s) & (y <= n))
         spacing = np.sqrt((e - w) * (n - s) / max(in_grid, 1))
