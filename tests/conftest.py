@@ -72,3 +72,23 @@ def read_las_independently(paths):
         parts.append((np.asarray(las.x), np.asarray(las.y), np.asarray(las.z), np.asarray(las.classification),
                       np.asarray(las.return_number), np.asarray(las.withheld, bool)))
     return [np.concatenate(c) for c in zip(*parts)]
+
+
+def tin_oracle(grid, paths, max_distance):
+    """An independent TIN DEM: scipy LinearNDInterpolator (Qhull) of ground points at cell centres; repeated xy averaged."""
+    x, y, z, cls, _, withheld = read_las_independently(paths)
+    g = (cls == 2) & ~withheld
+    xy, inv = np.unique(np.column_stack([x[g], y[g]]), axis=0, return_inverse=True)
+    zz = np.bincount(inv.ravel(), weights=z[g]) / np.bincount(inv.ravel())
+    from scipy.interpolate import LinearNDInterpolator
+
+    from gistools.grid import cell_centres
+    from gistools.lidar import within_distance
+
+    xs, ys = cell_centres(grid)
+    cx, cy = np.meshgrid(xs, ys)
+    ref = LinearNDInterpolator(xy - xy.mean(axis=0), zz)(cx - xy[:, 0].mean(), cy - xy[:, 1].mean())
+    interior = within_distance(grid, xy[:, 0], xy[:, 1], max_distance) & np.isfinite(ref)
+    # interior: away from the hull edge, where Qhull and Triangle may close the hull differently
+    interior[:3, :] = interior[-3:, :] = interior[:, :3] = interior[:, -3:] = False
+    return ref, interior

@@ -8,7 +8,7 @@ import rasterio
 from scipy.interpolate import LinearNDInterpolator
 from scipy.stats import binned_statistic_2d
 
-from conftest import read_las_independently
+from conftest import read_las_independently, tin_oracle
 from gistools import RasterSettings, rasters_from_tiles
 from gistools.grid import Grid, cell_centres
 from gistools.io.raster import read_raster
@@ -79,21 +79,6 @@ def test_dsm_equals_independent_max_on_real_files(real_tile, tmp_path):
     ref = first_return_max(grid, [real_tile])
     assert np.array_equal(np.isnan(dsm), np.isnan(ref))
     assert np.nanmax(np.abs(dsm - ref)) < 1e-3
-
-
-def tin_oracle(grid, paths, max_distance):
-    """scipy LinearNDInterpolator (Qhull) of ground points at cell centres; repeated xy averaged."""
-    x, y, z, cls, _, withheld = read_las_independently(paths)
-    g = (cls == 2) & ~withheld
-    xy, inv = np.unique(np.column_stack([x[g], y[g]]), axis=0, return_inverse=True)
-    zz = np.bincount(inv.ravel(), weights=z[g]) / np.bincount(inv.ravel())
-    xs, ys = cell_centres(grid)
-    cx, cy = np.meshgrid(xs, ys)
-    ref = LinearNDInterpolator(xy - xy.mean(axis=0), zz)(cx - xy[:, 0].mean(), cy - xy[:, 1].mean())
-    interior = within_distance(grid, xy[:, 0], xy[:, 1], max_distance) & np.isfinite(ref)
-    # interior: away from the hull edge, where Qhull and Triangle may close the hull differently
-    interior[:3, :] = interior[-3:, :] = interior[:, :3] = interior[:, -3:] = False
-    return ref, interior
 
 
 def test_dem_tin_matches_scipy_on_sample(sample_run, sample_tiles):

@@ -6,7 +6,7 @@ import laspy
 import numpy as np
 import pytest
 
-from conftest import read_las_independently
+from conftest import read_las_independently, tin_oracle
 from gistools import RasterSettings, rasters_from_tiles
 from gistools.io.points import read_tile_info, write_tile
 from gistools.io.raster import read_raster
@@ -116,4 +116,27 @@ def test_scratch_holds_a_front_of_tiles_not_the_block(sample_tiles, sample_run, 
     summary = rasters_from_tiles([tiles], tmp_path / "out")
     assert summary["counts"]["ok"] == 16
     assert summary["scratch_peak_tiles"] <= 12, summary["scratch_peak_tiles"]  # about 3 rows of 4, not all 16
+    _compare(tmp_path / "out", sample_run[0])
+
+
+def test_tiles_with_different_scales_and_offsets(sample_tiles, sample_run, tmp_path):
+    """Neighbours whose LAS integers mean different things (scale 0.001 / 0.01 / 0.0025, shifted offsets): the
+    scratch keeps each tile's integers with its own scale and offset, so the block gives the same rasters."""
+    tiles = tmp_path / "in"
+    layouts = [(0.001, (0.5, 0.25, 3.0)), (0.01, (-1000.0, 2000.0, -50.0)), (0.0025, (0.25, 0.75, 0.5)), (0.01, None)]
+    for path, (scale, shift) in zip(sample_tiles, layouts):
+        las = laspy.read(path)
+        offsets = None if shift is None else [float(las.header.offsets[k]) + shift[k] for k in range(3)]
+        write_tile(tiles / f"{path.stem}.las", _las_dict(las), las.header.parse_crs(), version="1.2", point_format=1,
+                   scale=scale, offsets=offsets)
+        again = laspy.read(tiles / f"{path.stem}.las")
+        assert float(again.header.scales[0]) == scale
+        assert np.allclose(np.asarray(again.x), np.asarray(las.x), atol=1e-6, rtol=0)  # the same points
+    summary = rasters_from_tiles([tiles], tmp_path / "out")
+    assert summary["counts"]["ok"] == 4
+    dem, grid, _ = read_raster(tmp_path / "out" / "dem.vrt")
+    ref, interior = tin_oracle(grid, sample_tiles, summary["dem_max_distance"])  # from the original tiles
+    both = interior & np.isfinite(dem)
+    assert both.sum() > 0.8 * grid.width * grid.height
+    assert np.max(np.abs(dem[both] - ref[both])) < 0.001 / 0.3048  # 1 mm, in ftUS
     _compare(tmp_path / "out", sample_run[0])
