@@ -140,3 +140,24 @@ def test_tiles_with_different_scales_and_offsets(sample_tiles, sample_run, tmp_p
     assert both.sum() > 0.8 * grid.width * grid.height
     assert np.max(np.abs(dem[both] - ref[both])) < 0.001 / 0.3048  # 1 mm, in ftUS
     _compare(tmp_path / "out", sample_run[0])
+
+
+def test_tiles_narrower_than_two_buffers_equal_one_file(sample_tiles, tmp_path):
+    """Stripes 150 ft wide with the 98 ft buffer: a tile's points near its west and its east edge overlap, and
+    a neighbour still gets every point it needs from the halo strips (tiled == one file)."""
+    x, y, z, cls, rn, _ = read_las_independently(sample_tiles)
+    nr = np.concatenate([np.asarray(laspy.read(p).number_of_returns) for p in sample_tiles])
+    crs = read_tile_info(sample_tiles[0]).crs
+    pts = dict(x=x, y=y, z=z, classification=cls, return_number=rn, number_of_returns=nr)
+    edges = np.arange(x.min(), x.max() + 150.0, 150.0)
+    tiles = tmp_path / "stripes"
+    for k in range(len(edges) - 1):
+        m = (x >= edges[k]) & (x < edges[k + 1])
+        write_tile(tiles / f"s{k:02d}.las", {a: v[m] for a, v in pts.items()}, crs, version="1.2", point_format=1,
+                   offsets=[430000.0, 1810000.0, 0.0])
+    whole = tmp_path / "in" / "block.las"
+    write_tile(whole, pts, crs, version="1.2", point_format=1, offsets=[430000.0, 1810000.0, 0.0])
+    summary = rasters_from_tiles([tiles], tmp_path / "tiled")
+    assert summary["counts"]["ok"] == len(edges) - 1 >= 8 and summary["buffer"] > 150.0 / 2
+    rasters_from_tiles([whole], tmp_path / "whole")
+    _compare(tmp_path / "tiled", tmp_path / "whole")

@@ -256,10 +256,13 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 rec.tofile(ground_out)
                 gx, gy = chunk.x[ground], chunk.y[ground]
                 sides["ground"].add(gx, gy)
-                west_edge, east_edge = gx < west + b, gx > east - b
+                # each point in one strip at most (a tile narrower than two buffers has points near both edges)
+                west_edge = gx < west + b
+                east_edge = (gx > east - b) & ~west_edge
                 between = ~(west_edge | east_edge)
-                for side, m in (("W", west_edge), ("E", east_edge), ("S", between & (gy < south + b)),
-                                ("N", between & (gy > north - b))):
+                south_edge = between & (gy < south + b)
+                north_edge = between & (gy > north - b) & ~south_edge
+                for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
                     rec[m].tofile(halo_out[side])  # what the neighbours read
                     sides[side].add(gx[m], gy[m])
             done += len(chunk)
