@@ -286,10 +286,38 @@ def test_killed_run_resumes_to_identical_outputs(sample_tiles, shrub_run, tmp_pa
     ref_out, ref = shrub_run
     report = json.loads((out / "report.json").read_text())
     assert report["class_area"] == ref["class_area"] and report["band_area"] == ref["band_area"]
+    assert report["band_area_from_returns"] == ref["band_area_from_returns"]
     for product in ("dsm", "dem", "ndsm", "bands", "veg", "cover", "classes"):
         a, _, _ = read_raster(ref_out / f"{product}.vrt")
         b, _, _ = read_raster(out / f"{product}.vrt")
         assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_rerun_keeps_complete_tiles_and_their_figures(sample_tiles, shrub_run, tmp_path):
+    """The chain again on a complete output folder: every tile kept (skipped), and the report still has each
+    tile's point counts and the band areas from first returns (read back from tile_reports/)."""
+    import shutil
+
+    ref_out, ref = shrub_run
+    out = tmp_path / "out"
+    shutil.copytree(ref_out, out)
+    before = {p.name: p.stat().st_mtime_ns for p in (out / "dem").glob("*.tif")}
+    report = shrub_from_tiles(sample_tiles, out, **VECTORS)
+    assert [t["status"] for t in report["tiles"]] == ["ok"] * 4  # the chain's steps ran; the rasters were kept
+    assert {p.name: p.stat().st_mtime_ns for p in (out / "dem").glob("*.tif")} == before
+    raster_stage = {t["name"]: t for t in report["tiles"]}
+    for t in ref["tiles"]:
+        assert raster_stage[t["name"]]["points_by_class"] == t["points_by_class"] and t["points"] > 0
+        assert raster_stage[t["name"]]["first_return_bands"] == t["first_return_bands"]
+    assert report["band_area_from_returns"] == ref["band_area_from_returns"] is not None
+    assert report["band_area"] == ref["band_area"] and report["class_area"] == ref["class_area"]
+    # a tile whose rasters exist but whose tile report does not (killed in between) is computed again
+    victim = sample_tiles[0].stem
+    (out / "tile_reports" / f"{victim}.json").unlink()
+    again = shrub_from_tiles(sample_tiles, out, **VECTORS)
+    assert (out / "dem" / f"{victim}.tif").stat().st_mtime_ns != before[f"{victim}.tif"]
+    assert (out / "tile_reports" / f"{victim}.json").exists()
+    assert again["band_area_from_returns"] == ref["band_area_from_returns"]
 
 
 def test_steps_one_by_one(sample_tiles, tmp_path):

@@ -472,6 +472,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                                               int(bare_first[np.isfinite(dem)].sum())),
                 "dem_cells": int(np.isfinite(dem).sum()),
                 "cell_area": grid.cell_size ** 2,
+                "breaks": list(run.return_breaks),
             }
     outputs = {}
     # a tile reaches pass 2 only when its outputs are incomplete (or --overwrite): all of them are rewritten
@@ -501,8 +502,35 @@ def _remove_leftovers(out: Path) -> None:
             partial.unlink()
 
 
-def _outputs_exist(out: Path, name: str, products=DEFAULT_PRODUCTS) -> bool:
-    return all((out / p / f"{name}.tif").exists() for p in products)
+# What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
+# are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
+_TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
+                "first_return_bands", "seconds")
+
+
+def _tile_report_file(out: Path, name: str) -> Path:
+    return Path(out) / "tile_reports" / f"{name}.json"
+
+
+def _write_tile_report(out: Path, result: "TileResult") -> None:
+    with atomic_path(_tile_report_file(out, result.name), overwrite=True) as tmp:
+        tmp.write_text(json.dumps({k: getattr(result, k) for k in _TILE_FIELDS}, indent=1))
+
+
+def _complete_tile(out: Path, name: str, products=DEFAULT_PRODUCTS, return_breaks=None) -> dict | None:
+    """The tile report of a tile whose outputs are all written (with first-return counts at ``return_breaks``
+    when those are asked for), else None: the tile is (re)computed."""
+    if not all((out / p / f"{name}.tif").exists() for p in products):
+        return None
+    try:
+        rep = json.loads(_tile_report_file(out, name).read_text())
+    except (OSError, ValueError):  # none (a run killed after the rasters, or before this version) or unreadable
+        return None
+    if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
+        return None
+    for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints
+        rep[key] = {int(k): v for k, v in (rep.get(key) or {}).items()}
+    return rep
 
 
 def rasters_from_tiles(
@@ -610,10 +638,14 @@ def rasters_from_tiles(
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
                 shared_pool=None) -> None:
     out = Path(run.out)
-    todo = {i.name for i in infos if overwrite or not _outputs_exist(out, i.name, run.products)}
+    kept = {} if overwrite else {i.name: _complete_tile(out, i.name, run.products, run.return_breaks) for i in infos}
+    todo = {i.name for i in infos if kept.get(i.name) is None}
     for i in infos:
         if i.name not in todo:
             results[i.name].status = "skipped"
+            for k in _TILE_FIELDS:
+                if k in kept[i.name] and k != "seconds":  # the time it took is the earlier run's
+                    setattr(results[i.name], k, kept[i.name][k])
     neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
     needed = set(todo)
     for name in todo:
@@ -639,9 +671,11 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.seconds += seconds
 
     def grid_done(info, value, seconds):
-        results[info.name].outputs = value["outputs"]
-        results[info.name].first_return_bands = value["first_return_bands"]
-        results[info.name].seconds += seconds
+        r = results[info.name]
+        r.outputs = value["outputs"]
+        r.first_return_bands = value["first_return_bands"]
+        r.seconds += seconds
+        _write_tile_report(out, r)
 
     # Tiles go north to south, west to east. A tile is gridded as soon as it and its neighbours are read,
     # and a tile's scratch files are deleted once every tile that reads them is gridded: the scratch
