@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from gistools import RasterSettings, rasters_from_tiles
 from gistools.cli.main import cli
+from gistools.io.raster import read_raster
 from gistools.errors import Cancelled, CRSMismatchError, MissingCRSError
 from gistools.io.points import read_tile_info
 
@@ -117,6 +118,27 @@ def test_existing_outputs_are_kept_unless_overwrite(sample_tiles, tmp_path):
     third = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--overwrite"])
     assert third.exit_code == 0 and "2 tiles ok" in third.output
     assert tif.stat().st_mtime_ns != stamp
+
+
+def test_resume_with_other_settings_is_refused(sample_tiles, tmp_path):
+    """A rerun into the same --out with another cell size (or DEM method) would mix grids in the mosaic: refused,
+    naming both values and the fix, nothing rewritten; --overwrite redoes the tiles."""
+    tiles = _copy_sample(sample_tiles, tmp_path / "tiles", 2)
+    out = tmp_path / "out"
+    runner = CliRunner()
+    assert runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q"]).exit_code == 0
+    tif = out / "dsm" / f"{sample_tiles[0].stem}.tif"
+    stamp = tif.stat().st_mtime_ns
+    other = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--cell-size", "3ft"])
+    assert other.exit_code != 0 and "Traceback" not in other.output
+    assert "cell size 5 US survey foot, this run asks 3 US survey foot" in other.output and "--overwrite" in other.output
+    assert tif.stat().st_mtime_ns == stamp and not list(out.glob(".gistools-scratch-*"))
+    method = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--dem-method", "max"])
+    assert method.exit_code != 0 and "DEM method tin, this run asks max" in method.output
+    redo = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--cell-size", "3ft", "--overwrite"])
+    assert redo.exit_code == 0 and "2 tiles ok" in redo.output
+    _, grid, _ = read_raster(tif)
+    assert grid.cell_size == pytest.approx(3.0)
 
 
 def test_cancel_stops_and_leaves_no_partial_output(sample_tiles, tmp_path):

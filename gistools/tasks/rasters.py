@@ -512,24 +512,62 @@ def _tile_report_file(out: Path, name: str) -> Path:
     return Path(out) / "tile_reports" / f"{name}.json"
 
 
-def _write_tile_report(out: Path, result: "TileResult") -> None:
+def _run_settings(run: _Run) -> dict:
+    """The settings a tile's rasters depend on, as stored in its tile report."""
+    return {"cell_size": run.cell_size, "dem_method": run.dem_method, "dem_max_distance": run.max_distance,
+            "buffer": run.buffer, "dsm_classes": None if run.dsm_classes is None else list(run.dsm_classes),
+            "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
+
+
+def _write_tile_report(out: Path, result: "TileResult", settings: dict) -> None:
     with atomic_path(_tile_report_file(out, result.name), overwrite=True) as tmp:
-        tmp.write_text(json.dumps({k: getattr(result, k) for k in _TILE_FIELDS}, indent=1))
+        tmp.write_text(json.dumps({**{k: getattr(result, k) for k in _TILE_FIELDS}, "settings": settings}, indent=1))
 
 
-def _complete_tile(out: Path, name: str, products=DEFAULT_PRODUCTS, return_breaks=None) -> dict | None:
-    """The tile report of a tile whose outputs are all written (with first-return counts at ``return_breaks``
-    when those are asked for), else None: the tile is (re)computed."""
-    if not all((out / p / f"{name}.tif").exists() for p in products):
-        return None
+def _read_tile_report(out: Path, name: str) -> dict | None:
     try:
         rep = json.loads(_tile_report_file(out, name).read_text())
     except (OSError, ValueError):  # none (a run killed after the rasters, or before this version) or unreadable
         return None
-    if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
-        return None
     for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints
         rep[key] = {int(k): v for k, v in (rep.get(key) or {}).items()}
+    return rep
+
+
+_SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
+                  "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS"}
+
+
+def _check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:
+    """Refuse to resume over a tile made with other settings (the mosaic would mix them)."""
+    if earlier is None:
+        return
+    crs = crs_from_wkt(now["crs_wkt"])
+    unit = crs.axis_info[0].unit_name if crs.axis_info else "CRS units"
+    for key, value in now.items():
+        old = earlier.get(key)
+        if key == "crs_wkt":
+            same = old is not None and crs_from_wkt(old).equals(crs)
+            shown = (crs_label(crs_from_wkt(old)) if old else "none", crs_label(crs))
+        elif isinstance(value, float):
+            same = old == value
+            shown = tuple("none" if v is None else f"{v:.6g} {unit}" for v in (old, value))
+        else:
+            same = old == value
+            shown = tuple("all but noise" if v is None and key == "dsm_classes" else v for v in (old, value))
+        if not same:
+            raise InputError(
+                f"{out}: tile {name} was made with {_SETTING_NAMES[key]} {shown[0]}, this run asks {shown[1]}",
+                hint="Pass --overwrite to redo the tiles with the new settings, or choose another --out")
+
+
+def _complete_tile(out: Path, name: str, rep: dict | None, products=DEFAULT_PRODUCTS, return_breaks=None) -> dict | None:
+    """The tile report ``rep`` of a tile whose outputs are all written (with first-return counts at
+    ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
+    if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
+        return None
+    if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
+        return None
     return rep
 
 
@@ -638,7 +676,14 @@ def rasters_from_tiles(
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
                 shared_pool=None) -> None:
     out = Path(run.out)
-    kept = {} if overwrite else {i.name: _complete_tile(out, i.name, run.products, run.return_breaks) for i in infos}
+    settings = _run_settings(run)
+    kept = {}
+    if not overwrite:
+        for i in infos:
+            rep = _read_tile_report(out, i.name)
+            if rep is not None:
+                _check_same_settings(out, i.name, rep.get("settings"), settings)
+            kept[i.name] = _complete_tile(out, i.name, rep, run.products, run.return_breaks)
     todo = {i.name for i in infos if kept.get(i.name) is None}
     for i in infos:
         if i.name not in todo:
@@ -675,7 +720,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.outputs = value["outputs"]
         r.first_return_bands = value["first_return_bands"]
         r.seconds += seconds
-        _write_tile_report(out, r)
+        _write_tile_report(out, r, settings)
 
     # Tiles go north to south, west to east. A tile is gridded as soon as it and its neighbours are read,
     # and a tile's scratch files are deleted once every tile that reads them is gridded: the scratch
