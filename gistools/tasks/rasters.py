@@ -156,9 +156,11 @@ class _Extent:
     def __init__(self):
         self.box = None
 
-    def add(self, x, y):
-        if len(x):
-            b = (float(x.min()), float(y.min()), float(x.max()), float(y.max()))
+    def add(self, x, y, where):
+        """Add the points of x, y under the boolean mask ``where`` (reduced in place, no copy)."""
+        if where.any():
+            b = (float(np.min(x, where=where, initial=np.inf)), float(np.min(y, where=where, initial=np.inf)),
+                 float(np.max(x, where=where, initial=-np.inf)), float(np.max(y, where=where, initial=-np.inf)))
             self.box = b if self.box is None else (min(self.box[0], b[0]), min(self.box[1], b[1]),
                                                    max(self.box[2], b[2]), max(self.box[3], b[3]))
 
@@ -254,17 +256,17 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 for axis in "XYZ":
                     rec[axis] = np.asarray(getattr(raw, axis))[ground]
                 rec.tofile(ground_out)
-                gx, gy = chunk.x[ground], chunk.y[ground]
-                sides["ground"].add(gx, gy)
+                x, y = chunk.x, chunk.y  # masks on the whole chunk: cheaper than gathering the ground's x, y
+                sides["ground"].add(x, y, ground)
                 # each point in one strip at most (a tile narrower than two buffers has points near both edges)
-                west_edge = gx < west + b
-                east_edge = (gx > east - b) & ~west_edge
-                between = ~(west_edge | east_edge)
-                south_edge = between & (gy < south + b)
-                north_edge = between & (gy > north - b) & ~south_edge
+                west_edge = ground & (x < west + b)
+                east_edge = ground & (x > east - b) & ~west_edge
+                between = ground & ~(west_edge | east_edge)
+                south_edge = between & (y < south + b)
+                north_edge = between & (y > north - b) & ~south_edge
                 for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
-                    rec[m].tofile(halo_out[side])  # what the neighbours read
-                    sides[side].add(gx[m], gy[m])
+                    rec[m[ground]].tofile(halo_out[side])  # what the neighbours read
+                    sides[side].add(x, y, m)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
