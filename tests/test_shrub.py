@@ -132,6 +132,28 @@ def test_map_colours_at_known_patches(shrub_run):
         assert np.abs(img[row, col] - want).max() < 0.05, (cover, img[row, col], want)
 
 
+def test_class_polygons_are_valid_dissolved_and_exact():
+    """Regions of one code meeting at a corner, a hole holding another code: one valid MultiPolygon per code,
+    each with exactly its cells' area, the hole kept."""
+    from affine import Affine
+
+    from gistools.vector.regions import class_polygons
+
+    codes = np.zeros((6, 7), np.uint8)
+    codes[1:5, 1:5] = 1
+    codes[2:4, 2:4] = 2  # a hole in the 1s
+    codes[5, 5] = 1  # touches the 1s' block only at a corner
+    codes[0, 6] = 3
+    tr = Affine(2.5, 0, 1000.0, 0, -2.5, 500.0)
+    polys = class_polygons(codes, tr, mask=codes > 0)
+    assert sorted(polys) == [1, 2, 3]
+    for code, geom in polys.items():
+        assert geom.geom_type == "MultiPolygon" and geom.is_valid
+        assert geom.area == pytest.approx(np.count_nonzero(codes == code) * 2.5 * 2.5)
+    assert len(polys[1].geoms) == 2 and len(polys[1].geoms[0].interiors) + len(polys[1].geoms[1].interiors) == 1
+    assert polys[3].bounds == (1015.0, 497.5, 1017.5, 500.0)
+
+
 def test_class_polygons_layer(shrub_run, shrub_area=None):
     out, report = shrub_run
     gdf = gpd.read_file(out / "shrub_classes.gpkg", layer="shrub_classes")

@@ -26,7 +26,7 @@ import numpy as np
 import pyproj
 import rasterio
 import shapely
-from rasterio.features import rasterize, shapes
+from rasterio.features import rasterize
 from rasterio.windows import from_bounds
 from shapely.geometry import box
 
@@ -43,6 +43,7 @@ from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_break
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
+from ..vector.regions import class_polygons
 from .batch import make_pool, run_each
 from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
@@ -224,14 +225,8 @@ def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
                      tags={"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES)})
     cell_area = grid.cell_size ** 2
     class_area = {n: float(np.count_nonzero(classes == c) * cell_area) for c, n in CLASS_NAMES.items()}
-    polys = []
-    for geom, value in shapes(classes, mask=(classes >= 1) & (classes <= 5), transform=grid.transform):
-        polys.append((int(value), shapely.geometry.shape(geom)))
-    # shapes() gives the maximal 4-connected regions of each class, so one class's regions meet at most
-    # at a corner: their MultiPolygon is already the dissolved, valid geometry (no union needed)
-    dissolved = []
-    for c in sorted({v for v, _ in polys}):
-        dissolved.append((c, shapely.to_wkb(shapely.multipolygons([g for v, g in polys if v == c]))))
+    regions = class_polygons(classes, grid.transform, mask=(classes >= 1) & (classes <= 5))
+    dissolved = [(c, shapely.to_wkb(g)) for c, g in regions.items()]
     return {"outputs": {"classes": str(path)}, "class_area": class_area, "polygons": dissolved}
 
 

@@ -20,7 +20,7 @@ import numpy as np
 import pyproj
 import rasterio
 import shapely
-from rasterio.features import rasterize, shapes
+from rasterio.features import rasterize
 from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
@@ -34,6 +34,7 @@ from ..lidar.vegetation import VEG_NODATA, VEG_ROAD, VEG_WATER, vegetation, vege
 from ..progress import ProgressCallback, report
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units, unit_from_word
 from ..vector.breaklines import road_polygons, water_polygons
+from ..vector.regions import class_polygons
 from .rasters import GROUNDISH
 
 __all__ = ["ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands", "density_from_vegetation",
@@ -441,11 +442,8 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
             for code, name in CLASS_NAMES.items():
                 area[name] += float(np.count_nonzero(codes == code) * cell_area)
             if polygons_out:
-                tr = src.window_transform(win)
-                found = {}
-                for geom, value in shapes(codes, mask=(codes >= 1) & (codes <= 5), transform=tr):
-                    found.setdefault(int(value), []).append(shapely.geometry.shape(geom))
-                polys.extend((code, shapely.union_all(gs)) for code, gs in found.items())
+                regions = class_polygons(codes, src.window_transform(win), mask=(codes >= 1) & (codes <= 5))
+                polys.extend(regions.items())
             return {"classes": codes}
 
         tags = {"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES),
