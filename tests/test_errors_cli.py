@@ -105,17 +105,26 @@ def test_cell_size_in_metres_on_feet_and_metre_files(autzen, megaplot, tmp_path)
     assert m5["cell_size"] == pytest.approx(1.524)
 
 
-def test_existing_outputs_are_kept_unless_overwrite(sample_tiles, tmp_path):
+def _rasters_once(sample_tiles, tmp_path):
+    """Two sample tiles rastered into tmp_path/out; returns (rerun(*args) -> click result, out, a DSM tif, its mtime)."""
     tiles = _copy_sample(sample_tiles, tmp_path / "tiles", 2)
     out = tmp_path / "out"
     runner = CliRunner()
-    assert runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q"]).exit_code == 0
+
+    def rerun(*args):
+        return runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", *args])
+
+    assert rerun().exit_code == 0
     tif = out / "dsm" / f"{sample_tiles[0].stem}.tif"
-    stamp = tif.stat().st_mtime_ns
-    second = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q"])
+    return rerun, out, tif, tif.stat().st_mtime_ns
+
+
+def test_existing_outputs_are_kept_unless_overwrite(sample_tiles, tmp_path):
+    rerun, out, tif, stamp = _rasters_once(sample_tiles, tmp_path)
+    second = rerun()
     assert second.exit_code == 0 and "2 skipped" in second.output
     assert tif.stat().st_mtime_ns == stamp
-    third = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--overwrite"])
+    third = rerun("--overwrite")
     assert third.exit_code == 0 and "2 tiles ok" in third.output
     assert tif.stat().st_mtime_ns != stamp
 
@@ -123,19 +132,14 @@ def test_existing_outputs_are_kept_unless_overwrite(sample_tiles, tmp_path):
 def test_resume_with_other_settings_is_refused(sample_tiles, tmp_path):
     """A rerun into the same --out with another cell size (or DEM method) would mix grids in the mosaic: refused,
     naming both values and the fix, nothing rewritten; --overwrite redoes the tiles."""
-    tiles = _copy_sample(sample_tiles, tmp_path / "tiles", 2)
-    out = tmp_path / "out"
-    runner = CliRunner()
-    assert runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q"]).exit_code == 0
-    tif = out / "dsm" / f"{sample_tiles[0].stem}.tif"
-    stamp = tif.stat().st_mtime_ns
-    other = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--cell-size", "3ft"])
+    rerun, out, tif, stamp = _rasters_once(sample_tiles, tmp_path)
+    other = rerun("--cell-size", "3ft")
     assert other.exit_code != 0 and "Traceback" not in other.output
     assert "cell size 5 US survey foot, this run asks 3 US survey foot" in other.output and "--overwrite" in other.output
     assert tif.stat().st_mtime_ns == stamp and not list(out.glob(".gistools-scratch-*"))
-    method = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--dem-method", "max"])
+    method = rerun("--dem-method", "max")
     assert method.exit_code != 0 and "DEM method tin, this run asks max" in method.output
-    redo = runner.invoke(cli, ["rasters", str(tiles), "--out", str(out), "-q", "--cell-size", "3ft", "--overwrite"])
+    redo = rerun("--cell-size", "3ft", "--overwrite")
     assert redo.exit_code == 0 and "2 tiles ok" in redo.output
     _, grid, _ = read_raster(tif)
     assert grid.cell_size == pytest.approx(3.0)
