@@ -233,10 +233,9 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
         left = todo[rows, cols].copy()
         h = min(2 * inner_halo, halo)
         while left.any():
-            px, py, pz = cx, cy, cz
-            pick = (px >= sw - h) & (px <= se + h) & (py >= ss - h) & (py <= sn + h)
+            pick = (cx >= sw - h) & (cx <= se + h) & (cy >= ss - h) & (cy <= sn + h)
             wbox = _open_box((sw - h, ss - h, se + h, sn + h), extent)
-            part, ex = tin_to_grid_exact(px[pick], py[pick], pz[pick], sub, wbox, max_edge=max_edge)
+            part, ex = tin_to_grid_exact(cx[pick], cy[pick], cz[pick], sub, wbox, max_edge=max_edge)
             if h >= halo or (wbox[0] < -1e299 and wbox[1] < -1e299 and wbox[2] > 1e299 and wbox[3] > 1e299):
                 done = left  # the full halo (or every point) around them: what one TIN of the tile's points gives
             else:

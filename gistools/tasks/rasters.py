@@ -445,12 +445,10 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         water = (water_count > 0) & (ground_count == 0)
         b = run.buffer
         gw, gs, ge, gn = grid.bounds
-        deep = {}
-        for o in neighbours:
-            # a neighbour's halo strips hold its points within the buffer of its edges; tiles that overlap
-            # this one beyond that strip (overlapping deliveries) are read whole
-            ow, os_, oe, on = o.bounds
-            deep[o.name] = (ow + b < ge + b) and (oe - b > gw - b) and (os_ + b < gn + b) and (on - b > gs - b)
+        # a neighbour's halo strips hold its points within the buffer of its edges; its other points can lie
+        # within the buffer of this tile only when the two tiles overlap (overlapping deliveries): read it whole
+        deep = {o.name: o.bounds[0] < ge and o.bounds[2] > gw and o.bounds[1] < gn and o.bounds[3] > gs
+                for o in neighbours}
         dem = np.full(grid.shape, np.nan)
         for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
             strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
