@@ -12,6 +12,8 @@ __all__ = [
     "DataFileError",
     "MissingCRSError",
     "OutputExistsError",
+    "OutputError",
+    "OutputBusyError",
     "Cancelled",
 ]
 
@@ -52,6 +54,14 @@ class MissingCRSError(DataFileError):
 
 class OutputExistsError(GistoolsError, FileExistsError):
     """An output exists and overwriting was not asked for."""
+
+
+class OutputError(GistoolsError, OSError):
+    """An output cannot be written (disk full, read-only, not a folder): the run stops, it is not a tile's fault."""
+
+
+class OutputBusyError(OutputError):
+    """Another gistools run holds the output folder's lock."""
 
 
 class Cancelled(GistoolsError):

@@ -230,6 +230,9 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         failed = [t for t in tiles if t.get("status") == "failed"]
         for t in failed:
             feedback.reportError(f"FAILED {t.get('error')}")
+        for t in tiles:
+            for w in t.get("warnings") or []:
+                feedback.pushWarning(f"WARNING {w}") if hasattr(feedback, "pushWarning") else feedback.reportError(f"WARNING {w}")
         feedback.pushInfo(f"{len(tiles) - len(failed)} {what} ok, {len(failed)} failed")
         if tiles and len(failed) == len(tiles):
             raise QgsProcessingException(failed[0].get("error") or "every tile failed")

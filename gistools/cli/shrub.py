@@ -136,6 +136,9 @@ def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_
                                   make_map=not no_map, from_stage=stage, progress=None if bar.disable else tqdm_progress(bar))
     click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
                + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+    for tile in report.get("tiles", []):
+        if tile.get("status") == "failed":
+            click.echo(f"  FAILED {tile['error']}", err=True)
     if report["counts"].get("failed"):
         raise SystemExit(1)
 

@@ -186,7 +186,8 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
     if count == 0:
         raise EmptyTileError("the tile holds no points", path=path, hint="Remove it from the input or re-export it")
     if not compressed:
-        needed = header.offset_to_point_data + count * header.point_format.size
+        record = header.point_format.size
+        needed = header.offset_to_point_data + count * record
         size = os.path.getsize(path)
         if size < needed:
             raise DataFileError(
@@ -194,6 +195,16 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
                 path=path,
                 hint="Re-copy or re-export the tile",
             )
+        evlrs = _evlr_start(header)
+        end = evlrs if evlrs and evlrs >= needed else size
+        held = (end - header.offset_to_point_data) // record
+        if held > count:  # a header that counts fewer points than the file holds: laspy would read only those
+            raise DataFileError(
+                f"the header counts {count:,} points but the file holds {held:,} point records",
+                path=path,
+                hint="Repair the header's point count (e.g. lasinfo -repair, or pdal translate) and run again",
+            )
+    _check_header_numbers(path, header)
     if crs is None and file_crs is None:
         raise MissingCRSError(
             "header has no CRS",
@@ -217,6 +228,31 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
         points_by_return=tuple(int(n) for n in header.number_of_points_by_return),
         geokey_z_unit=geokey_z,
     )
+
+
+def _evlr_start(header) -> int | None:
+    """Offset of the first extended VLR (LAS 1.4), or None."""
+    start = getattr(header, "start_of_first_evlr", None)
+    n = getattr(header, "number_of_evlrs", 0)
+    return int(start) if start and n else None
+
+
+def _check_header_numbers(path: Path, header) -> None:
+    """Refuse scales, offsets and bounds that cannot give coordinates (0, NaN, inf, far beyond any CRS)."""
+    scales, offsets = np.asarray(header.scales, float), np.asarray(header.offsets, float)
+    if not np.all(np.isfinite(scales)) or np.any(scales == 0):
+        raise DataFileError(f"the header's scale factors {scales.tolist()} are not usable (zero or not finite)",
+                            path=path, hint="Repair the header (scales such as 0.01) or re-export the tile")
+    if not np.all(np.isfinite(offsets)):
+        raise DataFileError(f"the header's offsets {offsets.tolist()} are not finite", path=path,
+                            hint="Repair the header or re-export the tile")
+    mins, maxs = np.asarray(header.mins, float), np.asarray(header.maxs, float)
+    if not (np.all(np.isfinite(mins)) and np.all(np.isfinite(maxs))) or np.any(maxs < mins):
+        raise DataFileError(f"the header's bounds (min {mins.tolist()}, max {maxs.tolist()}) are not usable",
+                            path=path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate)")
+    if np.any(np.abs(np.concatenate([mins, maxs])) > 1e12):
+        raise DataFileError(f"the header's bounds (min {mins.tolist()}, max {maxs.tolist()}) lie beyond any map",
+                            path=path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate)")
 
 
 def common_crs(infos: list[TileInfo]) -> pyproj.CRS:
@@ -310,13 +346,6 @@ def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", poi
     for name in ("classification", "return_number", "number_of_returns", "intensity", "gps_time"):
         if name in points and name in las.point_format.dimension_names:
             setattr(las, name, points[name])
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        # laspy picks LAZ from the suffix; keep it on the temporary name
-        tmp_named = tmp.with_name(tmp.stem + ".partial" + path.suffix)
-        try:
-            las.write(tmp_named)
-            os.replace(tmp_named, tmp)
-        finally:
-            if tmp_named.exists():
-                tmp_named.unlink()
+    with atomic_path(path, overwrite=overwrite, keep_suffix=True) as tmp:  # laspy picks LAZ by the suffix
+        las.write(tmp)
     return path

@@ -1,13 +1,13 @@
 """GeoTIFF and VRT writing (atomic) and reading.
 
 Float grids hold NaN in memory; files carry the nodata value (-9999 by default).
-Every write goes to ``<name>.partial`` in the target folder and is renamed onto
-the final name only once complete, so a crash or Ctrl-C leaves no half-written file.
+Every write goes to a hidden partial file in the target folder (io.atomic), is read
+back, and is renamed onto the final name only once complete and readable, so a crash,
+a full disk or Ctrl-C leaves no half-written file under a final name.
 """
 
 from __future__ import annotations
 
-import contextlib
 import html
 import os
 import threading
@@ -17,10 +17,12 @@ import numpy as np
 import pyproj
 import rasterio
 
-from ..errors import OutputExistsError
+from ..errors import DataFileError, OutputError
 from ..grid import Grid
+from .atomic import atomic_path, check_nonempty, raise_output_error
 
-__all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "crs_from_wkt", "NODATA"]
+__all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "crs_from_wkt", "NODATA", "verify_raster",
+           "raster_is_readable"]
 
 NODATA = -9999.0
 _CRS_CACHE = threading.local()
@@ -40,20 +42,28 @@ def crs_from_wkt(wkt: str) -> pyproj.CRS:
     return crs
 
 
-@contextlib.contextmanager
-def atomic_path(path, *, overwrite: bool = False):
-    """Yield a temporary path beside ``path``; rename it onto ``path`` on success, delete it on error."""
-    path = Path(path)
-    if path.exists() and not overwrite:
-        raise OutputExistsError("output exists", path=path, hint="Pass --overwrite to replace it, or choose another --out")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".partial")
+def verify_raster(tmp: Path) -> None:
+    """Read a written raster back whole (every block decodes): GDAL < 3.7 only logs a failed flush on close."""
+    check_nonempty(tmp)
     try:
-        yield tmp
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
+        with rasterio.open(tmp) as src:
+            for i in range(1, src.count + 1):
+                src.read(i)
+    except Exception as err:
+        raise_output_error(err, tmp)
+        raise OutputError(f"{tmp}: the raster just written does not read back ({err})",
+                          hint="Check the disk of --out (full, failing?) and run again") from None
+
+
+def raster_is_readable(path) -> bool:
+    """True when ``path`` opens and every band decodes (what a resumed run checks of a raster it keeps)."""
+    try:
+        with rasterio.open(path) as src:
+            for i in range(1, src.count + 1):
+                src.read(i)
+        return True
+    except Exception:
+        return False
 
 
 DEFLATE_LEVEL = 1  # GeoTIFF DEFLATE level of every raster gistools writes
@@ -111,7 +121,7 @@ def write_raster(
     if not profile["tiled"]:
         for key in ("tiled", "blockxsize", "blockysize"):
             profile.pop(key)
-    with atomic_path(path, overwrite=overwrite) as tmp:
+    with atomic_path(path, overwrite=overwrite, verify=verify_raster) as tmp:
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(data, 1)
             if tags:
@@ -125,10 +135,14 @@ def write_raster(
 
 def read_raster(path) -> tuple[np.ndarray, Grid, float | None]:
     """(array, grid, nodata) of band 1; float arrays get NaN where nodata."""
-    with rasterio.open(path) as src:
-        data = src.read(1)
-        grid = Grid(src.transform, src.width, src.height, crs_from_wkt(src.crs.to_wkt()) if src.crs else None)
-        nodata = src.nodata
+    try:
+        with rasterio.open(path) as src:
+            data = src.read(1)
+            grid = Grid(src.transform, src.width, src.height, crs_from_wkt(src.crs.to_wkt()) if src.crs else None)
+            nodata = src.nodata
+    except rasterio.errors.RasterioError as err:
+        raise DataFileError(f"cannot read the raster ({err})", path=path,
+                            hint="Rerun the step that wrote it (a damaged output is recomputed by a rerun)") from None
     if np.issubdtype(data.dtype, np.floating):
         data = data.astype(np.float64)
         if nodata is not None:

@@ -7,7 +7,7 @@ from pathlib import Path
 import geopandas as gpd
 import pyproj
 
-from ..errors import CRSMismatchError, DataFileError, InputError
+from ..errors import CRSMismatchError, DataFileError, InputError, OutputError
 from .points import crs_label
 
 __all__ = ["read_layer", "check_crs", "write_layer", "write_layers"]
@@ -57,14 +57,8 @@ def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = Tr
     from .raster import atomic_path
 
     path = Path(path)
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
-        try:
-            gdf.to_file(tmp_gpkg, layer=layer, driver="GPKG")
-            tmp_gpkg.replace(tmp)
-        finally:
-            if tmp_gpkg.exists():
-                tmp_gpkg.unlink()
+    with atomic_path(path, overwrite=overwrite, keep_suffix=True, verify=verify_gpkg) as tmp:
+        gdf.to_file(tmp, layer=layer, driver="GPKG")
     return path
 
 
@@ -79,15 +73,25 @@ def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_ma
     from .raster import atomic_path
 
     path = Path(path)
-    with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp_gpkg = tmp.with_name(tmp.stem + ".tmp.gpkg")
-        try:
-            for k, (name, gdf) in enumerate(layers.items()):
-                index = "YES" if len(gdf) <= spatial_index_max else "NO"
-                pyogrio.write_dataframe(gdf, tmp_gpkg, layer=name, driver="GPKG", append=k > 0,
-                                        layer_options={"SPATIAL_INDEX": index})
-            tmp_gpkg.replace(tmp)
-        finally:
-            if tmp_gpkg.exists():
-                tmp_gpkg.unlink()
+    with atomic_path(path, overwrite=overwrite, keep_suffix=True, verify=verify_gpkg) as tmp:
+        for k, (name, gdf) in enumerate(layers.items()):
+            index = "YES" if len(gdf) <= spatial_index_max else "NO"
+            pyogrio.write_dataframe(gdf, tmp, layer=name, driver="GPKG", append=k > 0,
+                                    layer_options={"SPATIAL_INDEX": index})
     return path
+
+
+def verify_gpkg(tmp: Path) -> None:
+    """A written GeoPackage opens and lists its layers (SQLite reports a full disk only on some writes)."""
+    import pyogrio
+
+    from .atomic import check_nonempty, raise_output_error
+
+    check_nonempty(tmp)
+    try:
+        for name, _ in pyogrio.list_layers(tmp):
+            pyogrio.read_info(tmp, layer=name)
+    except Exception as err:
+        raise_output_error(err, tmp)
+        raise OutputError(f"{tmp}: the GeoPackage just written does not read back ({err})",
+                          hint="Check the disk of --out and run again") from None

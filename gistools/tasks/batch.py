@@ -15,12 +15,16 @@ import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..errors import Cancelled, GistoolsError, InputError
+from ..io.atomic import raise_output_error
 
 __all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "fail"]
 
 
-def fail(result, err: BaseException) -> None:
-    """Mark a tile's result failed with a one-line message."""
+def fail(result, err: BaseException, out=None) -> None:
+    """Mark a tile's result failed with a one-line message; a write failure of the disk or folder ``out``
+    (full, read-only) is raised instead as an OutputError: it stops the run, it is no tile's fault."""
+    if out is not None:
+        raise_output_error(err, out)
     result.status = "failed"
     result.error = str(err) if isinstance(err, GistoolsError) else f"{result.path}: {type(err).__name__}: {err}"
 
@@ -163,9 +167,9 @@ class DaskPool:
         self.client = self.cluster = None
 
 
-def run_each(fn, arglist, pool, results, names, on_done, tick, verb) -> None:
+def run_each(fn, arglist, pool, results, names, on_done, tick, verb, out=None) -> None:
     """Run fn over arglist (inline when ``pool`` is None, else on the pool); a failure marks its tile
-    failed and the rest go on."""
+    failed and the rest go on, but a failed write to the folder ``out`` (disk full) stops the run."""
     if not arglist:
         return
     if pool is None:
@@ -178,7 +182,7 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb) -> None:
             except Cancelled:
                 raise
             except Exception as err:  # one bad tile never stops the batch; it is reported
-                fail(results[name], err)
+                fail(results[name], err, out)
             tick(f"{name} {verb}")
         return
     pending = {pool.submit(worker_timed, fn, args): (name, args) for name, args in zip(names, arglist)
@@ -191,7 +195,7 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb) -> None:
                     value, seconds = fut.result()
                     on_done(args[0], value, seconds)
                 except Exception as err:  # incl. a worker crash: reported per tile
-                    fail(results[name], err)
+                    fail(results[name], err, out)
                 tick(f"{name} {verb}")
     except BaseException:
         pool.close(list(pending))

@@ -40,36 +40,30 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
 
     crs = info.crs.sub_crs_list[0] if info.crs.is_compound else info.crs
     written = 0
-    with atomic_path(path, overwrite=True) as tmp:
-        tmp_named = tmp.with_name(tmp.stem + ".partial" + path.suffix)
+    with atomic_path(path, overwrite=True, keep_suffix=True) as tmp_named:
         parts = []
-        try:
-            for chunk in iter_chunks(info, chunk_size, intensity=True):
-                keep = _select(chunk, classes, returns)
-                if not keep.any():
-                    continue
-                gdf = gpd.GeoDataFrame(
-                    {"z": chunk.z[keep], "class": chunk.classification[keep], "return_number": chunk.return_number[keep],
-                     "intensity": chunk.intensity[keep]},
-                    geometry=shapely.points(chunk.x[keep], chunk.y[keep]), crs=crs)
-                gdf.insert(0, "y", chunk.y[keep])
-                gdf.insert(0, "x", chunk.x[keep])
-                written += len(gdf)
-                if fmt == "gpkg":
-                    gdf.to_file(tmp_named, layer="points", driver="GPKG", mode="a" if tmp_named.exists() else "w")
-                else:
-                    parts.append(gdf)
-            if fmt == "parquet":
-                frame = gpd.GeoDataFrame(gpd.pd.concat(parts, ignore_index=True), crs=crs) if parts else \
-                    gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=[], crs=crs)
-                frame.to_parquet(tmp_named)
-            elif not tmp_named.exists():  # no point selected: an empty layer
-                gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=gpd.GeoSeries([], crs=crs)).to_file(
-                    tmp_named, layer="points", driver="GPKG")
-            os.replace(tmp_named, tmp)
-        finally:
-            if tmp_named.exists():
-                tmp_named.unlink()
+        for chunk in iter_chunks(info, chunk_size, intensity=True):
+            keep = _select(chunk, classes, returns)
+            if not keep.any():
+                continue
+            gdf = gpd.GeoDataFrame(
+                {"z": chunk.z[keep], "class": chunk.classification[keep], "return_number": chunk.return_number[keep],
+                 "intensity": chunk.intensity[keep]},
+                geometry=shapely.points(chunk.x[keep], chunk.y[keep]), crs=crs)
+            gdf.insert(0, "y", chunk.y[keep])
+            gdf.insert(0, "x", chunk.x[keep])
+            written += len(gdf)
+            if fmt == "gpkg":
+                gdf.to_file(tmp_named, layer="points", driver="GPKG", mode="a" if tmp_named.exists() else "w")
+            else:
+                parts.append(gdf)
+        if fmt == "parquet":
+            frame = gpd.GeoDataFrame(gpd.pd.concat(parts, ignore_index=True), crs=crs) if parts else \
+                gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=[], crs=crs)
+            frame.to_parquet(tmp_named)
+        elif not tmp_named.exists():  # no point selected: an empty layer
+            gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=gpd.GeoSeries([], crs=crs)).to_file(
+                tmp_named, layer="points", driver="GPKG")
     return written
 
 

@@ -28,15 +28,18 @@ import numpy as np
 import pyproj
 from affine import Affine
 
-from ..errors import Cancelled, GistoolsError, InputError
+from ..errors import Cancelled, DataFileError, GistoolsError, InputError
 from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
-from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
+from ..io.atomic import raise_output_error
+from ..io.outdir import SCRATCH_PREFIX, claim_output
+from ..io.raster import atomic_path, crs_from_wkt, raster_is_readable, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
 from .batch import fail, make_pool, timed, worker_timed
 from ..units import length_to_crs_units
+from ..validation import check_count, check_grid_size, check_length
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
 
@@ -88,8 +91,18 @@ class RasterSettings:
             raise InputError(
                 f"--dem-method {self.dem_method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin"
             )
-        if self.chunk_size < 1:
-            raise InputError(f"chunk size {self.chunk_size} must be at least 1")
+        check_count(self.chunk_size, "--chunk-size", example="2000000")
+        check_count(self.tin_block_points, "tin_block_points", example="5000000")
+        check_length(self.cell_size, "--cell-size", example="5ft")
+        check_length(self.dem_max_distance, "--dem-max-distance", example="15m")
+        if self.buffer is not None:
+            check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
+        if self.dsm_classes is not None and (not self.dsm_classes or any(not 0 <= int(c) <= 255 for c in self.dsm_classes)):
+            raise InputError(f"--dsm-classes {self.dsm_classes}: class codes are integers 0-255", hint="e.g. --dsm-classes 1,2")
+        if self.return_band_breaks is not None:
+            values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
+            if len(values) < 2:
+                raise InputError(f"return band breaks {self.return_band_breaks}: give at least two heights")
 
 
 @dataclass
@@ -106,6 +119,7 @@ class TileResult:
     points_outside_header_bounds: int = 0
     outputs: dict = field(default_factory=dict)
     first_return_bands: list | None = None
+    warnings: list = field(default_factory=list)
     seconds: float = 0.0
 
 
@@ -209,6 +223,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     b = run.buffer
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
     sides = {k: _Extent() for k in ("ground", *_HALO_SIDES)}
+    out_box = _Extent()
     scale_offset = None
     with contextlib.ExitStack() as files:
         ground_out = files.enter_context(open(_ground_file(run.scratch, info.name), "wb"))
@@ -228,7 +243,10 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
             cell = cell_index(grid, chunk.x, chunk.y)  # -1 outside the grid, i.e. outside the header bounds
             inside = cell >= 0
-            outside += int(len(cell) - np.count_nonzero(inside))
+            n_out = int(len(cell) - np.count_nonzero(inside))
+            if n_out:
+                outside += n_out
+                out_box.add(chunk.x, chunk.y, ~inside)
             usable = inside & ~chunk.withheld
             # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
             surface = usable & surface_class[cls] & (chunk.return_number <= 1)
@@ -269,6 +287,12 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                     sides[side].add(x, y, m)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
+    if outside:  # the grid and the neighbours come from the header's bounds: the header is wrong
+        w, s_, e, n_ = (min(a, b) if i < 2 else max(a, b) for i, (a, b) in enumerate(zip(out_box.box, info.bounds)))
+        raise DataFileError(
+            f"{outside:,} of {done:,} points lie outside the header's bounds ({info.bounds[0]:.3f}, {info.bounds[1]:.3f}, "
+            f"{info.bounds[2]:.3f}, {info.bounds[3]:.3f}); the points span ({w:.3f}, {s_:.3f}, {e:.3f}, {n_:.3f})",
+            path=info.path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate) and run again")
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(_ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps(meta))
@@ -426,6 +450,8 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     own = _grids_folder(scratch, info.name)
     dsm, top_class, bare_first = (_load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
     ground_count, water_count = (_load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
+    own_ground, own_water = int(ground_count.sum()), int(water_count.sum())
+    warnings = []
     for other in neighbours:
         folder = _grids_folder(scratch, other.name)
         if not folder.is_dir():  # the neighbour failed in pass 1
@@ -464,6 +490,14 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                 dem[r0:r1] = dem_from_ground_points(x, y, z, strip, method=run.dem_method,
                                                     max_distance=run.max_distance, water=water[r0:r1])
             del x, y, z
+        if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
+            filled = int(np.isfinite(dem).sum())
+            if filled == 0 and own_water == 0:
+                raise DataFileError("the tile has no ground (class 2) points, so its DEM and nDSM would be empty",
+                                    path=info.path, hint="Classify ground first (e.g. PDAL filters.smrf or lasground), "
+                                                         "or leave the tile out")
+            warnings.append(f"{info.path}: no ground (class 2) points in the tile; its DEM has {filled:,} of "
+                            f"{dem.size:,} cells, from the neighbours' ground" + (" (the rest is water)" if own_water else ""))
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
         if run.return_breaks is not None:
@@ -487,25 +521,13 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
-    return {"outputs": outputs, "first_return_bands": return_bands}
-
-
-def _remove_leftovers(out: Path) -> None:
-    """Partial files and scratch folders a killed run left (a resumed run starts clean)."""
-    if not out.is_dir():
-        return
-    for leftover in out.glob(".gistools-scratch-*"):
-        shutil.rmtree(leftover, ignore_errors=True)
-    for partial in out.rglob("*.partial*"):
-        if partial.is_file():
-            log.info("removing %s, left by an interrupted run", partial)
-            partial.unlink()
+    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings}
 
 
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 _TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "seconds")
+                "first_return_bands", "warnings", "seconds")
 
 
 def _tile_report_file(out: Path, name: str) -> Path:
@@ -566,6 +588,10 @@ def _complete_tile(out: Path, name: str, rep: dict | None, products=DEFAULT_PROD
     ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
     if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
         return None
+    for p in products:  # a kept raster must open and read whole: a damaged one is recomputed
+        if not raster_is_readable(out / p / f"{name}.tif"):
+            log.warning("%s: damaged, recomputing the tile", out / p / f"{name}.tif")
+            return None
     if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
         return None
     return rep
@@ -600,9 +626,14 @@ def rasters_from_tiles(
     settings.validate()
     started = time.time()
     out = Path(out)
-    _remove_leftovers(out)
     paths = find_tiles(inputs)
     override = parse_crs_text(settings.crs) if settings.crs else None
+    with claim_output(out, "gistools rasters"):
+        return _rasters_in(paths, override, out, settings, started, jobs, overwrite, progress, scheduler, pool)
+
+
+def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, jobs, overwrite, progress, scheduler,
+                pool) -> dict:
     results = {p.stem: TileResult(name=p.stem, path=str(p)) for p in paths}
     infos: list[TileInfo] = []
     for p in paths:
@@ -616,16 +647,23 @@ def rasters_from_tiles(
         crs = common_crs(infos)
         unit, z_unit = infos[0].unit, infos[0].z_unit
         cell_size = length_to_crs_units(settings.cell_size, unit, name="cell size")
-        if not cell_size > 0:
-            raise InputError(f"cell size {settings.cell_size!r} must be positive", hint="Give e.g. --cell-size 5ft")
         max_distance = length_to_crs_units(settings.dem_max_distance, unit, name="DEM max distance")
         buffer = (
             length_to_crs_units(settings.buffer, unit, name="buffer")
             if settings.buffer is not None
             else max(2 * max_distance, 20 * cell_size)
         )
-        out.mkdir(parents=True, exist_ok=True)
-        scratch = Path(tempfile.mkdtemp(prefix=".gistools-scratch-", dir=out))
+        sized = []
+        for info in infos:  # a grid too big for memory (cell size far too small, bogus header bounds) is refused
+            try:
+                check_grid_size(info.bounds, cell_size, str(info.path), unit=unit.short)
+                sized.append(info)
+            except GistoolsError as err:
+                fail(results[info.name], err)
+        if not sized and infos:
+            raise InputError(f"no tile can be gridded at cell size {settings.cell_size}: {results[infos[0].name].error}")
+        infos = sized
+        scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=out))
         run = _Run(
             cell_size=cell_size, dem_method=settings.dem_method,
             dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
@@ -640,8 +678,6 @@ def rasters_from_tiles(
             scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
-    else:
-        out.mkdir(parents=True, exist_ok=True)
     vrts = {}
     for product in settings.products:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
@@ -719,6 +755,9 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r = results[info.name]
         r.outputs = value["outputs"]
         r.first_return_bands = value["first_return_bands"]
+        r.warnings = list(value.get("warnings", []))
+        for w in r.warnings:
+            log.warning("%s", w)
         r.seconds += seconds
         _write_tile_report(out, r, settings)
 
@@ -746,6 +785,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
     def finish(kind, name, value, seconds, err):
         info = by_name[name]
         if err is not None:
+            raise_output_error(err, run.out)  # a full disk or a read-only --out stops the run: it is no tile's fault
             fail(results[name], err)
         elif kind == "scan":
             scan_done(info, value, seconds)

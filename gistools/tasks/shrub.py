@@ -18,6 +18,7 @@ Then VRT mosaics, a GeoPackage of class polygons, a printable map and report.jso
 from __future__ import annotations
 
 import json
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +35,8 @@ from ..errors import GistoolsError, InputError
 from ..grid import Grid
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
-from ..io.raster import atomic_path, read_raster, write_raster, write_vrt
+from ..io.outdir import claim_output
+from ..io.raster import atomic_path, raster_is_readable, read_raster, write_raster, write_vrt
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
@@ -44,6 +46,7 @@ from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..vector.regions import class_polygons
+from ..validation import check_breaks, check_length
 from .batch import make_pool, run_each
 from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
@@ -81,10 +84,25 @@ class ShrubSettings:
     tile_field: str = "TILE_ID"
 
     def validate(self):
+        """Every option checked before anything is read or written (validation layer)."""
+        self.raster.validate()
         if self.classify not in ("breaks", "quantile", "jenks"):
             raise InputError(f"--classify {self.classify!r} is not one of breaks, quantile, jenks")
         if not self.density_bands or any(b not in (1, 2, 3) for b in self.density_bands):
             raise InputError(f"density bands {self.density_bands} must be among 1, 2, 3", hint="e.g. --density-bands 1,2,3")
+        from ..lidar.bands import PRESETS
+
+        if self.bands not in PRESETS:
+            raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
+        if self.band_breaks_m is not None:
+            check_breaks(self.band_breaks_m, "--band-breaks", count=3, low=0, high=math.inf, low_open=True, example="1,2,6")
+        check_breaks(self.class_breaks, "--breaks", count=2, low=0, high=1, example="0.3,0.7")
+        check_length(self.noise_floor, "--noise-floor", allow_equal=True, example="0.1m")
+        check_length(self.snap, "--snap", allow_equal=True, example="0.2ft")
+        check_length(self.radius, "--radius", example="25ft")
+        check_length(self.max_road_width, "--max-road-width", example="60ft")
+        check_length(self.max_hydro_width, "max_hydro_width", example="500ft")
+        check_length(self.single_line_width, "single_line_width", example="8ft")
 
 
 @dataclass
@@ -121,7 +139,7 @@ def _stats_of_bands(bands, wetveg, grid) -> dict:
 def _existing(out, name, products, overwrite) -> dict | None:
     """Output paths of a stage when all exist and overwriting is off (a resumed run), else None."""
     paths = {p: Path(out) / p / f"{name}.tif" for p in products}
-    if overwrite or not all(path.exists() for path in paths.values()):
+    if overwrite or not all(path.exists() and raster_is_readable(path) for path in paths.values()):
         return None
     return {k: str(v) for k, v in paths.items()}
 
@@ -312,8 +330,19 @@ def shrub_from_tiles(
     settings.validate()
     if from_stage not in STAGES:
         raise InputError(f"stage {from_stage!r} is not one of {', '.join(STAGES)}")
-    started = time.time()
     out = Path(out)
+    if from_stage != "rasters" and not (out / "report.json").exists():
+        _previous_run(out)  # refuses with the reason before the folder is touched
+    with claim_output(out, f"gistools {'shrub' if from_stage == 'rasters' else from_stage}"):
+        return _shrub_in(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
+                         tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
+                         overwrite=overwrite, make_map=make_map, band_points=band_points, from_stage=from_stage,
+                         progress=progress)
+
+
+def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, waterbodies, wetlands, tile_index,
+              reproject_vectors, jobs, scheduler, overwrite, make_map, band_points, from_stage, progress) -> dict:
+    started = time.time()
     if from_stage == "rasters":
         rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass"),
                                "return_band_breaks": (settings.noise_floor, *_band_break_lengths(settings))})
@@ -392,7 +421,7 @@ def shrub_from_tiles(
     polygons = []
     try:
         run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", params, out) for n in names],
-                 pool, states, names, keep_outputs, tick, "bands")
+                 pool, states, names, keep_outputs, tick, "bands", out)
         margin = params["max_road_width"] + params["max_hydro_width"]
 
         def clip_done(name, value, seconds):
@@ -403,12 +432,12 @@ def shrub_from_tiles(
 
         good = alive()
         run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, grid_of(n), margin), params, out) for n in good],
-                 pool, states, good, clip_done, tick, "clip")
+                 pool, states, good, clip_done, tick, "clip", out)
         good = alive()
         for product in ("bands", "veg", "wetveg"):
             mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
         run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], params, out) for n in good], pool, states,
-                 good, keep_outputs, tick, "density")
+                 good, keep_outputs, tick, "density", out)
         good = alive()
         breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
 
@@ -418,7 +447,7 @@ def shrub_from_tiles(
             polygons.extend((name, c, g) for c, g in value["polygons"])
 
         run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, params, out) for n in good],
-                 pool, states, good, classes_done, tick, "classes")
+                 pool, states, good, classes_done, tick, "classes", out)
     finally:
         if pool is not None:
             pool.close()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -24,8 +25,8 @@ from rasterio.features import rasterize
 from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
-from ..io.raster import DEFLATE_LEVEL, NODATA, atomic_path, crs_from_wkt, predictor_for
-from ..io.vector import check_crs, read_layer, write_layer
+from ..io.raster import DEFLATE_LEVEL, NODATA, atomic_path, crs_from_wkt, predictor_for, verify_raster
+from ..io.vector import check_crs, read_layer, verify_gpkg, write_layer
 from ..lidar.bands import BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
 from ..lidar.gridding import ndsm_from
@@ -124,7 +125,7 @@ def _blockwise(base, outputs: dict, compute, *, progress, label: str, overwrite:
     with contextlib.ExitStack() as stack:
         dsts = {}
         for name, (path, dtype, nodata, tags) in wanted.items():
-            tmp = stack.enter_context(atomic_path(path, overwrite=overwrite))
+            tmp = stack.enter_context(atomic_path(path, overwrite=overwrite, verify=verify_raster))
             dst = stack.enter_context(rasterio.open(tmp, "w", **_profile(base, dtype, nodata, (tags or {}).get("GISTOOLS_PRODUCT"))))
             dst.update_tags(**{k: str(v) for k, v in (tags or {}).items()})
             if (tags or {}).get("units"):
@@ -227,9 +228,8 @@ class _PointWriter:
         self.count = 0
 
     def __enter__(self):
-        self._ctx = atomic_path(self.path, overwrite=self.overwrite)
-        self.tmp = self._ctx.__enter__()
-        self.gpkg = self.tmp.with_name(self.tmp.stem + ".tmp.gpkg")
+        self._ctx = atomic_path(self.path, overwrite=self.overwrite, keep_suffix=True, verify=verify_gpkg)
+        self.gpkg = self.tmp = self._ctx.__enter__()
         return self
 
     def add(self, codes, h, transform):
@@ -247,16 +247,14 @@ class _PointWriter:
 
     def __exit__(self, *exc):
         try:
-            if exc[0] is None:
-                if self.count == 0:
-                    import geopandas as gpd
+            if exc[0] is None and self.count == 0:
+                import geopandas as gpd
 
-                    gpd.GeoDataFrame({"band": [], "grid_code": []}, geometry=[], crs=self.crs).to_file(
-                        self.gpkg, layer=self.layer, driver="GPKG")
-                self.gpkg.replace(self.tmp)
-        finally:
-            if self.gpkg.exists():
-                self.gpkg.unlink()
+                gpd.GeoDataFrame({"band": [], "grid_code": []}, geometry=[], crs=self.crs).to_file(
+                    self.gpkg, layer=self.layer, driver="GPKG")
+        except BaseException:
+            self._ctx.__exit__(*sys.exc_info())
+            raise
         return self._ctx.__exit__(*exc)
 
 

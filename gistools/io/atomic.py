@@ -1,0 +1,125 @@
+"""Atomic, checked writes, and the names of the partial files gistools owns.
+
+Every output is written to a hidden partial file beside its final name,
+``.<name>.gistools-<pid>-<token>.partial`` (a name no user chooses), checked, and
+renamed onto the final name only once the write and the close succeeded and the
+check passed. A failed write (disk full, read-only file system, a GDAL write
+error that GDAL only logged) raises :class:`~gistools.errors.OutputError`, which
+names the folder's disk and the fix, and the partial file is removed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import re
+import secrets
+import shutil
+from pathlib import Path
+
+from ..errors import GistoolsError, OutputError, OutputExistsError
+
+__all__ = ["atomic_path", "partial_name", "is_partial", "output_error", "raise_output_error", "check_nonempty"]
+
+_PARTIAL = re.compile(r"^\..+\.gistools-\d+-[0-9a-f]{8}\.partial(\.[A-Za-z0-9]+)?$")
+_TOKEN = secrets.token_hex(4)  # per process; the pid tells processes apart
+
+# errors that say the output side failed, not the input: the run stops with one line about the disk
+_DISK_ERRNOS = {errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+_DISK_TEXT = re.compile(r"No space left|requested and \d+ written|Disk quota|File too large|database or disk is full",
+                        re.IGNORECASE)
+_FOLDER_ERRNOS = {errno.EROFS: "is on a read-only file system", errno.EACCES: "is not writable (permission denied)",
+                  errno.EPERM: "is not writable (permission denied)", errno.ENOTDIR: "is under a file, not a folder"}
+
+
+def partial_name(path, keep_suffix: bool = False) -> Path:
+    """The partial file for ``path``: hidden, in the same folder, owned by this process.
+    ``keep_suffix``: end in the final suffix too (laspy picks LAZ, GDAL the GeoPackage driver, by it)."""
+    path = Path(path)
+    name = f".{path.name}.gistools-{os.getpid()}-{_TOKEN}.partial"
+    return path.with_name(name + (path.suffix if keep_suffix else ""))
+
+
+def is_partial(path) -> bool:
+    """True for a partial file named by :func:`partial_name` (of any gistools process)."""
+    return bool(_PARTIAL.match(Path(path).name))
+
+
+def _existing_parent(path: Path) -> Path:
+    p = Path(os.path.abspath(path))
+    while not p.exists() and p != p.parent:
+        p = p.parent
+    return p
+
+
+def _mount_point(path: Path) -> Path:
+    p = _existing_parent(path)
+    while not os.path.ismount(p) and p != p.parent:
+        p = p.parent
+    return p
+
+
+def output_error(err: BaseException, path) -> OutputError | None:
+    """The one-line OutputError for a write failure of ``path`` caused by the disk or the folder, else None."""
+    if isinstance(err, OutputError):
+        return err
+    if isinstance(err, GistoolsError):
+        return None
+    code = getattr(err, "errno", None)
+    text = str(err)
+    where = _existing_parent(Path(path))
+    if code in _DISK_ERRNOS or _DISK_TEXT.search(text):
+        try:
+            free = shutil.disk_usage(where).free / 1e6
+        except OSError:
+            free = 0.0
+        return OutputError(f"no space left on {_mount_point(where)} (writing {path}; {free:.1f} MB free)",
+                           hint="Free some space or choose another --out; complete outputs are kept and a rerun resumes")
+    if code in _FOLDER_ERRNOS:
+        return OutputError(f"{path} cannot be written: {_existing_parent(Path(path).parent)} {_FOLDER_ERRNOS[code]}",
+                           hint="Choose another --out (a writable folder)")
+    return None
+
+
+def raise_output_error(err: BaseException, path) -> None:
+    """Raise output_error(err, path) from None when there is one (else return: the caller re-raises ``err``)."""
+    out = output_error(err, path)
+    if out is not None:
+        raise out from None
+
+
+def check_nonempty(tmp: Path) -> None:
+    """The minimal check of any written file: it exists and is not empty."""
+    if not tmp.is_file() or tmp.stat().st_size == 0:
+        raise OutputError(f"{tmp}: the write left an empty file", hint="Check the disk of --out and run again")
+
+
+@contextlib.contextmanager
+def atomic_path(path, *, overwrite: bool = False, keep_suffix: bool = False, verify=check_nonempty):
+    """Yield a partial path beside ``path``; after the block, ``verify(partial)`` and rename it onto ``path``.
+
+    On any error (in the block or in ``verify``) the partial file is removed and nothing is renamed; a write
+    failure of the disk or the folder becomes an OutputError naming the disk and the fix.
+    """
+    path = Path(path)
+    if path.exists() and not overwrite:
+        raise OutputExistsError("output exists", path=path, hint="Pass --overwrite to replace it, or choose another --out")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise_output_error(err, path)
+        raise
+    tmp = partial_name(path, keep_suffix)
+    try:
+        yield tmp
+        if verify is not None:
+            verify(tmp)
+        os.replace(tmp, path)
+    except Exception as err:
+        raise_output_error(err, path)
+        raise
+    finally:
+        with contextlib.suppress(OSError):
+            if tmp.exists():
+                tmp.unlink()

@@ -1,0 +1,175 @@
+"""The output folder of a run: created and checked before any work, locked, cleared of this program's leftovers.
+
+A run holds ``OUT/.gistools.lock`` (process id, host, start time) while it writes; a
+second run into the same folder is refused with one line. A lock whose process is
+gone (same host, that pid no longer running the same process) is stale and taken
+over. Leftovers of a killed run are removed only when this program made them:
+partial files named by :func:`gistools.io.atomic.partial_name`, and scratch folders
+``.gistools-scratch-*``, in the output folder and its product folders, nowhere else.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import logging
+import os
+import shutil
+import socket
+import threading
+import time
+from pathlib import Path
+
+from ..errors import OutputBusyError, OutputError
+from .atomic import is_partial, raise_output_error
+
+__all__ = ["claim_output", "LOCK_NAME", "remove_leftovers"]
+
+log = logging.getLogger(__name__)
+
+LOCK_NAME = ".gistools.lock"
+SCRATCH_PREFIX = ".gistools-scratch-"
+_HELD: dict[str, int] = {}  # output folders this process holds, with a nesting count (shrub runs rasters inside)
+_HELD_LOCK = threading.Lock()
+
+
+def _process_start(pid: int) -> str | None:
+    """Start time of process ``pid`` (Linux /proc, clock ticks since boot): tells a reused pid apart."""
+    try:
+        text = Path(f"/proc/{pid}/stat").read_text()
+        return text.rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
+
+
+def _alive(pid: int, start: str | None) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    except OSError:
+        return False
+    now = _process_start(pid)
+    return start is None or now is None or now == start
+
+
+def _make_folder(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"--out {out} is a file, not a folder", hint="Choose a folder for --out")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise_output_error(err, out)
+        raise OutputError(f"--out {out} cannot be created ({err.strerror or err})", hint="Choose another --out") from None
+
+
+def _take_lock(out: Path, command: str) -> Path:
+    lock = out / LOCK_NAME
+    me = {"pid": os.getpid(), "host": socket.gethostname(), "start": _process_start(os.getpid()),
+          "command": command, "since": time.strftime("%Y-%m-%d %H:%M:%S")}
+    for _ in range(3):
+        try:
+            fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
+        except FileExistsError:
+            holder = _read_lock(lock)
+            if holder is not None and _holder_alive(holder):
+                raise OutputBusyError(
+                    f"{out} is in use by another gistools run ({holder.get('command', 'gistools')}, process "
+                    f"{holder.get('pid')} on {holder.get('host')} since {holder.get('since')})",
+                    hint=f"Wait for it to end or choose another --out; if that run is gone, delete {lock}")
+            log.warning("%s: taking over the lock of a run that is gone (%s)", out, holder)
+            with contextlib.suppress(FileNotFoundError):
+                lock.unlink()
+            continue
+        except OSError as err:
+            raise_output_error(err, lock)
+            raise
+        try:
+            with os.fdopen(fd, "w") as fh:
+                fh.write(json.dumps(me))
+        except OSError as err:
+            with contextlib.suppress(OSError):
+                lock.unlink()
+            raise_output_error(err, lock)
+            raise
+        return lock
+    raise OutputBusyError(f"{out}: the lock {lock} keeps changing hands", hint="Choose another --out")
+
+
+def _read_lock(lock: Path) -> dict | None:
+    try:
+        return json.loads(lock.read_text())
+    except FileNotFoundError:
+        return {}
+    except (OSError, ValueError):  # empty or half-written: its writer died at once, or is writing it now
+        try:
+            young = time.time() - lock.stat().st_mtime < 10
+        except OSError:
+            young = False
+        return {"pid": "?", "host": "?", "since": "just now"} if young else None
+
+
+def _holder_alive(holder: dict) -> bool:
+    if not holder:
+        return False
+    if holder.get("pid") == "?":
+        return True
+    if holder.get("host") != socket.gethostname():
+        return True  # another machine's run (shared storage): cannot be checked from here, so it is respected
+    try:
+        return _alive(int(holder["pid"]), holder.get("start"))
+    except (KeyError, TypeError, ValueError):
+        return False
+
+
+def remove_leftovers(out: Path) -> None:
+    """Remove this program's leftovers of a killed run: partial files and scratch folders, in ``out`` and its
+    direct sub-folders (where gistools writes); a file a user named is never touched."""
+    if not out.is_dir():
+        return
+    for entry in list(out.iterdir()):
+        if entry.name.startswith(SCRATCH_PREFIX) and entry.is_dir() and not entry.is_symlink():
+            log.info("removing %s, left by an interrupted run", entry)
+            shutil.rmtree(entry, ignore_errors=True)
+    folders = [out] + [d for d in out.iterdir() if d.is_dir() and not d.is_symlink()]
+    for folder in folders:
+        try:
+            entries = list(folder.iterdir())
+        except OSError:
+            continue
+        for entry in entries:
+            if is_partial(entry) and entry.is_file():
+                log.info("removing %s, left by an interrupted run", entry)
+                with contextlib.suppress(OSError):
+                    entry.unlink()
+
+
+@contextlib.contextmanager
+def claim_output(out, command: str = "gistools"):
+    """Create and lock the output folder ``out`` for the block, after removing this program's leftovers.
+
+    Raises OutputError (not writable, a file, read-only) or OutputBusyError (another run holds it) before
+    anything is written. Nested claims of one folder in one process (the shrub chain runs the rasters) share
+    the lock.
+    """
+    out = Path(out)
+    key = os.path.abspath(out)
+    with _HELD_LOCK:
+        nested = _HELD.get(key, 0) > 0
+        if not nested:
+            _make_folder(out)
+            lock = _take_lock(out, command)
+            remove_leftovers(out)
+        _HELD[key] = _HELD.get(key, 0) + 1
+    try:
+        yield out
+    finally:
+        with _HELD_LOCK:
+            _HELD[key] -= 1
+            if _HELD[key] == 0:
+                del _HELD[key]
+                with contextlib.suppress(OSError):
+                    if (_read_lock(out / LOCK_NAME) or {}).get("pid") == os.getpid():
+                        (out / LOCK_NAME).unlink()

@@ -1,0 +1,112 @@
+"""One validation layer for the options of every command and Processing algorithm.
+
+Pure checks (no I/O), run before any input is read or any output touched. Each raises
+:class:`~gistools.errors.InputError` with one line naming the option, the value and the fix.
+The settings dataclasses (RasterSettings, ShrubSettings, ...) call these in ``validate()``; the
+CLI and the QGIS algorithms build those settings, so both get the same checks.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError
+from .units import parse_length
+
+__all__ = ["check_length", "check_number", "check_breaks", "check_count", "grid_shape", "check_grid_size",
+           "MAX_GRID_CELLS", "check_geometry_types"]
+
+# A tile's grids (DSM, counts, classes: about 40 bytes a cell in pass 1) must fit in memory: 400 M cells is
+# 16 GB. A grid beyond this comes from a cell size far too small for the tile or from a header's bogus bounds.
+MAX_GRID_CELLS = 400_000_000
+
+
+def check_length(value, option: str, *, minimum: float = 0.0, allow_equal: bool = False, example: str = "5ft"):
+    """A length option ("25ft", "1.5m", 5): finite and > ``minimum`` (>= with ``allow_equal``); returns it unchanged."""
+    number, _ = parse_length(value, name=option)
+    ok = math.isfinite(number) and (number >= minimum if allow_equal else number > minimum)
+    if not ok:
+        bound = f"at least {minimum:g}" if allow_equal else ("positive" if minimum == 0 else f"more than {minimum:g}")
+        raise InputError(f"{option} {value!r} must be a finite length, {bound}", hint=f"Give e.g. {option} {example}")
+    return value
+
+
+def check_number(value, option: str, *, low=None, high=None, low_open: bool = False, example: str = "1"):
+    """A plain number option within [low, high] (``low_open``: > low); returns it as float."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{option} {value!r} is not a number", hint=f"Give e.g. {option} {example}") from None
+    bad = not math.isfinite(v) or (low is not None and (v <= low if low_open else v < low)) or (high is not None and v > high)
+    if bad:
+        span = f"{'>' if low_open else '>='} {low:g}" if low is not None else ""
+        span += (" and " if span and high is not None else "") + (f"<= {high:g}" if high is not None else "")
+        raise InputError(f"{option} {value!r} must be a finite number {span}".rstrip(), hint=f"Give e.g. {option} {example}")
+    return v
+
+
+def check_count(value, option: str, *, minimum: int = 1, example: str = "1") -> int:
+    """An integer option of at least ``minimum``."""
+    if isinstance(value, bool) or not float(value).is_integer() or int(value) < minimum:
+        raise InputError(f"{option} {value!r} must be an integer of at least {minimum}", hint=f"Give e.g. {option} {example}")
+    return int(value)
+
+
+def check_breaks(values, option: str, *, count: int, low: float, high: float, low_open: bool = False,
+                 example: str = "0.3,0.7") -> tuple[float, ...]:
+    """``count`` strictly increasing finite numbers within [low, high] (``low_open``: above low)."""
+    try:
+        v = tuple(float(x) for x in values)
+    except (TypeError, ValueError):
+        raise InputError(f"{option} {values!r} is not a list of numbers", hint=f"Give e.g. {option} {example}") from None
+    shown = ",".join(f"{x:g}" for x in v)
+    if len(v) != count:
+        raise InputError(f"{option} {shown}: needs {count} values, got {len(v)}", hint=f"Give e.g. {option} {example}")
+    if not all(math.isfinite(x) for x in v) or any(b <= a for a, b in zip(v, v[1:])):
+        raise InputError(f"{option} {shown}: the values must be finite and increasing", hint=f"Give e.g. {option} {example}")
+    if (v[0] <= low if low_open else v[0] < low) or v[-1] > high:
+        raise InputError(f"{option} {shown}: the values must lie {'above' if low_open else 'within'} "
+                         f"{low:g}{' and up to' if low_open else ' -'} {high:g}", hint=f"Give e.g. {option} {example}")
+    return v
+
+
+def grid_shape(bounds, cell_size: float) -> tuple[int, int]:
+    """(columns, rows) of the snapped grid covering ``bounds`` at ``cell_size`` (no allocation; may be huge)."""
+    w, s, e, n = bounds
+    cols = math.floor(e / cell_size) - math.floor(w / cell_size) + 1
+    rows = math.floor(n / cell_size) - math.floor(s / cell_size) + 1
+    return int(cols), int(rows)
+
+
+def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_cells: int = MAX_GRID_CELLS,
+                    bytes_per_cell: int = 40) -> tuple[int, int]:
+    """Refuse a grid of more than ``max_cells`` cells before anything is allocated, with the numbers."""
+    if not all(math.isfinite(b) for b in bounds) or not math.isfinite(cell_size) or cell_size <= 0:
+        raise InputError(f"{what}: bounds {bounds} at cell size {cell_size!r} give no grid",
+                         hint="Check the header's bounds and --cell-size")
+    cols, rows = grid_shape(bounds, cell_size)
+    cells = cols * rows
+    if cells > max_cells:
+        gb = cells * bytes_per_cell / 1e9
+        w, s, e, n = bounds
+        raise InputError(
+            f"{what}: {e - w:.6g} x {n - s:.6g} {unit} at cell size {cell_size:g} {unit} is a grid of "
+            f"{cols:,} x {rows:,} cells (about {gb:,.0f} GB), more than the {max_cells:,} cells a tile may have",
+            hint="Give a larger --cell-size, or check the tile's header bounds (lasinfo)")
+    return cols, rows
+
+
+_GEOMETRY_FAMILY = {"Point": "point", "MultiPoint": "point", "LineString": "line", "MultiLineString": "line",
+                    "LinearRing": "line", "Polygon": "polygon", "MultiPolygon": "polygon"}
+
+
+def check_geometry_types(types, allowed: tuple[str, ...], what: str, path: str) -> None:
+    """Refuse a layer whose geometries are not of the ``allowed`` families (point, line, polygon)."""
+    names = [t for t in np.unique(np.asarray(list(types), dtype=object).astype(str)) if t not in ("None", "nan")]
+    bad = sorted({t for t in names if _GEOMETRY_FAMILY.get(t) not in allowed})
+    if bad:
+        raise InputError(
+            f"{what} must hold {' or '.join(a + 's' for a in allowed)}, but the layer holds {', '.join(bad)}",
+            path=path, hint=f"Give the {what} layer (e.g. file.gpkg:LAYER) of {' or '.join(allowed)} features")
