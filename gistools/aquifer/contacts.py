@@ -55,7 +55,7 @@ def _numbers(values, path, field, lines) -> np.ndarray:
 
 
 def _sniff(path: Path) -> str:
-    head = path.read_text(errors="replace")[:4096]
+    head = path.read_text(encoding="utf-8-sig", errors="replace")[:4096]
     try:
         return csv.Sniffer().sniff(head, delimiters=",;\t").delimiter
     except csv.Error:
@@ -71,9 +71,10 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
     text = spec or str(path)
     if spec is None and path.suffix.lower() in (".csv", ".txt", ".tsv", ".xyz", ".dat"):
         try:
-            df = pd.read_csv(path, sep=_sniff(path), skipinitialspace=True, keep_default_na=False, low_memory=False)
+            df = pd.read_csv(path, sep=_sniff(path), encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False, low_memory=False)
         except Exception as err:
-            raise DataFileError(f"cannot read as CSV ({err})", path=path, hint="Give a CSV with a header row") from None
+            raise DataFileError(f"cannot read as CSV ({str(err).splitlines()[0] if str(err) else type(err).__name__})",
+                                path=path, hint="Give a CSV with a header row") from None
         return df, np.arange(len(df)) + 2
     from ..io.vector import read_layer
 
@@ -90,6 +91,9 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
 
 
 def _from_frame(df, lines, path, swap_xy) -> pd.DataFrame:
+    if len(df) == 0:
+        raise InputError("the table holds no contacts (a header only, or empty)", path=path,
+                         hint="One row per contact: id, x, y, z, layer")
     cols = {f: _find(df.columns, f) for f in ALIASES}
     missing = [f for f in ("x", "y", "z", "layer") if cols[f] is None]
     if missing:

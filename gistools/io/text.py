@@ -19,6 +19,10 @@ def _is_number(v: str) -> bool:
         return False
 
 
+def _is_finite(v: str) -> bool:
+    return np.isfinite(float(v))
+
+
 def read_id_xyz(path, names: str = "ID X Y Z") -> tuple[np.ndarray, np.ndarray]:
     """(rows (n, 4) float64, file line of each row). A header line and ``#`` comments are skipped;
     a row without 4 values or with a value that is not a number is refused naming the file and line."""
@@ -26,7 +30,7 @@ def read_id_xyz(path, names: str = "ID X Y Z") -> tuple[np.ndarray, np.ndarray]:
     if not p.is_file():
         raise DataFileError("file not found", path=p, hint="Check the path")
     rows, lines = [], []
-    for n, raw in enumerate(p.read_text(errors="replace").splitlines(), start=1):
+    for n, raw in enumerate(p.read_text(encoding="utf-8-sig", errors="replace").splitlines(), start=1):
         parts = raw.replace(",", " ").replace(";", " ").split()
         if not parts or raw.lstrip().startswith("#"):
             continue
@@ -37,6 +41,9 @@ def read_id_xyz(path, names: str = "ID X Y Z") -> tuple[np.ndarray, np.ndarray]:
                 continue  # a header
             bad = next(v for v in parts if not _is_number(v))
             raise InputError(f"line {n}: {bad!r} is not a number", path=p, hint="Fix or remove that row")
+        if not all(_is_finite(v) for v in parts):
+            bad = next(v for v in parts if not _is_finite(v))
+            raise InputError(f"line {n}: {bad!r} is not a finite number", path=p, hint="Fix or remove that row")
         rows.append([float(v) for v in parts])
         lines.append(n)
     if not rows:

@@ -14,6 +14,8 @@ points: height against the median of their k = 8 nearest neighbours, same robust
 
 from __future__ import annotations
 
+import csv
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +38,11 @@ def read_survey(path) -> tuple[pd.DataFrame, object]:
     if p.suffix.lower() in (".csv", ".txt"):
         if not p.is_file():
             raise DataFileError("file not found", path=p, hint="Check the path")
-        df = pd.read_csv(p, sep=None, engine="python", skipinitialspace=True, keep_default_na=False)
+        try:
+            df = pd.read_csv(p, sep=None, engine="python", encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False)
+        except (pd.errors.EmptyDataError, pd.errors.ParserError, csv.Error, UnicodeDecodeError) as err:
+            raise DataFileError(f"not a readable CSV table ({str(err).splitlines()[0]})", path=p,
+                                hint="Give a CSV with a header row id, type, x, y, z and one point per row") from None
         lines = np.arange(len(df)) + 2
     else:
         from ..io.vector import read_layer

@@ -25,7 +25,9 @@ from ..aquifer.volume import common_footprint, overlay_volume
 from ..aquifer.walls import is_closed, match_rings, unit_mesh, write_obj, write_ply
 from ..errors import InputError, OutputExistsError
 from ..grid import evaluate_on_grid, snapped_grid
+from ..io.outdir import claim_output
 from ..io.raster import atomic_path, write_raster
+from ..validation import check_count, check_length, check_number
 from ..io.vector import check_crs, read_layer, write_layers
 from ..progress import ProgressCallback, report
 from ..units import horizontal_unit, length_to_crs_units
@@ -59,6 +61,24 @@ class AquiferSettings:
     mesh_format: str = "ply"
     figures: bool = True
     densify: bool = False
+
+    def validate(self) -> None:
+        """Every option checked before anything is read or written."""
+        check_length(self.xy_tol, "--xy-tol", allow_equal=True, example="0.5m")
+        check_count(self.k, "--k", minimum=3, example="12")
+        check_length(self.abs_thr, "--abs-thr", example="8m")
+        check_number(self.c, "--c", low=0, low_open=True, example="5")
+        check_number(self.f_nn, "--f-nn", low=0, low_open=True, example="5")
+        check_length(self.order_tol, "--order-tol", allow_equal=True, example="1m")
+        if self.concave_ratio is not None:
+            check_number(self.concave_ratio, "--concave", low=0, high=1, example="0.3")
+        check_count(self.n_per_edge, "--n-per-edge", minimum=0, example="2")
+        if self.cell_size is not None:
+            check_length(self.cell_size, "--cell-size", example="10m")
+        if self.matching not in ("3d", "2d"):
+            raise InputError(f"--matching {self.matching!r} is not 3d or 2d")
+        if self.mesh_format not in ("ply", "obj"):
+            raise InputError(f"mesh format {self.mesh_format!r} is not ply or obj")
 
 
 def unit_name(upper: str, lower: str) -> str:
@@ -109,6 +129,7 @@ def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSet
                 progress: ProgressCallback | None = None) -> Model:
     """Read, clean and triangulate (S0-S5); the in-memory model the outputs and queries use."""
     s = settings or AquiferSettings()
+    s.validate()
     points, crs_obj = read_contacts(source, layers, crs=crs, swap_xy=swap_xy)
     unit = horizontal_unit(crs_obj)
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
@@ -271,15 +292,18 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     """
     started = time.time()
     s = settings or AquiferSettings()
-    if s.mesh_format not in ("ply", "obj"):
-        raise InputError(f"mesh format {s.mesh_format!r} is not ply or obj")
+    s.validate()
     out = Path(out)
     if (out / "report.json").exists() and not overwrite:
         raise OutputExistsError("an aquifer model is already there", path=out, hint="Pass --overwrite, or choose another --out")
     model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress)
     compute_units(model, s, within=within, progress=progress)
     report(progress, 0.85, "writing")
-    out.mkdir(parents=True, exist_ok=True)
+    with claim_output(out, "gistools aquifer model"):
+        return _write_model(model, s, out, started, progress, swap_xy=swap_xy, within=within, clip=clip, source=source)
+
+
+def _write_model(model, s: "AquiferSettings", out: Path, started: float, progress, *, swap_xy, within, clip, source) -> dict:
     write_layers(_layers_gpkg(model), out / "aquifer.gpkg", overwrite=True)
     files = {"gpkg": str(out / "aquifer.gpkg"), "meshes": {}, "thickness": {}, "densified": {}}
     densified_counts = {}

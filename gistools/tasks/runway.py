@@ -21,6 +21,7 @@ from scipy.interpolate import LinearNDInterpolator
 from ..errors import InputError, OutputExistsError
 from ..grid import evaluate_on_grid, snapped_grid
 from ..io.points import parse_crs_text
+from ..io.outdir import claim_output
 from ..io.raster import atomic_path, write_raster
 from ..io.vector import write_layers
 from ..progress import ProgressCallback, report
@@ -83,6 +84,18 @@ def _lateral_grid(s: float, tpl) -> np.ndarray:
     return np.unique(np.round(ys, 9))
 
 
+def _check_ground_spans_strip(chain: np.ndarray, offset: np.ndarray, length: float) -> None:
+    """Refuse ground points (type 2) that cannot make a ground model: fewer than 3, or all on one line."""
+    if len(chain) < 3:
+        raise InputError(f"{len(chain)} ground point(s) (type 2); the ground model needs at least 3 across the strip",
+                         hint="Give the survey's ground points with type 2")
+    pts = np.column_stack([chain, offset])
+    sv = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
+    if sv[1] <= 1e-6 * max(sv[0], length, 1.0):
+        raise InputError("the ground points (type 2) lie on one line, so they give no ground surface across the strip",
+                         hint="Give ground points across the runway strip, not only along one line")
+
+
 def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = None,
                        progress: ProgressCallback | None = None) -> Earthworks:
     """All the steps in memory on survey points (id, type, x, y, z)."""
@@ -92,15 +105,22 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
     tpl = make_template(st.code, st.runway_type, st.template)
     report(progress, 0.05, "checks")
     kept, removed = check_survey(points, st.checks)
+    lights = kept.loc[kept["type"] == 1, ["x", "y"]].to_numpy(np.float64)
+    if len(np.unique(lights, axis=0)) < 2:
+        raise InputError(f"the centre-line lights (type 1) lie at {len(np.unique(lights, axis=0))} distinct position(s); "
+                         "the centre line needs at least 2", hint="Check the survey's x, y of the type 1 points")
     frame = fit_frame(kept, origin=st.origin, profile_window=st.profile_window)
     ch, off = frame.local(kept["x"].to_numpy(), kept["y"].to_numpy())
     kept = kept.assign(chainage=ch, offset=off)
     ground_pts = kept[kept["type"] == 2]
+    _check_ground_spans_strip(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy(), frame.line.length)
     s = float(st.spacing) if st.spacing else estimate_spacing(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy())
     if not s > 0:
         raise InputError(f"spacing {s} must be positive", hint="e.g. --spacing 10")
     length = frame.line.length
     n = int(np.floor(length / s + 1e-9))
+    if n > 1_000_000:
+        raise InputError(f"spacing {s:g} m over {length:,.1f} m gives {n + 1:,} stations", hint="Give a larger --spacing")
     stations = np.arange(n + 1) * s
     if length - stations[-1] > 1e-6 * s:
         stations = np.append(stations, length)
@@ -246,11 +266,22 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     if abs(unit.metres - 1.0) > 1e-12:
         raise InputError(f"the CRS is in {unit.name}; the ICAO template is in metres", path=source,
                          hint="Reproject the survey to a metre CRS first")
-    ew = compute_earthworks(points, st, progress=progress)
+    try:
+        ew = compute_earthworks(points, st, progress=progress)
+    except InputError as err:
+        if err.path is not None:
+            raise
+        raise InputError(str(err), path=source) from None  # the survey's degenerate content: name the file
     report(progress, 0.75, "writing")
+    with claim_output(out, "gistools runway"):
+        rep = _write_runway(ew, points, crs_obj, out, st, started)
+    report(progress, 1.0, "done")
+    return rep
+
+
+def _write_runway(ew, points, crs_obj, out: Path, st, started) -> dict:
     import geopandas as gpd
 
-    out.mkdir(parents=True, exist_ok=True)
     P = ew.points
     removed = ew.removed.merge(points[["id", "x", "y", "z", "line"]].drop_duplicates("id"), on="id", how="left")
     sx0, sy0 = ew.frame.world(ew.stations, np.full(len(ew.stations), -ew.template.half_width))
@@ -308,5 +339,4 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     rep["seconds"] = round(time.time() - started, 3)
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(rep, indent=2))
-    report(progress, 1.0, "done")
     return rep

@@ -14,7 +14,10 @@ import pandas as pd
 import shapely
 
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import claim_output
 from ..io.raster import atomic_path
+from ..validation import check_number
+from scipy.spatial import QhullError
 from ..structure.analysis import (Cluster, check_points, classify_cluster, cluster_level, estimate_parameters,
                                   read_points, split_levels)
 from ..structure.envelope import chain_loops, envelope, match_clusters, sown_footprint
@@ -49,15 +52,32 @@ def mesh_from_triangles(tris: np.ndarray, decimals: int = 6) -> tuple[np.ndarray
 
 
 def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 0.1, check: bool = True,
-                progress: ProgressCallback | None = None) -> Structure:
-    """S1-S8 in memory on points id, x, y, z."""
+                progress: ProgressCallback | None = None, source=None) -> Structure:
+    """S1-S8 in memory on points id, x, y, z (``source``: the file they came from, named in errors)."""
     if len(points) < 2:
-        raise InputError(f"{len(points)} point(s): a structure needs levels of points", hint="Give the building's cloud")
+        raise InputError(f"{len(points)} point(s): a structure needs levels of points", hint="Give the building's cloud",
+                         path=source)
+    xyz = points[["x", "y", "z"]].to_numpy(np.float64)
+    if not np.all(np.isfinite(xyz)):
+        raise InputError("coordinates must be finite (NaN or inf found)", path=source, hint="Fix or remove those rows")
+    xy = xyz[:, :2] - xyz[:, :2].mean(axis=0)
+    span = np.linalg.svd(xy, compute_uv=False) if len(xy) >= 2 else np.zeros(2)
+    if span[0] <= 1e-9 * max(1.0, float(np.abs(xyz[:, :2]).max())) or span[1] <= 1e-9 * span[0]:
+        raise InputError("the points do not span an area in plan (all identical or on one line)", path=source,
+                         hint="Give the building's whole cloud, with x, y, z in the columns given by --columns")
     pts, log = check_points(points, eps_z=eps_z) if check else (points.reset_index(drop=True), pd.DataFrame())
     level = split_levels(pts["z"].to_numpy(), eps_z)
     if level.max() + 1 < 3:
         raise InputError(f"{level.max() + 1} level(s); a structure needs at least 3 (floor, walls, roof)",
-                         hint="Check the heights (levels are split where z jumps by more than eps_z)")
+                         hint="Check the heights (levels are split where z jumps by more than eps_z)", path=source)
+    try:
+        return _reconstruct_levels(pts, log, level, h=h, d=d, t=t, eps_z=eps_z, progress=progress)
+    except QhullError as err:
+        raise InputError(f"a level's points are degenerate (all on one line or one point): {str(err).splitlines()[0]}",
+                         path=source, hint="Check the cloud (--columns, --scales) or remove the stray level") from None
+
+
+def _reconstruct_levels(pts, log, level, *, h, d, t, eps_z, progress) -> Structure:
     params = estimate_parameters(pts, h=h, d=d, t=t, eps_z=eps_z)
     report(progress, 0.2, "clusters")
     spacing = params.estimated["spacing"]
@@ -157,14 +177,26 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
     dissertation's piecewise Catmull-Rom loops: the new points and the lines through each vertex)."""
     if loop_mode not in ("classic", "catmull-rom"):
         raise InputError(f"loop mode {loop_mode!r} is not classic or catmull-rom")
+    for value, option in ((h, "--height-interval"), (d, "--distance"), (t, "--tolerance")):
+        if value is not None:
+            check_number(value, option, low=0, low_open=True, example="8")
+    if len(scales) != 3 or any(not np.isfinite(v) or v == 0 for v in map(float, scales)):
+        raise InputError(f"--scales {','.join(map(str, scales))}: three finite, non-zero factors",
+                         hint="e.g. --scales 1,1,1 (-1 flips an axis)")
+    if len(rotations) != 3 or any(not np.isfinite(float(v)) for v in rotations):
+        raise InputError(f"--rotations {','.join(map(str, rotations))}: three finite angles in degrees", hint="e.g. --rotations 0,0,90")
     started = time.time()
     out = Path(out)
     if (out / "report.json").exists() and not overwrite:
         raise OutputExistsError("a structure is already there", path=out, hint="Pass --overwrite, or choose another --out")
     pts = read_points(source, columns=columns, scales=scales, rotations=rotations)
-    s = reconstruct(pts, h=h, d=d, t=t, progress=progress)
+    s = reconstruct(pts, h=h, d=d, t=t, progress=progress, source=source)
     stats = _mesh_stats(s.vertices, s.faces)
-    out.mkdir(parents=True, exist_ok=True)
+    with claim_output(out, "gistools structure"):
+        return _write_structure(s, stats, out, loop_mode, started)
+
+
+def _write_structure(s: "Structure", stats: dict, out: Path, loop_mode: str, started: float) -> dict:
     from ..aquifer.walls import write_obj, write_ply
 
     write_ply(out / "structure.ply", s.vertices, s.faces)
