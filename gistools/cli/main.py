@@ -7,7 +7,9 @@ names the file, the problem and the fix, and exit with status 1; no traceback.
 from __future__ import annotations
 
 import logging
+import signal
 import sys
+import threading
 
 import click
 
@@ -15,19 +17,51 @@ from .. import __version__
 from ..errors import Cancelled, GistoolsError
 
 
+_INTERRUPTS = {"n": 0}
+INTERRUPTED = "gistools: interrupted; complete outputs are kept, no partial file is left under a final name (rerun to resume)"
+
+
+def _on_sigint(signum, frame):
+    """Ctrl-C: the first one stops the run (KeyboardInterrupt); more while it cleans up are counted, not raised.
+    The count makes sure the run ends with 130 even when a library swallowed the KeyboardInterrupt."""
+    _INTERRUPTS["n"] += 1
+    if _INTERRUPTS["n"] == 1:
+        raise KeyboardInterrupt
+
+
 class GistoolsGroup(click.Group):
     def invoke(self, ctx):
         try:
-            return super().invoke(ctx)
+            value = super().invoke(ctx)
         except Cancelled as err:
             click.echo(f"gistools: {err}", err=True)
             sys.exit(130)
         except GistoolsError as err:
+            if _INTERRUPTS["n"]:
+                click.echo(INTERRUPTED, err=True)
+                sys.exit(130)
             click.echo(f"gistools: error: {err}", err=True)
             sys.exit(1)
         except KeyboardInterrupt:
-            click.echo("gistools: interrupted; no partial output was left", err=True)
+            click.echo(INTERRUPTED, err=True)
             sys.exit(130)
+        except SystemExit:
+            if _INTERRUPTS["n"]:
+                click.echo(INTERRUPTED, err=True)
+                sys.exit(130)
+            raise
+        except OSError as err:  # an output that cannot be written, met outside the checked writes
+            from ..io.atomic import output_error
+
+            known = output_error(err, getattr(err, "filename", None) or ".")
+            if known is None:
+                raise
+            click.echo(f"gistools: error: {known}", err=True)
+            sys.exit(1)
+        if _INTERRUPTS["n"]:  # a Ctrl-C some library swallowed ("Exception ignored ..."): still an interrupt
+            click.echo(INTERRUPTED, err=True)
+            sys.exit(130)
+        return value
 
 
 @click.group(cls=GistoolsGroup)
@@ -57,7 +91,13 @@ for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub
 
 
 def main():  # console_scripts entry point
-    cli(prog_name="gistools")
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, _on_sigint)
+    try:
+        cli(prog_name="gistools")
+    except KeyboardInterrupt:  # outside a command (start-up, argument parsing)
+        click.echo(INTERRUPTED, err=True)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

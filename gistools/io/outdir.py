@@ -163,13 +163,18 @@ def claim_output(out, command: str = "gistools"):
             lock = _take_lock(out, command)
             remove_leftovers(out)
         _HELD[key] = _HELD.get(key, 0) + 1
+    failed = True
     try:
         yield out
+        failed = False
     finally:
         with _HELD_LOCK:
             _HELD[key] -= 1
             if _HELD[key] == 0:
                 del _HELD[key]
+                if failed:  # an error or Ctrl-C: partial files of stopped workers go; the lock is still ours
+                    with contextlib.suppress(OSError):
+                        remove_leftovers(out)
                 with contextlib.suppress(OSError):
                     if (_read_lock(out / LOCK_NAME) or {}).get("pid") == os.getpid():
                         (out / LOCK_NAME).unlink()

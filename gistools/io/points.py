@@ -212,7 +212,10 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
             hint='Pass the tiles\' CRS with --crs, e.g. --crs EPSG:2882 (CLI), or set "Input CRS" (QGIS)',
         )
     used = crs if crs is not None else file_crs
-    horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
+    try:
+        horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
+    except InputError as err:
+        raise InputError(str(err), path=path) from None
     return TileInfo(
         path=path,
         point_count=count,

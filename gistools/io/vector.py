@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import geopandas as gpd
+import numpy as np
 import pyproj
 
 from ..errors import CRSMismatchError, DataFileError, InputError, OutputError
+from ..validation import check_geometry_types
 from .points import crs_label
+
+log = logging.getLogger(__name__)
 
 __all__ = ["read_layer", "check_crs", "write_layer", "write_layers"]
 
@@ -21,8 +26,42 @@ def _split(spec) -> tuple[Path, str | None]:
     return Path(text), None
 
 
-def read_layer(spec) -> gpd.GeoDataFrame:
-    """A vector layer from ``path`` or ``path:LAYER`` (GeoPackage layer); DataFileError naming it otherwise."""
+def read_layer(spec, kinds: tuple[str, ...] | None = None, what: str = "layer") -> gpd.GeoDataFrame:
+    """A vector layer from ``path`` or ``path:LAYER`` (GeoPackage layer); DataFileError naming it otherwise.
+
+    ``kinds``: the geometry families the layer may hold (point, line, polygon); another one is refused,
+    naming the layer as ``what`` (e.g. "--roads"). Invalid polygons (self-intersecting rings, bow ties) are
+    repaired with shapely.make_valid, as QGIS's Fix Geometries does, with a warning naming each feature."""
+    gdf = _read_layer(spec)
+    if kinds is not None:
+        check_geometry_types(gdf.geometry.geom_type, kinds, what, str(spec))
+        gdf = _repaired(gdf, str(spec), what)
+    return gdf
+
+
+def _repaired(gdf: gpd.GeoDataFrame, spec: str, what: str) -> gpd.GeoDataFrame:
+    import shapely
+
+    geoms = gdf.geometry.to_numpy()
+    present = np.array([g is not None for g in geoms])
+    bad = np.flatnonzero(present & ~shapely.is_valid(np.where(present, geoms, None)))
+    if bad.size == 0:
+        return gdf
+    fixed = geoms.copy()
+    for i in bad:
+        reason = shapely.is_valid_reason(geoms[i])
+        g = shapely.make_valid(geoms[i])
+        if geoms[i].geom_type in ("Polygon", "MultiPolygon"):  # keep the polygonal parts
+            parts = [p for p in shapely.get_parts(g) if p.geom_type in ("Polygon", "MultiPolygon")]
+            g = shapely.union_all(parts) if parts else shapely.Polygon()
+        fixed[i] = g
+        log.warning("%s: %s feature %s is not valid (%s); repaired with make_valid", spec, what, gdf.index[i], reason)
+    out = gdf.copy()
+    out[out.geometry.name] = gpd.GeoSeries(fixed, index=gdf.index, crs=gdf.crs)
+    return out
+
+
+def _read_layer(spec) -> gpd.GeoDataFrame:
     path, layer = _split(spec)
     if not path.exists():
         raise DataFileError("file not found", path=path, hint="Check the path (GeoPackage layers are written file.gpkg:LAYER)")

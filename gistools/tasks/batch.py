@@ -10,7 +10,9 @@ import ctypes
 import multiprocessing
 import os
 import shutil
+import signal
 import sys
+import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
@@ -107,15 +109,42 @@ class _SpawnContext(multiprocessing.context.SpawnContext):
     Process = _OneThreadProcess
 
 
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(0.5)
+        if os.getppid() != parent:  # the parent died (kill -9): this worker is an orphan
+            os._exit(1)
+
+
+def _worker_start(parent: int, main_thread: bool) -> None:
+    """In each worker process: leave Ctrl-C to the parent (which stops the workers and cleans up, so a
+    Ctrl-C prints one line, not a traceback per worker), and die with the parent: Linux's
+    PR_SET_PDEATHSIG when the parent's main thread started the pool (the signal follows the thread), and
+    everywhere a watchdog thread that exits once the parent is gone."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if main_thread and sys.platform.startswith("linux"):
+        try:
+            ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass
+    if os.getppid() != parent:
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True, name="gistools-parent-watch").start()
+
+
 class ProcessPool:
-    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock)."""
+    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock).
+
+    Workers die with the parent (kill -9 included) and ignore Ctrl-C; closing the pool after an error or an
+    interrupt stops them at once instead of waiting for their tiles."""
 
     def __init__(self, jobs: int):
         ctx = _SpawnContext()
         python = python_executable()
         if python != sys.executable:
             ctx.set_executable(python)
-        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx)
+        self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
+                                        initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
 
     def submit(self, fn, *args):
         return self.pool.submit(fn, *args)
@@ -124,6 +153,13 @@ class ProcessPool:
         return wait(futures, return_when=FIRST_COMPLETED)[0]
 
     def close(self, futures=()):
+        """Shut the workers down; ``futures`` still pending (an error or Ctrl-C): stop the workers now."""
+        if futures:
+            for fut in futures:
+                fut.cancel()
+            for proc in list((getattr(self.pool, "_processes", None) or {}).values()):
+                if proc.is_alive():
+                    proc.kill()
         self.pool.shutdown(wait=True, cancel_futures=True)
 
 

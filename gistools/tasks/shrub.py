@@ -265,13 +265,15 @@ def _early_vectors(inputs, crs_text, layers, settings, reproject):
 
 
 def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject):
-    def load(spec, name):
+    def load(spec, name, kinds):
         if spec is None:
             return None
-        return check_crs(read_layer(spec), crs, str(spec), reproject=reproject)
+        return check_crs(read_layer(spec, kinds, name), crs, str(spec), reproject=reproject)
 
-    roads_g, hydro_g = load(roads, "roads"), load(hydro, "hydro")
-    wb_g, wet_g, idx_g = load(waterbodies, "waterbodies"), load(wetlands, "wetlands"), load(tile_index, "tile index")
+    lines, polygons = ("line", "polygon"), ("polygon",)  # a polygon's boundary serves as breaklines
+    roads_g, hydro_g = load(roads, "--roads", lines), load(hydro, "--hydro", lines)
+    wb_g, wet_g = load(waterbodies, "--waterbodies", polygons), load(wetlands, "--wetlands", polygons)
+    idx_g = load(tile_index, "--tile-index", polygons)
     if idx_g is not None and settings.tile_field not in idx_g.columns:
         raise InputError(f"the tile index has no field {settings.tile_field!r} (fields: {', '.join(map(str, idx_g.columns))})",
                          path=str(tile_index), hint="Pass --tile-field NAME")

@@ -271,7 +271,9 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
     (GeoPackages ``road_out`` / ``water_out``). Returns {"road": path, "water": path, "crs": wkt}.
     """
     layers = {"roads": roads, "hydro": hydro, "waterbodies": waterbodies, "tile index": tile_index}
-    loaded = {k: read_layer(v) for k, v in layers.items() if v}
+    kinds = {"roads": ("line", "polygon"), "hydro": ("line", "polygon"), "waterbodies": ("polygon",),
+             "tile index": ("polygon",)}
+    loaded = {k: read_layer(v, kinds[k], k) for k, v in layers.items() if v}
     if not loaded:
         raise InputError("no breakline layer given", hint="Give road lines and/or hydro lines or water bodies")
     # the tile index is the tiles' grid, so its CRS rules; else the first line layer's
@@ -328,7 +330,7 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
 def _polygons(spec, crs, reproject, against):
     if not spec:
         return None, []
-    gdf = check_crs(read_layer(spec), crs, str(spec), reproject=reproject, against=against)
+    gdf = check_crs(read_layer(spec, ("polygon",), "polygon layer"), crs, str(spec), reproject=reproject, against=against)
     geoms = [g for g in gdf.geometry if g is not None and not g.is_empty]
     return shapely.STRtree(geoms), geoms
 
