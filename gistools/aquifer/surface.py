@@ -85,6 +85,10 @@ def build_surface(name: str, ids, x, y, z) -> Surface:
     order = np.lexsort((xy[:, 1], xy[:, 0]))
     if (np.diff(xy[order], axis=0) == 0).all(axis=1).any():
         raise InputError(f"layer {name}: repeated x, y positions", hint="Flag duplicates first (aquifer outliers)")
+    sv = np.linalg.svd(xy, compute_uv=False) if len(xy) >= 3 else np.zeros(2)
+    if len(xy) < 3 or sv[1] <= 1e-7 * max(sv[0], 1e-12):  # on one line up to rounding: slivers of no area
+        raise InputError(f"layer {name}: the points do not span an area ({len(xy)} points, all on one line)",
+                         hint="A surface needs points that are not all on one line")
     try:
         tri = Delaunay(xy)
     except Exception as err:  # QhullError: all points on a line

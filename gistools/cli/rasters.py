@@ -64,8 +64,9 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
                                      progress=None if bar.disable else tqdm_progress(bar))
     counts = summary["counts"]
+    cell = f"cell size {summary['cell_size']} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"cell size {summary['cell_size']} {summary['horizontal_unit'] or ''}; report: {out}/report.json")
+               f"{cell}report: {out}/report.json")
     for tile in summary["tiles"]:
         if tile["status"] == "failed":
             click.echo(f"  FAILED {tile['error']}", err=True)

@@ -20,7 +20,8 @@ from pathlib import Path
 
 from ..errors import GistoolsError, OutputError, OutputExistsError
 
-__all__ = ["atomic_path", "partial_name", "is_partial", "output_error", "raise_output_error", "check_nonempty"]
+__all__ = ["atomic_path", "partial_name", "is_partial", "output_error", "raise_output_error", "check_nonempty",
+           "disk_is_full", "no_space_error"]
 
 _PARTIAL = re.compile(r"^\..+\.gistools-\d+-[0-9a-f]{8}\.partial(\.[A-Za-z0-9]+)?$")
 _TOKEN = secrets.token_hex(4)  # per process; the pid tells processes apart
@@ -68,18 +69,34 @@ def output_error(err: BaseException, path) -> OutputError | None:
         return None
     code = getattr(err, "errno", None)
     text = str(err)
+    named = getattr(err, "filename", None)
+    path = final_name(named) if named else path
     where = _existing_parent(Path(path))
     if code in _DISK_ERRNOS or _DISK_TEXT.search(text):
-        try:
-            free = shutil.disk_usage(where).free / 1e6
-        except OSError:
-            free = 0.0
-        return OutputError(f"no space left on {_mount_point(where)} (writing {path}; {free:.1f} MB free)",
-                           hint="Free some space or choose another --out; complete outputs are kept and a rerun resumes")
+        return no_space_error(path)
     if code in _FOLDER_ERRNOS:
         return OutputError(f"{path} cannot be written: {_existing_parent(Path(path).parent)} {_FOLDER_ERRNOS[code]}",
                            hint="Choose another --out (a writable folder)")
     return None
+
+
+def disk_is_full(path, margin: float = 1e6) -> bool:
+    """True when the disk of ``path`` has less than ``margin`` bytes free (why a write just failed)."""
+    try:
+        return shutil.disk_usage(_existing_parent(Path(path))).free < margin
+    except OSError:
+        return False
+
+
+def no_space_error(path) -> OutputError:
+    """The one line for a full disk under ``path``."""
+    where = _existing_parent(Path(path))
+    try:
+        free = shutil.disk_usage(where).free / 1e6
+    except OSError:
+        free = 0.0
+    return OutputError(f"no space left on {_mount_point(where)} (writing {path}; {free:.1f} MB free)",
+                       hint="Free some space or choose another --out; complete outputs are kept and a rerun resumes")
 
 
 def raise_output_error(err: BaseException, path) -> None:
@@ -89,10 +106,27 @@ def raise_output_error(err: BaseException, path) -> None:
         raise out from None
 
 
+def final_name(tmp) -> Path:
+    """The final path of a partial file (itself for any other path)."""
+    tmp = Path(tmp)
+    if not is_partial(tmp):
+        return tmp
+    return tmp.with_name(tmp.name[1:].split(".gistools-")[0])
+
+
+def unreadable_output(tmp, what: str, err=None) -> OutputError:
+    """The error for a file that was written without an error but does not read back: a full disk when it is."""
+    if disk_is_full(tmp):
+        return no_space_error(final_name(tmp))
+    reason = f" ({err})" if err else ""
+    return OutputError(f"{final_name(tmp)}: the {what} just written does not read back{reason}",
+                       hint="Check the disk of --out (full, failing?) and run again")
+
+
 def check_nonempty(tmp: Path) -> None:
     """The minimal check of any written file: it exists and is not empty."""
     if not tmp.is_file() or tmp.stat().st_size == 0:
-        raise OutputError(f"{tmp}: the write left an empty file", hint="Check the disk of --out and run again")
+        raise unreadable_output(tmp, "file", "it is empty")
 
 
 @contextlib.contextmanager
@@ -118,6 +152,8 @@ def atomic_path(path, *, overwrite: bool = False, keep_suffix: bool = False, ver
         os.replace(tmp, path)
     except Exception as err:
         raise_output_error(err, path)
+        if not isinstance(err, GistoolsError) and disk_is_full(path):  # a writer's own words for a full disk
+            raise no_space_error(path) from None
         raise
     finally:
         with contextlib.suppress(OSError):

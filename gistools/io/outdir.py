@@ -29,6 +29,9 @@ log = logging.getLogger(__name__)
 
 LOCK_NAME = ".gistools.lock"
 SCRATCH_PREFIX = ".gistools-scratch-"
+# the folders under --out that gistools writes (one per raster product, the tile reports, band points)
+OUTPUT_FOLDERS = ("dsm", "dem", "ndsm", "topclass", "bands", "veg", "wetveg", "density", "cover", "classes",
+                  "band_points", "tile_reports")
 _HELD: dict[str, int] = {}  # output folders this process holds, with a nesting count (shrub runs rasters inside)
 _HELD_LOCK = threading.Lock()
 
@@ -125,15 +128,15 @@ def _holder_alive(holder: dict) -> bool:
 
 
 def remove_leftovers(out: Path) -> None:
-    """Remove this program's leftovers of a killed run: partial files and scratch folders, in ``out`` and its
-    direct sub-folders (where gistools writes); a file a user named is never touched."""
+    """Remove this program's leftovers of a killed run: partial files and scratch folders, in ``out`` and the
+    folders of OUTPUT_FOLDERS (where gistools writes); a file a user named, or any file elsewhere, is never touched."""
     if not out.is_dir():
         return
     for entry in list(out.iterdir()):
         if entry.name.startswith(SCRATCH_PREFIX) and entry.is_dir() and not entry.is_symlink():
             log.info("removing %s, left by an interrupted run", entry)
             shutil.rmtree(entry, ignore_errors=True)
-    folders = [out] + [d for d in out.iterdir() if d.is_dir() and not d.is_symlink()]
+    folders = [out] + [out / d for d in OUTPUT_FOLDERS if (out / d).is_dir() and not (out / d).is_symlink()]
     for folder in folders:
         try:
             entries = list(folder.iterdir())

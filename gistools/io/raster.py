@@ -17,9 +17,9 @@ import numpy as np
 import pyproj
 import rasterio
 
-from ..errors import DataFileError, OutputError
+from ..errors import DataFileError
 from ..grid import Grid
-from .atomic import atomic_path, check_nonempty, raise_output_error
+from .atomic import atomic_path, check_nonempty, raise_output_error, unreadable_output
 
 __all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "crs_from_wkt", "NODATA", "verify_raster",
            "raster_is_readable"]
@@ -51,8 +51,7 @@ def verify_raster(tmp: Path) -> None:
                 src.read(i)
     except Exception as err:
         raise_output_error(err, tmp)
-        raise OutputError(f"{tmp}: the raster just written does not read back ({err})",
-                          hint="Check the disk of --out (full, failing?) and run again") from None
+        raise unreadable_output(tmp, "raster", err) from None
 
 
 def raster_is_readable(path) -> bool:

@@ -124,7 +124,7 @@ def verify_gpkg(tmp: Path) -> None:
     """A written GeoPackage opens and lists its layers (SQLite reports a full disk only on some writes)."""
     import pyogrio
 
-    from .atomic import check_nonempty, raise_output_error
+    from .atomic import check_nonempty, raise_output_error, unreadable_output
 
     check_nonempty(tmp)
     try:
@@ -132,5 +132,4 @@ def verify_gpkg(tmp: Path) -> None:
             pyogrio.read_info(tmp, layer=name)
     except Exception as err:
         raise_output_error(err, tmp)
-        raise OutputError(f"{tmp}: the GeoPackage just written does not read back ({err})",
-                          hint="Check the disk of --out and run again") from None
+        raise unreadable_output(tmp, "GeoPackage", err) from None

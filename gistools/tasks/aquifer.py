@@ -190,6 +190,9 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         report(progress, 0.3 + 0.5 * k / len(pairs), f"unit {unit_name(up, lo)}")
         U, L = model.surfaces[up], model.surfaces[lo]
         footprint = common_footprint(U, L)
+        if footprint.is_empty or footprint.area <= 0:
+            raise InputError(f"layers {up} and {lo} do not overlap in plan, so unit {unit_name(up, lo)} has no footprint",
+                             hint="Check the layers' x, y (the same CRS, --swap-xy) and that each layer is the right one")
         region = footprint if within_poly is None else footprint.intersection(within_poly)
         vol = overlay_volume(U, L, region, origin=origin)
         verts, faces = unit_mesh(U, L)

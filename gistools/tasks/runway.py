@@ -84,15 +84,18 @@ def _lateral_grid(s: float, tpl) -> np.ndarray:
     return np.unique(np.round(ys, 9))
 
 
-def _check_ground_spans_strip(chain: np.ndarray, offset: np.ndarray, length: float) -> None:
-    """Refuse ground points (type 2) that cannot make a ground model: fewer than 3, or all on one line."""
+def _check_ground_spans_strip(chain: np.ndarray, offset: np.ndarray, length: float, strip_width: float) -> None:
+    """Refuse ground points (type 2) that cannot make a ground model of the strip: fewer than 3, or all along one
+    line (their offsets from the centre line span less than a tenth of the strip's width)."""
     if len(chain) < 3:
         raise InputError(f"{len(chain)} ground point(s) (type 2); the ground model needs at least 3 across the strip",
                          hint="Give the survey's ground points with type 2")
     pts = np.column_stack([chain, offset])
     sv = np.linalg.svd(pts - pts.mean(axis=0), compute_uv=False)
-    if sv[1] <= 1e-6 * max(sv[0], length, 1.0):
-        raise InputError("the ground points (type 2) lie on one line, so they give no ground surface across the strip",
+    across = float(offset.max() - offset.min())
+    if sv[1] <= 1e-6 * max(sv[0], length, 1.0) or across < 0.1 * strip_width:
+        raise InputError(f"the ground points (type 2) lie on one line: their offsets from the centre line span "
+                         f"{across:.2f} m of the {strip_width:.0f} m strip, so they give no ground surface across it",
                          hint="Give ground points across the runway strip, not only along one line")
 
 
@@ -113,7 +116,8 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
     ch, off = frame.local(kept["x"].to_numpy(), kept["y"].to_numpy())
     kept = kept.assign(chainage=ch, offset=off)
     ground_pts = kept[kept["type"] == 2]
-    _check_ground_spans_strip(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy(), frame.line.length)
+    _check_ground_spans_strip(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy(), frame.line.length,
+                              2 * tpl.half_width)
     s = float(st.spacing) if st.spacing else estimate_spacing(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy())
     if not s > 0:
         raise InputError(f"spacing {s} must be positive", hint="e.g. --spacing 10")

@@ -1,0 +1,618 @@
+"""Faults and bad input across every command: nothing lost, nothing silent.
+
+Every case asserts the exit code, that no traceback is printed, the one line that says what happened, and
+that the inputs and the earlier outputs are byte-identical afterwards. Full disks come from a small tmpfs
+(RLIMIT_FSIZE when mounting is not allowed), header lies are written with laspy and then patched bytes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import os
+import resource
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from conftest import SAMPLE
+from gistools.cli.main import cli
+from gistools.io.raster import read_raster
+
+B = SAMPLE / "breaklines.gpkg"
+SHRUB_VECTORS = ["--roads", f"{B}:ROADBREAKLINE", "--hydro", f"{B}:HYDROGRAPHICFEATURE", "--waterbodies",
+                 f"{B}:WATERBODY", "--wetlands", f"{B}:WETLAND", "--tile-index", f"{B}:FOOTPRINT"]
+GISTOOLS = [sys.executable, "-m", "gistools.cli.main"]
+
+
+# ------------------------------------------------------------------ helpers
+
+def snapshot(folder: Path) -> dict:
+    """{relative path: sha256} of every file under ``folder`` (hidden ones included)."""
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def invoke(args) -> tuple[int, str]:
+    """The CLI in this process: (exit code, everything it printed); an uncaught exception is a traceback."""
+    result = CliRunner().invoke(cli, [str(a) for a in args])
+    if result.exception is not None and not isinstance(result.exception, SystemExit):
+        raise AssertionError(f"traceback: {type(result.exception).__name__}: {result.exception}\n{result.output}")
+    return result.exit_code, result.output
+
+
+def run(args, timeout=300, **kw) -> subprocess.CompletedProcess:
+    """The CLI as a user runs it (its own process): tracebacks and signals are real."""
+    return subprocess.run(GISTOOLS + [str(a) for a in args], capture_output=True, text=True, timeout=timeout, **kw)
+
+
+def one_line(text: str, *needles: str) -> str:
+    """The single 'gistools: ...' line of ``text`` (no traceback), holding every needle."""
+    assert "Traceback" not in text, text
+    lines = [line for line in text.splitlines() if line.startswith("gistools:")]
+    assert len(lines) == 1, text
+    for needle in needles:
+        assert needle in lines[0], (needle, lines[0])
+    return lines[0]
+
+
+def no_partial_under_final_names(out: Path) -> None:
+    """Every raster under a final name reads whole; no partial file of this program is left."""
+    from gistools.io.atomic import is_partial
+
+    for tif in out.rglob("*.tif"):
+        read_raster(tif)
+    assert not [p for p in out.rglob("*") if is_partial(p)]
+    assert not list(out.glob(".gistools-scratch-*"))
+
+
+@pytest.fixture
+def tiles(tmp_path, sample_tiles) -> Path:
+    """A copy of the four sample tiles."""
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    for p in sample_tiles:
+        shutil.copy(p, folder / p.name)
+    return folder
+
+
+@pytest.fixture(scope="module")
+def shrub_done(tmp_path_factory, sample_tiles) -> Path:
+    """A finished shrub chain on the sample tiles (copied by each test that changes it)."""
+    out = tmp_path_factory.mktemp("faults") / "out"
+    code, text = invoke(["shrub", SAMPLE, "--out", out, "-q", *SHRUB_VECTORS])
+    assert code == 0, text
+    return out
+
+
+@pytest.fixture
+def shrub_out(shrub_done, tmp_path) -> Path:
+    out = tmp_path / "out"
+    shutil.copytree(shrub_done, out)
+    return out
+
+
+@contextlib.contextmanager
+def small_disk(tmp_path: Path, size: str):
+    """A tmpfs of ``size`` (root, mount allowed); None when it cannot be mounted."""
+    mnt = tmp_path / f"disk{size}"
+    mnt.mkdir()
+    ok = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mnt)], capture_output=True).returncode == 0
+    try:
+        yield mnt if ok else None
+    finally:
+        if ok:
+            subprocess.run(["umount", "-l", str(mnt)], capture_output=True)
+
+
+def las12(path: Path, n: int = 2000, seed: int = 0, cls=None) -> Path:
+    """A small LAS 1.2 tile (EPSG:2882, half ground) written by laspy, for patching its header bytes."""
+    rng = np.random.default_rng(seed)
+    header = laspy.LasHeader(point_format=1, version="1.2")
+    header.scales = np.array([0.01, 0.01, 0.01])
+    header.offsets = np.array([500000.0, 1700000.0, 0.0])
+    import pyproj
+
+    header.add_crs(pyproj.CRS(2882))
+    las = laspy.LasData(header)
+    las.x = 500000 + rng.uniform(0, 500, n)
+    las.y = 1700000 + rng.uniform(0, 500, n)
+    las.z = rng.uniform(10, 20, n)
+    las.classification = np.where(np.arange(n) % 2 == 0, 2, 1).astype(np.uint8) if cls is None else np.full(n, cls, np.uint8)
+    las.return_number = np.ones(n, np.uint8)
+    las.number_of_returns = np.ones(n, np.uint8)
+    las.write(path)
+    return path
+
+
+def patch(path: Path, offset: int, fmt: str, value) -> None:
+    data = bytearray(path.read_bytes())
+    struct.pack_into(fmt, data, offset, value)
+    path.write_bytes(bytes(data))
+
+
+# LAS 1.2 public header offsets
+POINT_COUNT, X_SCALE, X_OFFSET, MAX_X, MIN_X = 107, 131, 155, 179, 187
+
+
+# ------------------------------------------------------------------ user files are never deleted
+
+def test_user_files_named_partial_are_kept_and_only_own_leftovers_go(tiles, tmp_path):
+    out = tmp_path / "project"
+    (out / "sub").mkdir(parents=True)
+    (out / "dem").mkdir()
+    mine = {"notes.partial.txt": b"my notes", "sub/thesis.partial.docx": b"thesis", "dem/x.tif.partial": b"keep",
+            ".hidden.partial": b"keep too", "sub/.a.tif.gistools-1-0123abcd.partial": b"not a place gistools writes"}
+    for name, data in mine.items():
+        (out / name).write_bytes(data)
+    # what a killed gistools run leaves: its own partial names and a scratch folder
+    (out / "dem" / ".35712.tif.gistools-999-deadbeef.partial").write_bytes(b"left by a killed run")
+    (out / ".gistools-scratch-abc123").mkdir()
+    (out / ".gistools-scratch-abc123" / "35712.ground.i4").write_bytes(b"x")
+    before = snapshot(tiles)
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 0, text
+    for name, data in mine.items():
+        assert (out / name).read_bytes() == data, name
+    assert not (out / "dem" / ".35712.tif.gistools-999-deadbeef.partial").exists()
+    assert not (out / ".gistools-scratch-abc123").exists()
+    assert snapshot(tiles) == before
+
+
+# ------------------------------------------------------------------ bad options: refused before anything is touched
+
+@pytest.mark.parametrize("args,needle", [
+    (["density", "{out}", "--radius", "0"], "--radius '0' must be a finite length, positive"),
+    (["density", "{out}", "--radius", "-5ft"], "--radius '-5ft'"),
+    (["classify", "{out}", "--breaks", "0.7,0.3"], "--breaks 0.7,0.3: the values must be finite and increasing"),
+    (["classify", "{out}", "--breaks", "0.3"], "--breaks 0.3: needs 2 values, got 1"),
+    (["classify", "{out}", "--breaks", "0.3,1.5"], "--breaks 0.3,1.5"),
+    (["bands", "{out}", "--band-breaks", "2,1,6"], "--band-breaks 2,1,6"),
+    (["bands", "{out}", "--noise-floor", "-1m"], "--noise-floor"),
+    (["clip", "{out}", "--max-road-width", "0"], "--max-road-width"),
+    (["shrub", "{tiles}", "--out", "{out}", "--radius", "nan"], "--radius"),
+    (["rasters", "{tiles}", "--out", "{out}", "--buffer", "-100"], "--buffer '-100' must be a finite length, at least 0"),
+    (["rasters", "{tiles}", "--out", "{out}", "--dem-max-distance", "0"], "--dem-max-distance '0'"),
+    (["rasters", "{tiles}", "--out", "{out}", "--dem-max-distance", "-1m"], "--dem-max-distance '-1m'"),
+    (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "1e400"], "--cell-size '1e400' must be a finite length"),
+    (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "0"], "--cell-size '0'"),
+    (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "0.001ft"], "grid of"),
+])
+def test_a_bad_option_leaves_the_folder_as_it_was(shrub_out, tiles, args, needle):
+    before, before_tiles = snapshot(shrub_out), snapshot(tiles)
+    code, text = invoke([a.format(out=shrub_out, tiles=tiles) for a in args])
+    assert code == 1, text
+    one_line(text, needle)
+    assert snapshot(shrub_out) == before
+    assert snapshot(tiles) == before_tiles
+
+
+def test_a_huge_grid_is_refused_with_its_size_before_any_allocation(tiles, tmp_path):
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "o", "--cell-size", "0.001ft", "-q"])
+    assert code == 1
+    line = one_line(text, "cells", "GB", "--cell-size")
+    assert "MemoryError" not in line
+
+
+def test_a_step_rerun_prints_why_a_tile_failed(shrub_out):
+    (shrub_out / "ndsm" / "35712.tif").write_bytes(b"damaged")  # the bands step reads it; steps never redo rasters
+    code, text = invoke(["bands", shrub_out, "-q"])
+    assert code == 1 and "Traceback" not in text
+    assert "FAILED" in text and "35712" in text
+
+
+# ------------------------------------------------------------------ full disk, damaged outputs
+
+def _disk_full_case(out: Path, env=None, preexec=None):
+    proc = run(["rasters", SAMPLE, "--out", out, "-q"], env=env, preexec_fn=preexec)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    return proc
+
+
+@pytest.mark.parametrize("size", ["2500k", "8M"])  # full while writing the scratch / while writing the rasters
+def test_a_full_disk_stops_the_run_with_one_line_and_no_broken_file(tmp_path, size):
+    with small_disk(tmp_path, size) as disk:
+        if disk is None:  # no mount allowed: a file size limit gives the same write errors (EFBIG)
+            limit = 90_000 if size == "8M" else 30_000
+            out = tmp_path / "fsize"
+
+            def preexec():
+                resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+            proc = _disk_full_case(out, preexec=preexec)
+            one_line(proc.stderr, "no space left")
+        else:
+            out = disk / "out"
+            proc = _disk_full_case(out)
+            line = one_line(proc.stderr, "no space left on", str(disk), "choose another --out")
+            assert "FAILED" not in proc.stderr and "35712.las" not in line  # it does not blame a tile
+        no_partial_under_final_names(out)
+        assert not (out / ".gistools.lock").exists()
+
+
+def test_resume_after_a_full_disk_completes_the_run(tmp_path):
+    with small_disk(tmp_path, "8M") as disk:
+        if disk is None:
+            pytest.skip("mounting a tmpfs is not allowed here (the RLIMIT case runs above)")
+        out = disk / "out"
+        _disk_full_case(out)
+        kept = {p.name: p.read_bytes() for p in (out / "dem").glob("*.tif")}
+        moved = tmp_path / "moved"
+        shutil.copytree(out, moved)  # "free some space": go on on a bigger disk
+        proc = run(["rasters", SAMPLE, "--out", moved, "-q"])
+        assert proc.returncode == 0, proc.stderr
+        report = json.loads((moved / "report.json").read_text())
+        assert [t["status"] for t in report["tiles"]].count("skipped") == len(kept)
+        for name, data in kept.items():
+            assert (moved / "dem" / name).read_bytes() == data  # complete tiles were kept
+        ref = tmp_path / "ref"
+        assert run(["rasters", SAMPLE, "--out", ref, "-q"]).returncode == 0
+        for product in ("dsm", "dem", "ndsm"):
+            a, _, _ = read_raster(ref / f"{product}.vrt")
+            b, _, _ = read_raster(moved / f"{product}.vrt")
+            assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_a_damaged_finished_tile_is_recomputed_not_a_traceback(tiles, tmp_path):
+    out = tmp_path / "out"
+    assert invoke(["rasters", tiles, "--out", out, "-q"])[0] == 0
+    good = (out / "dem" / "35712.tif").read_bytes()
+    (out / "dem" / "35712.tif").write_bytes(good[:4096])  # damaged after the run (a bad copy, a disk fault)
+    (out / "dsm" / "35713.tif").write_bytes(b"")
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 0, text
+    assert (out / "dem" / "35712.tif").read_bytes() == good
+    no_partial_under_final_names(out)
+    report = json.loads((out / "report.json").read_text())
+    status = {t["name"]: t["status"] for t in report["tiles"]}
+    assert status["35712"] == "ok" and status["35713"] == "ok" and status["35812"] == "skipped"
+
+
+# ------------------------------------------------------------------ output folders that cannot be written
+
+def test_out_under_a_file_is_one_line(tiles, tmp_path):
+    (tmp_path / "a_file").write_text("x")
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "a_file" / "out", "-q"])
+    assert code == 1
+    one_line(text, "under a file", "another --out")
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "a_file", "-q"])
+    assert code == 2 and "is a file" in text and "Traceback" not in text  # click's own check of --out
+    from gistools.tasks.rasters import rasters_from_tiles
+    from gistools.errors import OutputError
+
+    with pytest.raises(OutputError, match="is a file, not a folder"):  # the library call, and QGIS, get it too
+        rasters_from_tiles([tiles], tmp_path / "a_file")
+    assert (tmp_path / "a_file").read_text() == "x"
+
+
+def test_out_on_a_read_only_file_system_is_one_line(tiles, tmp_path):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "ro,size=1M", "tmpfs", str(ro)], capture_output=True).returncode:
+        pytest.skip("mounting a read-only tmpfs is not allowed here")
+    try:
+        proc = run(["rasters", tiles, "--out", ro / "out", "-q"])
+        assert proc.returncode == 1
+        one_line(proc.stderr, "read-only file system", "another --out")
+        proc = run(["structure", tmp_path / "none.txt", "--out", ro / "s"])
+        assert proc.returncode == 1 and "Traceback" not in proc.stderr
+    finally:
+        subprocess.run(["umount", "-l", str(ro)], capture_output=True)
+
+
+# ------------------------------------------------------------------ header lies and silent wrong answers
+
+@pytest.mark.parametrize("lie,needle", [
+    ("count_low", "the header counts 1,000 points but the file holds 2,000 point records"),
+    ("bounds_small", "points lie outside the header's bounds"),
+    ("scale_zero", "scale factors"),
+    ("scale_nan", "scale factors"),
+    ("offset_nan", "offsets"),
+    ("max_x_huge", "beyond any map"),
+    ("bounds_nan", "bounds"),
+    ("no_ground", "no ground (class 2) points"),
+])
+def test_a_lying_header_is_refused_never_ok(tmp_path, lie, needle):
+    tile = las12(tmp_path / "t.las", cls=1 if lie == "no_ground" else None)
+    if lie == "count_low":
+        patch(tile, POINT_COUNT, "<I", 1000)
+    elif lie == "bounds_small":
+        patch(tile, MAX_X, "<d", 500250.0)
+    elif lie == "scale_zero":
+        patch(tile, X_SCALE, "<d", 0.0)
+    elif lie == "scale_nan":
+        patch(tile, X_SCALE, "<d", float("nan"))
+    elif lie == "offset_nan":
+        patch(tile, X_OFFSET, "<d", float("nan"))
+    elif lie == "max_x_huge":
+        patch(tile, MAX_X, "<d", 1e300)
+    elif lie == "bounds_nan":
+        patch(tile, MIN_X, "<d", float("nan"))
+    before = tile.read_bytes()
+    code, text = invoke(["rasters", tile, "--out", tmp_path / "out", "-q"])
+    assert code == 1, text
+    assert "tiles ok" not in text or "0 tiles ok" in text
+    assert "RuntimeWarning" not in text and "Traceback" not in text
+    assert needle in text and "t.las" in text
+    assert tile.read_bytes() == before
+    if (tmp_path / "out" / "report.json").exists():
+        report = json.loads((tmp_path / "out" / "report.json").read_text())
+        assert report["tiles"][0]["status"] == "failed" and needle in report["tiles"][0]["error"]
+
+
+def test_a_lake_tile_without_ground_is_a_warning_not_silent(tmp_path):
+    lake = las12(tmp_path / "lake.las", cls=9)
+    code, text = invoke(["rasters", lake, "--out", tmp_path / "out", "-q"])
+    assert "Traceback" not in text
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    tile = report["tiles"][0]
+    assert tile["status"] == "ok" and tile["warnings"] and "no ground (class 2) points" in tile["warnings"][0]
+
+
+def test_a_geographic_crs_names_the_file(tmp_path):
+    tile = las12(tmp_path / "geo.las")
+    code, text = invoke(["rasters", tile, "--out", tmp_path / "out", "-q", "--crs", "EPSG:4326"])
+    assert code == 1 and "Traceback" not in text
+    failed = [line for line in text.splitlines() if "FAILED" in line]
+    assert len(failed) == 1 and "geo.las" in failed[0] and "geographic" in failed[0] and "Reproject" in failed[0]
+
+
+# ------------------------------------------------------------------ vector layers of the wrong kind, invalid polygons
+
+def test_a_point_layer_as_roads_is_refused(tmp_path):
+    import geopandas as gpd
+    import shapely
+
+    pts = gpd.GeoDataFrame({"n": [1, 2]}, geometry=shapely.points([[0, 0], [1, 1]]), crs=2882)
+    pts.to_file(tmp_path / "p.gpkg", layer="P")
+    code, text = invoke(["shrub", SAMPLE, "--out", tmp_path / "out", "-q", "--roads", f"{tmp_path / 'p.gpkg'}:P"])
+    assert code == 1
+    one_line(text, "--roads must hold lines or polygons", "Point", "p.gpkg")
+    assert not (tmp_path / "out").exists() or not list((tmp_path / "out").rglob("*.tif"))
+
+
+def test_a_self_intersecting_waterbody_is_repaired_with_a_warning(tmp_path, caplog):
+    import geopandas as gpd
+    import shapely
+
+    wb = gpd.read_file(B, layer="WATERBODY")
+    x0, y0, x1, y1 = wb.total_bounds
+    bowtie = shapely.Polygon([(x0, y0), (x1, y1), (x1, y0), (x0, y1)])  # crosses itself
+    bad = gpd.GeoDataFrame(geometry=list(wb.geometry) + [bowtie], crs=wb.crs)
+    bad.to_file(tmp_path / "wb.gpkg", layer="WB")
+    from gistools.io.vector import read_layer
+
+    with caplog.at_level("WARNING"):
+        fixed = read_layer(f"{tmp_path / 'wb.gpkg'}:WB", ("polygon",), "--waterbodies")
+    assert fixed.geometry.is_valid.all() and "not valid" in caplog.text and "--waterbodies feature" in caplog.text
+    args = ["shrub", SAMPLE, "--out", tmp_path / "out", "-q", "--no-map", "--waterbodies", f"{tmp_path / 'wb.gpkg'}:WB"]
+    code, text = invoke(args)
+    assert code == 0, text
+
+
+# ------------------------------------------------------------------ tables: BOMs and degenerate content
+
+def test_bom_csvs_keep_their_first_column(tmp_path):
+    from gistools.runway.synthetic import synthetic_runway
+    from gistools.structure.fixtures import building
+
+    pts, _ = synthetic_runway(8)
+    pts.to_csv(tmp_path / "plain.csv", index=False)
+    (tmp_path / "bom.csv").write_bytes(b"\xef\xbb\xbf" + (tmp_path / "plain.csv").read_bytes())
+    reports = []
+    for name in ("plain", "bom"):
+        code, text = invoke(["runway", tmp_path / f"{name}.csv", "--code", "4E", "--crs", "EPSG:3003",
+                             "--out", tmp_path / f"r_{name}", "-q"])
+        assert code == 0, text
+        reports.append(json.loads((tmp_path / f"r_{name}" / "report.json").read_text()))
+    assert reports[0]["removed"] == reports[1]["removed"] and reports[0]["cut"] == reports[1]["cut"]
+    assert reports[1]["removed"]["duplicates"] == 1  # a reused id is found: the ids were read, not row numbers
+    b, _ = building("F4")
+    text = "\n".join(f"{i} {x} {y} {z}" for i, x, y, z in b.itertuples(index=False))
+    (tmp_path / "s.txt").write_text(text)
+    (tmp_path / "s_bom.txt").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    from gistools.structure.analysis import read_points
+
+    assert len(read_points(tmp_path / "s_bom.txt")) == len(read_points(tmp_path / "s.txt")) == len(b)
+
+
+def _runway_frame():
+    from gistools.runway.synthetic import synthetic_runway
+
+    return synthetic_runway(8)[0]
+
+
+def _aquifer_frame():
+    from gistools.aquifer.synthetic import synthetic_aquifer
+
+    return synthetic_aquifer(2012)[0]
+
+
+@pytest.mark.parametrize("case,needle", [
+    ("runway_empty", "not a readable CSV table"),
+    ("runway_header_only", "0 centre-line light(s)"),
+    ("runway_identical", "distinct position"),
+    ("runway_ground_on_axis", "the ground points (type 2) lie on one line"),
+    ("aquifer_header_only", "the table holds no contacts"),
+    ("aquifer_collinear_layer", "the points do not span an area"),
+    ("structure_identical", "do not span an area in plan"),
+    ("structure_collinear", "do not span an area in plan"),
+    ("structure_nan", "is not a finite number"),
+    ("structure_inf", "is not a finite number"),
+    ("structure_scales_zero", "--scales 0.0,0.0,0.0: three finite, non-zero factors"),
+    ("structure_height_interval_zero", "--height-interval 0"),
+])
+def test_degenerate_tables_are_one_line(tmp_path, case, needle):
+    src = tmp_path / "in.csv"
+    if case.startswith("runway"):
+        df = _runway_frame()
+        if case == "runway_empty":
+            src.write_text("")
+        elif case == "runway_header_only":
+            src.write_text(",".join(df.columns) + "\n")
+        else:
+            if case == "runway_identical":
+                df[["x", "y", "z"]] = df[["x", "y", "z"]].iloc[0].to_numpy()
+            else:  # every ground point moved onto the line of the lights
+                lights = df[df["type"] == 1]
+                k = np.flatnonzero(df["type"] == 2)
+                t = np.linspace(0, 1, len(k))
+                a, b = lights[["x", "y"]].to_numpy()[[0, -1]]
+                df.loc[k, "x"], df.loc[k, "y"] = a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])
+            df.to_csv(src, index=False)
+        args = ["runway", src, "--code", "4E", "--crs", "EPSG:3003", "--out", tmp_path / "o", "-q"]
+    elif case.startswith("aquifer"):
+        df = _aquifer_frame()
+        if case == "aquifer_header_only":
+            src.write_text(",".join(df.columns) + "\n")
+        else:
+            k = df["layer"] == "AQ"  # the layer's contacts on one line across the area
+            x0, y0 = df.loc[k, "x"].mean(), df.loc[k, "y"].mean()
+            df.loc[k, "y"] = y0 + (df.loc[k, "x"] - x0) * 0.5
+            df.to_csv(src, index=False)
+        args = ["aquifer", "model", src, "--layers", "LS,AU,AD,AQ", "--crs", "EPSG:3003", "--out", tmp_path / "o", "-q",
+                "--no-figures"]
+    else:
+        from gistools.structure.fixtures import building
+
+        src = tmp_path / "in.txt"
+        rows = list(building("F4")[0].itertuples(index=False))
+        extra = []
+        if case == "structure_identical":
+            rows = [(i, 1.0, 1.0, 1.0) for i in range(60)]
+        elif case == "structure_collinear":
+            rows = [(i, float(i), float(i), float(i % 5)) for i in range(60)]
+        elif case in ("structure_nan", "structure_inf"):
+            rows = rows + [(99999, float("nan") if case.endswith("nan") else float("inf"), 1.0, 1.0)]
+        src.write_text("\n".join(f"{i} {x} {y} {z}" for i, x, y, z in rows))
+        extra = {"structure_scales_zero": ["--scales", "0,0,0"],
+                 "structure_height_interval_zero": ["--height-interval", "0"]}.get(case, [])
+        args = ["structure", src, "--out", tmp_path / "o", "-q", *extra]
+    before = src.read_bytes()
+    started = time.time()
+    code, text = invoke(args)
+    assert code == 1, text
+    one_line(text, needle)
+    assert time.time() - started < 60  # refused, not computed for minutes
+    assert src.read_bytes() == before
+    assert not (tmp_path / "o" / "report.json").exists()
+
+
+# ------------------------------------------------------------------ two runs into one --out
+
+def _wait_for(predicate, timeout=60.0):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.01)
+    return False
+
+
+def test_a_second_run_into_the_same_out_is_refused_and_the_first_completes(tiles, tmp_path, shrub_done):
+    out = tmp_path / "out"
+    # the first run is the whole chain, in small chunks, so that it is still going when the second one starts
+    first = subprocess.Popen(GISTOOLS + ["shrub", str(tiles), "--out", str(out), "-q", "--chunk-size", "50",
+                                         *SHRUB_VECTORS], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert _wait_for(lambda: (out / ".gistools.lock").exists())
+    second = run(["rasters", tiles, "--out", out, "-q", "--overwrite"])
+    assert first.poll() is None, "the first run ended before the second one asked for the folder"
+    assert second.returncode == 1
+    one_line(second.stderr, "is in use by another gistools run", f"process {first.pid}", "another --out")
+    stdout, stderr = first.communicate(timeout=300)
+    assert first.returncode == 0, stderr
+    assert not (out / ".gistools.lock").exists()
+    for product in ("dsm", "dem", "ndsm", "classes"):  # the first run's outputs are those of a run on its own
+        a, _, _ = read_raster(shrub_done / f"{product}.vrt")
+        b, _, _ = read_raster(out / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_a_stale_lock_is_taken_over(tiles, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    (out / ".gistools.lock").write_text(json.dumps({"pid": dead.pid, "host": socket.gethostname(), "start": "1"}))
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 0, text
+    assert not (out / ".gistools.lock").exists()
+
+
+# ------------------------------------------------------------------ Ctrl-C at several moments, kill -9 of the parent
+
+def _interrupt_when(args, ready, out: Path):
+    proc = subprocess.Popen(GISTOOLS + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    reached = _wait_for(lambda: ready(out) or proc.poll() is not None, 120)
+    assert reached and proc.poll() is None, "the run ended before the moment of the interrupt"
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    return proc.returncode, stdout + stderr
+
+
+MOMENTS = {
+    "reading": lambda out: bool(list(out.glob(".gistools-scratch-*/*.i4"))),
+    "gridding": lambda out: (out / "dem").is_dir() and bool(list((out / "dem").glob("*.tif"))),
+    "steps": lambda out: (out / "bands").is_dir() and bool(list((out / "bands").glob("*.tif"))),
+    "map": lambda out: (out / "classes.vrt").exists(),
+}
+
+
+@pytest.mark.parametrize("moment,jobs", [("reading", 1), ("gridding", 2), ("steps", 1), ("map", 1)])
+def test_ctrl_c_ends_with_130_and_one_line_and_the_rerun_resumes(tiles, tmp_path, moment, jobs, shrub_done):
+    out = tmp_path / "out"
+    args = ["shrub", tiles, "--out", out, "-q", "--jobs", jobs, "--chunk-size", "2000", *SHRUB_VECTORS]
+    before = snapshot(tiles)
+    code, text = _interrupt_when(args, MOMENTS[moment], out)
+    assert code == 130, text
+    one_line(text, "interrupted")
+    assert "Exception ignored" not in text
+    no_partial_under_final_names(out)
+    assert not (out / ".gistools.lock").exists()
+    again = run(args)
+    assert again.returncode == 0, again.stderr
+    for product in ("dem", "classes"):
+        a, _, _ = read_raster(shrub_done / f"{product}.vrt")
+        b, _, _ = read_raster(out / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product
+    assert snapshot(tiles) == before
+
+
+def _children(pid: int) -> list[int]:
+    kids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, IndexError):
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+            if int(fields[1]) == pid:
+                kids.append(int(stat.parent.name))
+    return kids
+
+
+def test_workers_die_with_a_killed_parent(tiles, tmp_path):
+    out = tmp_path / "out"
+    proc = subprocess.Popen(GISTOOLS + ["rasters", str(tiles), "--out", str(out), "-q", "--jobs", "2",
+                                        "--chunk-size", "2000"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert _wait_for(lambda: len([k for k in _children(proc.pid)]) >= 2 and MOMENTS["reading"](out), 120)
+    workers = _children(proc.pid)
+    proc.kill()
+    proc.wait()
+
+    def gone():
+        return all(not Path(f"/proc/{w}").exists() or "Z" in Path(f"/proc/{w}/stat").read_text().rsplit(")", 1)[1][:3]
+                   for w in workers)
+
+    assert _wait_for(gone, 10), f"workers {workers} outlived their parent"
+    again = run(["rasters", tiles, "--out", out, "-q"])  # the stale lock and the leftovers are handled
+    assert again.returncode == 0, again.stderr
+    no_partial_under_final_names(out)
