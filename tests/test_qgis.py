@@ -470,3 +470,33 @@ def test_structure_algorithm_equals_the_library(qgis, tmp_path):
     rep = json.loads((tmp_path / "q" / "report.json").read_text())
     assert {k: rep[k] for k in ("levels", "clusters", "triangles", "euler")} == \
         {k: lib[k] for k in ("levels", "clusters", "triangles", "euler")}
+
+
+def test_bad_options_are_refused_before_any_output(qgis, reference, tmp_path):
+    """The validation layer the CLI uses, through Processing: one exception naming the option, nothing written."""
+    cases = [("gistools:density", {"VEGETATION": str(reference / "veg.vrt"), "RADIUS": "0",
+                                   "OUTPUT": str(tmp_path / "cover.tif")}, "density radius '0'"),
+             ("gistools:density", {"VEGETATION": str(reference / "veg.vrt"), "RADIUS": "-5ft",
+                                   "OUTPUT": str(tmp_path / "cover.tif")}, "density radius '-5ft'"),
+             ("gistools:classify", {"COVER": str(reference / "cover.vrt"), "METHOD": 0, "BREAKS": "0.7,0.3",
+                                    "OUTPUT": str(tmp_path / "classes.tif")}, "increasing"),
+             ("gistools:dsm", {"INPUT": str(SAMPLE), "CELL_SIZE": "0", "OUTPUT_FOLDER": str(tmp_path / "d")}, "--cell-size")]
+    for alg, params, needle in cases:
+        with pytest.raises(QgsProcessingException) as err:
+            qgis.run(alg, params)
+        assert needle in str(err.value) and "Traceback" not in str(err.value), (alg, str(err.value))
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_locked_output_folder_is_refused_in_processing(qgis, tmp_path):
+    import socket
+
+    out = tmp_path / "out"
+    out.mkdir()
+    # the lock of a live run on this host (this test's parent process stands for it)
+    (out / ".gistools.lock").write_text(json.dumps({"pid": os.getppid(), "host": socket.gethostname(),
+                                                    "command": "gistools shrub", "since": "now"}))
+    with pytest.raises(QgsProcessingException) as err:
+        qgis.run("gistools:dsm", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(out)})
+    assert "in use by another gistools run" in str(err.value)
+    assert sorted(p.name for p in out.iterdir()) == [".gistools.lock"]

@@ -36,6 +36,7 @@ from ..progress import ProgressCallback, report
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units, unit_from_word
 from ..vector.breaklines import road_polygons, water_polygons
 from ..vector.regions import class_polygons
+from ..validation import check_breaks, check_length
 from .rasters import GROUNDISH
 
 __all__ = ["ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands", "density_from_vegetation",
@@ -186,6 +187,9 @@ def bands_from_ndsm(ndsm, out, *, top_class=None, preset: str = "exact", breaks_
     with band and height (``grid_code``), a GeoPackage (Raster To Point).
     Returns {"bands": path, "points": path?, "thresholds": (T1, T2, T3), "z_unit": name}.
     """
+    check_length(noise_floor, "noise floor", allow_equal=True, example="0.1m")
+    if breaks_m is not None:
+        check_breaks(breaks_m, "band breaks", count=3, low=0, high=float("inf"), low_open=True, example="1,2,6")
     _check_outputs({"out": out, "points": points_out}, [ndsm, top_class])
     with contextlib.ExitStack() as stack:
         src = stack.enter_context(_open(ndsm, "nDSM"))
@@ -270,6 +274,10 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
     Writes one polygon per tile and kind, with the tile number in ``tile_field``
     (GeoPackages ``road_out`` / ``water_out``). Returns {"road": path, "water": path, "crs": wkt}.
     """
+    check_length(snap, "snap", allow_equal=True, example="0.2ft")
+    for value, name in ((max_road_width, "max road width"), (max_hydro_width, "max hydro width"),
+                        (single_line_width, "single-line hydro width")):
+        check_length(value, name, example="60ft")
     layers = {"roads": roads, "hydro": hydro, "waterbodies": waterbodies, "tile index": tile_index}
     kinds = {"roads": ("line", "polygon"), "hydro": ("line", "polygon"), "waterbodies": ("polygon",),
              "tile index": ("polygon",)}
@@ -381,6 +389,7 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
     area unit. Blocks read a halo of the radius, so block edges do not show.
     Returns {"cover": path, "density": path?, "radius": radius in CRS units}.
     """
+    check_length(radius, "density radius", example="25ft")
     _check_outputs({"out": out, "density": density_out}, [veg])
     if not density_bands or any(b not in (1, 2, 3) for b in density_bands):
         raise InputError(f"density bands {tuple(density_bands)} must be among 1, 2, 3", hint="e.g. 1,2,3")
@@ -423,6 +432,8 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
     """
     if method not in ("breaks", "quantile", "jenks"):
         raise InputError(f"classification {method!r} is not one of breaks, quantile, jenks")
+    if method == "breaks":
+        check_breaks(breaks, "class breaks", count=2, low=0, high=1, example="0.3,0.7")
     _check_outputs({"out": out, "polygons": polygons_out}, [cover, veg])
     with contextlib.ExitStack() as stack:
         src = stack.enter_context(_open(cover, "cover"))
