@@ -42,24 +42,40 @@ def crs_from_wkt(wkt: str) -> pyproj.CRS:
     return crs
 
 
+def _whole_geotiff(path) -> None:
+    """Raise unless ``path`` opens, every block of every band lies whole inside the file, and the last block of
+    each band decodes. About 1 ms for a 1000 x 1000 tile, where reading it back whole takes 20 ms: a write cut
+    short by a full disk leaves blocks past the end of the file, or no directory at all."""
+    size = os.path.getsize(path)
+    with rasterio.open(path) as src:
+        for band in range(1, src.count + 1):
+            bh, bw = src.block_shapes[band - 1]
+            rows, cols = -(-src.height // bh), -(-src.width // bw)
+            if src.driver == "GTiff":
+                for i in range(rows):
+                    for j in range(cols):
+                        off = int(src.get_tag_item(f"BLOCK_OFFSET_{j}_{i}", "TIFF", bidx=band) or 0)
+                        n = int(src.get_tag_item(f"BLOCK_SIZE_{j}_{i}", "TIFF", bidx=band) or 0)
+                        if off <= 0 or n <= 0 or off + n > size:
+                            raise OSError(f"block {i},{j} of band {band} lies outside the file ({off}+{n} > {size} bytes)")
+            r0, c0 = (rows - 1) * bh, (cols - 1) * bw
+            src.read(band, window=((r0, src.height), (c0, src.width)))
+
+
 def verify_raster(tmp: Path) -> None:
-    """Read a written raster back whole (every block decodes): GDAL < 3.7 only logs a failed flush on close."""
+    """Check a raster just written before it is renamed into place (GDAL < 3.7 only logs a failed flush)."""
     check_nonempty(tmp)
     try:
-        with rasterio.open(tmp) as src:
-            for i in range(1, src.count + 1):
-                src.read(i)
+        _whole_geotiff(tmp)
     except Exception as err:
         raise_output_error(err, tmp)
         raise unreadable_output(tmp, "raster", err) from None
 
 
 def raster_is_readable(path) -> bool:
-    """True when ``path`` opens and every band decodes (what a resumed run checks of a raster it keeps)."""
+    """True when ``path`` opens and is whole (what a resumed run checks of each raster it keeps)."""
     try:
-        with rasterio.open(path) as src:
-            for i in range(1, src.count + 1):
-                src.read(i)
+        _whole_geotiff(path)
         return True
     except Exception:
         return False
