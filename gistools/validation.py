@@ -15,7 +15,7 @@ import numpy as np
 from .errors import InputError
 from .units import parse_length
 
-__all__ = ["check_length", "check_number", "check_breaks", "check_count", "grid_shape", "check_grid_size",
+__all__ = ["check_scheduler", "check_length", "check_number", "check_breaks", "check_count", "grid_shape", "check_grid_size",
            "MAX_GRID_CELLS", "check_geometry_types"]
 
 # A tile's grids (DSM, counts, classes: about 40 bytes a cell in pass 1) must fit in memory: 400 M cells is
@@ -110,3 +110,17 @@ def check_geometry_types(types, allowed: tuple[str, ...], what: str, path: str) 
         raise InputError(
             f"{what} must hold {' or '.join(a + 's' for a in allowed)}, but the layer holds {', '.join(bad)}",
             path=path, hint=f"Give the {what} layer (e.g. file.gpkg:LAYER) of {' or '.join(allowed)} features")
+
+
+def check_scheduler(address) -> None:
+    """A Dask scheduler address: "local", host:port, or scheme://host:port (tcp, tls, ucx, inproc, ws, wss)."""
+    if address is None or address == "local":
+        return
+    text = str(address)
+    scheme, sep, rest = text.partition("://")
+    if not sep:  # host:port, which Dask reads as tcp://host:port
+        scheme, rest = "tcp", text
+    host, _, port = rest.rpartition(":")
+    if scheme not in ("tcp", "tls", "ucx", "inproc", "ws", "wss") or not rest or (scheme != "inproc" and not (host and port.isdigit())):
+        raise InputError(f"--scheduler {text!r} is not a Dask scheduler address",
+                         hint="Give e.g. --scheduler tcp://127.0.0.1:8786, or --scheduler local")

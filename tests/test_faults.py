@@ -188,6 +188,7 @@ def test_user_files_named_partial_are_kept_and_only_own_leftovers_go(tiles, tmp_
     (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "1e400"], "--cell-size '1e400' must be a finite length"),
     (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "0"], "--cell-size '0'"),
     (["rasters", "{tiles}", "--out", "{out}", "--cell-size", "0.001ft"], "grid of"),
+    (["rasters", "{tiles}", "--out", "{out}", "--scheduler", "my-cluster"], "is not a Dask scheduler address"),
 ])
 def test_a_bad_option_leaves_the_folder_as_it_was(shrub_out, tiles, args, needle):
     before, before_tiles = snapshot(shrub_out), snapshot(tiles)

@@ -407,6 +407,9 @@ def query_model(model: Model, x, y, method: str = "tin", *, k: int = 10) -> dict
     """:func:`aquifer_query` on a loaded model (load it once for many points)."""
     if method not in HEIGHT_METHODS:
         raise InputError(f"--method {method!r} is not one of {', '.join(HEIGHT_METHODS)}")
+    check_count(k, "--k", example="10")
+    check_number(x, "--x", example="1517365")
+    check_number(y, "--y", example="5031638")
     heights = {}
     for layer in model.layers:
         z, inside = height_at(model.surfaces[layer], [x], [y], method, k=k)

@@ -12,9 +12,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import GistoolsError, InputError
+from ..errors import GistoolsError, InputError, OutputError
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
+from ..io.outdir import claim_output
 from ..io.raster import atomic_path
+from ..validation import check_count
 from ..io.tiles import find_tiles
 from ..progress import ProgressCallback, report
 
@@ -85,10 +87,15 @@ def points_from_tiles(inputs, out, *, classes=(1, 2), returns: str = "any", fmt:
         except ImportError as err:
             raise InputError(f"GeoParquet needs pyarrow, which does not import ({err})",
                              hint="pip install 'gistools[parquet]', or use --format gpkg") from None
+    check_count(chunk_size, "--chunk-size", example="2000000")
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     override = parse_crs_text(crs) if crs else None
     paths = find_tiles(inputs)
+    with claim_output(out, "gistools points"):
+        return _points_in(paths, out, override, classes, returns, fmt, overwrite, chunk_size, progress)
+
+
+def _points_in(paths, out: Path, override, classes, returns, fmt, overwrite, chunk_size, progress) -> dict:
     tiles, infos = [], []
     for p in paths:
         entry = {"name": p.stem, "path": str(p), "status": "ok", "error": None, "points": 0, "output": None}
@@ -109,6 +116,8 @@ def points_from_tiles(inputs, out, *, classes=(1, 2), returns: str = "any", fmt:
                 entry["points"] = _write_tile(info, target, None if classes is None else tuple(classes), returns, fmt,
                                               chunk_size)
                 entry["output"] = str(target)
+            except OutputError:  # a full disk or a read-only --out stops the run: it is no tile's fault
+                raise
             except GistoolsError as err:
                 entry["status"], entry["error"] = "failed", str(err)
             entry["seconds"] = round(time.perf_counter() - t, 3)

@@ -39,7 +39,7 @@ from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin
 from ..progress import ProgressCallback, report
 from .batch import fail, make_pool, timed, worker_timed
 from ..units import length_to_crs_units
-from ..validation import check_count, check_grid_size, check_length
+from ..validation import check_scheduler, check_count, check_grid_size, check_length
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
 
@@ -624,6 +624,7 @@ def rasters_from_tiles(
     """
     settings = settings or RasterSettings()
     settings.validate()
+    check_scheduler(scheduler)
     started = time.time()
     out = Path(out)
     paths = find_tiles(inputs)

@@ -46,7 +46,7 @@ from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..vector.regions import class_polygons
-from ..validation import check_breaks, check_length
+from ..validation import check_scheduler, check_breaks, check_length
 from .batch import make_pool, run_each
 from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
 
@@ -330,6 +330,7 @@ def shrub_from_tiles(
     """
     settings = settings or ShrubSettings()
     settings.validate()
+    check_scheduler(scheduler)
     if from_stage not in STAGES:
         raise InputError(f"stage {from_stage!r} is not one of {', '.join(STAGES)}")
     out = Path(out)
