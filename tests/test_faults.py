@@ -352,6 +352,23 @@ def test_a_lying_header_is_refused_never_ok(tmp_path, lie, needle):
         assert report["tiles"][0]["status"] == "failed" and needle in report["tiles"][0]["error"]
 
 
+def test_bounds_rounded_by_a_writer_are_a_warning(tmp_path):
+    """A point a hundredth beyond a header bound that lies on a cell edge: left out with a warning, not a failure."""
+    tile = las12(tmp_path / "r.las")
+    las = laspy.read(tile)
+    x = np.asarray(las.x)
+    x[0] = 499999.99
+    las.x = x
+    las.write(tile)
+    patch(tile, MIN_X, "<d", 500000.0)
+    code, text = invoke(["rasters", tile, "--out", tmp_path / "out", "-q"])
+    assert code == 0, text
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    t = report["tiles"][0]
+    assert t["status"] == "ok" and t["points_outside_header_bounds"] == 1
+    assert "outside the header's bounds (rounded bounds)" in t["warnings"][0]
+
+
 def test_a_lake_tile_without_ground_is_a_warning_not_silent(tmp_path):
     lake = las12(tmp_path / "lake.las", cls=9)
     code, text = invoke(["rasters", lake, "--out", tmp_path / "out", "-q"])

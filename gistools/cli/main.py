@@ -22,10 +22,11 @@ INTERRUPTED = "gistools: interrupted; complete outputs are kept, no partial file
 
 
 def _on_sigint(signum, frame):
-    """Ctrl-C: the first one stops the run (KeyboardInterrupt); more while it cleans up are counted, not raised.
-    The count makes sure the run ends with 130 even when a library swallowed the KeyboardInterrupt."""
+    """Ctrl-C: the first one stops the run (KeyboardInterrupt); a second one while it cleans up is counted, not
+    raised, so the clean-up completes; a third one raises again. The count makes sure the run ends with 130 even
+    when a library swallowed the KeyboardInterrupt."""
     _INTERRUPTS["n"] += 1
-    if _INTERRUPTS["n"] == 1:
+    if _INTERRUPTS["n"] != 2:
         raise KeyboardInterrupt
 
 

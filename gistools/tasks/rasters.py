@@ -287,7 +287,13 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                     sides[side].add(x, y, m)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
-    if outside:  # the grid and the neighbours come from the header's bounds: the header is wrong
+    warnings = []
+    over = 0.0 if not outside else max(info.bounds[0] - out_box.box[0], info.bounds[1] - out_box.box[1],
+                                       out_box.box[2] - info.bounds[2], out_box.box[3] - info.bounds[3])
+    if outside and over <= 3 * max(info.scales[0], info.scales[1]):  # header bounds rounded by a writer
+        warnings.append(f"{info.path}: {outside:,} points lie up to {over:.3g} outside the header's bounds (rounded "
+                        f"bounds) and are left out")
+    elif outside:  # the grid and the neighbours come from the header's bounds: the header is wrong
         w, s_, e, n_ = (min(a, b) if i < 2 else max(a, b) for i, (a, b) in enumerate(zip(out_box.box, info.bounds)))
         raise DataFileError(
             f"{outside:,} of {done:,} points lie outside the header's bounds ({info.bounds[0]:.3f}, {info.bounds[1]:.3f}, "
@@ -310,6 +316,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_by_class": {int(c): int(v) for c, v in enumerate(by_class) if v},
         "points_by_return": {int(r): int(v) for r, v in enumerate(by_return) if v},
         "points_outside_header_bounds": outside,
+        "warnings": warnings,
     }
 
 
@@ -750,14 +757,18 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r.points, r.points_by_class = value["points"], value["points_by_class"]
         r.points_by_return = value["points_by_return"]
         r.points_outside_header_bounds = value["points_outside_header_bounds"]
+        r.warnings = list(value.get("warnings", []))
+        for w in r.warnings:
+            log.warning("%s", w)
         r.seconds += seconds
 
     def grid_done(info, value, seconds):
         r = results[info.name]
         r.outputs = value["outputs"]
         r.first_return_bands = value["first_return_bands"]
-        r.warnings = list(value.get("warnings", []))
-        for w in r.warnings:
+        new = list(value.get("warnings", []))
+        r.warnings = r.warnings + new
+        for w in new:
             log.warning("%s", w)
         r.seconds += seconds
         _write_tile_report(out, r, settings)
