@@ -107,9 +107,12 @@ def check_geometry_types(types, allowed: tuple[str, ...], what: str, path: str) 
     names = [t for t in np.unique(np.asarray(list(types), dtype=object).astype(str)) if t not in ("None", "nan")]
     bad = sorted({t for t in names if _GEOMETRY_FAMILY.get(t) not in allowed})
     if bad:
+        hint = f"Give the {what} layer (e.g. file.gpkg:LAYER) of {' or '.join(allowed)} features"
+        if allowed == ("line",) and any(_GEOMETRY_FAMILY.get(t) == "polygon" for t in bad):
+            hint += " (outlines as polygons: convert them with QGIS's Polygons to Lines; water polygons go to --waterbodies)"
         raise InputError(
             f"{what} must hold {' or '.join(a + 's' for a in allowed)}, but the layer holds {', '.join(bad)}",
-            path=path, hint=f"Give the {what} layer (e.g. file.gpkg:LAYER) of {' or '.join(allowed)} features")
+            path=path, hint=hint)
 
 
 def check_scheduler(address) -> None:

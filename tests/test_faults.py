@@ -388,7 +388,7 @@ def test_a_geographic_crs_names_the_file(tmp_path):
 
 # ------------------------------------------------------------------ vector layers of the wrong kind, invalid polygons
 
-def test_a_point_layer_as_roads_is_refused(tmp_path):
+def test_a_point_or_polygon_layer_as_roads_is_refused(tmp_path):
     import geopandas as gpd
     import shapely
 
@@ -396,8 +396,11 @@ def test_a_point_layer_as_roads_is_refused(tmp_path):
     pts.to_file(tmp_path / "p.gpkg", layer="P")
     code, text = invoke(["shrub", SAMPLE, "--out", tmp_path / "out", "-q", "--roads", f"{tmp_path / 'p.gpkg'}:P"])
     assert code == 1
-    one_line(text, "--roads must hold lines or polygons", "Point", "p.gpkg")
+    one_line(text, "--roads must hold lines", "Point", "p.gpkg")
     assert not (tmp_path / "out").exists() or not list((tmp_path / "out").rglob("*.tif"))
+    code, text = invoke(["shrub", SAMPLE, "--out", tmp_path / "out2", "-q", "--roads", f"{B}:FOOTPRINT"])
+    assert code == 1  # the tile index given as roads: every road vanished before
+    one_line(text, "--roads must hold lines", "Polygon", "Polygons to Lines")
 
 
 def test_a_self_intersecting_waterbody_is_repaired_with_a_warning(tmp_path, caplog):

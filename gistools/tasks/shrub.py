@@ -270,7 +270,7 @@ def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, rep
             return None
         return check_crs(read_layer(spec, kinds, name), crs, str(spec), reproject=reproject)
 
-    lines, polygons = ("line", "polygon"), ("polygon",)  # a polygon's boundary serves as breaklines
+    lines, polygons = ("line",), ("polygon",)  # as the QGIS algorithms declare them
     roads_g, hydro_g = load(roads, "--roads", lines), load(hydro, "--hydro", lines)
     wb_g, wet_g = load(waterbodies, "--waterbodies", polygons), load(wetlands, "--wetlands", polygons)
     idx_g = load(tile_index, "--tile-index", polygons)

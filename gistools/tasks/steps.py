@@ -279,7 +279,7 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
                         (single_line_width, "single-line hydro width")):
         check_length(value, name, example="60ft")
     layers = {"roads": roads, "hydro": hydro, "waterbodies": waterbodies, "tile index": tile_index}
-    kinds = {"roads": ("line", "polygon"), "hydro": ("line", "polygon"), "waterbodies": ("polygon",),
+    kinds = {"roads": ("line",), "hydro": ("line",), "waterbodies": ("polygon",),
              "tile index": ("polygon",)}
     loaded = {k: read_layer(v, kinds[k], k) for k, v in layers.items() if v}
     if not loaded:
