@@ -206,11 +206,36 @@ def test_a_huge_grid_is_refused_with_its_size_before_any_allocation(tiles, tmp_p
     assert "MemoryError" not in line
 
 
-def test_a_step_rerun_prints_why_a_tile_failed(shrub_out):
+@pytest.mark.parametrize("step", ["bands", "density"])
+def test_a_step_rerun_that_fails_prints_why_and_leaves_the_folder_as_it_was(shrub_out, step):
     (shrub_out / "ndsm" / "35712.tif").write_bytes(b"damaged")  # the bands step reads it; steps never redo rasters
-    code, text = invoke(["bands", shrub_out, "-q"])
+    (shrub_out / "veg" / "35813.tif").write_bytes(b"damaged")  # the density step reads it, and the clip step rewrites it
+    before = snapshot(shrub_out)
+    code, text = invoke([step, shrub_out, "-q", "--radius", "30ft"])
     assert code == 1 and "Traceback" not in text
-    assert "FAILED" in text and "35712" in text
+    if step == "bands":
+        assert "FAILED" in text and "35712" in text
+        one_line(text, "bands failed on 1 tile(s)", "put back as it was")
+    else:  # the damaged veg tile is recomputed (the resume check); the damaged nDSM stops the rerun
+        one_line(text, "ndsm/35712.tif", "cannot read the raster")
+    assert snapshot(shrub_out) == before
+
+
+def test_a_step_rerun_interrupted_leaves_the_folder_as_it_was(shrub_out, monkeypatch):
+    import gistools.tasks.shrub as shrub
+
+    before = snapshot(shrub_out)
+    real = shrub._classes_tile
+
+    def interrupted(*args):
+        real(*args)
+        raise KeyboardInterrupt  # after the first tile's classes were rewritten
+
+    monkeypatch.setattr(shrub, "_classes_tile", interrupted)
+    code, text = invoke(["classify", shrub_out, "-q", "--breaks", "0.2,0.6"])
+    assert code == 130
+    one_line(text, "interrupted")
+    assert snapshot(shrub_out) == before
 
 
 # ------------------------------------------------------------------ full disk, damaged outputs

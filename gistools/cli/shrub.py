@@ -134,11 +134,15 @@ def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_
         report = shrub_from_tiles(None, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
                                   tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
                                   make_map=not no_map, from_stage=stage, progress=None if bar.disable else tqdm_progress(bar))
-    click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
-               + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+    if not report.get("rolled_back"):
+        click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
+                   + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
     for tile in report.get("tiles", []):
         if tile.get("status") == "failed":
             click.echo(f"  FAILED {tile['error']}", err=True)
+    if report.get("rolled_back"):
+        click.echo(f"gistools: error: {stage} failed on {report['counts']['failed']} tile(s); {out} was put back as it "
+                   "was before this rerun. Fix the tiles named above and run the step again", err=True)
     if report["counts"].get("failed"):
         raise SystemExit(1)
 

@@ -181,3 +181,64 @@ def claim_output(out, command: str = "gistools"):
                 with contextlib.suppress(OSError):
                     if (_read_lock(out / LOCK_NAME) or {}).get("pid") == os.getpid():
                         (out / LOCK_NAME).unlink()
+
+
+class Rollback:
+    """Keep the current state of some outputs so that a step rerun that fails can put them back.
+
+    Every file of ``folders`` (sub-folders of ``out``) and every name of ``files`` (in ``out``) is hard-linked
+    into a hidden ``.gistools-scratch-rollback-*`` folder: no data is copied, and since every write replaces its
+    file by a rename, the links keep the old contents. :meth:`restore` puts them back and removes the files of
+    those folders that the rerun added; :meth:`drop` forgets them. Used as a context manager, a block that
+    raises (Ctrl-C included) is restored; one that returns is kept only after :meth:`drop`.
+    """
+
+    def __init__(self, out, folders, files):
+        self.out = Path(out)
+        self.folders, self.files = tuple(folders), tuple(files)
+        self.saved = None
+
+    def __enter__(self):
+        import tempfile
+
+        self.saved = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX + "rollback-", dir=self.out))
+        self.kept = []
+        for rel in self._present():
+            target = self.saved / rel
+            target.parent.mkdir(parents=True, exist_ok=True)
+            try:
+                os.link(self.out / rel, target)
+            except OSError:  # a file system without hard links: a copy
+                shutil.copy2(self.out / rel, target)
+            self.kept.append(rel)
+        return self
+
+    def _present(self) -> list[str]:
+        found = [name for name in self.files if (self.out / name).is_file()]
+        for folder in self.folders:
+            d = self.out / folder
+            if d.is_dir():
+                found += [f"{folder}/{p.name}" for p in d.iterdir() if p.is_file() and not is_partial(p)]
+        return found
+
+    def restore(self) -> None:
+        if self.saved is None:
+            return
+        kept = set(self.kept)
+        for rel in self._present():
+            if rel not in kept:
+                with contextlib.suppress(OSError):
+                    (self.out / rel).unlink()
+        for rel in self.kept:
+            os.replace(self.saved / rel, self.out / rel)
+        self.drop()
+
+    def drop(self) -> None:
+        if self.saved is not None:
+            shutil.rmtree(self.saved, ignore_errors=True)
+            self.saved = None
+
+    def __exit__(self, exc_type, exc, tb):
+        if exc_type is not None:
+            self.restore()
+        return False

@@ -31,11 +31,11 @@ from rasterio.features import rasterize
 from rasterio.windows import from_bounds
 from shapely.geometry import box
 
-from ..errors import GistoolsError, InputError
+from ..errors import DataFileError, GistoolsError, InputError
 from ..grid import Grid
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
-from ..io.outdir import claim_output
+from ..io.outdir import Rollback, claim_output
 from ..io.raster import atomic_path, raster_is_readable, read_raster, write_raster, write_vrt
 from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
@@ -336,11 +336,29 @@ def shrub_from_tiles(
     out = Path(out)
     if from_stage != "rasters" and not (out / "report.json").exists():
         _previous_run(out)  # refuses with the reason before the folder is touched
+    run = dict(roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands, tile_index=tile_index,
+               reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
+               make_map=make_map, band_points=band_points, from_stage=from_stage, progress=progress)
     with claim_output(out, f"gistools {'shrub' if from_stage == 'rasters' else from_stage}"):
-        return _shrub_in(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
-                         tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
-                         overwrite=overwrite, make_map=make_map, band_points=band_points, from_stage=from_stage,
-                         progress=progress)
+        if from_stage == "rasters":  # the chain: one bad tile never stops the batch, it is reported
+            return _shrub_in(inputs, out, settings, **run)
+        # a step rerun that fails (a tile, an error, Ctrl-C) leaves the folder as it was
+        folders = [f for stage in STAGES[STAGES.index(from_stage):] for f in STAGE_FOLDERS[stage]]
+        with Rollback(out, folders, STEP_FILES) as saved:
+            report = _shrub_in(inputs, out, settings, **run)
+            if report["counts"].get("failed"):
+                saved.restore()
+                report["rolled_back"] = True
+            else:
+                saved.drop()
+        return report
+
+
+# what each stage writes under --out (the step reruns put them back when they fail)
+STAGE_FOLDERS = {"rasters": (), "bands": ("bands", "band_points"), "clip": ("veg", "wetveg"),
+                 "density": ("density", "cover"), "classes": ("classes",)}
+STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_map.png", "shrub_map.pdf", "bands.vrt", "veg.vrt",
+              "wetveg.vrt", "density.vrt", "cover.vrt", "classes.vrt")
 
 
 def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, waterbodies, wetlands, tile_index,
@@ -414,8 +432,13 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         return [n for n in names if states[n].status == "ok"]
 
     def grid_of(name):
-        with rasterio.open(out / "ndsm" / f"{name}.tif") as src:
-            return src.bounds
+        path = out / "ndsm" / f"{name}.tif"
+        try:
+            with rasterio.open(path) as src:
+                return src.bounds
+        except rasterio.errors.RasterioError as err:
+            raise DataFileError(f"cannot read the raster ({err})", path=path,
+                                hint="Rerun gistools shrub on the tiles (the rasters stage rewrites it)") from None
 
     def keep_outputs(name, value, seconds):
         states[name].outputs.update(value["outputs"])
