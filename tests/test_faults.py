@@ -221,6 +221,16 @@ def test_a_step_rerun_that_fails_prints_why_and_leaves_the_folder_as_it_was(shru
     assert snapshot(shrub_out) == before
 
 
+def test_a_damaged_report_is_one_line_for_the_steps_and_the_map(shrub_out):
+    (shrub_out / "report.json").write_text("{ not json")
+    before = snapshot(shrub_out)
+    for args in (["density", shrub_out, "-q"], ["map", shrub_out]):
+        code, text = invoke(args)
+        assert code == 1
+        one_line(text, "report.json is not the report of a gistools run")
+    assert snapshot(shrub_out) == before
+
+
 def test_a_step_rerun_interrupted_leaves_the_folder_as_it_was(shrub_out, monkeypatch):
     import gistools.tasks.shrub as shrub
 

@@ -538,7 +538,12 @@ def _previous_run(out: Path) -> dict:
     path = out / "report.json"
     if not path.exists():
         raise InputError(f"{out}: no report.json of an earlier run", hint="Run gistools shrub (or gistools rasters) on the tiles first")
-    summary = json.loads(path.read_text())
+    try:
+        summary = json.loads(path.read_text())
+        summary["crs_wkt"], summary["tiles"]  # noqa: B018 - the keys a step rerun needs
+    except (ValueError, KeyError, TypeError):
+        raise DataFileError("report.json is not the report of a gistools run (damaged or edited)", path=path,
+                            hint="Rerun gistools shrub on the tiles") from None
     if "topclass" not in summary.get("mosaics", {}) and not (out / "topclass").is_dir():
         raise InputError(f"{out}: the earlier run has no topclass/ rasters", hint="Run gistools shrub on the tiles first")
     return summary
@@ -552,9 +557,10 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
     if not (out / "classes.vrt").exists():
         raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")
     if unit is None:
-        summary = json.loads((out / "report.json").read_text())
+        summary = _previous_run(out)
         unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
-    return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit)
+    with claim_output(out, "gistools map"):
+        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit)
 
 
 def _breaks(settings: ShrubSettings, cover_paths) -> tuple[float, float]:
