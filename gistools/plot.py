@@ -30,6 +30,17 @@ def _nice_length(target: float) -> float:
     return float(10 * exp)
 
 
+def new_figure(figsize):
+    """A matplotlib Figure with its own Agg canvas: drawing and saving it leave pyplot and the process's backend
+    alone (inside the QGIS desktop, ``matplotlib.use`` would switch QGIS's own)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=figsize)
+    FigureCanvasAgg(fig)
+    return fig
+
+
 def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150,
               probes=()) -> dict:
     """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
@@ -38,9 +49,6 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     files are written atomically.
     """
     import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from matplotlib.patches import Patch
 
     from .io.raster import atomic_path
@@ -57,7 +65,8 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     lut[255] = round(0.85 * 255)
     rgb = lut[data]
     aspect = (north - south) / max(east - west, 1e-9)
-    fig, ax = plt.subplots(figsize=(11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
+    fig = new_figure((11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
+    ax = fig.subplots()
     ax.imshow(rgb, extent=(west, east, south, north), interpolation="nearest")
     ax.set_title(title)
     ax.set_xlabel(f"x ({unit.name})")
@@ -99,5 +108,4 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
         with atomic_path(path, overwrite=True) as tmp:
             fig.savefig(tmp, format=suffix[1:], dpi=dpi)
         written.append(path)
-    plt.close(fig)
     return {"paths": written, "probes": pixels}

@@ -38,15 +38,21 @@ from qgis.core import (
 )
 from qgis.PyQt.QtGui import QIcon
 
+from gistools.lidar import bands as _bands
+from gistools.lidar import gridding as _gridding
+from gistools.lidar import shrub as _shrub
+from gistools.tasks import points as _points
+
 HERE = Path(__file__).resolve().parent
 
 GROUP_LIDAR = ("LiDAR", "lidar")
 GROUP_SHRUB = ("Shrub chain", "shrub")
 
-DEM_METHODS = ["tin", "idw", "min"]
-RETURNS = ["first", "last", "any"]
-PRESETS = ["exact", "text_literal"]
-CLASSIFY = ["breaks", "quantile", "jenks"]
+# choices are the library's own (the provider loads only once gistools imports)
+DEM_METHODS = list(_gridding.DEM_METHODS)
+RETURNS = list(_points.RETURNS)
+PRESETS = list(_bands.PRESETS)
+CLASSIFY = list(_shrub.CLASS_METHODS)
 Z_UNITS = ["from the raster", "m", "ft", "ftUS"]
 BANDS = ["B1 (0-1 m)", "B2 (1-2 m)", "B3 (2-6 m)"]
 

@@ -500,3 +500,16 @@ def test_a_locked_output_folder_is_refused_in_processing(qgis, tmp_path):
         qgis.run("gistools:dsm", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(out)})
     assert "in use by another gistools run" in str(err.value)
     assert sorted(p.name for p in out.iterdir()) == [".gistools.lock"]
+
+
+def test_the_dem_methods_are_the_librarys_and_max_runs(qgis, tmp_path):
+    """The dissertation's Point To Raster MAXIMUM DEM can be chosen in QGIS and gives the CLI's cells."""
+    from gistools import RasterSettings, rasters_from_tiles
+    from gistools.lidar.gridding import DEM_METHODS
+
+    alg = QgsApplication.processingRegistry().algorithmById("gistools:dem")
+    assert alg.parameterDefinition("DEM_METHOD").options() == list(DEM_METHODS)
+    dem = qgis.run("gistools:dem", {"INPUT": str(SAMPLE), "DEM_METHOD": DEM_METHODS.index("max"),
+                                    "OUTPUT_FOLDER": str(tmp_path / "q")})
+    rasters_from_tiles([SAMPLE], tmp_path / "lib", RasterSettings(dem_method="max", products=("dem",)))
+    same_cells(dem["OUTPUT"], tmp_path / "lib" / "dem.vrt")

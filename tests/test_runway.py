@@ -271,3 +271,18 @@ def test_dissertation_area_method_is_unsigned():
     assert not diss.area_fill.any() and (diss.area_cut >= 0).all()
     assert diss.totals["cut"] > exact.totals["cut"]  # fills counted as cut, crossings by their hull
     assert diss.totals["fill"] == 0
+
+
+def test_spacing_in_feet_gives_what_metres_give(tmp_path):
+    points, _ = synthetic_runway(8)
+    points.to_csv(tmp_path / "survey.csv", index=False)
+    reports = []
+    for spacing in ("30ft", "9.144m"):
+        out = tmp_path / spacing
+        result = CliRunner().invoke(cli, ["runway", str(tmp_path / "survey.csv"), "--code", "4E", "--crs", "EPSG:3003",
+                                          "--spacing", spacing, "--out", str(out), "-q"])
+        assert result.exit_code == 0, result.output
+        reports.append(json.loads((out / "report.json").read_text()))
+    assert reports[0]["spacing"] == pytest.approx(9.144, abs=1e-12)
+    for key in ("spacing", "stations", "cut", "fill", "net"):
+        assert reports[0][key] == pytest.approx(reports[1][key], rel=1e-12), key

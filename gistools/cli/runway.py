@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 from tqdm import tqdm
 
+from ..errors import GistoolsError
 from ..runway.icao import RUNWAY_TYPES, TEMPLATES
 from ..runway.survey import SurveyChecks
 from ..tasks.runway import RunwaySettings, runway_earthworks
@@ -13,17 +14,16 @@ from .rasters import tqdm_progress
 
 
 def _metres(ctx, param, value):
+    """A length with its unit ("10m", "30ft", "32.8ftUS", or a bare number in metres) in metres, through units.py
+    (the ICAO template and the survey's CRS are in metres)."""
     if value is None:
         return None
-    text = str(value).strip().lower()
-    for suffix in ("m", "metres", "meters"):
-        if text.endswith(suffix):
-            text = text[: -len(suffix)].strip()
-            break
+    from ..units import METRE, LinearUnit, length_to_crs_units
+
     try:
-        return float(text)
-    except ValueError:
-        raise click.BadParameter(f"{value!r} is not a length in metres (e.g. 10m)") from None
+        return length_to_crs_units(value, LinearUnit("metre", METRE), name=f"--{param.name.replace('_', '-')}")
+    except GistoolsError as err:
+        raise click.BadParameter(str(err)) from None
 
 
 @click.command()

@@ -6,6 +6,7 @@ import click
 from tqdm import tqdm
 
 from ..lidar.gridding import DEM_METHODS
+from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
 from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes
@@ -42,7 +43,7 @@ def _floats(ctx, param, value):
 @click.option("--radius", default="25ft", show_default=True, help="Density neighbourhood radius.")
 @click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True,
               help="Bands whose vegetation is counted; 1 is the dissertation's choice.")
-@click.option("--classify", type=click.Choice(["breaks", "quantile", "jenks"]), default="breaks", show_default=True)
+@click.option("--classify", type=click.Choice(CLASS_METHODS), default="breaks", show_default=True)
 @click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True,
               help="Cover fraction breaks light/medium and medium/heavy.")
 @click.option("--max-road-width", default="60ft", show_default=True, help="Wider faces between road lines are blocks, not road.")
@@ -109,7 +110,7 @@ def _step_options(fn):
         click.option("--noise-floor", default="0.1m", show_default=True),
         click.option("--radius", default="25ft", show_default=True),
         click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True),
-        click.option("--classify", type=click.Choice(["breaks", "quantile", "jenks"]), default="breaks", show_default=True),
+        click.option("--classify", type=click.Choice(CLASS_METHODS), default="breaks", show_default=True),
         click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True),
         click.option("--max-road-width", default="60ft", show_default=True),
         click.option("--snap", default="0.2ft", show_default=True),

@@ -12,11 +12,12 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["CLASS_NAMES", "CLASS_NODATA", "DEFAULT_BREAKS", "shrub_classes", "quantile_breaks", "jenks_breaks"]
+__all__ = ["CLASS_NAMES", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "shrub_classes", "quantile_breaks", "jenks_breaks"]
 
 CLASS_NAMES = {0: "none", 1: "light", 2: "medium", 3: "heavy", 4: "road", 5: "water"}
 CLASS_NODATA = 255
 DEFAULT_BREAKS = (0.30, 0.70)
+CLASS_METHODS = ("breaks", "quantile", "jenks")  # fixed cover breaks, or breaks from the data
 
 
 def shrub_classes(cover: np.ndarray, breaks=DEFAULT_BREAKS, *, road: np.ndarray | None = None,

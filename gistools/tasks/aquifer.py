@@ -246,13 +246,12 @@ def _layers_gpkg(model: Model) -> dict:
 def _figures(model: Model, out: Path) -> list[Path]:
     import matplotlib
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ..plot import new_figure
 
     paths = []
-    fig = plt.figure(figsize=(9, 7))
+    fig = new_figure((9, 7))
     ax = fig.add_subplot(projection="3d")
-    cmap = plt.get_cmap("viridis", len(model.layers))
+    cmap = matplotlib.colormaps["viridis"].resampled(len(model.layers))
     for k, layer in enumerate(model.layers):
         s = model.surfaces[layer]
         t = s.triangles
@@ -266,11 +265,11 @@ def _figures(model: Model, out: Path) -> list[Path]:
     target = out / "surfaces_3d.png"
     with atomic_path(target, overwrite=True) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
     paths.append(target)
     for name, u in model.units.items():
         grid_t, grid = u["thickness"]
-        fig, ax = plt.subplots(figsize=(7, 6))
+        fig = new_figure((7, 6))
+        ax = fig.subplots()
         w, s_, e, n = grid.bounds
         im = ax.imshow(grid_t, extent=(w, e, s_, n), origin="upper", cmap="YlGnBu")
         fig.colorbar(im, ax=ax, label="thickness (CRS units)")
@@ -279,7 +278,6 @@ def _figures(model: Model, out: Path) -> list[Path]:
         target = out / f"thickness_{name.replace('/', '_')}.png"
         with atomic_path(target, overwrite=True) as tmp:
             fig.savefig(tmp, dpi=110, format="png")
-        plt.close(fig)
         paths.append(target)
     return paths
 

@@ -181,12 +181,10 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
 def area_diagram(ew: Earthworks, title: str = ""):
     """The area diagram (matplotlib Figure): cut areas up, fill areas down, the net area after transverse
     compensation as a line, against chainage."""
-    import matplotlib
+    from ..plot import new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(11, 4.5))
+    fig = new_figure((11, 4.5))
+    ax = fig.subplots()
     ax.plot(ew.stations, ew.area_net, color="k", lw=1, label="net (after transverse compensation)")
     ax.fill_between(ew.stations, ew.area_cut, 0, color="#c0504d", alpha=0.5, label="cut")
     ax.fill_between(ew.stations, -ew.area_fill, 0, color="#4f81bd", alpha=0.5, label="fill")
@@ -200,12 +198,10 @@ def area_diagram(ew: Earthworks, title: str = ""):
 
 def brueckner_diagram(ew: Earthworks, title: str = ""):
     """The Brueckner (mass-haul) diagram (matplotlib Figure), balance points marked."""
-    import matplotlib
+    from ..plot import new_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(11, 4.5))
+    fig = new_figure((11, 4.5))
+    ax = fig.subplots()
     ax.plot(ew.stations, ew.brueckner, color="k", lw=1.2, label="Brückner (cumulative volume)")
     ax.plot(ew.balance, np.interp(ew.balance, ew.stations, ew.brueckner), "o", color="#c0504d", label="balance points")
     ax.axhline(0, color="0.4", lw=0.6, label="balance line")
@@ -218,8 +214,6 @@ def brueckner_diagram(ew: Earthworks, title: str = ""):
 
 def _diagrams(ew: Earthworks, out: Path, title: str) -> dict:
     """Write the area and Brueckner diagrams as PNG and PDF."""
-    import matplotlib.pyplot as plt
-
     paths = {}
     for name, make in (("area_diagram", area_diagram), ("brueckner", brueckner_diagram)):
         fig = make(ew, title)
@@ -228,7 +222,6 @@ def _diagrams(ew: Earthworks, out: Path, title: str) -> dict:
             with atomic_path(target, overwrite=True) as tmp:
                 fig.savefig(tmp, format=ext, dpi=120)
             paths[f"{name}_{ext}"] = str(target)
-        plt.close(fig)
     return paths
 
 

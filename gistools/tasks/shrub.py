@@ -41,7 +41,7 @@ from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
 from ..lidar.vegetation import VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
-from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
+from ..lidar.shrub import CLASS_METHODS, CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
@@ -86,8 +86,8 @@ class ShrubSettings:
     def validate(self):
         """Every option checked before anything is read or written (validation layer)."""
         self.raster.validate()
-        if self.classify not in ("breaks", "quantile", "jenks"):
-            raise InputError(f"--classify {self.classify!r} is not one of breaks, quantile, jenks")
+        if self.classify not in CLASS_METHODS:
+            raise InputError(f"--classify {self.classify!r} is not one of {', '.join(CLASS_METHODS)}")
         if not self.density_bands or any(b not in (1, 2, 3) for b in self.density_bands):
             raise InputError(f"density bands {self.density_bands} must be among 1, 2, 3", hint="e.g. --density-bands 1,2,3")
         from ..lidar.bands import PRESETS

@@ -143,13 +143,11 @@ def _mesh_stats(vertices, faces) -> dict:
 
 def _figure(s: Structure, out: Path) -> Path:
     """A 3D view of the mesh (matplotlib), PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from mpl_toolkits.mplot3d.art3d import Poly3DCollection
 
-    fig = plt.figure(figsize=(8, 8))
+    from ..plot import new_figure
+
+    fig = new_figure((8, 8))
     ax = fig.add_subplot(projection="3d")
     tri = s.vertices[s.faces]
     ax.add_collection3d(Poly3DCollection(tri, facecolor="#9fb8d8", edgecolor="#3b5a80", linewidths=0.2, alpha=0.9))
@@ -165,7 +163,6 @@ def _figure(s: Structure, out: Path) -> Path:
     target = out / "structure_3d.png"
     with atomic_path(target, overwrite=True) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
-    plt.close(fig)
     return target
 
 
