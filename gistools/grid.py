@@ -17,7 +17,6 @@ from dataclasses import dataclass
 import numpy as np
 import pyproj
 from affine import Affine
-from rasterio.transform import from_origin
 
 from .errors import InputError
 
@@ -100,7 +99,7 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     c1 = int(np.floor(east / cell_size)) + 1
     r0 = int(np.floor(south / cell_size))
     r1 = int(np.floor(north / cell_size)) + 1
-    transform = from_origin(c0 * cell_size, r1 * cell_size, cell_size, cell_size)
+    transform = Affine.translation(c0 * cell_size, r1 * cell_size) * Affine.scale(cell_size, -cell_size)  # north-up
     return Grid(transform, c1 - c0, r1 - r0, crs)
 
 

@@ -7,11 +7,13 @@ runs from 0 to 1. Returning ``False`` asks the work to stop: the library raises
 
 from __future__ import annotations
 
+import threading
 from typing import Callable, Optional
 
 from .errors import Cancelled
 
-__all__ = ["ProgressCallback", "null_progress", "sub_progress", "report"]
+__all__ = ["ProgressCallback", "null_progress", "sub_progress", "report", "request_interrupt", "interrupt_requested",
+           "check_interrupt"]
 
 ProgressCallback = Callable[[float, str], Optional[bool]]
 
@@ -38,3 +40,24 @@ def sub_progress(progress: ProgressCallback | None, start: float, end: float) ->
         return progress(start + (end - start) * fraction, message)
 
     return scaled
+
+
+# Ctrl-C, as the CLI's SIGINT handler records it. A KeyboardInterrupt raised inside a C extension can come out as
+# another exception (numpy, laspy and GDAL were seen turning it into a TypeError): the batch code asks here
+# before it reports a tile as failed, so an interrupted run stops instead of going on with a "failed" tile.
+_INTERRUPT = threading.Event()
+
+
+def request_interrupt() -> None:
+    """Record a Ctrl-C (called by the CLI's signal handler)."""
+    _INTERRUPT.set()
+
+
+def interrupt_requested() -> bool:
+    return _INTERRUPT.is_set()
+
+
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt when a Ctrl-C was recorded."""
+    if _INTERRUPT.is_set():
+        raise KeyboardInterrupt

@@ -17,7 +17,8 @@ from gistools.aquifer.outliers import find_outliers
 from gistools.aquifer.surface import build_surface, densify, height_at, unique_edges
 from gistools.aquifer.synthetic import E0, N0, surfaces_uv, synthetic_aquifer
 from gistools.aquifer.volume import overlay_volume
-from gistools.aquifer.walls import match_rings, mesh_volume, unit_mesh
+from gistools.aquifer.walls import unit_mesh
+from gistools.mesh import match_rings, mesh_volume
 from gistools.cli.main import cli
 from gistools.tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query, load_model, query_model
 

@@ -478,7 +478,7 @@ def test_bom_csvs_keep_their_first_column(tmp_path):
     text = "\n".join(f"{i} {x} {y} {z}" for i, x, y, z in b.itertuples(index=False))
     (tmp_path / "s.txt").write_text(text)
     (tmp_path / "s_bom.txt").write_bytes(b"\xef\xbb\xbf" + text.encode())
-    from gistools.structure.analysis import read_points
+    from gistools.tasks.structure import read_points
 
     assert len(read_points(tmp_path / "s_bom.txt")) == len(read_points(tmp_path / "s.txt")) == len(b)
 
@@ -672,3 +672,50 @@ def test_workers_die_with_a_killed_parent(tiles, tmp_path):
     again = run(["rasters", tiles, "--out", out, "-q"])  # the stale lock and the leftovers are handled
     assert again.returncode == 0, again.stderr
     no_partial_under_final_names(out)
+
+
+def test_a_tile_made_without_a_neighbour_is_recomputed_once_the_neighbour_reads(tiles, tmp_path):
+    """A neighbour whose points fail to decode leaves the tiles beside it without its points near the edge: they are
+    reported with a warning, and a rerun after the neighbour is repaired recomputes them (they were kept before)."""
+    out = tmp_path / "out"
+    good = (tiles / "35813.laz").read_bytes()
+    (tiles / "35813.laz").write_bytes(good[: int(len(good) * 0.6)])  # the header reads, the points do not
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 1
+    report = json.loads((out / "report.json").read_text())
+    warned = {t["name"] for t in report["tiles"] if any("35813 could not be read" in w for w in t["warnings"])}
+    assert warned == {"35712", "35713", "35812"}
+    (tiles / "35813.laz").write_bytes(good)  # repaired
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 0, text
+    report = json.loads((out / "report.json").read_text())
+    assert all(t["status"] == "ok" for t in report["tiles"])  # recomputed, none kept with a stale edge
+    ref = tmp_path / "ref"
+    assert invoke(["rasters", tiles, "--out", ref, "-q"])[0] == 0
+    for product in ("dsm", "dem", "ndsm"):
+        a, _, _ = read_raster(ref / f"{product}.vrt")
+        b, _, _ = read_raster(out / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_an_interrupt_that_a_library_turned_into_another_error_stops_the_run(tiles, tmp_path, monkeypatch):
+    """numpy was seen turning a Ctrl-C inside tofile() into a TypeError; the run must stop, not go on with the
+    tile marked failed (its neighbours were then kept without its points)."""
+    import gistools.tasks.rasters as rasters
+    from gistools.progress import _INTERRUPT
+
+    real = rasters._scan_tile
+
+    def scan(info, run, *rest):
+        if info.name == "35712":
+            _INTERRUPT.set()  # what the CLI's SIGINT handler records
+            raise TypeError("expected str, bytes or os.PathLike object, not BufferedWriter")
+        return real(info, run, *rest)
+
+    monkeypatch.setattr(rasters, "_scan_tile", scan)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            rasters.rasters_from_tiles([tiles], tmp_path / "out")
+    finally:
+        _INTERRUPT.clear()
+    assert not list((tmp_path / "out").glob("tile_reports/*.json"))

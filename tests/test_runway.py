@@ -231,7 +231,7 @@ def test_cli_outputs_report_and_diagram_data(tmp_path):
         for ext in ("png", "pdf"):
             assert (tmp_path / "o" / f"{name}.{ext}").stat().st_size > 1000
     # the plotted arrays (of the same survey, read back from the CSV)
-    from gistools.runway.survey import read_survey
+    from gistools.io.survey import read_survey
 
     ew = compute_earthworks(read_survey(tmp_path / "survey.csv")[0], RunwaySettings(spacing=10.0))
     fig = area_diagram(ew)

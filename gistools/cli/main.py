@@ -15,6 +15,7 @@ import click
 
 from .. import __version__
 from ..errors import Cancelled, GistoolsError
+from ..progress import request_interrupt
 
 
 _INTERRUPTS = {"n": 0}
@@ -26,6 +27,7 @@ def _on_sigint(signum, frame):
     raised, so the clean-up completes; a third one raises again. The count makes sure the run ends with 130 even
     when a library swallowed the KeyboardInterrupt."""
     _INTERRUPTS["n"] += 1
+    request_interrupt()
     if _INTERRUPTS["n"] != 2:
         raise KeyboardInterrupt
 

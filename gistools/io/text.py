@@ -8,7 +8,7 @@ import numpy as np
 
 from ..errors import DataFileError, InputError
 
-__all__ = ["read_id_xyz"]
+__all__ = ["read_id_xyz", "read_cloud"]
 
 
 def _is_number(v: str) -> bool:
@@ -49,3 +49,22 @@ def read_id_xyz(path, names: str = "ID X Y Z") -> tuple[np.ndarray, np.ndarray]:
     if not rows:
         raise InputError("no points", path=p, hint=f"One point per line: {names}")
     return np.asarray(rows, np.float64), np.asarray(lines)
+
+
+def read_cloud(path) -> tuple[np.ndarray, np.ndarray]:
+    """(ids, xyz (n, 3) float64) of ``ID X Y Z`` rows (text or CSV, header optional) or of a LAS/LAZ file
+    (ids 1..n): the structure's input cloud."""
+    p = Path(path)
+    if not p.is_file():
+        raise DataFileError("file not found", path=p, hint="Check the path")
+    if p.suffix.lower() in (".las", ".laz"):
+        import laspy
+
+        try:
+            las = laspy.read(p)
+        except Exception as err:
+            raise DataFileError(f"cannot read as LAS/LAZ ({err})", path=p, hint="Re-export the file") from None
+        xyz = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
+        return np.arange(1, len(xyz) + 1), xyz
+    a, _ = read_id_xyz(p)
+    return a[:, 0].astype(np.int64), a[:, 1:4]

@@ -1,4 +1,4 @@
-"""Survey points of a runway: reading, checks, the centre line and the local frame (steps 0-3).
+"""Survey points of a runway: checks, the centre line and the local frame (steps 1-3; reading: gistools.io.survey).
 
 Points have ``id, type, x, y, z``: type 1 a centre-line light, 2 any other point. The
 dissertation gives no numeric outlier rule; gistools' (design spec step 1), every threshold
@@ -14,10 +14,7 @@ points: height against the median of their k = 8 nearest neighbours, same robust
 
 from __future__ import annotations
 
-import csv
-
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -25,72 +22,9 @@ import shapely
 from scipy.ndimage import median_filter
 from scipy.spatial import cKDTree
 
-from ..errors import DataFileError, InputError
+from ..errors import InputError
 
-__all__ = ["read_survey", "SurveyChecks", "check_survey", "Frame", "fit_frame", "estimate_spacing"]
-
-
-def read_survey(path) -> tuple[pd.DataFrame, object]:
-    """(points id, type, x, y, z, line; crs or None) from a CSV or a point layer (``file.gpkg:LAYER``)."""
-    text = str(path)
-    p = Path(text)
-    crs = None
-    if p.suffix.lower() in (".csv", ".txt"):
-        if not p.is_file():
-            raise DataFileError("file not found", path=p, hint="Check the path")
-        try:
-            df = pd.read_csv(p, sep=None, engine="python", encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False)
-        except (pd.errors.EmptyDataError, pd.errors.ParserError, csv.Error, UnicodeDecodeError) as err:
-            raise DataFileError(f"not a readable CSV table ({str(err).splitlines()[0]})", path=p,
-                                hint="Give a CSV with a header row id, type, x, y, z and one point per row") from None
-        lines = np.arange(len(df)) + 2
-    else:
-        from ..io.vector import read_layer
-
-        gdf = read_layer(text)
-        df = pd.DataFrame(gdf.drop(columns="geometry"))
-        low = {c.lower() for c in df.columns}
-        if "x" not in low:
-            df["x"], df["y"] = gdf.geometry.x, gdf.geometry.y
-        if "z" not in low and gdf.geometry.has_z.all():
-            df["z"] = gdf.geometry.z
-        crs = gdf.crs
-        lines = np.arange(len(df)) + 1
-    cols = {c.lower().strip(): c for c in df.columns}
-    aliases = {"id": ("id",), "type": ("type", "kind", "code"), "x": ("x", "east", "easting"), "y": ("y", "north", "northing"),
-               "z": ("z", "h", "height", "elevation")}
-    found = {}
-    for k, names in aliases.items():
-        for n in names:
-            if n in cols:
-                found[k] = cols[n]
-                break
-    missing = [k for k in ("type", "x", "y", "z") if k not in found]
-    if missing:
-        raise InputError(f"no {', '.join(missing)} column (columns: {', '.join(map(str, df.columns))})", path=text,
-                         hint="Name the columns id, type, x, y, z (type 1 = centre-line light, 2 = other)")
-    out = pd.DataFrame({"line": lines})
-    for k in ("type", "x", "y", "z") + (("id",) if "id" in found else ()):
-        v = pd.to_numeric(df[found[k]], errors="coerce").to_numpy(np.float64)
-        bad = np.flatnonzero(~np.isfinite(v))
-        if bad.size:
-            raise InputError(f"line {lines[bad[0]]}: {k} {df[found[k]].iloc[bad[0]]!r} is not a number", path=text,
-                             hint=f"Fix or remove that row ({bad.size} such row(s) in all)")
-        out[k] = v
-    if "id" not in out:
-        out["id"] = np.arange(1, len(out) + 1)
-    out["id"] = out["id"].astype(np.int64)
-    out["type"] = out["type"].astype(np.int64)
-    badtype = np.flatnonzero(~np.isin(out["type"], (1, 2)))
-    if badtype.size:
-        raise InputError(f"line {lines[badtype[0]]}: type {out['type'].iloc[badtype[0]]} is not 1 (centre-line light) or 2 (other)",
-                         path=text, hint="Set type 1 for centre-line lights, 2 for every other point")
-    if (out["type"] == 1).sum() < 2:
-        raise InputError(f"{int((out['type'] == 1).sum())} centre-line light(s) (type 1); the centre line needs at least 2",
-                         path=text, hint="Mark the centre-line lights with type 1")
-    if (out["type"] == 2).sum() < 3:
-        raise InputError("fewer than 3 ground points (type 2)", path=text, hint="The ground survey is the type 2 points")
-    return out[["id", "type", "x", "y", "z", "line"]], crs
+__all__ = ["SurveyChecks", "check_survey", "Frame", "fit_frame", "estimate_spacing"]
 
 
 @dataclass(frozen=True)

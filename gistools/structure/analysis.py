@@ -1,4 +1,4 @@
-"""Structure reconstruction, steps S0-S5 of the spec: read, check, voxel orders and parameters, levels,
+"""Structure reconstruction, steps S0-S5 of the spec (reading: gistools.io.text.read_cloud): transform, check, voxel orders and parameters, levels,
 clusters, chain / sown.
 
 Parameters (metres): ``h`` the largest height step between consecutive levels, ``d`` the planimetric
@@ -11,7 +11,6 @@ first reaches the level gap / the in-level spacing) and takes t = 4 m unless giv
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -20,35 +19,17 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
-from ..errors import DataFileError, InputError
+from ..errors import InputError
 
-__all__ = ["read_points", "check_points", "voxel_orders", "estimate_parameters", "split_levels", "cluster_level",
+__all__ = ["transform_points", "check_points", "voxel_orders", "estimate_parameters", "split_levels", "cluster_level",
            "Cluster", "classify_cluster", "Parameters"]
 
 
-def read_points(path, *, columns: str = "123", scales=(1.0, 1.0, 1.0), rotations=(0.0, 0.0, 0.0)) -> pd.DataFrame:
-    """``ID X Y Z`` rows (text or CSV, header optional) or a LAS/LAZ file, as id, x, y, z (S0).
-
-    ``columns``: which input column is x, y, z ("123" = as given, "213" swaps x and y); ``scales``:
-    signed factors per axis; ``rotations``: degrees about x, y, z, applied after permuting and scaling.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise DataFileError("file not found", path=p, hint="Check the path")
-    if p.suffix.lower() in (".las", ".laz"):
-        import laspy
-
-        try:
-            las = laspy.read(p)
-        except Exception as err:
-            raise DataFileError(f"cannot read as LAS/LAZ ({err})", path=p, hint="Re-export the file") from None
-        xyz = np.column_stack([las.x, las.y, las.z]).astype(np.float64)
-        ids = np.arange(1, len(xyz) + 1)
-    else:
-        from ..io.text import read_id_xyz
-
-        a, _ = read_id_xyz(p)
-        ids, xyz = a[:, 0].astype(np.int64), a[:, 1:4]
+def transform_points(xyz: np.ndarray, *, columns: str = "123", scales=(1.0, 1.0, 1.0),
+                     rotations=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """x, y, z of input columns (S0): ``columns`` says which input column is x, y, z ("123" = as given, "213"
+    swaps x and y); ``scales``: signed factors per axis; ``rotations``: degrees about x, y, z, applied after
+    permuting and scaling."""
     order = [int(c) - 1 for c in str(columns)]
     if sorted(order) != [0, 1, 2]:
         raise InputError(f"column order {columns!r} is not a permutation of 123", hint="e.g. 123, or 213 to swap x and y")
@@ -57,7 +38,7 @@ def read_points(path, *, columns: str = "123", scales=(1.0, 1.0, 1.0), rotations
         from scipy.spatial.transform import Rotation
 
         xyz = Rotation.from_euler("xyz", rotations, degrees=True).apply(xyz)
-    return pd.DataFrame({"id": ids, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]})
+    return xyz
 
 
 def level_spacing(xyz: np.ndarray, level: np.ndarray) -> float:

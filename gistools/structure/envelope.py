@@ -18,7 +18,7 @@ import numpy as np
 import shapely
 from scipy.spatial import Delaunay, cKDTree
 
-from ..aquifer.walls import wall
+from ..mesh import wall
 from ..errors import InputError
 
 __all__ = ["chain_loops", "sown_footprint", "level_region", "match_clusters", "band", "envelope", "winding_number", "catmull_rom_loop"]

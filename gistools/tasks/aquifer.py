@@ -18,11 +18,13 @@ import pandas as pd
 import pyproj
 import shapely
 
-from ..aquifer.contacts import read_contacts
+from ..io.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
 from ..aquifer.volume import common_footprint, overlay_volume
-from ..aquifer.walls import is_closed, match_rings, unit_mesh, write_obj, write_ply
+from ..aquifer.walls import unit_mesh
+from ..io.meshes import write_obj, write_ply
+from ..mesh import is_closed, match_rings
 from ..errors import InputError, OutputExistsError
 from ..grid import evaluate_on_grid, snapped_grid
 from ..io.outdir import claim_output

@@ -18,6 +18,7 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 
 from ..errors import Cancelled, GistoolsError, InputError
 from ..io.atomic import raise_output_error
+from ..progress import check_interrupt
 
 __all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "fail"]
 
@@ -25,6 +26,7 @@ __all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "fail"]
 def fail(result, err: BaseException, out=None) -> None:
     """Mark a tile's result failed with a one-line message; a write failure of the disk or folder ``out``
     (full, read-only) is raised instead as an OutputError: it stops the run, it is no tile's fault."""
+    check_interrupt()  # a Ctrl-C that a C extension turned into another error: the run stops
     if out is not None:
         raise_output_error(err, out)
     result.status = "failed"

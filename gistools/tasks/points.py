@@ -18,7 +18,7 @@ from ..io.outdir import claim_output
 from ..io.raster import atomic_path
 from ..validation import check_count
 from ..io.tiles import find_tiles
-from ..progress import ProgressCallback, report
+from ..progress import check_interrupt, ProgressCallback, report
 
 __all__ = ["points_from_tiles", "RETURNS"]
 
@@ -119,6 +119,7 @@ def _points_in(paths, out: Path, override, classes, returns, fmt, overwrite, chu
             except OutputError:  # a full disk or a read-only --out stops the run: it is no tile's fault
                 raise
             except GistoolsError as err:
+                check_interrupt()
                 entry["status"], entry["error"] = "failed", str(err)
             entry["seconds"] = round(time.perf_counter() - t, 3)
         report(progress, (k + 1) / len(infos), f"{info.name}: {entry['points']:,} points")

@@ -120,6 +120,7 @@ class TileResult:
     outputs: dict = field(default_factory=dict)
     first_return_bands: list | None = None
     warnings: list = field(default_factory=list)
+    neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
     seconds: float = 0.0
 
 
@@ -458,11 +459,14 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     dsm, top_class, bare_first = (_load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
     ground_count, water_count = (_load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
     own_ground, own_water = int(ground_count.sum()), int(water_count.sum())
-    warnings = []
+    warnings, used = [], []
     for other in neighbours:
         folder = _grids_folder(scratch, other.name)
-        if not folder.is_dir():  # the neighbour failed in pass 1
+        if not folder.is_dir():  # the neighbour failed in pass 1: this tile's edge lacks its points
+            warnings.append(f"{info.path}: neighbour {other.name} could not be read, so the cells near it lack its "
+                            "points; a rerun recomputes this tile once the neighbour reads")
             continue
+        used.append(other.name)
         window = grid.window_in(_tile_grid(other, run))
         if window is not None:
             rs, cs_, ro, co = window
@@ -528,13 +532,13 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
-    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings}
+    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used)}
 
 
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 _TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "warnings", "seconds")
+                "first_return_bands", "warnings", "neighbours", "seconds")
 
 
 def _tile_report_file(out: Path, name: str) -> Path:
@@ -722,12 +726,17 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
     out = Path(run.out)
     settings = _run_settings(run)
     kept = {}
+    neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
     if not overwrite:
         for i in infos:
             rep = _read_tile_report(out, i.name)
             if rep is not None:
                 _check_same_settings(out, i.name, rep.get("settings"), settings)
             kept[i.name] = _complete_tile(out, i.name, rep, run.products, run.return_breaks)
+            missing = {n.name for n in neighbours[i.name]} - set((rep or {}).get("neighbours") or [])
+            if kept[i.name] is not None and missing:  # made without a neighbour that reads now: its edge is stale
+                log.info("%s: recomputed, its neighbours %s were not read when it was made", i.name, sorted(missing))
+                kept[i.name] = None
     todo = {i.name for i in infos if kept.get(i.name) is None}
     for i in infos:
         if i.name not in todo:
@@ -735,7 +744,6 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
             for k in _TILE_FIELDS:
                 if k in kept[i.name] and k != "seconds":  # the time it took is the earlier run's
                     setattr(results[i.name], k, kept[i.name][k])
-    neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
     needed = set(todo)
     for name in todo:
         needed |= {n.name for n in neighbours[name]}
@@ -766,6 +774,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         r = results[info.name]
         r.outputs = value["outputs"]
         r.first_return_bands = value["first_return_bands"]
+        r.neighbours = value["neighbours"]
         new = list(value.get("warnings", []))
         r.warnings = r.warnings + new
         for w in new:

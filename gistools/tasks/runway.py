@@ -28,7 +28,8 @@ from ..progress import ProgressCallback, report
 from ..runway.earthworks import (balance_points, brueckner, compensate, dissertation_strip_areas, overhaul, section_areas,
                                  station_volumes)
 from ..runway.icao import template as make_template
-from ..runway.survey import SurveyChecks, check_survey, estimate_spacing, fit_frame, read_survey
+from ..io.survey import read_survey
+from ..runway.survey import SurveyChecks, check_survey, estimate_spacing, fit_frame
 from ..units import horizontal_unit
 
 __all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks", "area_diagram", "brueckner_diagram"]

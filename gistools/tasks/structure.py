@@ -18,12 +18,21 @@ from ..io.outdir import claim_output
 from ..io.raster import atomic_path
 from ..validation import check_number
 from scipy.spatial import QhullError
+from ..io.text import read_cloud
 from ..structure.analysis import (Cluster, check_points, classify_cluster, cluster_level, estimate_parameters,
-                                  read_points, split_levels)
+                                  split_levels, transform_points)
 from ..structure.envelope import chain_loops, envelope, match_clusters, sown_footprint
 from ..progress import ProgressCallback, report
 
-__all__ = ["Structure", "reconstruct", "mesh_from_triangles", "structure_model"]
+__all__ = ["Structure", "read_points", "reconstruct", "mesh_from_triangles", "structure_model"]
+
+
+def read_points(source, *, columns: str = "123", scales=(1.0, 1.0, 1.0), rotations=(0.0, 0.0, 0.0)) -> pd.DataFrame:
+    """The structure's cloud (S0) as id, x, y, z: read (``ID X Y Z`` text or LAS/LAZ), then columns permuted,
+    scaled and rotated (structure.analysis.transform_points)."""
+    ids, xyz = read_cloud(source)
+    xyz = transform_points(xyz, columns=columns, scales=scales, rotations=rotations)
+    return pd.DataFrame({"id": ids, "x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]})
 
 
 @dataclass
@@ -130,7 +139,7 @@ def _reconstruct_levels(pts, log, level, *, h, d, t, eps_z, progress) -> Structu
 
 
 def _mesh_stats(vertices, faces) -> dict:
-    from ..aquifer.walls import is_closed, mesh_volume
+    from ..mesh import is_closed, mesh_volume
 
     e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), axis=1)
     n_edges = len(np.unique(e, axis=0))
@@ -194,7 +203,7 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
 
 
 def _write_structure(s: "Structure", stats: dict, out: Path, loop_mode: str, started: float) -> dict:
-    from ..aquifer.walls import write_obj, write_ply
+    from ..io.meshes import write_obj, write_ply
 
     write_ply(out / "structure.ply", s.vertices, s.faces)
     write_obj(out / "structure.obj", s.vertices, s.faces)

@@ -17,8 +17,8 @@ import pandas as pd
 import pyproj
 
 from ..errors import DataFileError, InputError
-from ..io.points import parse_crs_text
-from ..io.text import read_id_xyz
+from .points import parse_crs_text
+from .text import read_id_xyz
 
 __all__ = ["read_contacts", "ALIASES"]
 
@@ -76,7 +76,7 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
             raise DataFileError(f"cannot read as CSV ({str(err).splitlines()[0] if str(err) else type(err).__name__})",
                                 path=path, hint="Give a CSV with a header row") from None
         return df, np.arange(len(df)) + 2
-    from ..io.vector import read_layer
+    from .vector import read_layer
 
     gdf = read_layer(text)
     df = pd.DataFrame(gdf.drop(columns="geometry"))
