@@ -20,7 +20,7 @@ from affine import Affine
 
 from .errors import InputError
 
-__all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "lattice_offset", "evaluate_on_grid"]
+__all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "evaluate_on_grid"]
 
 
 @dataclass(frozen=True)
@@ -76,11 +76,6 @@ class Grid:
         ro = slice(other.row_top - t0, other.row_top - t1)
         co = slice(c0 - other.col0, c1 - other.col0)
         return rs, cs_, ro, co
-
-
-def lattice_offset(x: np.ndarray, cell_size: float) -> np.ndarray:
-    """Global lattice index ``floor(x / cell_size)`` as int64."""
-    return np.floor(np.asarray(x, dtype=np.float64) / cell_size).astype(np.int64)
 
 
 def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Grid:

@@ -5,11 +5,9 @@ from __future__ import annotations
 import json
 
 import click
-from tqdm import tqdm
 
 from ..tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query
-from .options import overwrite_opt
-from .rasters import tqdm_progress
+from .options import overwrite_opt, progress_bar
 
 
 @click.group()
@@ -60,10 +58,9 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
                                matching=matching,
                                mesh_format=mesh_format, figures=not no_figures)
     source = list(inputs) if any("=" in i for i in inputs) else inputs[0]
-    with tqdm(total=100, unit="%", disable=True if quiet else None,
-              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         rep = aquifer_model(source, names, out, crs=crs, swap_xy=swap_xy, settings=settings, within=within, clip=clip,
-                            overwrite=overwrite, progress=None if bar.disable else tqdm_progress(bar))
+                            overwrite=overwrite, progress=progress)
     for layer, info in rep["layers"].items():
         click.echo(f"{layer}: {info['points']} points ({info['flagged']} flagged), {info['triangles']} triangles, "
                    f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f}")

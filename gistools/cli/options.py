@@ -1,6 +1,30 @@
-"""Options shared by several commands, defined once."""
+"""Options shared by several commands, and the progress bar, defined once."""
+
+import contextlib
 
 import click
+from tqdm import tqdm
+
+BAR_FORMAT = "{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]"
+
+
+def tqdm_progress(bar: tqdm):
+    """A progress callback driving a tqdm bar (0..1 -> 0..100 %)."""
+
+    def progress(fraction, message=""):
+        bar.n = round(100 * fraction, 1)
+        bar.set_postfix_str(message[-70:], refresh=False)
+        bar.refresh()
+        return True
+
+    return progress
+
+
+@contextlib.contextmanager
+def progress_bar(quiet: bool):
+    """A tqdm bar for the block; yields the library's progress callback (None with --quiet or no terminal)."""
+    with tqdm(total=100, unit="%", disable=True if quiet else None, bar_format=BAR_FORMAT) as bar:
+        yield None if bar.disable else tqdm_progress(bar)
 
 def _resume_or_overwrite(fn):
     fn = click.option("--resume", is_flag=True,

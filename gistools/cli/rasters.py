@@ -3,23 +3,10 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
 from ..lidar.gridding import DEM_METHODS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
-from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes
-
-
-def tqdm_progress(bar: tqdm):
-    """A progress callback driving a tqdm bar (0..1 -> 0..100 %)."""
-
-    def progress(fraction, message=""):
-        bar.n = round(100 * fraction, 1)
-        bar.set_postfix_str(message[-70:], refresh=False)
-        bar.refresh()
-        return True
-
-    return progress
+from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 @click.command()
@@ -60,9 +47,9 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
                               products=tuple(p.strip() for p in products.split(",") if p.strip()))
-    with tqdm(total=100, unit="%", disable=True if quiet else None, bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
-                                     progress=None if bar.disable else tqdm_progress(bar))
+                                     progress=progress)
     counts = summary["counts"]
     cell = f"cell size {summary['cell_size']} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "

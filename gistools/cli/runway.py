@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
 from ..errors import GistoolsError
 from ..runway.icao import RUNWAY_TYPES, TEMPLATES
 from ..runway.survey import SurveyChecks
 from ..tasks.runway import RunwaySettings, runway_earthworks
-from .options import overwrite_opt
-from .rasters import tqdm_progress
+from .options import overwrite_opt, progress_bar
 
 
 def _metres(ctx, param, value):
@@ -62,10 +60,9 @@ def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, 
     settings = RunwaySettings(code=code, runway_type=runway_type, template=template_kind, spacing=spacing, origin=origin,
                               profile_window=profile_window, f_cut=f_cut, f_fill=f_fill, free_haul=free_haul,
                               area_method=area_method, checks=SurveyChecks(z_max=z_max, max_offset=max_offset, min_offset=min_offset))
-    with tqdm(total=100, unit="%", disable=True if quiet else None,
-              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         rep = runway_earthworks(survey, out, settings, crs=crs, overwrite=overwrite,
-                                progress=None if bar.disable else tqdm_progress(bar))
+                                progress=progress)
     click.echo(f"{rep['code']} {rep['runway_type']} ({rep['template']} template): {rep['stations']} stations every "
                f"{rep['spacing']:.2f} m over {rep['length']:.1f} m, bearing {rep['bearing']:.2f} deg")
     click.echo(f"cut {rep['cut']:,.1f} m3, fill {rep['fill']:,.1f} m3, net {rep['net']:,.1f} m3; balance points "

@@ -3,14 +3,12 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
 from ..lidar.gridding import DEM_METHODS
 from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
-from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes
-from .rasters import tqdm_progress
+from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 def _floats(ctx, param, value):
@@ -77,12 +75,11 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
         density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,
     )
-    with tqdm(total=100, unit="%", disable=True if quiet else None,
-              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         report = shrub_from_tiles(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies,
                                   wetlands=wetlands, tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs,
                                   scheduler=scheduler, overwrite=overwrite, make_map=not no_map, band_points=band_points,
-                                  progress=None if bar.disable else tqdm_progress(bar))
+                                  progress=progress)
     counts = report.get("counts", {})
     unit = report.get("area_unit", "")
     click.echo(f"{counts.get('ok', 0)} tiles ok, {counts.get('failed', 0)} failed; report: {out}/report.json")
@@ -130,11 +127,10 @@ def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_
     settings = ShrubSettings(bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
                              density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
                              max_road_width=max_road_width, snap=snap, tile_field=tile_field)
-    with tqdm(total=100, unit="%", disable=True if quiet else None,
-              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         report = shrub_from_tiles(None, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
                                   tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
-                                  make_map=not no_map, from_stage=stage, progress=None if bar.disable else tqdm_progress(bar))
+                                  make_map=not no_map, from_stage=stage, progress=progress)
     if not report.get("rolled_back"):
         click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
                    + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))

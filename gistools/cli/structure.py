@@ -3,11 +3,9 @@
 from __future__ import annotations
 
 import click
-from tqdm import tqdm
 
 from ..tasks.structure import structure_model
-from .options import overwrite_opt
-from .rasters import tqdm_progress
+from .options import overwrite_opt, progress_bar
 
 
 def _triple(ctx, param, value):
@@ -43,10 +41,9 @@ def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overw
       $ gistools structure cctv.txt --out cctv
       $ gistools structure cctv.txt --out cctv --height-interval 8 --distance 15 --tolerance 4
     """
-    with tqdm(total=100, unit="%", disable=True if quiet else None,
-              bar_format="{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]") as bar:
+    with progress_bar(quiet) as progress:
         rep = structure_model(source, out, h=h, d=d, t=t, columns=columns, scales=scales, rotations=rotations,
-                              loop_mode=loop_mode, overwrite=overwrite, progress=None if bar.disable else tqdm_progress(bar))
+                              loop_mode=loop_mode, overwrite=overwrite, progress=progress)
     p = rep["parameters"]
     click.echo(f"{rep['levels']} levels, {rep['clusters']} clusters ({rep['sowns']} sown, {rep['chains']} chain), "
                f"{rep['matched_pairs']} matched pairs; h {p['height_interval']:.3f}, d {p['distance']:.3f}, t {p['tolerance']:.3f} m")

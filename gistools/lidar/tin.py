@@ -31,9 +31,6 @@ def _load_kernel():
     i64, f64, i32 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.float64, np.int32))
     lib.gt_delaunay.argtypes = [ctypes.c_int64, i64, i64, i32, ctypes.POINTER(ctypes.c_int64)]
     lib.gt_delaunay.restype = ctypes.c_int64
-    lib.gt_rasterize.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
-                                 ctypes.c_void_p, ctypes.c_void_p]
-    lib.gt_rasterize.restype = ctypes.c_int64
     lib.gt_quantise.argtypes = [ctypes.c_int64, f64, ctypes.c_double, ctypes.c_double, i64]
     lib.gt_quantise.restype = ctypes.c_double
     lib.gt_tin_grid.argtypes = [ctypes.c_int64, i64, i64, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
