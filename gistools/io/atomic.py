@@ -71,7 +71,6 @@ def output_error(err: BaseException, path) -> OutputError | None:
     text = str(err)
     named = getattr(err, "filename", None)
     path = final_name(named) if named else path
-    where = _existing_parent(Path(path))
     if code in _DISK_ERRNOS or _DISK_TEXT.search(text):
         return no_space_error(path)
     if code in _FOLDER_ERRNOS:

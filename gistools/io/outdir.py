@@ -163,7 +163,7 @@ def claim_output(out, command: str = "gistools"):
         nested = _HELD.get(key, 0) > 0
         if not nested:
             _make_folder(out)
-            lock = _take_lock(out, command)
+            _take_lock(out, command)
             remove_leftovers(out)
         _HELD[key] = _HELD.get(key, 0) + 1
     failed = True

@@ -17,7 +17,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import os
 import shutil
 import tempfile
 import time
@@ -25,7 +24,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
-import pyproj
 from affine import Affine
 
 from ..errors import Cancelled, DataFileError, GistoolsError, InputError
@@ -33,11 +31,14 @@ from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
-from ..io.raster import atomic_path, crs_from_wkt, raster_is_readable, write_raster, write_vrt
+from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
 from .batch import fail, make_pool, timed, worker_timed
+from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
+                          ground_sources, grids_folder, load_grid, read_ground, save_grids)
+from .resume import TILE_FIELDS, check_same_settings, complete_tile, read_tile_report, run_settings, write_tile_report
 from ..units import length_to_crs_units
 from ..validation import check_scheduler, check_count, check_grid_size, check_length
 
@@ -147,61 +148,6 @@ def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
     return snapped_grid(info.bounds, run.cell_size, crs)
 
 
-# Ground points in the scratch folder: the LAS file's own integers (X, Y, Z int32, 12 bytes a point, half
-# of float64 x, y, z), scaled back with the tile's scale and offset exactly as laspy scales them. A tile
-# writes all its ground points, and again those within the buffer of its edges in four strips (west and
-# east whole, south and north between them), so a neighbour reads only the strips beside it.
-_GROUND_DTYPE = np.dtype([("X", "<i4"), ("Y", "<i4"), ("Z", "<i4")])
-_HALO_SIDES = ("W", "E", "S", "N")
-
-
-def _ground_file(scratch, name, side: str | None = None) -> Path:
-    """Scratch file of a tile's ground points; ``side`` (W, E, S, N): its strip of points near that edge."""
-    return Path(scratch) / f"{name}.{'halo' + side if side else 'ground'}.i4"
-
-
-def _ground_meta_file(scratch, name) -> Path:
-    """Scale, offset and strip extents of a tile's ground files, written last (none: its pass 1 failed)."""
-    return Path(scratch) / f"{name}.ground.json"
-
-
-class _Extent:
-    """Running bounding box of points (west, south, east, north); None while empty."""
-
-    def __init__(self):
-        self.box = None
-
-    def add(self, x, y, where):
-        """Add the points of x, y under the boolean mask ``where`` (reduced in place, no copy)."""
-        if where.any():
-            b = (float(np.min(x, where=where, initial=np.inf)), float(np.min(y, where=where, initial=np.inf)),
-                 float(np.max(x, where=where, initial=-np.inf)), float(np.max(y, where=where, initial=-np.inf)))
-            self.box = b if self.box is None else (min(self.box[0], b[0]), min(self.box[1], b[1]),
-                                                   max(self.box[2], b[2]), max(self.box[3], b[3]))
-
-
-def _grids_folder(scratch, name) -> Path:
-    """Scratch folder of a tile's partial grids of pass 1: one ``.npy`` file per array."""
-    return Path(scratch) / f"{name}.grids"
-
-
-def _save_grids(folder: Path, **arrays) -> None:
-    """Write the arrays as ``folder/<name>.npy``, atomically: the folder appears only once complete."""
-    tmp = folder.with_name(folder.name + ".partial")
-    shutil.rmtree(tmp, ignore_errors=True)
-    tmp.mkdir(parents=True)
-    for key, a in arrays.items():
-        np.save(tmp / f"{key}.npy", a)
-    shutil.rmtree(folder, ignore_errors=True)
-    os.replace(tmp, folder)
-
-
-def _load_grid(folder: Path, key: str, mmap: bool = False) -> np.ndarray:
-    """One array of a tile's partial grids; ``mmap``: memory-mapped, so a window reads only its own pages
-    (a neighbour shares a row or column of cells: reading its whole grids cost 8 reads of 25 MB per tile)."""
-    return np.load(folder / f"{key}.npy", mmap_mode="r" if mmap else None)
-
-
 def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
     """Pass 1: stream a tile; keep its partial grids, and append its ground points to a scratch file.
 
@@ -223,12 +169,12 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     west, south, east, north = info.bounds
     b = run.buffer
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
-    sides = {k: _Extent() for k in ("ground", *_HALO_SIDES)}
-    out_box = _Extent()
+    sides = {k: Extent() for k in ("ground", *HALO_SIDES)}
+    out_box = Extent()
     scale_offset = None
     with contextlib.ExitStack() as files:
-        ground_out = files.enter_context(open(_ground_file(run.scratch, info.name), "wb"))
-        halo_out = {k: files.enter_context(open(_ground_file(run.scratch, info.name, k), "wb")) for k in _HALO_SIDES}
+        ground_out = files.enter_context(open(ground_file(run.scratch, info.name), "wb"))
+        halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
         first_out = files.enter_context(open(first_path, "wb"))
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
         if run.dsm_classes is None:
@@ -257,7 +203,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 bare = surface & _IS_GROUNDISH[cls]
                 bare_first += np.bincount(cell[bare], minlength=n)
                 other = surface & ~bare
-                rec = np.empty(int(np.count_nonzero(other)), dtype=_FIRST_DTYPE)
+                rec = np.empty(int(np.count_nonzero(other)), dtype=FIRST_DTYPE)
                 rec["cell"] = cell[other]
                 rec["z"] = scaled(chunk, "z", other)
                 rec.tofile(first_out)
@@ -271,7 +217,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
                 raw = chunk.raw
                 scale_offset = ([float(v) for v in raw.scales], [float(v) for v in raw.offsets])
-                rec = np.empty(int(np.count_nonzero(ground)), dtype=_GROUND_DTYPE)
+                rec = np.empty(int(np.count_nonzero(ground)), dtype=GROUND_DTYPE)
                 for axis in "XYZ":
                     rec[axis] = np.asarray(getattr(raw, axis))[ground]
                 rec.tofile(ground_out)
@@ -301,11 +247,11 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             f"{info.bounds[2]:.3f}, {info.bounds[3]:.3f}); the points span ({w:.3f}, {s_:.3f}, {e:.3f}, {n_:.3f})",
             path=info.path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate) and run again")
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
-    with atomic_path(_ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
+    with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps(meta))
     dsm[np.isinf(dsm)] = np.nan
-    _save_grids(
-        _grids_folder(run.scratch, info.name),
+    save_grids(
+        grids_folder(run.scratch, info.name),
         dsm=dsm.reshape(grid.shape),
         top_class=top_class.reshape(grid.shape),
         bare_first=bare_first.reshape(grid.shape).astype(np.int32),
@@ -351,9 +297,6 @@ def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
     top_class[take] = other_class[take]
 
 
-_FIRST_DTYPE = np.dtype([("cell", "<i4"), ("z", "<f4")])
-
-
 def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, bare: int, chunk_points: int = 4_000_000) -> list[int]:
     """Counts of a tile's first returns by height above the DEM at their cell: [<= h0, h0-h1, h1-h2, h2-h3, > h3].
 
@@ -365,7 +308,7 @@ def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, bare: int, chu
     edges = np.asarray(breaks)
     with open(path, "rb") as fh:
         while True:
-            a = np.fromfile(fh, dtype=_FIRST_DTYPE, count=chunk_points)
+            a = np.fromfile(fh, dtype=FIRST_DTYPE, count=chunk_points)
             if a.size == 0:
                 break
             ground = dem_flat[a["cell"]]
@@ -385,53 +328,6 @@ def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[
         if ow <= e + distance and oe >= w - distance and os_ <= n + distance and on >= s - distance:
             out.append(other)
     return out
-
-
-def _ground_sources(scratch, name, bounds, deep: bool = True) -> list[tuple[Path, list, list, tuple]]:
-    """The ground files of tile ``name`` that hold points inside ``bounds``: (path, scale, offset, extent);
-    ``deep``: its whole ground file, else the halo strips. None when its pass 1 did not complete."""
-    meta_file = _ground_meta_file(scratch, name)
-    if not meta_file.exists():
-        return []
-    meta = json.loads(meta_file.read_text())
-    if meta["scale_offset"] is None:  # no ground point
-        return []
-    scale, offset = meta["scale_offset"]
-    west, south, east, north = bounds
-    out = []
-    for key in ("ground",) if deep else _HALO_SIDES:
-        ext = meta["extents"][key]
-        if ext is not None and ext[0] <= east and ext[2] >= west and ext[1] <= north and ext[3] >= south:
-            out.append((_ground_file(scratch, name, None if key == "ground" else key), scale, offset, tuple(ext)))
-    return out
-
-
-def _read_ground(sources, bounds, chunk_points: int = 4_000_000) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """x, y, z (float64) of the ground points of ``sources`` (from _ground_sources) inside ``bounds``,
-    read a chunk at a time; a file whose extent lies inside ``bounds`` is taken whole."""
-    west, south, east, north = bounds
-    parts = []
-    for path, scale, offset, ext in sources:
-        whole = ext[0] >= west and ext[2] <= east and ext[1] >= south and ext[3] <= north
-        with open(path, "rb") as fh:
-            while True:
-                raw = np.fromfile(fh, dtype=_GROUND_DTYPE, count=chunk_points)
-                if raw.size == 0:
-                    break
-                x = raw["X"] * scale[0] + offset[0]  # as laspy scales them: raw * scale + offset
-                y = raw["Y"] * scale[1] + offset[1]
-                if whole:
-                    z = raw["Z"] * scale[2] + offset[2]
-                else:
-                    m = (x >= west) & (x <= east) & (y >= south) & (y <= north)
-                    x, y, z = x[m], y[m], raw["Z"][m] * scale[2] + offset[2]
-                if len(x):
-                    parts.append((x, y, z))
-    if not parts:
-        return np.empty(0), np.empty(0), np.empty(0)
-    if len(parts) == 1:
-        return parts[0]
-    return tuple(np.concatenate([p[k] for p in parts]) for k in range(3))
 
 
 def _strips(counts_per_row: np.ndarray, max_points: int) -> list[tuple[int, int]]:
@@ -455,13 +351,13 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     crs = crs_from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
     scratch = Path(run.scratch)
-    own = _grids_folder(scratch, info.name)
-    dsm, top_class, bare_first = (_load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
-    ground_count, water_count = (_load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
+    own = grids_folder(scratch, info.name)
+    dsm, top_class, bare_first = (load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
+    ground_count, water_count = (load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
     own_ground, own_water = int(ground_count.sum()), int(water_count.sum())
     warnings, used = [], []
     for other in neighbours:
-        folder = _grids_folder(scratch, other.name)
+        folder = grids_folder(scratch, other.name)
         if not folder.is_dir():  # the neighbour failed in pass 1: this tile's edge lacks its points
             warnings.append(f"{info.path}: neighbour {other.name} could not be read, so the cells near it lack its "
                             "points; a rerun recomputes this tile once the neighbour reads")
@@ -470,7 +366,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         window = grid.window_in(_tile_grid(other, run))
         if window is not None:
             rs, cs_, ro, co = window
-            nb = {k: _load_grid(folder, k, mmap=True)[ro, co] for k in ("dsm", "top_class", "ground_count", "water_count")}
+            nb = {k: load_grid(folder, k, mmap=True)[ro, co] for k in ("dsm", "top_class", "ground_count", "water_count")}
             _merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"], nb["dsm"])
             dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"])
             ground_count[rs, cs_] += nb["ground_count"]
@@ -491,10 +387,10 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
             strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
             w, s, e, n = strip.bounds
             box = (w - b, s - b, e + b, n + b)
-            sources = _ground_sources(scratch, info.name, box)
+            sources = ground_sources(scratch, info.name, box)
             for o in neighbours:
-                sources += _ground_sources(scratch, o.name, box, deep=deep[o.name])
-            x, y, z = _read_ground(sources, box)
+                sources += ground_sources(scratch, o.name, box, deep=deep[o.name])
+            x, y, z = read_ground(sources, box)
             if run.dem_method == "tin":  # the same values as one TIN of all the points, on fewer of them
                 dem[r0:r1] = tin_dem_with_halo(x, y, z, strip, halo=b, max_distance=run.max_distance, water=water[r0:r1])
             else:
@@ -533,79 +429,6 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                      tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
     return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used)}
-
-
-# What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
-# are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
-_TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "warnings", "neighbours", "seconds")
-
-
-def _tile_report_file(out: Path, name: str) -> Path:
-    return Path(out) / "tile_reports" / f"{name}.json"
-
-
-def _run_settings(run: _Run) -> dict:
-    """The settings a tile's rasters depend on, as stored in its tile report."""
-    return {"cell_size": run.cell_size, "dem_method": run.dem_method, "dem_max_distance": run.max_distance,
-            "buffer": run.buffer, "dsm_classes": None if run.dsm_classes is None else list(run.dsm_classes),
-            "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
-
-
-def _write_tile_report(out: Path, result: "TileResult", settings: dict) -> None:
-    with atomic_path(_tile_report_file(out, result.name), overwrite=True) as tmp:
-        tmp.write_text(json.dumps({**{k: getattr(result, k) for k in _TILE_FIELDS}, "settings": settings}, indent=1))
-
-
-def _read_tile_report(out: Path, name: str) -> dict | None:
-    try:
-        rep = json.loads(_tile_report_file(out, name).read_text())
-    except (OSError, ValueError):  # none (a run killed after the rasters, or before this version) or unreadable
-        return None
-    for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints
-        rep[key] = {int(k): v for k, v in (rep.get(key) or {}).items()}
-    return rep
-
-
-_SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
-                  "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS"}
-
-
-def _check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:
-    """Refuse to resume over a tile made with other settings (the mosaic would mix them)."""
-    if earlier is None:
-        return
-    crs = crs_from_wkt(now["crs_wkt"])
-    unit = crs.axis_info[0].unit_name if crs.axis_info else "CRS units"
-    for key, value in now.items():
-        old = earlier.get(key)
-        if key == "crs_wkt":
-            same = old is not None and crs_from_wkt(old).equals(crs)
-            shown = (crs_label(crs_from_wkt(old)) if old else "none", crs_label(crs))
-        elif isinstance(value, float):
-            same = old == value
-            shown = tuple("none" if v is None else f"{v:.6g} {unit}" for v in (old, value))
-        else:
-            same = old == value
-            shown = tuple("all but noise" if v is None and key == "dsm_classes" else v for v in (old, value))
-        if not same:
-            raise InputError(
-                f"{out}: tile {name} was made with {_SETTING_NAMES[key]} {shown[0]}, this run asks {shown[1]}",
-                hint="Pass --overwrite to redo the tiles with the new settings, or choose another --out")
-
-
-def _complete_tile(out: Path, name: str, rep: dict | None, products=DEFAULT_PRODUCTS, return_breaks=None) -> dict | None:
-    """The tile report ``rep`` of a tile whose outputs are all written (with first-return counts at
-    ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
-    if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
-        return None
-    for p in products:  # a kept raster must open and read whole: a damaged one is recomputed
-        if not raster_is_readable(out / p / f"{name}.tif"):
-            log.warning("%s: damaged, recomputing the tile", out / p / f"{name}.tif")
-            return None
-    if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
-        return None
-    return rep
 
 
 def rasters_from_tiles(
@@ -724,15 +547,15 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
                 shared_pool=None) -> None:
     out = Path(run.out)
-    settings = _run_settings(run)
+    settings = run_settings(run)
     kept = {}
     neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
     if not overwrite:
         for i in infos:
-            rep = _read_tile_report(out, i.name)
+            rep = read_tile_report(out, i.name)
             if rep is not None:
-                _check_same_settings(out, i.name, rep.get("settings"), settings)
-            kept[i.name] = _complete_tile(out, i.name, rep, run.products, run.return_breaks)
+                check_same_settings(out, i.name, rep.get("settings"), settings)
+            kept[i.name] = complete_tile(out, i.name, rep, run.products, run.return_breaks)
             missing = {n.name for n in neighbours[i.name]} - set((rep or {}).get("neighbours") or [])
             if kept[i.name] is not None and missing:  # made without a neighbour that reads now: its edge is stale
                 log.info("%s: recomputed, its neighbours %s were not read when it was made", i.name, sorted(missing))
@@ -741,7 +564,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
     for i in infos:
         if i.name not in todo:
             results[i.name].status = "skipped"
-            for k in _TILE_FIELDS:
+            for k in TILE_FIELDS:
                 if k in kept[i.name] and k != "seconds":  # the time it took is the earlier run's
                     setattr(results[i.name], k, kept[i.name][k])
     needed = set(todo)
@@ -780,7 +603,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         for w in new:
             log.warning("%s", w)
         r.seconds += seconds
-        _write_tile_report(out, r, settings)
+        write_tile_report(out, r, settings)
 
     # Tiles go north to south, west to east. A tile is gridded as soon as it and its neighbours are read,
     # and a tile's scratch files are deleted once every tile that reads them is gridded: the scratch

@@ -1,0 +1,96 @@
+"""The resume protocol of the rasters: a tile's own report, the mark of a complete tile.
+
+``OUT/tile_reports/<tile>.json`` is written once all of a tile's rasters are: what the run found (point counts,
+first returns per band, outputs, warnings, the neighbours whose points it used) and the settings its rasters
+depend on. A resumed run keeps a tile whose report and rasters are there and whole, refuses one made with other
+settings, and recomputes one made without a neighbour that reads now.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from pathlib import Path
+
+from ..errors import InputError
+from ..io.atomic import atomic_path
+from ..io.points import crs_label
+from ..io.raster import crs_from_wkt, raster_is_readable
+
+log = logging.getLogger("gistools.tasks.rasters")
+
+__all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report", "read_tile_report",
+           "check_same_settings", "complete_tile"]
+
+
+# What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
+# are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
+TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
+                "first_return_bands", "warnings", "neighbours", "seconds")
+
+
+def tile_report_file(out: Path, name: str) -> Path:
+    return Path(out) / "tile_reports" / f"{name}.json"
+
+
+def run_settings(run) -> dict:
+    """The settings a tile's rasters depend on (of the rasters' run parameters ``run``), as in its tile report."""
+    return {"cell_size": run.cell_size, "dem_method": run.dem_method, "dem_max_distance": run.max_distance,
+            "buffer": run.buffer, "dsm_classes": None if run.dsm_classes is None else list(run.dsm_classes),
+            "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
+
+
+def write_tile_report(out: Path, result, settings: dict) -> None:
+    with atomic_path(tile_report_file(out, result.name), overwrite=True) as tmp:
+        tmp.write_text(json.dumps({**{k: getattr(result, k) for k in TILE_FIELDS}, "settings": settings}, indent=1))
+
+
+def read_tile_report(out: Path, name: str) -> dict | None:
+    try:
+        rep = json.loads(tile_report_file(out, name).read_text())
+    except (OSError, ValueError):  # none (a run killed after the rasters, or before this version) or unreadable
+        return None
+    for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints
+        rep[key] = {int(k): v for k, v in (rep.get(key) or {}).items()}
+    return rep
+
+
+SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
+                  "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS"}
+
+
+def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:
+    """Refuse to resume over a tile made with other settings (the mosaic would mix them)."""
+    if earlier is None:
+        return
+    crs = crs_from_wkt(now["crs_wkt"])
+    unit = crs.axis_info[0].unit_name if crs.axis_info else "CRS units"
+    for key, value in now.items():
+        old = earlier.get(key)
+        if key == "crs_wkt":
+            same = old is not None and crs_from_wkt(old).equals(crs)
+            shown = (crs_label(crs_from_wkt(old)) if old else "none", crs_label(crs))
+        elif isinstance(value, float):
+            same = old == value
+            shown = tuple("none" if v is None else f"{v:.6g} {unit}" for v in (old, value))
+        else:
+            same = old == value
+            shown = tuple("all but noise" if v is None and key == "dsm_classes" else v for v in (old, value))
+        if not same:
+            raise InputError(
+                f"{out}: tile {name} was made with {SETTING_NAMES[key]} {shown[0]}, this run asks {shown[1]}",
+                hint="Pass --overwrite to redo the tiles with the new settings, or choose another --out")
+
+
+def complete_tile(out: Path, name: str, rep: dict | None, products, return_breaks=None) -> dict | None:
+    """The tile report ``rep`` of a tile whose outputs are all written (with first-return counts at
+    ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
+    if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
+        return None
+    for p in products:  # a kept raster must open and read whole: a damaged one is recomputed
+        if not raster_is_readable(out / p / f"{name}.tif"):
+            log.warning("%s: damaged, recomputing the tile", out / p / f"{name}.tif")
+            return None
+    if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
+        return None
+    return rep
