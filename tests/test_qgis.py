@@ -513,3 +513,18 @@ def test_the_dem_methods_are_the_librarys_and_max_runs(qgis, tmp_path):
                                     "OUTPUT_FOLDER": str(tmp_path / "q")})
     rasters_from_tiles([SAMPLE], tmp_path / "lib", RasterSettings(dem_method="max", products=("dem",)))
     same_cells(dem["OUTPUT"], tmp_path / "lib" / "dem.vrt")
+
+
+def test_classify_jenks_in_processing_equals_the_cli(qgis, reference, tmp_path):
+    import shutil
+
+    from click.testing import CliRunner
+    from gistools.cli.main import cli
+
+    out = tmp_path / "out"
+    shutil.copytree(reference, out)
+    result = CliRunner().invoke(cli, ["classify", str(out), "--classify", "jenks", "-q", "--no-map"])
+    assert result.exit_code == 0, result.output
+    cls = qgis.run("gistools:classify", {"COVER": str(out / "cover.vrt"), "VEGETATION": str(out / "veg.vrt"),
+                                         "METHOD": 2, "OUTPUT": str(tmp_path / "classes.tif")})
+    same_cells(cls["OUTPUT"], out / "classes.vrt")

@@ -389,3 +389,27 @@ def test_band_points_and_a_bad_tile(sample_tiles, tmp_path):
     assert len(pts) == np.count_nonzero(bands <= 3) and pts.crs.to_epsg() == 2882
     b1 = pts[pts.band == "B1"]
     assert len(b1) and (b1.grid_code > 0).all() and (b1.grid_code <= 3937 / 1200 + 1e-6).all()
+
+
+@pytest.mark.parametrize("method", ["jenks", "quantile"])
+def test_breaks_from_the_data_are_the_same_per_tile_and_per_block_of_a_mosaic(shrub_run, tmp_path, method):
+    """The chain (per tile), gistools classify (per tile) and the step on the mosaic (per block, QGIS's
+    gistools:classify) sample the same lattice cells, so they choose the same breaks and give the same classes."""
+    import shutil
+
+    from gistools.tasks.steps import classes_from_cover
+
+    ref_out, _ = shrub_run
+    out = tmp_path / "out"
+    shutil.copytree(ref_out, out)
+    result = CliRunner().invoke(cli, ["classify", str(out), "--classify", method, "-q", "--no-map"])
+    assert result.exit_code == 0, result.output
+    chain = json.loads((out / "report.json").read_text())
+    for block in (64, 150, 2048):  # blocks cut across the tiles in every way
+        step = classes_from_cover(out / "cover.vrt", tmp_path / f"c{block}.tif", veg=out / "veg.vrt", method=method,
+                                  block=block)
+        assert step["breaks"] == pytest.approx(tuple(chain["class_breaks"]), abs=0)
+        a, _, _ = read_raster(out / "classes.vrt")
+        b, _, _ = read_raster(step["classes"])
+        assert np.array_equal(a, b)
+    assert tuple(chain["class_breaks"]) != (0.3, 0.7)

@@ -12,7 +12,8 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["CLASS_NAMES", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "shrub_classes", "quantile_breaks", "jenks_breaks"]
+__all__ = ["CLASS_NAMES", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "sample_step", "lattice_sample",
+           "breaks_from_sample", "shrub_classes", "quantile_breaks", "jenks_breaks"]
 
 CLASS_NAMES = {0: "none", 1: "light", 2: "medium", 3: "heavy", 4: "road", 5: "water"}
 CLASS_NODATA = 255
@@ -79,3 +80,40 @@ def jenks_breaks(values: np.ndarray, *, sample: int = 2000, seed: int = 0) -> tu
             best, best_ab = cost[k], (int(a[k]), b)
     a, b = best_ab
     return float(v[a - 1]), float(v[b - 1])
+
+
+# Breaks from the data (quantile, jenks) are computed on a sample of cover cells that does not depend on how the
+# extent is cut into tiles or blocks: the cells whose global lattice row and column are multiples of a step, the
+# step set by the extent's size, each cell once. So the chain (per tile), gistools classify and QGIS's
+# gistools:classify (per block of a mosaic) choose the same breaks.
+SAMPLE_CELLS = 250_000
+
+
+def sample_step(extent_cells: int, target: int = SAMPLE_CELLS) -> int:
+    """Lattice step giving about ``target`` sample cells over an extent of ``extent_cells`` cells."""
+    return max(1, int(np.ceil(np.sqrt(max(extent_cells, 1) / target))))
+
+
+def lattice_sample(cover: np.ndarray, col0: int, row_top: int, step: int) -> tuple[np.ndarray, np.ndarray]:
+    """(global (row, col) keys, values) of the finite cells of ``cover`` on the sample lattice. ``col0``: global
+    column of the first column; ``row_top``: global index of the north edge (a row r is lattice row row_top - 1 - r)."""
+    rows = row_top - 1 - np.arange(cover.shape[0])
+    cols = col0 + np.arange(cover.shape[1])
+    r = np.flatnonzero(rows % step == 0)
+    c = np.flatnonzero(cols % step == 0)
+    sub = np.asarray(cover, np.float64)[np.ix_(r, c)]
+    ok = np.isfinite(sub)
+    rr, cc = np.nonzero(ok)
+    return np.column_stack([rows[r][rr], cols[c][cc]]).astype(np.int64), sub[ok]
+
+
+def breaks_from_sample(keys: list, values: list, method: str) -> tuple[float, float]:
+    """Quantile or Jenks breaks of the sampled cells (each lattice cell once, in a fixed order)."""
+    if not values:
+        return DEFAULT_BREAKS
+    k = np.concatenate(keys)
+    v = np.concatenate(values)
+    _, first = np.unique(k, axis=0, return_index=True)  # a cell two tiles share is counted once
+    v = np.sort(v[first])
+    return quantile_breaks(v) if method == "quantile" else jenks_breaks(v)
+

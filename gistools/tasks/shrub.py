@@ -41,7 +41,8 @@ from ..io.vector import check_crs, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
 from ..lidar.vegetation import VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
-from ..lidar.shrub import CLASS_METHODS, CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
+from ..lidar.shrub import (CLASS_METHODS, CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, breaks_from_sample, lattice_sample,
+                            sample_step, shrub_classes)
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
@@ -564,16 +565,29 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
 
 
 def _breaks(settings: ShrubSettings, cover_paths) -> tuple[float, float]:
+    """The class breaks: the given ones, or quantile / Jenks breaks of the tiles' cover on the sample lattice
+    (lidar.shrub.lattice_sample: the same cells as a mosaic's blocks give)."""
     if settings.classify == "breaks":
         return tuple(settings.class_breaks)  # type: ignore[return-value]
-    values = []
+    grids = []
     for p in cover_paths:
-        a, _, _ = read_raster(p)
-        v = a[np.isfinite(a)]
-        if v.size:
-            values.append(np.random.default_rng(0).choice(v, min(v.size, 5000), replace=False))
-    allv = np.concatenate(values) if values else np.empty(0)
-    return quantile_breaks(allv) if settings.classify == "quantile" else jenks_breaks(allv)
+        with rasterio.open(p) as src:
+            grids.append(Grid(src.transform, src.width, src.height))
+    if not grids:
+        return DEFAULT_BREAKS
+    cs = grids[0].cell_size
+    west = min(g.bounds[0] for g in grids)
+    south = min(g.bounds[1] for g in grids)
+    east = max(g.bounds[2] for g in grids)
+    north = max(g.bounds[3] for g in grids)
+    step = sample_step(int(round((east - west) / cs)) * int(round((north - south) / cs)))
+    keys, values = [], []
+    for p in cover_paths:
+        a, grid, _ = read_raster(p)
+        k, v = lattice_sample(a, grid.col0, grid.row_top, step)
+        keys.append(k)
+        values.append(v)
+    return breaks_from_sample(keys, values, settings.classify)
 
 
 def _write_polygons(path, polygons, crs, tile_field, area_m2):

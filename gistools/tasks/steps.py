@@ -30,7 +30,8 @@ from ..io.vector import check_crs, read_layer, verify_gpkg, write_layer
 from ..lidar.bands import BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
 from ..lidar.gridding import ndsm_from
-from ..lidar.shrub import CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, jenks_breaks, quantile_breaks, shrub_classes
+from ..lidar.shrub import (CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, breaks_from_sample, lattice_sample, sample_step,
+                            shrub_classes)
 from ..lidar.vegetation import VEG_NODATA, VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
 from ..progress import ProgressCallback, report
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units, unit_from_word
@@ -411,14 +412,17 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
 
 
 def _sample_breaks(src, method: str, block: int) -> tuple[float, float]:
-    values = []
-    for i, win in enumerate(_windows(src.width, src.height, block)):
-        a = _read(src, src, win)
-        v = a[np.isfinite(a)]
-        if v.size:
-            values.append(np.random.default_rng(i).choice(v, min(v.size, 5000), replace=False))
-    allv = np.concatenate(values) if values else np.empty(0)
-    return quantile_breaks(allv) if method == "quantile" else jenks_breaks(allv)
+    """Quantile / Jenks breaks of a cover raster (a tile, a mosaic) on the sample lattice, read block by block:
+    the cells and breaks the chain gets per tile (lidar.shrub.lattice_sample)."""
+    step = sample_step(src.width * src.height)
+    cs = src.transform.a
+    keys, values = [], []
+    for win in _windows(src.width, src.height, block):
+        t = src.window_transform(win)
+        k, v = lattice_sample(_read(src, src, win), int(round(t.c / cs)), int(round(t.f / cs)), step)
+        keys.append(k)
+        values.append(v)
+    return breaks_from_sample(keys, values, method)
 
 
 def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str = "breaks", breaks=DEFAULT_BREAKS,
