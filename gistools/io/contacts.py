@@ -124,39 +124,33 @@ def _read_layer_file(path: Path, layer: str, swap_xy: bool) -> pd.DataFrame:
     return pd.DataFrame({"id": a[:, 0].astype(np.int64), "x": x, "y": y, "z": a[:, 3], "layer": layer, "line": lines})
 
 
-def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points: int = 3):
-    """(points, crs): points has id, x, y, z, layer (in ``layers`` order, top to bottom), borehole_id?, source, line.
-
-    ``source``: a table path (CSV, GeoPackage layer, shapefile) or a dict / list ``LAYER=path`` of
-    per-layer files. ``crs``: EPSG code or WKT, required unless the layer carries one.
-    """
-    layers = [str(lay).strip() for lay in layers]
-    if len(layers) < 2 or len(set(layers)) != len(layers):
-        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint="e.g. --layers LS,AU,AD,AQ")
+def _per_layer_files(source, swap_xy) -> list[pd.DataFrame]:
+    items = source.items() if isinstance(source, dict) else (str(s).split("=", 1) for s in source)
     frames = []
-    found_crs = None
-    if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
-        items = source.items() if isinstance(source, dict) else (str(s).split("=", 1) for s in source)
-        for layer, p in items:
-            path = Path(p)
-            if not path.is_file():
-                raise DataFileError("file not found", path=path, hint="Check the path")
-            df = _read_layer_file(path, str(layer).strip(), swap_xy)
-            df["source"] = str(path)
-            frames.append(df)
-    else:
-        src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
-        path = Path(src)
-        if not path.exists() and ":" in src:
-            path = Path(src.rsplit(":", 1)[0])
-        if not path.exists():
+    for layer, p in items:
+        path = Path(p)
+        if not path.is_file():
             raise DataFileError("file not found", path=path, hint="Check the path")
-        df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
-        found_crs = df.attrs.get("crs")
-        out = _from_frame(df, lines, path, swap_xy)
-        out["source"] = str(path)
-        frames.append(out)
-    pts = pd.concat(frames, ignore_index=True)
+        df = _read_layer_file(path, str(layer).strip(), swap_xy)
+        df["source"] = str(path)
+        frames.append(df)
+    return frames
+
+
+def _one_table(source, swap_xy) -> tuple[pd.DataFrame, object]:
+    src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
+    path = Path(src)
+    if not path.exists() and ":" in src:
+        path = Path(src.rsplit(":", 1)[0])
+    if not path.exists():
+        raise DataFileError("file not found", path=path, hint="Check the path")
+    df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
+    out = _from_frame(df, lines, path, swap_xy)
+    out["source"] = str(path)
+    return out, df.attrs.get("crs")
+
+
+def _check_layers(pts: pd.DataFrame, layers, min_points: int) -> None:
     unknown = sorted(set(pts["layer"]) - set(layers))
     if unknown:
         k = int(np.flatnonzero(pts["layer"].isin(unknown).to_numpy())[0])
@@ -168,16 +162,40 @@ def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points
         if n < min_points:
             raise InputError(f"layer {layer} has {n} point(s); a surface needs at least {min_points}",
                              path=pts["source"].iloc[0], hint="Check the layer names in the file and in --layers")
+
+
+def _contacts_crs(crs, found_crs, where) -> pyproj.CRS:
     if crs is not None:
         out_crs = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
     elif found_crs is not None:
         out_crs = pyproj.CRS.from_user_input(found_crs)
     else:
-        raise InputError("the contacts carry no CRS", path=pts["source"].iloc[0],
+        raise InputError("the contacts carry no CRS", path=where,
                          hint="Give one with --crs (the Milan data: EPSG:3003, Monte Mario / Italy zone 1)")
     if out_crs.is_geographic:
-        raise InputError(f"CRS {out_crs.name!r} is geographic (degrees)", path=pts["source"].iloc[0],
+        raise InputError(f"CRS {out_crs.name!r} is geographic (degrees)", path=where,
                          hint="Give the contacts in a projected CRS in metres or feet")
+    return out_crs
+
+
+def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points: int = 3):
+    """(points, crs): points has id, x, y, z, layer (in ``layers`` order, top to bottom), borehole_id?, source, line.
+
+    ``source``: a table path (CSV, GeoPackage layer, shapefile) or a dict / list ``LAYER=path`` of
+    per-layer files. ``crs``: EPSG code or WKT, required unless the layer carries one.
+    """
+    layers = [str(lay).strip() for lay in layers]
+    if len(layers) < 2 or len(set(layers)) != len(layers):
+        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint="e.g. --layers LS,AU,AD,AQ")
+    found_crs = None
+    if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
+        frames = _per_layer_files(source, swap_xy)
+    else:
+        table, found_crs = _one_table(source, swap_xy)
+        frames = [table]
+    pts = pd.concat(frames, ignore_index=True)
+    _check_layers(pts, layers, min_points)
+    out_crs = _contacts_crs(crs, found_crs, pts["source"].iloc[0])
     pts["layer"] = pd.Categorical(pts["layer"], categories=layers, ordered=True)
     pts = pts.sort_values(["layer", "id"], kind="stable").reset_index(drop=True)
     pts["layer"] = pts["layer"].astype(str)

@@ -280,37 +280,17 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
                         (single_line_width, "single-line hydro width")):
         check_length(value, name, example="60ft")
     layers = {"roads": roads, "hydro": hydro, "waterbodies": waterbodies, "tile index": tile_index}
-    kinds = {"roads": ("line",), "hydro": ("line",), "waterbodies": ("polygon",),
-             "tile index": ("polygon",)}
-    loaded = {k: read_layer(v, kinds[k], k) for k, v in layers.items() if v}
-    if not loaded:
-        raise InputError("no breakline layer given", hint="Give road lines and/or hydro lines or water bodies")
-    # the tile index is the tiles' grid, so its CRS rules; else the first line layer's
-    first = "tile index" if "tile index" in loaded else next(iter(loaded))
-    target = pyproj.CRS.from_user_input(crs) if crs else pyproj.CRS.from_user_input(loaded[first].crs)
-    against = "the given" if crs else f"the {first} layer's ({layers[first]})"
+    loaded, target = _breakline_layers(layers, crs, reproject)
     unit = horizontal_unit(target)
-    for k in list(loaded):
-        loaded[k] = check_crs(loaded[k], target, str(layers[k]), reproject=reproject, against=against)
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
     p = dict(snap=length(snap, "snap"), max_road=length(max_road_width, "max road width"),
              max_hydro=length(max_hydro_width, "max hydro width"), single=length(single_line_width, "single-line hydro width"))
     geoms = {k: [g for g in gdf.geometry if g is not None and not g.is_empty] for k, gdf in loaded.items()}
-    if "tile index" in loaded:
-        idx = loaded["tile index"]
-        if tile_field not in idx.columns:
-            raise InputError(f"the tile index has no field {tile_field!r} (fields: {', '.join(map(str, idx.columns))})",
-                             path=str(tile_index), hint="Name the tile-number field")
-        frames = [(str(t), g) for t, g in zip(idx[tile_field], idx.geometry) if g is not None and not g.is_empty]
-    else:
-        every = [g for k in ("roads", "hydro", "waterbodies") for g in geoms.get(k, [])]
-        frames = [("all", shapely.box(*shapely.total_bounds(every)).buffer(p["snap"] * 10, join_style="mitre"))]
+    frames = _breakline_frames(loaded, geoms, tile_field, tile_index, p["snap"])
     trees = {k: shapely.STRtree(v) for k, v in geoms.items()}
 
     def near(kind, frame):
-        if kind not in trees:
-            return []
-        return [geoms[kind][i] for i in trees[kind].query(frame)]
+        return [geoms[kind][i] for i in trees[kind].query(frame)] if kind in trees else []
 
     rows = {"road": [], "water": []}
     for i, (tile, frame) in enumerate(frames):
@@ -322,18 +302,45 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
             if not geom.is_empty:
                 rows[kind].append({tile_field: tile, "geometry": geom})
     report(progress, 1.0, "breaklines: writing")
-    import geopandas as gpd
-
     result = {"crs": target.to_wkt()}
     for kind, path in (("road", road_out), ("water", water_out)):
-        if path is None:
-            continue
-        gdf = gpd.GeoDataFrame(rows[kind], geometry="geometry", crs=target) if rows[kind] else \
-            gpd.GeoDataFrame({tile_field: []}, geometry=gpd.GeoSeries([], crs=target), crs=target)
-        gdf["area"] = gdf.geometry.area
-        result[kind] = write_layer(gdf, path, Path(path).stem, overwrite=overwrite)
-        result[f"{kind}_count"] = len(gdf)
+        if path is not None:
+            result[kind], result[f"{kind}_count"] = _write_kind(rows[kind], path, target, tile_field, overwrite)
     return result
+
+
+def _breakline_layers(layers: dict, crs, reproject) -> tuple[dict, pyproj.CRS]:
+    """The given layers, checked for geometry type and read in one CRS: the tile index's (the tiles' grid),
+    else ``crs``, else the first layer's."""
+    kinds = {"roads": ("line",), "hydro": ("line",), "waterbodies": ("polygon",), "tile index": ("polygon",)}
+    loaded = {k: read_layer(v, kinds[k], k) for k, v in layers.items() if v}
+    if not loaded:
+        raise InputError("no breakline layer given", hint="Give road lines and/or hydro lines or water bodies")
+    first = "tile index" if "tile index" in loaded else next(iter(loaded))
+    target = pyproj.CRS.from_user_input(crs) if crs else pyproj.CRS.from_user_input(loaded[first].crs)
+    against = "the given" if crs else f"the {first} layer's ({layers[first]})"
+    return {k: check_crs(g, target, str(layers[k]), reproject=reproject, against=against) for k, g in loaded.items()}, target
+
+
+def _breakline_frames(loaded: dict, geoms: dict, tile_field: str, tile_index, snap: float) -> list:
+    """(tile, footprint) of each tile of the index, or one frame around every line."""
+    if "tile index" not in loaded:
+        every = [g for k in ("roads", "hydro", "waterbodies") for g in geoms.get(k, [])]
+        return [("all", shapely.box(*shapely.total_bounds(every)).buffer(snap * 10, join_style="mitre"))]
+    idx = loaded["tile index"]
+    if tile_field not in idx.columns:
+        raise InputError(f"the tile index has no field {tile_field!r} (fields: {', '.join(map(str, idx.columns))})",
+                         path=str(tile_index), hint="Name the tile-number field")
+    return [(str(t), g) for t, g in zip(idx[tile_field], idx.geometry) if g is not None and not g.is_empty]
+
+
+def _write_kind(rows: list, path, crs, tile_field: str, overwrite: bool):
+    import geopandas as gpd
+
+    gdf = gpd.GeoDataFrame(rows, geometry="geometry", crs=crs) if rows else \
+        gpd.GeoDataFrame({tile_field: []}, geometry=gpd.GeoSeries([], crs=crs), crs=crs)
+    gdf["area"] = gdf.geometry.area
+    return write_layer(gdf, path, Path(path).stem, overwrite=overwrite), len(gdf)
 
 
 def _polygons(spec, crs, reproject, against):
