@@ -208,35 +208,40 @@ def envelope(levels: list, pairs: list, t: float = 4.0) -> np.ndarray:
     triangles = []
     for li, lc, ui, uc in pairs:
         zl, zu = levels[li][0], levels[ui][0]
-        if lc.kind == "chain" and uc.kind == "chain":
-            rings = list(zip(lc.rings, uc.rings)) if len(lc.rings) == len(uc.rings) else None
-            if rings is None:
-                raise InputError(f"clusters at {zl} and {zu} have {len(lc.rings)} and {len(uc.rings)} loops",
-                                 hint="Loops of matched chains must correspond one to one")
-        elif lc.kind == "chain":  # chain below a sown: its loop projected up, snapped to the sown's points within t
-            rings = [(r, _snap(r, uc.xy, t)) for r in lc.rings]
-        else:  # a sown below a chain: the chain's loop projected down, snapped likewise
-            rings = [(_snap(r, lc.xy, t), r) for r in uc.rings]
-        for rl, ru in rings:
-            lo = np.column_stack([rl, np.full(len(rl), zl)])
-            hi = np.column_stack([ru, np.full(len(ru), zu)])
-            triangles.append(band(lo, hi))
+        for rl, ru in _paired_rings(lc, uc, zl, zu, t):
+            triangles.append(band(np.column_stack([rl, np.full(len(rl), zl)]), np.column_stack([ru, np.full(len(ru), zu)])))
             leaving[li].append(rl)
             arriving[ui].append(ru)
     for i, (z, _) in enumerate(levels):
-        d = level_region(arriving[i])
-        u = level_region(leaving[i])
-        verts = np.vstack(arriving[i] + leaving[i]) if arriving[i] or leaving[i] else np.empty((0, 2))
-        if not len(verts):
-            continue
-        roof = shapely.difference(d, u)
-        floor = shapely.difference(u, d)
-        for region, up in ((roof, True), (floor, False)):
-            if not region.is_empty and region.area > 1e-9:
-                flat = _flat_triangles(region, verts, z, up)
-                if flat:
-                    triangles.append(np.stack(flat))
+        triangles += _roof_and_floor(arriving[i], leaving[i], z)
     return np.concatenate(triangles) if triangles else np.zeros((0, 3, 3))
+
+
+def _paired_rings(lc, uc, zl: float, zu: float, t: float) -> list:
+    """(lower ring, upper ring) of each band between two matched clusters."""
+    if lc.kind == "chain" and uc.kind == "chain":
+        if len(lc.rings) != len(uc.rings):
+            raise InputError(f"clusters at {zl} and {zu} have {len(lc.rings)} and {len(uc.rings)} loops",
+                             hint="Loops of matched chains must correspond one to one")
+        return list(zip(lc.rings, uc.rings))
+    if lc.kind == "chain":  # chain below a sown: its loop projected up, snapped to the sown's points within t
+        return [(r, _snap(r, uc.xy, t)) for r in lc.rings]
+    return [(_snap(r, lc.xy, t), r) for r in uc.rings]  # a sown below a chain: the chain's loop projected down
+
+
+def _roof_and_floor(arriving: list, leaving: list, z: float) -> list:
+    """Flat triangles of a level: roofs where bands arrive and none leave, floors where they leave and none arrive."""
+    if not arriving and not leaving:
+        return []
+    d, u = level_region(arriving), level_region(leaving)
+    verts = np.vstack(arriving + leaving)
+    out = []
+    for region, up in ((shapely.difference(d, u), True), (shapely.difference(u, d), False)):
+        if not region.is_empty and region.area > 1e-9:
+            flat = _flat_triangles(region, verts, z, up)
+            if flat:
+                out.append(np.stack(flat))
+    return out
 
 
 def winding_number(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -89,7 +89,6 @@ def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 
 def _reconstruct_levels(pts, log, level, *, h, d, t, eps_z, progress) -> Structure:
     params = estimate_parameters(pts, h=h, d=d, t=t, eps_z=eps_z)
     report(progress, 0.2, "clusters")
-    spacing = params.estimated["spacing"]
     levels = []
     index = 0
     xy_all = pts[["x", "y"]].to_numpy(np.float64)
@@ -100,42 +99,54 @@ def _reconstruct_levels(pts, log, level, *, h, d, t, eps_z, progress) -> Structu
         clusters = []
         for lab in np.unique(labels):
             idx = sel[labels == lab]
-            xy = xy_all[idx]
-            c = Cluster(index, lev, z, pts["id"].to_numpy()[idx], xy)
+            clusters.append(_cluster(Cluster(index, lev, z, pts["id"].to_numpy()[idx], xy_all[idx]),
+                                     params.estimated["spacing"], params.t))
             index += 1
-            # a plate ("sown") closes faces between its points and has points off their outline; else an outline
-            foot = sown_footprint(xy) if len(xy) >= 3 else shapely.Polygon()
-            c.kind = classify_cluster(xy, foot, spacing, params.t) if not foot.is_empty else "chain"
-            loops = chain_loops(xy) if c.kind == "chain" else None
-            c.rings = [xy[r] for r in loops] if c.kind == "chain" else [np.asarray(r.coords)[:-1] for r in
-                                                                         shapely.get_parts(foot.boundary)]
-            c.footprint = shapely.Polygon(c.rings[0]) if c.kind == "chain" else foot
-            clusters.append(c)
-        # even-odd nesting of the chain loops of a level: a loop inside another is a hole, wound clockwise
-        chains = [c for c in clusters if c.kind == "chain"]
-        for c in chains:
-            inside = sum(1 for o in chains if o is not c and o.footprint.contains(c.footprint))
-            if inside % 2 == 1:
-                c.rings = [r[::-1] for r in c.rings]
-                c.hole = True
-            else:
-                c.hole = False
+        _mark_holes(clusters)
         levels.append((z, clusters))
     report(progress, 0.5, "matching")
+    pairs = _matched_pairs(levels, params)
+    report(progress, 0.7, "envelope")
+    tris = envelope(levels, pairs, params.t)
+    vertices, faces = mesh_from_triangles(tris)
+    return Structure(pts, log, params, levels, pairs, vertices, faces)
+
+
+def _cluster(c: Cluster, spacing: float, t: float) -> Cluster:
+    """Kind, rings and footprint of a cluster: a plate ("sown") closes faces between its points and has points
+    off their outline; else an outline ("chain") through its points."""
+    xy = c.xy
+    foot = sown_footprint(xy) if len(xy) >= 3 else shapely.Polygon()
+    c.kind = classify_cluster(xy, foot, spacing, t) if not foot.is_empty else "chain"
+    if c.kind == "chain":
+        c.rings = [xy[r] for r in chain_loops(xy)]
+        c.footprint = shapely.Polygon(c.rings[0])
+    else:
+        c.rings = [np.asarray(r.coords)[:-1] for r in shapely.get_parts(foot.boundary)]
+        c.footprint = foot
+    return c
+
+
+def _mark_holes(clusters: list) -> None:
+    """Even-odd nesting of the chain loops of a level: a loop inside another is a hole, wound clockwise."""
+    chains = [c for c in clusters if c.kind == "chain"]
+    for c in chains:
+        inside = sum(1 for o in chains if o is not c and o.footprint.contains(c.footprint))
+        c.hole = inside % 2 == 1
+        if c.hole:
+            c.rings = [r[::-1] for r in c.rings]
+
+
+def _matched_pairs(levels: list, params) -> list:
+    """(level, cluster, level + 1, cluster) of consecutive levels within h whose clusters match (two plates never)."""
     pairs = []
     for i in range(len(levels) - 1):
         if levels[i + 1][0] - levels[i][0] > params.h + 1e-9:
             continue
         for lc in levels[i][1]:
-            for uc in levels[i + 1][1]:
-                if lc.kind == "sown" and uc.kind == "sown":
-                    continue
-                if match_clusters(lc, uc, params.t):
-                    pairs.append((i, lc, i + 1, uc))
-    report(progress, 0.7, "envelope")
-    tris = envelope(levels, pairs, params.t)
-    vertices, faces = mesh_from_triangles(tris)
-    return Structure(pts, log, params, levels, pairs, vertices, faces)
+            pairs += [(i, lc, i + 1, uc) for uc in levels[i + 1][1]
+                      if not (lc.kind == "sown" and uc.kind == "sown") and match_clusters(lc, uc, params.t)]
+    return pairs
 
 
 def _mesh_stats(vertices, faces) -> dict:
