@@ -160,52 +160,22 @@ def _duplicates(x, y, z, ids, s: OutlierSettings):
 
 
 def find_outliers(points: pd.DataFrame, layers, settings: OutlierSettings | None = None):
-    """(kept points, flags): flags has id, layer, flag, residual, x, y, z, kept (False = removed from the surface)."""
+    """(kept points, flags): flags has id, layer, flag, residual, x, y, z, kept (False = removed from the surface).
+
+    The rules run in order over every layer: repeated ids renamed, duplicates, points outside the cloud, points
+    of the wrong layer (each rule sees what the ones before it kept)."""
     s = settings or OutlierSettings()
     rows = []
     keep = np.ones(len(points), bool)
     pts = points.reset_index(drop=True).copy()
-    # repeated ids at other positions: renamed, kept
     for layer in layers:
-        sub = pts.index[pts["layer"] == layer]
-        dup_ids = pts.loc[sub, "id"].duplicated(keep="first")
-        if dup_ids.any():
-            next_id = int(pts["id"].max()) + 1
-            for i in sub[dup_ids.to_numpy()]:
-                rows.append((int(pts.at[i, "id"]), layer, "renamed_id", np.nan, i, True))
-                pts.at[i, "id"] = next_id
-                next_id += 1
-    for layer in layers:
-        sub = np.flatnonzero((pts["layer"] == layer).to_numpy())
-        x, y, z = (pts[c].to_numpy(np.float64)[sub] for c in ("x", "y", "z"))
-        ids = pts["id"].to_numpy()[sub]
-        for i, r in _duplicates(x, y, z, ids, s):
-            keep[sub[i]] = False
-            rows.append((int(ids[i]), layer, "dup", r, sub[i], False))
-    for layer in layers:
-        sub = np.flatnonzero((pts["layer"] == layer).to_numpy() & keep)
-        other = np.flatnonzero((pts["layer"] != layer).to_numpy() & keep)
-        x, y = pts["x"].to_numpy(np.float64), pts["y"].to_numpy(np.float64)
-        if len(sub) > 2 and len(other) > 2:
-            d, _ = cKDTree(np.column_stack([x[sub], y[sub]])).query(np.column_stack([x[sub], y[sub]]), 2)
-            far = d[:, 1] > s.f_nn * np.median(d[:, 1])
-            if far.any():
-                hull = shapely.convex_hull(shapely.multipoints(np.column_stack([x[other], y[other]])))
-                if hull.area > 0:
-                    outside = ~shapely.intersects_xy(hull, x[sub][far], y[sub][far])
-                else:  # the other layers do not span an area: no hull to be outside of
-                    outside = np.zeros(int(far.sum()), bool)
-                for i, d_nn in zip(sub[far][outside], d[far, 1][outside]):
-                    keep[i] = False
-                    rows.append((int(pts.at[i, "id"]), layer, "outside_cloud", float(d_nn), i, False))
-    for layer in layers:
-        sub = np.flatnonzero((pts["layer"] == layer).to_numpy() & keep)
-        x, y, z = (pts[c].to_numpy(np.float64)[sub] for c in ("x", "y", "z"))
-        x, y = x - x.mean(), y - y.mean()
-        flagged, _ = _wrong_layer(x, y, z, np.ones(len(sub), bool), s)
-        for i, r in flagged:
-            keep[sub[i]] = False
-            rows.append((int(pts.at[sub[i], "id"]), layer, "wrong_layer", r, sub[i], False))
+        rows += _rename_repeated_ids(pts, layer)
+    for rule in (_flag_duplicates, _flag_outside_cloud, _flag_wrong_layer):
+        for layer in layers:
+            found = rule(pts, layer, keep, s)
+            for _, _, _, _, row, _ in found:
+                keep[row] = False
+            rows += found
     flags = pd.DataFrame(rows, columns=["id", "layer", "flag", "residual", "row", "kept"])
     for c in ("x", "y", "z"):
         flags[c] = pts[c].to_numpy()[flags["row"].to_numpy(np.int64)] if len(flags) else []
@@ -213,6 +183,54 @@ def find_outliers(points: pd.DataFrame, layers, settings: OutlierSettings | None
         flags["line"] = pts["line"].to_numpy()[flags["row"].to_numpy(np.int64)]
     flags = flags.drop(columns="row")
     return pts[keep].reset_index(drop=True), flags
+
+
+def _rename_repeated_ids(pts: pd.DataFrame, layer) -> list:
+    """Repeated ids at other positions in a layer get new ids (in place); they are kept."""
+    rows = []
+    sub = pts.index[pts["layer"] == layer]
+    dup_ids = pts.loc[sub, "id"].duplicated(keep="first")
+    if dup_ids.any():
+        next_id = int(pts["id"].max()) + 1
+        for i in sub[dup_ids.to_numpy()]:
+            rows.append((int(pts.at[i, "id"]), layer, "renamed_id", np.nan, i, True))
+            pts.at[i, "id"] = next_id
+            next_id += 1
+    return rows
+
+
+def _flag_duplicates(pts: pd.DataFrame, layer, keep, s: OutlierSettings) -> list:
+    sub = np.flatnonzero((pts["layer"] == layer).to_numpy())
+    x, y, z = (pts[c].to_numpy(np.float64)[sub] for c in ("x", "y", "z"))
+    ids = pts["id"].to_numpy()[sub]
+    return [(int(ids[i]), layer, "dup", r, sub[i], False) for i, r in _duplicates(x, y, z, ids, s)]
+
+
+def _flag_outside_cloud(pts: pd.DataFrame, layer, keep, s: OutlierSettings) -> list:
+    """Points far from their layer's others (NN distance > f_nn x the median) and outside the other layers' hull."""
+    sub = np.flatnonzero((pts["layer"] == layer).to_numpy() & keep)
+    other = np.flatnonzero((pts["layer"] != layer).to_numpy() & keep)
+    if len(sub) <= 2 or len(other) <= 2:
+        return []
+    x, y = pts["x"].to_numpy(np.float64), pts["y"].to_numpy(np.float64)
+    d, _ = cKDTree(np.column_stack([x[sub], y[sub]])).query(np.column_stack([x[sub], y[sub]]), 2)
+    far = d[:, 1] > s.f_nn * np.median(d[:, 1])
+    if not far.any():
+        return []
+    hull = shapely.convex_hull(shapely.multipoints(np.column_stack([x[other], y[other]])))
+    if hull.area <= 0:  # the other layers do not span an area: no hull to be outside of
+        return []
+    outside = ~shapely.intersects_xy(hull, x[sub][far], y[sub][far])
+    return [(int(pts.at[i, "id"]), layer, "outside_cloud", float(d_nn), i, False)
+            for i, d_nn in zip(sub[far][outside], d[far, 1][outside])]
+
+
+def _flag_wrong_layer(pts: pd.DataFrame, layer, keep, s: OutlierSettings) -> list:
+    sub = np.flatnonzero((pts["layer"] == layer).to_numpy() & keep)
+    x, y, z = (pts[c].to_numpy(np.float64)[sub] for c in ("x", "y", "z"))
+    x, y = x - x.mean(), y - y.mean()
+    flagged, _ = _wrong_layer(x, y, z, np.ones(len(sub), bool), s)
+    return [(int(pts.at[sub[i], "id"]), layer, "wrong_layer", r, sub[i], False) for i, r in flagged]
 
 
 def order_violations(points: pd.DataFrame, surfaces: dict, layers, tol: float = 1.0) -> pd.DataFrame:
