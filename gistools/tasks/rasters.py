@@ -470,65 +470,92 @@ def rasters_from_tiles(
 def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, jobs, overwrite, progress, scheduler,
                 pool) -> dict:
     results = {p.stem: TileResult(name=p.stem, path=str(p)) for p in paths}
-    infos: list[TileInfo] = []
+    infos = _readable_tiles(paths, override, results)
+    run = None
+    scratch_peak = 0
+    if infos:
+        crs = common_crs(infos)
+        scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=out))
+        try:
+            run = _run_parameters(infos[0], crs, settings, out, scratch)
+            infos = _griddable(infos, run, results, settings)
+            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
+        finally:
+            shutil.rmtree(scratch, ignore_errors=True)
+    summary = _summary(infos, run, settings, results, _mosaics(out, settings.products, results), scratch_peak, started)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(summary, indent=2))
+    return summary
+
+
+def _readable_tiles(paths, override, results) -> list[TileInfo]:
+    """The headers that read; the others are marked failed."""
+    infos = []
     for p in paths:
         try:
             infos.append(read_tile_info(p, override))
         except GistoolsError as err:
             fail(results[p.stem], err)
-    run = None
-    scratch_peak = 0
-    if infos:
-        crs = common_crs(infos)
-        unit, z_unit = infos[0].unit, infos[0].z_unit
-        cell_size = length_to_crs_units(settings.cell_size, unit, name="cell size")
-        max_distance = length_to_crs_units(settings.dem_max_distance, unit, name="DEM max distance")
-        buffer = (
-            length_to_crs_units(settings.buffer, unit, name="buffer")
-            if settings.buffer is not None
-            else max(2 * max_distance, 20 * cell_size)
-        )
-        sized = []
-        for info in infos:  # a grid too big for memory (cell size far too small, bogus header bounds) is refused
-            try:
-                check_grid_size(info.bounds, cell_size, str(info.path), unit=unit.short)
-                sized.append(info)
-            except GistoolsError as err:
-                fail(results[info.name], err)
-        if not sized and infos:
-            raise InputError(f"no tile can be gridded at cell size {settings.cell_size}: {results[infos[0].name].error}")
-        infos = sized
-        scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=out))
-        run = _Run(
-            cell_size=cell_size, dem_method=settings.dem_method,
-            dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
-            max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
-            out=str(out), crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
-            products=tuple(p for p in PRODUCTS if p in settings.products),
-            tin_block_points=settings.tin_block_points,
-            return_breaks=None if settings.return_band_breaks is None else tuple(
-                length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
-        )
+    return infos
+
+
+def _run_parameters(first: TileInfo, crs, settings: RasterSettings, out: Path, scratch: Path) -> _Run:
+    """The run's parameters in the tiles' units (lengths converted through the CRS)."""
+    unit, z_unit = first.unit, first.z_unit
+    cell_size = length_to_crs_units(settings.cell_size, unit, name="cell size")
+    max_distance = length_to_crs_units(settings.dem_max_distance, unit, name="DEM max distance")
+    buffer = (length_to_crs_units(settings.buffer, unit, name="buffer") if settings.buffer is not None
+              else max(2 * max_distance, 20 * cell_size))
+    return _Run(
+        cell_size=cell_size, dem_method=settings.dem_method,
+        dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
+        max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
+        out=str(out), crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
+        products=tuple(p for p in PRODUCTS if p in settings.products),
+        tin_block_points=settings.tin_block_points,
+        return_breaks=None if settings.return_band_breaks is None else tuple(
+            length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
+    )
+
+
+def _griddable(infos: list[TileInfo], run: _Run, results, settings: RasterSettings) -> list[TileInfo]:
+    """The tiles whose grid fits in memory (a cell size far too small, or bogus header bounds, are refused)."""
+    sized = []
+    for info in infos:
         try:
-            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
-        finally:
-            shutil.rmtree(scratch, ignore_errors=True)
+            check_grid_size(info.bounds, run.cell_size, str(info.path), unit=info.unit.short)
+            sized.append(info)
+        except GistoolsError as err:
+            fail(results[info.name], err)
+    if not sized:
+        raise InputError(f"no tile can be gridded at cell size {settings.cell_size}: {results[infos[0].name].error}")
+    return sized
+
+
+def _mosaics(out: Path, products, results) -> dict:
+    """A VRT of each product over the tiles that are ok or kept."""
     vrts = {}
-    for product in settings.products:
+    for product in products:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
         mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
         if mine:
             vrts[product] = str(write_vrt(out / f"{product}.vrt", mine))
-    summary = {
+    return vrts
+
+
+def _summary(infos, run, settings: RasterSettings, results, vrts: dict, scratch_peak: int, started: float) -> dict:
+    """report.json of a rasters run."""
+    first = infos[0] if infos else None
+    return {
         "tool": "gistools rasters",
-        "crs": crs_label(infos[0].crs) if infos else None,
+        "crs": crs_label(first.crs) if first else None,
         "crs_wkt": run.crs_wkt if run else None,
-        "horizontal_unit": infos[0].unit.name if infos else None,
-        "vertical_unit": infos[0].z_unit.name if infos else None,
-        "horizontal_unit_m": infos[0].unit.metres if infos else None,
-        "vertical_unit_m": infos[0].z_unit.metres if infos else None,
+        "horizontal_unit": first.unit.name if first else None,
+        "vertical_unit": first.z_unit.name if first else None,
+        "horizontal_unit_m": first.unit.metres if first else None,
+        "vertical_unit_m": first.z_unit.metres if first else None,
         "cell_size": run.cell_size if run else None,
-        "cell_size_m": run.cell_size * infos[0].unit.metres if run else None,
+        "cell_size_m": run.cell_size * first.unit.metres if run else None,
         "dem_method": settings.dem_method,
         "dem_max_distance": run.max_distance if run else None,
         "buffer": run.buffer if run else None,
@@ -539,9 +566,6 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
         "scratch_peak_tiles": scratch_peak if run else 0,
         "seconds": round(time.time() - started, 3),
     }
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(summary, indent=2))
-    return summary
 
 
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
