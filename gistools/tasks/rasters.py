@@ -350,14 +350,37 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     """
     crs = crs_from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
-    scratch = Path(run.scratch)
-    own = grids_folder(scratch, info.name)
+    own = grids_folder(run.scratch, info.name)
     dsm, top_class, bare_first = (load_grid(own, k) for k in ("dsm", "top_class", "bare_first"))
     ground_count, water_count = (load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
     own_ground, own_water = int(ground_count.sum()), int(water_count.sum())
-    warnings, used = [], []
+    used, warnings = _merge_neighbours(info, neighbours, run, grid, dsm, top_class, ground_count, water_count)
+    arrays = {"dsm": dsm, "topclass": top_class}
+    return_bands = None
+    if run.products != ("dsm",):
+        dem = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
+        if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
+            warnings.append(_no_ground(info, dem, own_water))
+        arrays["dem"] = dem
+        arrays["ndsm"] = ndsm_from(dsm, dem)
+        if run.return_breaks is not None:
+            return_bands = {
+                "counts": _first_return_bands(Path(run.scratch) / f"{info.name}.first.f8", dem.reshape(-1), run.return_breaks,
+                                              int(bare_first[np.isfinite(dem)].sum())),
+                "dem_cells": int(np.isfinite(dem).sum()),
+                "cell_area": grid.cell_size ** 2,
+                "breaks": list(run.return_breaks),
+            }
+    outputs = _write_tile_rasters(info, run, grid, arrays)
+    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used)}
+
+
+def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, ground_count, water_count):
+    """Take the neighbours' partial grids on the cells they share with this tile (in place); (names of the
+    neighbours read, warnings for those whose pass 1 failed)."""
+    used, warnings = [], []
     for other in neighbours:
-        folder = grids_folder(scratch, other.name)
+        folder = grids_folder(run.scratch, other.name)
         if not folder.is_dir():  # the neighbour failed in pass 1: this tile's edge lacks its points
             warnings.append(f"{info.path}: neighbour {other.name} could not be read, so the cells near it lack its "
                             "points; a rerun recomputes this tile once the neighbour reads")
@@ -371,64 +394,59 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
             dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"])
             ground_count[rs, cs_] += nb["ground_count"]
             water_count[rs, cs_] += nb["water_count"]
-            del nb
-    arrays = {"dsm": dsm, "topclass": top_class}
-    return_bands = None
-    if run.products != ("dsm",):
-        water = (water_count > 0) & (ground_count == 0)
-        b = run.buffer
-        gw, gs, ge, gn = grid.bounds
-        # a neighbour's halo strips hold its points within the buffer of its edges; its other points can lie
-        # within the buffer of this tile only when the two tiles overlap (overlapping deliveries): read it whole
-        deep = {o.name: o.bounds[0] < ge and o.bounds[2] > gw and o.bounds[1] < gn and o.bounds[3] > gs
-                for o in neighbours}
-        dem = np.full(grid.shape, np.nan)
-        for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
-            strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, crs)
-            w, s, e, n = strip.bounds
-            box = (w - b, s - b, e + b, n + b)
-            sources = ground_sources(scratch, info.name, box)
-            for o in neighbours:
-                sources += ground_sources(scratch, o.name, box, deep=deep[o.name])
-            x, y, z = read_ground(sources, box)
-            if run.dem_method == "tin":  # the same values as one TIN of all the points, on fewer of them
-                dem[r0:r1] = tin_dem_with_halo(x, y, z, strip, halo=b, max_distance=run.max_distance, water=water[r0:r1])
-            else:
-                dem[r0:r1] = dem_from_ground_points(x, y, z, strip, method=run.dem_method,
-                                                    max_distance=run.max_distance, water=water[r0:r1])
-            del x, y, z
-        if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
-            filled = int(np.isfinite(dem).sum())
-            if filled == 0 and own_water == 0:
-                raise DataFileError("the tile has no ground (class 2) points, so its DEM and nDSM would be empty",
-                                    path=info.path, hint="Classify ground first (e.g. PDAL filters.smrf or lasground), "
-                                                         "or leave the tile out")
-            warnings.append(f"{info.path}: no ground (class 2) points in the tile; its DEM has {filled:,} of "
-                            f"{dem.size:,} cells, from the neighbours' ground" + (" (the rest is water)" if own_water else ""))
-        arrays["dem"] = dem
-        arrays["ndsm"] = ndsm_from(dsm, dem)
-        if run.return_breaks is not None:
-            return_bands = {
-                "counts": _first_return_bands(Path(run.scratch) / f"{info.name}.first.f8", dem.reshape(-1), run.return_breaks,
-                                              int(bare_first[np.isfinite(dem)].sum())),
-                "dem_cells": int(np.isfinite(dem).sum()),
-                "cell_area": grid.cell_size ** 2,
-                "breaks": list(run.return_breaks),
-            }
+    return used, warnings
+
+
+def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> np.ndarray:
+    """The DEM of a tile from its ground points and its neighbours' within the buffer, in strips of rows."""
+    b = run.buffer
+    gw, gs, ge, gn = grid.bounds
+    # a neighbour's halo strips hold its points within the buffer of its edges; its other points can lie
+    # within the buffer of this tile only when the two tiles overlap (overlapping deliveries): read it whole
+    deep = {o.name: o.bounds[0] < ge and o.bounds[2] > gw and o.bounds[1] < gn and o.bounds[3] > gs for o in neighbours}
+    dem = np.full(grid.shape, np.nan)
+    for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
+        strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
+        w, s, e, n = strip.bounds
+        box = (w - b, s - b, e + b, n + b)
+        sources = ground_sources(run.scratch, info.name, box)
+        for o in neighbours:
+            sources += ground_sources(run.scratch, o.name, box, deep=deep[o.name])
+        x, y, z = read_ground(sources, box)
+        if run.dem_method == "tin":  # the same values as one TIN of all the points, on fewer of them
+            dem[r0:r1] = tin_dem_with_halo(x, y, z, strip, halo=b, max_distance=run.max_distance, water=water[r0:r1])
+        else:
+            dem[r0:r1] = dem_from_ground_points(x, y, z, strip, method=run.dem_method,
+                                                max_distance=run.max_distance, water=water[r0:r1])
+        del x, y, z
+    return dem
+
+
+def _no_ground(info, dem, own_water: int) -> str:
+    """The warning for a tile without ground points, or the error when its DEM is empty and it is not water."""
+    filled = int(np.isfinite(dem).sum())
+    if filled == 0 and own_water == 0:
+        raise DataFileError("the tile has no ground (class 2) points, so its DEM and nDSM would be empty",
+                            path=info.path, hint="Classify ground first (e.g. PDAL filters.smrf or lasground), "
+                                                 "or leave the tile out")
+    return (f"{info.path}: no ground (class 2) points in the tile; its DEM has {filled:,} of "
+            f"{dem.size:,} cells, from the neighbours' ground" + (" (the rest is water)" if own_water else ""))
+
+
+def _write_tile_rasters(info, run: _Run, grid: Grid, arrays: dict) -> dict:
+    """Every product of a tile (a tile reaches pass 2 only when its outputs are incomplete, or --overwrite)."""
     outputs = {}
-    # a tile reaches pass 2 only when its outputs are incomplete (or --overwrite): all of them are rewritten
     tags = {"GISTOOLS_CELL_SIZE": run.cell_size, "GISTOOLS_Z_UNIT": run.z_unit, "GISTOOLS_DEM_METHOD": run.dem_method}
     for product in run.products:
         path = Path(run.out) / product / f"{info.name}.tif"
         if product == "topclass":
             write_raster(path, arrays[product], grid, overwrite=True, nodata=TOPCLASS_NODATA, dtype="uint8",
                          tags={**tags, "GISTOOLS_PRODUCT": product}, description="class of the highest first return")
-            outputs[product] = str(path)
-            continue
-        write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
-                     tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
+        else:
+            write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
+                         tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
         outputs[product] = str(path)
-    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used)}
+    return outputs
 
 
 def rasters_from_tiles(
