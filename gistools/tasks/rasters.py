@@ -38,7 +38,8 @@ from ..progress import ProgressCallback, report
 from .batch import fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
-from .resume import TILE_FIELDS, check_same_settings, complete_tile, read_tile_report, run_settings, write_tile_report
+from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
+from .schedule import TwoPassSchedule
 from ..units import length_to_crs_units
 from ..validation import check_scheduler, check_count, check_grid_size, check_length
 
@@ -587,152 +588,71 @@ def _summary(infos, run, settings: RasterSettings, results, vrts: dict, scratch_
 
 
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
-                shared_pool=None) -> None:
+                shared_pool=None) -> int:
+    """Both passes over the tiles (kept tiles of an earlier run skipped); returns the scratch's peak in tiles."""
     out = Path(run.out)
     settings = run_settings(run)
-    kept = {}
     neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
-    if not overwrite:
-        for i in infos:
-            rep = read_tile_report(out, i.name)
-            if rep is not None:
-                check_same_settings(out, i.name, rep.get("settings"), settings)
-            kept[i.name] = complete_tile(out, i.name, rep, run.products, run.return_breaks)
-            missing = {n.name for n in neighbours[i.name]} - set((rep or {}).get("neighbours") or [])
-            if kept[i.name] is not None and missing:  # made without a neighbour that reads now: its edge is stale
-                log.info("%s: recomputed, its neighbours %s were not read when it was made", i.name, sorted(missing))
-                kept[i.name] = None
+    kept = {} if overwrite else kept_tiles(out, infos, neighbours, run, settings)
     todo = {i.name for i in infos if kept.get(i.name) is None}
-    for i in infos:
-        if i.name not in todo:
-            results[i.name].status = "skipped"
-            for k in TILE_FIELDS:
-                if k in kept[i.name] and k != "seconds":  # the time it took is the earlier run's
-                    setattr(results[i.name], k, kept[i.name][k])
-    needed = set(todo)
-    for name in todo:
-        needed |= {n.name for n in neighbours[name]}
-    scan = [i for i in infos if i.name in needed]
-    total = max(len(scan) + len(todo), 1)
-    state = {"done": 0}
-
-    def tick(message):
-        state["done"] += 1
-        failed = sum(r.status == "failed" for r in results.values())
-        report(progress, state["done"] / total, f"{message} | {len(todo)} tiles, {failed} failed")
-
-    def within_tile(fraction, message):  # chunk progress inside the current tile (inline runs)
-        return None if progress is None else progress((state["done"] + fraction) / total, message)
-
-    # Pass 1
-    def scan_done(info, value, seconds):
-        r = results[info.name]
-        r.points, r.points_by_class = value["points"], value["points_by_class"]
-        r.points_by_return = value["points_by_return"]
-        r.points_outside_header_bounds = value["points_outside_header_bounds"]
-        r.warnings = list(value.get("warnings", []))
-        for w in r.warnings:
-            log.warning("%s", w)
-        r.seconds += seconds
-
-    def grid_done(info, value, seconds):
-        r = results[info.name]
-        r.outputs = value["outputs"]
-        r.first_return_bands = value["first_return_bands"]
-        r.neighbours = value["neighbours"]
-        new = list(value.get("warnings", []))
-        r.warnings = r.warnings + new
-        for w in new:
-            log.warning("%s", w)
-        r.seconds += seconds
-        write_tile_report(out, r, settings)
-
-    # Tiles go north to south, west to east. A tile is gridded as soon as it and its neighbours are read,
-    # and a tile's scratch files are deleted once every tile that reads them is gridded: the scratch
-    # holds a front of a few tile rows, not the whole county.
+    for name, rep in kept.items():
+        if rep is not None:
+            _take_kept(results[name], rep)
+    needed = set(todo).union(*({n.name for n in neighbours[name]} for name in todo))
+    scan = sorted((i for i in infos if i.name in needed), key=lambda i: (-i.bounds[3], i.bounds[0]))
+    schedule = TwoPassSchedule([i.name for i in scan], todo,
+                               {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo})
     by_name = {i.name: i for i in infos}
-    scan_order = [i.name for i in sorted(scan, key=lambda i: (-i.bounds[3], i.bounds[0]))]
-    grid_order = [n for n in scan_order if n in todo]
-    deps = {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo}
-    users = {v: {n for n in todo if v in deps[n]} for v in needed}
-    scanned, gridded, started = set(), set(), set()
+    ticker = _Ticker(progress, max(len(scan) + len(todo), 1), results, len(todo))
     pending: dict = {}
-    state["scratch_peak"] = 0
-
-    def release(names):
-        for v in names:
-            if users[v] <= gridded:
-                for f in Path(run.scratch).glob(f"{v}.*"):
-                    if f.is_dir():
-                        shutil.rmtree(f, ignore_errors=True)
-                    else:
-                        f.unlink()
 
     def finish(kind, name, value, seconds, err):
-        info = by_name[name]
         if err is not None:
             raise_output_error(err, run.out)  # a full disk or a read-only --out stops the run: it is no tile's fault
             fail(results[name], err)
         elif kind == "scan":
-            scan_done(info, value, seconds)
+            _scan_done(results[name], value, seconds)
         else:
-            grid_done(info, value, seconds)
-        if kind == "scan":
-            scanned.add(name)
-            state["scratch_peak"] = max(state["scratch_peak"], len(scanned) - sum(users[v] <= gridded for v in scanned))
-        else:
-            gridded.add(name)
-            release(deps[name])
-        tick(f"{name} {'read' if kind == 'scan' else 'gridded'}")
+            _grid_done(results[name], value, seconds)
+            write_tile_report(out, results[name], settings)
+        schedule.done(kind, name)
+        _release(run.scratch, schedule.releasable())
+        ticker.tick(f"{name} {'read' if kind == 'scan' else 'gridded'}")
 
     def start(kind, name):
         fn, args = (_scan_tile, (by_name[name], run)) if kind == "scan" else (_grid_tile, (by_name[name], neighbours[name], run))
-        if pool is None:
-            try:
-                inner = (within_tile,) if kind == "scan" and progress is not None else ()
-                value, seconds = timed(fn, (*args, *inner))
-            except Cancelled:
-                raise
-            except Exception as err:  # one bad tile never stops the batch; it is reported
-                finish(kind, name, None, 0.0, err)
-                return
-            finish(kind, name, value, seconds, None)
-        else:
+        if pool is not None:
             pending[pool.submit(worker_timed, fn, args)] = (kind, name)
+            return
+        try:
+            value, seconds = timed(fn, (*args, *((ticker.within_tile,) if kind == "scan" and progress else ())))
+        except Cancelled:
+            raise
+        except Exception as err:  # one bad tile never stops the batch; it is reported
+            return finish(kind, name, None, 0.0, err)
+        finish(kind, name, value, seconds, None)
 
-    def next_task():
-        for n in grid_order:
-            if n not in started and deps[n] <= scanned:
-                started.add(n)
-                if results[n].status == "failed":  # its own read failed: nothing to grid
-                    gridded.add(n)
-                    release(deps[n])
-                    continue
-                return "grid", n
-        for n in scan_order:
-            if n not in started and ("scan", n) not in started:
-                started.add(("scan", n))
-                return "scan", n
-        return None
+    def failed(name):
+        return results[name].status == "failed"
 
     pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan))
     in_flight = 1 if pool is None else 2 * max(jobs, 1)
     try:
         while True:
-            while len(pending) < in_flight:
-                task = next_task()
-                if task is None:
-                    break
+            while len(pending) < in_flight and (task := schedule.next_task(failed)) is not None:
+                _release(run.scratch, schedule.releasable())
                 start(*task)
+            _release(run.scratch, schedule.releasable())
             if not pending:  # everything started has finished and nothing more can start
                 break
             for fut in pool.wait_first(pending):
                 kind, name = pending.pop(fut)
                 try:
                     value, seconds = fut.result()
-                    finish(kind, name, value, seconds, None)
                 except Exception as err:  # incl. a worker crash: reported per tile
                     finish(kind, name, None, 0.0, err)
+                    continue
+                finish(kind, name, value, seconds, None)
     except BaseException:
         if pool is not None and shared_pool is None:
             pool.close(list(pending))
@@ -743,4 +663,58 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
     finally:
         if pool is not None and shared_pool is None:
             pool.close()
-    return state["scratch_peak"]
+    return schedule.scratch_peak
+
+
+class _Ticker:
+    """Progress over the tiles' steps (reads and griddings), and within a tile's read for inline runs."""
+
+    def __init__(self, progress, total: int, results: dict, tiles: int):
+        self.progress, self.total, self.results, self.tiles, self.done = progress, total, results, tiles, 0
+
+    def tick(self, message: str) -> None:
+        self.done += 1
+        failed = sum(r.status == "failed" for r in self.results.values())
+        report(self.progress, self.done / self.total, f"{message} | {self.tiles} tiles, {failed} failed")
+
+    def within_tile(self, fraction, message):
+        return None if self.progress is None else self.progress((self.done + fraction) / self.total, message)
+
+
+def _take_kept(result: TileResult, rep: dict) -> None:
+    """A tile kept from an earlier run: status skipped, with what that run found (not the time it took)."""
+    result.status = "skipped"
+    for k in TILE_FIELDS:
+        if k in rep and k != "seconds":
+            setattr(result, k, rep[k])
+
+
+def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
+    r.points, r.points_by_class = value["points"], value["points_by_class"]
+    r.points_by_return = value["points_by_return"]
+    r.points_outside_header_bounds = value["points_outside_header_bounds"]
+    r.warnings = list(value.get("warnings", []))
+    for w in r.warnings:
+        log.warning("%s", w)
+    r.seconds += seconds
+
+
+def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
+    r.outputs = value["outputs"]
+    r.first_return_bands = value["first_return_bands"]
+    r.neighbours = value["neighbours"]
+    new = list(value.get("warnings", []))
+    r.warnings = r.warnings + new
+    for w in new:
+        log.warning("%s", w)
+    r.seconds += seconds
+
+
+def _release(scratch, names) -> None:
+    """Delete the scratch files of tiles no tile still needs."""
+    for v in names:
+        for f in Path(scratch).glob(f"{v}.*"):
+            if f.is_dir():
+                shutil.rmtree(f, ignore_errors=True)
+            else:
+                f.unlink(missing_ok=True)

@@ -20,7 +20,7 @@ from ..io.raster import crs_from_wkt, raster_is_readable
 log = logging.getLogger("gistools.tasks.rasters")
 
 __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report", "read_tile_report",
-           "check_same_settings", "complete_tile"]
+           "check_same_settings", "complete_tile", "kept_tiles"]
 
 
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
@@ -94,3 +94,20 @@ def complete_tile(out: Path, name: str, rep: dict | None, products, return_break
     if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
         return None
     return rep
+
+
+def kept_tiles(out: Path, infos, neighbours: dict, run, settings: dict) -> dict:
+    """{tile: its earlier report, or None when it is to be made}: complete tiles of an earlier run with the same
+    settings (another setting is refused), except those made without a neighbour that reads now (stale edge)."""
+    kept = {}
+    for i in infos:
+        rep = read_tile_report(out, i.name)
+        if rep is not None:
+            check_same_settings(out, i.name, rep.get("settings"), settings)
+        kept[i.name] = complete_tile(out, i.name, rep, run.products, run.return_breaks)
+        missing = {n.name for n in neighbours[i.name]} - set((rep or {}).get("neighbours") or [])
+        if kept[i.name] is not None and missing:
+            log.info("%s: recomputed, its neighbours %s were not read when it was made", i.name, sorted(missing))
+            kept[i.name] = None
+    return kept
+
