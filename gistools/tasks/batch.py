@@ -20,7 +20,7 @@ from ..errors import Cancelled, GistoolsError, InputError
 from ..io.atomic import raise_output_error
 from ..progress import check_interrupt
 
-__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "fail"]
+__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "drive", "fail"]
 
 
 def fail(result, err: BaseException, out=None) -> None:
@@ -247,3 +247,35 @@ def make_pool(jobs: int, scheduler: str | None, n_tasks: int):
     if jobs > 1 and n_tasks > 1:
         return ProcessPool(jobs)
     return None
+
+
+def drive(pool, owned: bool, in_flight: int, next_task, start, pending: dict, finish) -> None:
+    """Keep up to ``in_flight`` tasks going: ``next_task()`` gives (kind, name) or None, ``start(kind, name)`` runs it
+    inline (``pool`` None) or puts its future in ``pending``; ``finish(kind, name, value, seconds, err)`` takes each
+    result (a worker's error, a crash included, as ``err``). On any error or Ctrl-C the pending tasks are cancelled,
+    and an ``owned`` pool is stopped at once; it is closed at the end."""
+    try:
+        while True:
+            while len(pending) < in_flight and (task := next_task()) is not None:
+                start(*task)
+            if not pending:  # everything started has finished and nothing more can start
+                break
+            for fut in pool.wait_first(pending):
+                kind, name = pending.pop(fut)
+                try:
+                    value, seconds = fut.result()
+                except Exception as err:  # incl. a worker crash: reported per tile
+                    finish(kind, name, None, 0.0, err)
+                    continue
+                finish(kind, name, value, seconds, None)
+    except BaseException:
+        if pool is not None and owned:
+            pool.close(list(pending))
+        elif pool is not None:  # the caller's pool: cancel this run's tasks, the caller closes it
+            for fut in pending:
+                fut.cancel()
+        raise
+    finally:
+        if pool is not None and owned:
+            pool.close()
+

@@ -35,7 +35,7 @@ from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
-from .batch import fail, make_pool, timed, worker_timed
+from .batch import drive, fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
@@ -632,37 +632,13 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
             return finish(kind, name, None, 0.0, err)
         finish(kind, name, value, seconds, None)
 
-    def failed(name):
-        return results[name].status == "failed"
+    def next_task():
+        task = schedule.next_task(lambda name: results[name].status == "failed")
+        _release(run.scratch, schedule.releasable())
+        return task
 
     pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan))
-    in_flight = 1 if pool is None else 2 * max(jobs, 1)
-    try:
-        while True:
-            while len(pending) < in_flight and (task := schedule.next_task(failed)) is not None:
-                _release(run.scratch, schedule.releasable())
-                start(*task)
-            _release(run.scratch, schedule.releasable())
-            if not pending:  # everything started has finished and nothing more can start
-                break
-            for fut in pool.wait_first(pending):
-                kind, name = pending.pop(fut)
-                try:
-                    value, seconds = fut.result()
-                except Exception as err:  # incl. a worker crash: reported per tile
-                    finish(kind, name, None, 0.0, err)
-                    continue
-                finish(kind, name, value, seconds, None)
-    except BaseException:
-        if pool is not None and shared_pool is None:
-            pool.close(list(pending))
-        elif pool is not None:  # the caller's pool: cancel this run's tasks, the caller closes it
-            for fut in pending:
-                fut.cancel()
-        raise
-    finally:
-        if pool is not None and shared_pool is None:
-            pool.close()
+    drive(pool, pool is not shared_pool, 1 if pool is None else 2 * max(jobs, 1), next_task, start, pending, finish)
     return schedule.scratch_peak
 
 
