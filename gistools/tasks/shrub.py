@@ -119,6 +119,23 @@ class _TileState:
     wetland_vegetation_area: float = 0.0
 
 
+@dataclass(frozen=True)
+class StepParams:
+    """What the steps of a tile need, in the tiles' units (picklable: sent to the workers as it is)."""
+
+    thresholds: tuple  # band limits T1, T2, T3 in the vertical unit
+    noise_floor: float  # vertical unit
+    snap: float  # CRS units, as the lengths below
+    max_road_width: float
+    max_hydro_width: float
+    single_line_width: float
+    radius: float
+    density_bands: tuple
+    overwrite: dict  # stage -> redo it even when its outputs exist
+    band_points: bool
+    crs_wkt: str  # the horizontal CRS
+
+
 def _frames(grid: Grid, footprints) -> list:
     """The tile index polygons that cover this tile's grid (the dissertation's split), or the grid box."""
     gbox = box(*grid.bounds)
@@ -147,16 +164,16 @@ def _existing(out, name, products, overwrite) -> dict | None:
 
 def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:
     """Height bands of one tile (S4-S5)."""
-    done = _existing(out, name, ("bands",), p["overwrite"]["bands"])
+    done = _existing(out, name, ("bands",), p.overwrite["bands"])
     if done:
         return {"outputs": done}
     ndsm, grid, _ = read_raster(ndsm_path)
     top, _, _ = read_raster(top_path)
-    bands = height_bands(ndsm, p["thresholds"], top_is_ground=np.isin(top, GROUNDISH), noise_floor=p["noise_floor"])
+    bands = height_bands(ndsm, p.thresholds, top_is_ground=np.isin(top, GROUNDISH), noise_floor=p.noise_floor)
     path = Path(out) / "bands" / f"{name}.tif"
     write_raster(path, bands, grid, nodata=BAND_NODATA, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "bands"})
     outputs = {"bands": str(path)}
-    if p["band_points"]:
+    if p.band_points:
         outputs["band_points"] = str(_write_band_points(Path(out) / "band_points" / f"{name}.gpkg", bands, ndsm, grid, p))
     return {"outputs": outputs}
 
@@ -172,22 +189,22 @@ def _write_band_points(path: Path, bands, ndsm, grid: Grid, p) -> Path:
     xs, ys = cell_centres(grid)
     gdf = gpd.GeoDataFrame(
         {"band": np.asarray(BAND_NAMES)[bands[rows, cols]], "grid_code": ndsm[rows, cols]},
-        geometry=shapely.points(xs[cols], ys[rows]), crs=p["crs_wkt"])
+        geometry=shapely.points(xs[cols], ys[rows]), crs=p.crs_wkt)
     return write_layer(gdf, path, "band_points")
 
 
 def _clip_tile(name, bands_path, vec, p, out) -> dict:
     """Road and water polygons of one tile from the breaklines (S6-S7), vegetation = band - road - water,
     vegetation inside wetlands (S8-S9)."""
-    done = _existing(out, name, ("veg", "wetveg"), p["overwrite"]["clip"])
+    done = _existing(out, name, ("veg", "wetveg"), p.overwrite["clip"])
     bands, grid, _ = read_raster(bands_path)
     if done:
         wetveg, _, _ = read_raster(done["wetveg"])
         return {"outputs": done, **_stats_of_bands(bands, wetveg, grid)}
     frames = _frames(grid, vec["footprints"])
-    road = shapely.union_all([road_polygons(vec["roads"], f, snap=p["snap"], max_width=p["max_road_width"]) for f in frames])
-    water = shapely.union_all([water_polygons(vec["hydro"], vec["waterbodies"], f, snap=p["snap"], max_width=p["max_hydro_width"],
-                                              single_line_width=p["single_line_width"]) for f in frames])
+    road = shapely.union_all([road_polygons(vec["roads"], f, snap=p.snap, max_width=p.max_road_width) for f in frames])
+    water = shapely.union_all([water_polygons(vec["hydro"], vec["waterbodies"], f, snap=p.snap, max_width=p.max_hydro_width,
+                                              single_line_width=p.single_line_width) for f in frames])
 
     def mask(geom):
         if geom is None or geom.is_empty:
@@ -217,13 +234,13 @@ def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
 
 
 def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
-    done = _existing(out, name, ("density", "cover"), p["overwrite"]["density"])
+    done = _existing(out, name, ("density", "cover"), p.overwrite["density"])
     if done:
         return {"outputs": done}
     veg, grid, _ = read_raster(veg_tif)
-    halo = halo_cells(p["radius"], grid.cell_size)
+    halo = halo_cells(p.radius, grid.cell_size)
     big = _read_with_halo(veg_vrt, grid, halo, 0)
-    density, cover = vegetation_cover(big, grid.cell_size, p["radius"], p["density_bands"], halo)
+    density, cover = vegetation_cover(big, grid.cell_size, p.radius, p.density_bands, halo)
     outputs = {}
     for product, array in (("density", density), ("cover", cover)):
         path = Path(out) / product / f"{name}.tif"
@@ -234,7 +251,7 @@ def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
 
 def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
     path = Path(out) / "classes" / f"{name}.tif"
-    if _existing(out, name, ("classes",), p["overwrite"]["classes"]):
+    if _existing(out, name, ("classes",), p.overwrite["classes"]):
         classes, grid, _ = read_raster(path)
     else:
         veg, grid, _ = read_raster(veg_tif)
@@ -365,137 +382,156 @@ STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_map.png", "shrub_map.p
 def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, waterbodies, wetlands, tile_index,
               reproject_vectors, jobs, scheduler, overwrite, make_map, band_points, from_stage, progress) -> dict:
     started = time.time()
+    layers = (roads, hydro, waterbodies, wetlands, tile_index)
+    early, summary = None, None
     if from_stage == "rasters":
         rs = RasterSettings(**{**settings.raster.__dict__, "products": ("dsm", "dem", "ndsm", "topclass"),
                                "return_band_breaks": (settings.noise_floor, *_band_break_lengths(settings))})
         # the vector layers are read and checked against the first readable tile's CRS before the long raster
         # stage, so a CRS mismatch or a missing field is reported in seconds, not after the county's rasters
-        early = _early_vectors(inputs, rs.crs, (roads, hydro, waterbodies, wetlands, tile_index), settings, reproject_vectors)
-        pool = make_pool(jobs, scheduler, 2)  # one pool for the rasters and the steps: workers start once
-        try:
+        early = _early_vectors(inputs, rs.crs, layers, settings, reproject_vectors)
+        n_tasks = 2
+    else:
+        summary = _previous_run(out)
+        n_tasks = sum(t["status"] in ("ok", "skipped") for t in summary["tiles"])
+    pool = make_pool(jobs, scheduler, n_tasks)  # one pool for the rasters and the steps: workers start once
+    try:
+        if summary is None:
             summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
                                          progress=sub_progress(progress, 0, 0.6), pool=pool)
-        except BaseException:
-            if pool is not None:
-                pool.close()
-            raise
-    else:
-        pool, early = None, None
-        summary = _previous_run(out)
-    if summary["crs_wkt"] is None:
-        if pool is not None:
-            pool.close()
-        return summary
-    try:  # the rasters' pool is closed if anything below fails before the steps' own try
+        if summary["crs_wkt"] is None:
+            return summary
         crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
-        unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
-        z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
-        length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
-        redo = {stage: overwrite or STAGES.index(stage) >= STAGES.index(from_stage) for stage in STAGES}
-        params = {
-            "thresholds": band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
-            "noise_floor": length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
-            "snap": length(settings.snap, "snap"),
-            "max_road_width": length(settings.max_road_width, "max road width"),
-            "max_hydro_width": length(settings.max_hydro_width, "max hydro width"),
-            "single_line_width": length(settings.single_line_width, "single-line hydro width"),
-            "radius": length(settings.radius, "density radius"),
-            "density_bands": tuple(settings.density_bands),
-            "overwrite": redo,
-            "band_points": band_points,
-            "crs_wkt": (crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt(),
-        }
-        if early is not None and early[0] == crs:
-            vec = early[1]
-        else:
-            vec = _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject_vectors)
+        params = _step_params(summary, settings, overwrite, from_stage, band_points)
+        vec = early[1] if early is not None and early[0] == crs else _vectors(*layers, crs, settings, reproject_vectors)
         base = {t["name"]: t for t in summary["tiles"]}
         states = {t["name"]: _TileState(t["name"], t["path"], t["status"], t.get("error")) for t in summary["tiles"]}
         names = [n for n, t in base.items() if t["status"] in ("ok", "skipped")]
         for n in names:
             states[n].status, states[n].error = "ok", None
-    except BaseException:
+        ticker = _StepTicker(progress, 0.6 if from_stage == "rasters" else 0.0, 4 * len(names), states, len(names))
+        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick)
+    finally:
         if pool is not None:
             pool.close()
-        raise
-    if pool is None:
-        pool = make_pool(jobs, scheduler, len(names))
-    done = {"n": 0}
-    total = max(4 * len(names), 1)
-    start = 0.6 if from_stage == "rasters" else 0.0
+    good = [n for n in names if states[n].status == "ok"]
+    _write_chain_outputs(out, good, mosaic, polygons, crs, summary, settings,
+                         f"Shrub density - {_input_label(inputs) if inputs else out.name}" if make_map else None)
+    report(progress, 1.0, "done")
+    shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
+    return shrub_report
 
-    def tick(message):
-        done["n"] += 1
-        failed = sum(st.status == "failed" for st in states.values())
-        report(progress, start + (0.95 - start) * done["n"] / total, f"{message} | {len(names)} tiles, {failed} failed")
+
+def _write_chain_outputs(out: Path, good: list, mosaic: dict, polygons: list, crs, summary: dict,
+                         settings: ShrubSettings, map_title: str | None) -> None:
+    """The mosaics of the last steps, the class polygons and (with a title) the map."""
+    for product in ("density", "cover", "classes"):
+        mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+    unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, unit.metres ** 2)
+    if map_title and mosaic.get("classes"):
+        map_from_classes(out, title=map_title, unit=unit)
+
+
+def _step_params(summary: dict, settings: ShrubSettings, overwrite: bool, from_stage: str, band_points: bool) -> StepParams:
+    """The settings in the tiles' units (from the rasters' report), and which stages to redo."""
+    crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
+    unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    z_unit = LinearUnit(summary["vertical_unit"], summary["vertical_unit_m"])
+
+    def length(v, n):
+        return length_to_crs_units(v, unit, name=n)
+
+    return StepParams(
+        thresholds=band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
+        noise_floor=length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
+        snap=length(settings.snap, "snap"), max_road_width=length(settings.max_road_width, "max road width"),
+        max_hydro_width=length(settings.max_hydro_width, "max hydro width"),
+        single_line_width=length(settings.single_line_width, "single-line hydro width"),
+        radius=length(settings.radius, "density radius"), density_bands=tuple(settings.density_bands),
+        overwrite={stage: overwrite or STAGES.index(stage) >= STAGES.index(from_stage) for stage in STAGES},
+        band_points=band_points, crs_wkt=(crs.sub_crs_list[0] if crs.is_compound else crs).to_wkt())
+
+
+class _StepTicker:
+    """Progress over the steps' tile tasks, from ``start`` to 0.95 of the run."""
+
+    def __init__(self, progress, start: float, total: int, states: dict, tiles: int):
+        self.progress, self.start, self.total, self.states, self.tiles, self.done = progress, start, max(total, 1), states, tiles, 0
+
+    def tick(self, message: str) -> None:
+        self.done += 1
+        failed = sum(st.status == "failed" for st in self.states.values())
+        report(self.progress, self.start + (0.95 - self.start) * self.done / self.total,
+               f"{message} | {self.tiles} tiles, {failed} failed")
+
+
+def _ndsm_bounds(out: Path, name: str):
+    path = out / "ndsm" / f"{name}.tif"
+    try:
+        with rasterio.open(path) as src:
+            return src.bounds
+    except rasterio.errors.RasterioError as err:
+        raise DataFileError(f"cannot read the raster ({err})", path=path,
+                            hint="Rerun gistools shrub on the tiles (the rasters stage rewrites it)") from None
+
+
+def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick):
+    """bands, clip, density and classes of every tile that is still ok; (mosaics, class polygons, class breaks)."""
+    mosaic, polygons = {}, []
 
     def alive():
         return [n for n in names if states[n].status == "ok"]
 
-    def grid_of(name):
-        path = out / "ndsm" / f"{name}.tif"
-        try:
-            with rasterio.open(path) as src:
-                return src.bounds
-        except rasterio.errors.RasterioError as err:
-            raise DataFileError(f"cannot read the raster ({err})", path=path,
-                                hint="Rerun gistools shrub on the tiles (the rasters stage rewrites it)") from None
-
     def keep_outputs(name, value, seconds):
         states[name].outputs.update(value["outputs"])
 
-    mosaic = {}
-    polygons = []
-    try:
-        run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", params, out) for n in names],
-                 pool, states, names, keep_outputs, tick, "bands", out)
-        margin = params["max_road_width"] + params["max_hydro_width"]
+    def clip_done(name, value, seconds):
+        st = states[name]
+        st.outputs.update(value["outputs"])
+        st.band_area, st.nodata_share = value["band_area"], value["nodata_share"]
+        st.wetland_vegetation_area = value["wetland_vegetation_area"]
 
-        def clip_done(name, value, seconds):
-            st = states[name]
-            st.outputs.update(value["outputs"])
-            st.band_area, st.nodata_share = value["band_area"], value["nodata_share"]
-            st.wetland_vegetation_area = value["wetland_vegetation_area"]
+    def classes_done(name, value, seconds):
+        states[name].outputs.update(value["outputs"])
+        states[name].class_area = value["class_area"]
+        polygons.extend((name, c, g) for c, g in value["polygons"])
 
-        good = alive()
-        run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, grid_of(n), margin), params, out) for n in good],
-                 pool, states, good, clip_done, tick, "clip", out)
-        good = alive()
-        for product in ("bands", "veg", "wetveg"):
-            mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
-        run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], params, out) for n in good], pool, states,
-                 good, keep_outputs, tick, "density", out)
-        good = alive()
-        breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
-
-        def classes_done(name, value, seconds):
-            states[name].outputs.update(value["outputs"])
-            states[name].class_area = value["class_area"]
-            polygons.extend((name, c, g) for c, g in value["polygons"])
-
-        run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, params, out) for n in good],
-                 pool, states, good, classes_done, tick, "classes", out)
-    finally:
-        if pool is not None:
-            pool.close()
+    run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", p, out) for n in names],
+             pool, states, names, keep_outputs, tick, "bands", out)
+    margin = p.max_road_width + p.max_hydro_width
     good = alive()
-    for product in ("density", "cover", "classes"):
+    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin), p, out) for n in good],
+             pool, states, good, clip_done, tick, "clip", out)
+    good = alive()
+    for product in ("bands", "veg", "wetveg"):
         mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+    run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], p, out) for n in good], pool, states,
+             good, keep_outputs, tick, "density", out)
+    good = alive()
+    breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
+    run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, p, out) for n in good],
+             pool, states, good, classes_done, tick, "classes", out)
+    return mosaic, polygons, breaks
+
+
+def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepParams, breaks, mosaic: dict,
+                  started: float) -> dict:
+    """report.json of the chain: the rasters' report, the steps' parameters, areas by band and class, per tile."""
+    unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     area_m2 = unit.metres ** 2
-    _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, area_m2)
-    if make_map and mosaic.get("classes"):
-        map_from_classes(out, title=f"Shrub density - {_input_label(inputs) if inputs else out.name}", unit=unit)
-    report(progress, 1.0, "done")
     totals_band = {b: sum(states[n].band_area.get(b, 0.0) for n in good) for b in BAND_NAMES}
     totals_class = {c: sum(states[n].class_area.get(c, 0.0) for n in good) for c in CLASS_NAMES.values()}
-    shrub_report = {
+    return {
         **{k: v for k, v in summary.items() if k not in ("tiles", "counts", "mosaics", "seconds")},
         "tool": "gistools shrub",
         "area_unit": f"{unit.name} squared",
-        "band_thresholds": list(params["thresholds"]),
-        "band_unit": z_unit.name,
-        "density_radius": params["radius"],
-        "density_bands": list(params["density_bands"]),
+        "band_thresholds": list(p.thresholds),
+        "band_unit": summary["vertical_unit"],
+        "density_radius": p.radius,
+        "density_bands": list(p.density_bands),
         "class_breaks": list(breaks),
         "band_area": totals_band,
         "band_area_from_returns": _returns_band_area([base[n] for n in good]),
@@ -508,9 +544,6 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         "mosaics": {k: str(v) for k, v in {**summary.get("mosaics", {}), **mosaic}.items() if v},
         "seconds": round(time.time() - started, 3),
     }
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
-    return shrub_report
 
 
 def _band_break_lengths(settings: ShrubSettings) -> tuple[str, str, str]:
