@@ -61,3 +61,17 @@ def test_the_domain_packages_do_no_io():
                 if called in IO_CALLS:
                     found.append(f"{path.relative_to(ROOT)}:{node.lineno}: calls {called}()")
     assert not found, "\n".join(found)
+
+
+def test_no_function_is_rated_d_or_worse_by_radon():
+    """Cyclomatic complexity: every function of gistools/ and qgis_plugin/ at rank C or better (radon cc -n D)."""
+    from radon.complexity import cc_rank, cc_visit
+
+    found = []
+    for folder in ("gistools", "qgis_plugin"):
+        for path in sorted((ROOT / folder).rglob("*.py")):
+            for block in cc_visit(path.read_text()):
+                if cc_rank(block.complexity) >= "D":
+                    found.append(f"{path.relative_to(ROOT)}:{block.lineno} {block.name} {cc_rank(block.complexity)} "
+                                 f"({block.complexity})")
+    assert not found, "\n".join(found)

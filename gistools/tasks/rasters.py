@@ -167,8 +167,6 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     by_return = np.zeros(16, np.int64)
     outside = 0
     done = 0
-    west, south, east, north = info.bounds
-    b = run.buffer
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
     sides = {k: Extent() for k in ("ground", *HALO_SIDES)}
     out_box = Extent()
@@ -178,12 +176,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
         first_out = files.enter_context(open(first_path, "wb"))
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
-        if run.dsm_classes is None:
-            surface_class = np.ones(256, bool)
-            surface_class[list(NOISE_CLASSES)] = False
-        else:
-            surface_class = np.zeros(256, bool)
-            surface_class[list(run.dsm_classes)] = True
+        surface_class = _surface_classes(run.dsm_classes)
         flat_dsm = dsm  # 1-D view
         for chunk in iter_chunks(info, run.chunk_size, fields=fields):
             cls = chunk.classification
@@ -216,37 +209,11 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
                 water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
-                raw = chunk.raw
-                scale_offset = ([float(v) for v in raw.scales], [float(v) for v in raw.offsets])
-                rec = np.empty(int(np.count_nonzero(ground)), dtype=GROUND_DTYPE)
-                for axis in "XYZ":
-                    rec[axis] = np.asarray(getattr(raw, axis))[ground]
-                rec.tofile(ground_out)
-                x, y = chunk.x, chunk.y  # masks on the whole chunk: cheaper than gathering the ground's x, y
-                sides["ground"].add(x, y, ground)
-                # each point in one strip at most (a tile narrower than two buffers has points near both edges)
-                west_edge = ground & (x < west + b)
-                east_edge = ground & (x > east - b) & ~west_edge
-                between = ground & ~(west_edge | east_edge)
-                south_edge = between & (y < south + b)
-                north_edge = between & (y > north - b) & ~south_edge
-                for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
-                    rec[m[ground]].tofile(halo_out[side])  # what the neighbours read
-                    sides[side].add(x, y, m)
+                scale_offset = ([float(v) for v in chunk.raw.scales], [float(v) for v in chunk.raw.offsets])
+                _write_ground(chunk, ground, info.bounds, run.buffer, ground_out, halo_out, sides)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
-    warnings = []
-    over = 0.0 if not outside else max(info.bounds[0] - out_box.box[0], info.bounds[1] - out_box.box[1],
-                                       out_box.box[2] - info.bounds[2], out_box.box[3] - info.bounds[3])
-    if outside and over <= 3 * max(info.scales[0], info.scales[1]):  # header bounds rounded by a writer
-        warnings.append(f"{info.path}: {outside:,} points lie up to {over:.3g} outside the header's bounds (rounded "
-                        f"bounds) and are left out")
-    elif outside:  # the grid and the neighbours come from the header's bounds: the header is wrong
-        w, s_, e, n_ = (min(a, b) if i < 2 else max(a, b) for i, (a, b) in enumerate(zip(out_box.box, info.bounds)))
-        raise DataFileError(
-            f"{outside:,} of {done:,} points lie outside the header's bounds ({info.bounds[0]:.3f}, {info.bounds[1]:.3f}, "
-            f"{info.bounds[2]:.3f}, {info.bounds[3]:.3f}); the points span ({w:.3f}, {s_:.3f}, {e:.3f}, {n_:.3f})",
-            path=info.path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate) and run again")
+    warnings = _outside_bounds(info, outside, done, out_box)
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps(meta))
@@ -266,6 +233,56 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_outside_header_bounds": outside,
         "warnings": warnings,
     }
+
+
+def _surface_classes(dsm_classes) -> np.ndarray:
+    """Class code -> in the DSM (every class but noise when ``dsm_classes`` is None), one gather per chunk."""
+    if dsm_classes is None:
+        table = np.ones(256, bool)
+        table[list(NOISE_CLASSES)] = False
+    else:
+        table = np.zeros(256, bool)
+        table[list(dsm_classes)] = True
+    return table
+
+
+def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, sides: dict) -> None:
+    """Append a chunk's ground points (the LAS integers) to the tile's ground file and to the halo strip of the
+    edge within ``b`` they lie near (each point in one strip at most: a tile narrower than two buffers has points
+    near both edges); grow the files' extents."""
+    west, south, east, north = bounds
+    raw = chunk.raw
+    rec = np.empty(int(np.count_nonzero(ground)), dtype=GROUND_DTYPE)
+    for axis in "XYZ":
+        rec[axis] = np.asarray(getattr(raw, axis))[ground]
+    rec.tofile(ground_out)
+    x, y = chunk.x, chunk.y  # masks on the whole chunk: cheaper than gathering the ground's x, y
+    sides["ground"].add(x, y, ground)
+    west_edge = ground & (x < west + b)
+    east_edge = ground & (x > east - b) & ~west_edge
+    between = ground & ~(west_edge | east_edge)
+    south_edge = between & (y < south + b)
+    north_edge = between & (y > north - b) & ~south_edge
+    for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
+        rec[m[ground]].tofile(halo_out[side])  # what the neighbours read
+        sides[side].add(x, y, m)
+
+
+def _outside_bounds(info: TileInfo, outside: int, done: int, out_box) -> list[str]:
+    """Points outside the header's bounds: a warning when the bounds were only rounded (3 scale steps), else the
+    tile fails (its grid and its neighbours come from those bounds)."""
+    if not outside:
+        return []
+    w0, s0, e0, n0 = info.bounds
+    over = max(w0 - out_box.box[0], s0 - out_box.box[1], out_box.box[2] - e0, out_box.box[3] - n0)
+    if over <= 3 * max(info.scales[0], info.scales[1]):
+        return [f"{info.path}: {outside:,} points lie up to {over:.3g} outside the header's bounds (rounded "
+                f"bounds) and are left out"]
+    w, s_, e, n_ = (min(a, b) if i < 2 else max(a, b) for i, (a, b) in enumerate(zip(out_box.box, info.bounds)))
+    raise DataFileError(
+        f"{outside:,} of {done:,} points lie outside the header's bounds ({w0:.3f}, {s0:.3f}, {e0:.3f}, {n0:.3f}); "
+        f"the points span ({w:.3f}, {s_:.3f}, {e:.3f}, {n_:.3f})",
+        path=info.path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate) and run again")
 
 
 def _max_with_class(dsm, top_class, cell, z, cls) -> None:
