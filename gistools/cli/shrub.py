@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..lidar.gridding import DEM_METHODS
+from ..lidar.bands import PRESETS
 from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
@@ -20,33 +21,58 @@ def _floats(ctx, param, value):
         raise click.BadParameter(f"{value!r} is not a comma-separated list of numbers") from None
 
 
+_S = ShrubSettings()  # the defaults are the library's, not copies
+
+
+def _options(opts):
+    def apply(fn):
+        for opt in reversed(opts):
+            fn = opt(fn)
+        return fn
+
+    return apply
+
+
+# the breakline layers (clip step)
+_vector_options = _options([
+    click.option("--roads", help="Edge-of-pavement lines (file.gpkg:LAYER or a shapefile)."),
+    click.option("--hydro", help="Hydrographic breaklines: dual-line banks and single-line features."),
+    click.option("--waterbodies", help="Water body polygons (islands as holes)."),
+    click.option("--wetlands", help="Wetland polygons: vegetation inside them is written apart (wetveg/)."),
+    click.option("--tile-index", help="Tile footprints (FOOTPRINT) that split the breaklines, as the dissertation did."),
+    click.option("--tile-field", default=_S.tile_field, show_default=True, help="Tile-number field of --tile-index."),
+    click.option("--reproject-vectors", is_flag=True, help="Reproject vector layers to the points' CRS instead of refusing."),
+])
+
+# the parameters of the steps after the rasters
+_step_parameters = _options([
+    click.option("--bands", "band_preset", type=click.Choice(list(PRESETS)), default=_S.bands, show_default=True,
+                 help="Height bands: exact 1 / 2 / 6 m, or the dissertation's printed 3.28 / 6.56 / 19.658 ft."),
+    click.option("--band-breaks", callback=_floats, default=None, help="Three band limits in metres, e.g. 1,2,6."),
+    click.option("--noise-floor", default=_S.noise_floor, show_default=True, help="Heights up to this are bare ground (B0)."),
+    click.option("--radius", default=_S.radius, show_default=True, help="Density neighbourhood radius."),
+    click.option("--density-bands", callback=parse_classes, default=",".join(map(str, _S.density_bands)), show_default=True,
+                 help="Bands whose vegetation is counted; 1 is the dissertation's choice."),
+    click.option("--classify", type=click.Choice(CLASS_METHODS), default=_S.classify, show_default=True,
+                 help="breaks: --breaks on cover; quantile / jenks: breaks from the data."),
+    click.option("--breaks", "class_breaks", callback=_floats, default=",".join(f"{b:g}" for b in _S.class_breaks),
+                 show_default=True, help="Cover fraction breaks light/medium and medium/heavy."),
+    click.option("--max-road-width", default=_S.max_road_width, show_default=True,
+                 help="Wider faces between road lines are blocks, not road."),
+    click.option("--snap", default=_S.snap, show_default=True, help="Breakline snapping tolerance."),
+    click.option("--no-map", is_flag=True, help="Skip the PNG / PDF map."),
+])
+
+
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
 @click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--roads", help="Edge-of-pavement lines (file.gpkg:LAYER or a shapefile).")
-@click.option("--hydro", help="Hydrographic breaklines: dual-line banks and single-line features.")
-@click.option("--waterbodies", help="Water body polygons (islands as holes).")
-@click.option("--wetlands", help="Wetland polygons: vegetation inside them is written apart (wetveg/).")
-@click.option("--tile-index", help="Tile footprints (FOOTPRINT) that split the breaklines, as the dissertation did.")
-@click.option("--tile-field", default="TILE_ID", show_default=True, help="Tile-number field of --tile-index.")
-@click.option("--reproject-vectors", is_flag=True, help="Reproject vector layers to the points' CRS instead of refusing.")
-@click.option("--cell-size", default="5ft", show_default=True, help="Cell size with its unit.")
-@click.option("--dem-method", type=click.Choice(DEM_METHODS), default="tin", show_default=True)
+@_vector_options
+@click.option("--cell-size", default=_S.raster.cell_size, show_default=True, help="Cell size with its unit.")
+@click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_S.raster.dem_method, show_default=True)
 @click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
-@click.option("--dem-max-distance", default="15m", show_default=True)
-@click.option("--bands", "band_preset", type=click.Choice(["exact", "text_literal"]), default="exact", show_default=True,
-              help="Height bands: exact 1 / 2 / 6 m, or the dissertation's printed 3.28 / 6.56 / 19.658 ft.")
-@click.option("--band-breaks", callback=_floats, default=None, help="Three band limits in metres, e.g. 1,2,6.")
-@click.option("--noise-floor", default="0.1m", show_default=True, help="Heights up to this are bare ground (B0).")
-@click.option("--radius", default="25ft", show_default=True, help="Density neighbourhood radius.")
-@click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True,
-              help="Bands whose vegetation is counted; 1 is the dissertation's choice.")
-@click.option("--classify", type=click.Choice(CLASS_METHODS), default="breaks", show_default=True)
-@click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True,
-              help="Cover fraction breaks light/medium and medium/heavy.")
-@click.option("--max-road-width", default="60ft", show_default=True, help="Wider faces between road lines are blocks, not road.")
-@click.option("--snap", default="0.2ft", show_default=True, help="Breakline snapping tolerance.")
-@click.option("--no-map", is_flag=True, help="Skip the PNG / PDF map.")
+@click.option("--dem-max-distance", default=_S.raster.dem_max_distance, show_default=True)
+@_step_parameters
 @click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'.")
 @crs_opt
@@ -93,31 +119,10 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
 
 
 def _step_options(fn):
-    """Options of the steps after the rasters (the same words as gistools shrub)."""
-    opts = [
-        click.option("--roads", help="Edge-of-pavement lines (clip step)."),
-        click.option("--hydro", help="Hydrographic breaklines (clip step)."),
-        click.option("--waterbodies", help="Water body polygons (clip step)."),
-        click.option("--wetlands", help="Wetland polygons (clip step)."),
-        click.option("--tile-index", help="Tile footprints that split the breaklines (clip step)."),
-        click.option("--tile-field", default="TILE_ID", show_default=True),
-        click.option("--reproject-vectors", is_flag=True),
-        click.option("--bands", "band_preset", type=click.Choice(["exact", "text_literal"]), default="exact", show_default=True),
-        click.option("--band-breaks", callback=_floats, default=None, help="Three band limits in metres."),
-        click.option("--noise-floor", default="0.1m", show_default=True),
-        click.option("--radius", default="25ft", show_default=True),
-        click.option("--density-bands", callback=parse_classes, default="1,2,3", show_default=True),
-        click.option("--classify", type=click.Choice(CLASS_METHODS), default="breaks", show_default=True),
-        click.option("--breaks", "class_breaks", callback=_floats, default="0.3,0.7", show_default=True),
-        click.option("--max-road-width", default="60ft", show_default=True),
-        click.option("--snap", default="0.2ft", show_default=True),
-        click.option("--no-map", is_flag=True),
-        click.option("--scheduler", default=None, metavar="ADDRESS"),
-        jobs_opt,
-        click.option("--quiet", "-q", is_flag=True),
-    ]
-    for opt in reversed(opts):
-        fn = opt(fn)
+    """Options of the steps after the rasters (the same words, defaults and help as gistools shrub)."""
+    fn = _options([_vector_options, _step_parameters,
+                   click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'."),
+                   jobs_opt, click.option("--quiet", "-q", is_flag=True, help="No progress bar.")])(fn)
     return click.argument("out", type=click.Path(exists=True, file_okay=False))(fn)
 
 
