@@ -31,12 +31,11 @@ def test_breaks_do_not_depend_on_tiles_or_blocks(tmp_path, method):
     """A 1200 x 1200 cover split into 3 x 3 tiles that share their edge rows and columns (as the chain writes them),
     and the VRT mosaic read in blocks of several sizes: the same sampled cells, the same breaks."""
     import pyproj
-    import rasterio
 
     from gistools.grid import snapped_grid
-    from gistools.io.raster import write_raster, write_vrt
-    from gistools.tasks.shrub import ShrubSettings, _breaks
-    from gistools.tasks.steps import _sample_breaks
+    from gistools.io.raster import read_raster, write_raster, write_vrt
+    from gistools.lidar.shrub import breaks_from_sample, lattice_sample, sample_step
+    from gistools.tasks.steps import class_breaks
 
     rng = np.random.default_rng(7)
     cs, n = 5.0, 1200
@@ -51,8 +50,9 @@ def test_breaks_do_not_depend_on_tiles_or_blocks(tmp_path, method):
             c0, c1 = max(0, j * 400 - 1), min(n, (j + 1) * 400 + 1)
             grid = snapped_grid((1000 + c0 * cs, 2000 + (n - r1) * cs, 1000 + c1 * cs - 1e-6, 2000 + (n - r0) * cs - 1e-6), cs, crs)
             tiles.append(write_raster(tmp_path / f"t{i}{j}.tif", cover[r0:r1, c0:c1], grid))
-    chain = _breaks(ShrubSettings(classify=method), tiles)
+    step = sample_step(n * n)
+    samples = [lattice_sample(a, g.col0, g.row_top, step) for a, g, _ in map(read_raster, tiles)]
+    per_tile = breaks_from_sample([k for k, _ in samples], [v for _, v in samples], method)
     vrt = write_vrt(tmp_path / "cover.vrt", tiles)
-    with rasterio.open(vrt) as src:
-        for block in (100, 256, 777, 2048):
-            assert _sample_breaks(src, method, block) == pytest.approx(chain, abs=0), block
+    for block in (0, 100, 256, 777, 2048):
+        assert class_breaks(vrt, method, block=block) == pytest.approx(per_tile, abs=0), block

@@ -6,6 +6,10 @@ check it after.
 
     python tools/compare_outputs.py record /tmp/before.json
     python tools/compare_outputs.py check /tmp/before.json     # exit 1 and the files that differ
+    python tools/compare_outputs.py check /tmp/before.json --cells   # the same, metadata changes allowed
+
+With ``--cells`` a change of GeoTIFF tags or GeoPackage layer names only is listed but allowed (an
+intended metadata change); cells, geometries and attributes must still be identical.
 
 What is compared: GeoTIFFs by their decoded cells, transform, CRS, nodata and tags; GeoPackages by every
 layer's features (geometry WKB and attributes); JSON with run times and absolute paths left out; PNG by its
@@ -43,11 +47,12 @@ def _scrub(value, root: str):
     if isinstance(value, list):
         return [_scrub(v, root) for v in value]
     if isinstance(value, str):
-        return value.replace(root, "<out>")
+        return value.replace(root, "<out>").replace(str(ROOT), "<repo>")
     return value
 
 
-def digest(path: Path, root: Path) -> str | None:
+def digest(path: Path, root: Path) -> list | None:
+    """[digest of everything, digest of the content without metadata (tags, layer names)], or None (not compared)."""
     h = hashlib.sha256()
     suffix = path.suffix.lower()
     if suffix == ".tif":
@@ -55,17 +60,22 @@ def digest(path: Path, root: Path) -> str | None:
 
         with rasterio.open(path) as src:
             h.update(src.read().tobytes())
-            h.update(repr((tuple(src.transform), src.crs.to_wkt() if src.crs else None, src.nodata, src.dtypes,
-                           sorted(src.tags().items()), src.units, src.descriptions)).encode())
-    elif suffix == ".gpkg":
+            h.update(repr((tuple(src.transform), src.crs.to_wkt() if src.crs else None, src.nodata, src.dtypes)).encode())
+            cells = h.copy()
+            h.update(repr((sorted(src.tags().items()), src.units, src.descriptions)).encode())
+        return [h.hexdigest(), cells.hexdigest()]
+    if suffix == ".gpkg":
         import pyogrio
 
+        cells = hashlib.sha256()
         for layer in sorted(str(n) for n, _ in pyogrio.list_layers(path)):
             df = pyogrio.read_dataframe(path, layer=layer)
             h.update(layer.encode())
-            h.update(repr(list(df.columns)).encode())
-            for row in df.itertuples(index=False):
-                h.update(repr(tuple(v.wkb if hasattr(v, "wkb") else v for v in row)).encode())
+            for part in [repr(list(df.columns)).encode()] + [
+                    repr(tuple(v.wkb if hasattr(v, "wkb") else v for v in row)).encode() for row in df.itertuples(index=False)]:
+                h.update(part)
+                cells.update(part)
+        return [h.hexdigest(), cells.hexdigest()]
     elif suffix == ".json":
         h.update(json.dumps(_scrub(json.loads(path.read_text()), str(root)), sort_keys=True).encode())
     elif suffix == ".png":
@@ -76,7 +86,7 @@ def digest(path: Path, root: Path) -> str | None:
         return None
     else:
         h.update(path.read_bytes())
-    return h.hexdigest()
+    return [h.hexdigest(), h.hexdigest()]
 
 
 def run_all(work: Path) -> dict:
@@ -135,7 +145,8 @@ def run_all(work: Path) -> dict:
 
 
 def main() -> int:
-    if len(sys.argv) != 3 or sys.argv[1] not in ("record", "check"):
+    cells_only = "--cells" in sys.argv[3:]
+    if len(sys.argv) not in (3, 4) or sys.argv[1] not in ("record", "check"):
         print(__doc__)
         return 2
     sys.path.insert(0, str(ROOT))
@@ -147,13 +158,16 @@ def main() -> int:
         print(f"{len(manifest)} outputs recorded in {target}")
         return 0
     before = json.loads(target.read_text())
-    differ = sorted(k for k in before.keys() & manifest.keys() if before[k] != manifest[k])
+    both = before.keys() & manifest.keys()
+    differ = sorted(k for k in both if before[k][1] != manifest[k][1])
+    metadata = sorted(k for k in both if before[k][1] == manifest[k][1] and before[k][0] != manifest[k][0])
     gone, new = sorted(before.keys() - manifest.keys()), sorted(manifest.keys() - before.keys())
-    for label, names in (("differ", differ), ("missing now", gone), ("new", new)):
+    for label, names in (("differ", differ), ("metadata differ", metadata), ("missing now", gone), ("new", new)):
         for name in names:
             print(f"{label}: {name}")
-    print(f"{len(manifest)} outputs; {len(differ)} differ, {len(gone)} missing, {len(new)} new")
-    return 1 if differ or gone or new else 0
+    print(f"{len(manifest)} outputs; {len(differ)} differ, {len(metadata)} differ in metadata only, {len(gone)} missing, "
+          f"{len(new)} new")
+    return 1 if differ or gone or new or (metadata and not cells_only) else 0
 
 
 if __name__ == "__main__":

@@ -91,6 +91,14 @@ def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: b
     )
 
 
+def check_field(gdf: gpd.GeoDataFrame, field: str, spec, what: str = "the tile index") -> None:
+    """Refuse a layer without ``field`` (one line naming the layer and its fields)."""
+    if field not in gdf.columns:
+        fields = ", ".join(str(c) for c in gdf.columns if c != gdf.geometry.name)
+        raise InputError(f"{what} has no field {field!r} (fields: {fields})", path=str(spec),
+                         hint="Name the tile-number field (--tile-field in the CLI, 'Tile number field' in QGIS)")
+
+
 def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = True) -> Path:
     """Write one layer of a GeoPackage atomically (the whole file is replaced)."""
     from .raster import atomic_path

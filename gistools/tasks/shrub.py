@@ -18,7 +18,6 @@ Then VRT mosaics, a GeoPackage of class polygons, a printable map and report.jso
 from __future__ import annotations
 
 import json
-import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -27,83 +26,31 @@ import numpy as np
 import pyproj
 import rasterio
 import shapely
-from rasterio.features import rasterize
-from rasterio.windows import from_bounds
 from shapely.geometry import box
 
 from ..errors import DataFileError, GistoolsError, InputError
-from ..grid import Grid
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
 from ..io.outdir import Rollback, claim_output
-from ..io.raster import atomic_path, raster_is_readable, read_raster, write_raster, write_vrt
-from ..io.vector import check_crs, read_layer, write_layer
-from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
-from ..lidar.density import halo_cells
-from ..lidar.vegetation import VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
-from ..lidar.shrub import (CLASS_METHODS, CLASS_NAMES, CLASS_NODATA, DEFAULT_BREAKS, breaks_from_sample, lattice_sample,
-                            sample_step, shrub_classes)
+from ..io.raster import atomic_path, raster_is_readable, write_vrt
+from ..io.vector import check_crs, check_field, read_layer, write_layer
+from ..lidar.bands import BAND_NAMES, band_thresholds
+from ..lidar.vegetation import VEG_ROAD, VEG_WATER
+from ..lidar.shrub import CLASS_NAMES, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
-from ..vector.regions import class_polygons
-from ..validation import check_scheduler, check_breaks, check_length
+from ..validation import check_scheduler
 from .batch import make_pool, run_each
-from .rasters import GROUNDISH, RasterSettings, rasters_from_tiles
+from .rasters import RasterSettings, rasters_from_tiles
+from .settings import ShrubSettings
+from .steps import band_summary, bands_from_ndsm, class_breaks, class_summary, classes_from_cover, clip_bands, \
+    density_from_vegetation
 
 __all__ = ["ShrubSettings", "shrub_from_tiles", "map_from_classes", "STAGES", "VEG_ROAD", "VEG_WATER"]
 
 ACRE_M2 = 4046.8564224
 HECTARE_M2 = 10000.0
-
-
-@dataclass(frozen=True)
-class ShrubSettings:
-    """Parameters of the shrub chain. Lengths take a unit ("25ft", "0.1m") or are CRS units.
-
-    bands: "exact" (1, 2, 6 m) or "text_literal" (the dissertation's 3.28 / 6.56 / 19.658 ft),
-    or band_breaks_m = three heights in metres. noise_floor: heights up to it are bare (B0).
-    snap: breakline snapping (0.2 ft, the dissertation's cluster tolerance). max_road_width /
-    max_hydro_width: faces wider than this are blocks between lines, not road / river.
-    single_line_width: width given to single-line hydro features. radius: density circle.
-    density_bands: the bands whose vegetation counts (default B1-B3; the dissertation used B1).
-    classify: "breaks" (class_breaks on cover), "quantile" or "jenks".
-    """
-
-    raster: RasterSettings = field(default_factory=RasterSettings)
-    bands: str = "exact"
-    band_breaks_m: tuple[float, float, float] | None = None
-    noise_floor: str | float = "0.1m"
-    snap: str | float = "0.2ft"
-    max_road_width: str | float = "60ft"
-    max_hydro_width: str | float = "500ft"
-    single_line_width: str | float = "8ft"
-    radius: str | float = "25ft"
-    density_bands: tuple[int, ...] = (1, 2, 3)
-    classify: str = "breaks"
-    class_breaks: tuple[float, float] = DEFAULT_BREAKS
-    tile_field: str = "TILE_ID"
-
-    def validate(self):
-        """Every option checked before anything is read or written (validation layer)."""
-        self.raster.validate()
-        if self.classify not in CLASS_METHODS:
-            raise InputError(f"--classify {self.classify!r} is not one of {', '.join(CLASS_METHODS)}")
-        if not self.density_bands or any(b not in (1, 2, 3) for b in self.density_bands):
-            raise InputError(f"density bands {self.density_bands} must be among 1, 2, 3", hint="e.g. --density-bands 1,2,3")
-        from ..lidar.bands import PRESETS
-
-        if self.bands not in PRESETS:
-            raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
-        if self.band_breaks_m is not None:
-            check_breaks(self.band_breaks_m, "--band-breaks", count=3, low=0, high=math.inf, low_open=True, example="1,2,6")
-        check_breaks(self.class_breaks, "--breaks", count=2, low=0, high=1, example="0.3,0.7")
-        check_length(self.noise_floor, "--noise-floor", allow_equal=True, example="0.1m")
-        check_length(self.snap, "--snap", allow_equal=True, example="0.2ft")
-        check_length(self.radius, "--radius", example="25ft")
-        check_length(self.max_road_width, "--max-road-width", example="60ft")
-        check_length(self.max_hydro_width, "max_hydro_width", example="500ft")
-        check_length(self.single_line_width, "single_line_width", example="8ft")
 
 
 @dataclass
@@ -125,6 +72,7 @@ class StepParams:
 
     thresholds: tuple  # band limits T1, T2, T3 in the vertical unit
     noise_floor: float  # vertical unit
+    z_unit: LinearUnit  # the vertical unit
     snap: float  # CRS units, as the lengths below
     max_road_width: float
     max_hydro_width: float
@@ -136,22 +84,12 @@ class StepParams:
     crs_wkt: str  # the horizontal CRS
 
 
-def _frames(grid: Grid, footprints) -> list:
-    """The tile index polygons that cover this tile's grid (the dissertation's split), or the grid box."""
-    gbox = box(*grid.bounds)
+def _frames(gbox, footprints) -> list:
+    """The tile index polygons that cover this tile's box (the dissertation's split), or the box."""
     if footprints is None:
         return [gbox]
     hits = [f for f in footprints if f.intersects(gbox) and f.intersection(gbox).area > 0]
     return hits or [gbox]
-
-
-def _stats_of_bands(bands, wetveg, grid) -> dict:
-    cell_area = grid.cell_size ** 2
-    return {
-        "band_area": {n: float(np.count_nonzero(bands == i) * cell_area) for i, n in enumerate(BAND_NAMES)},
-        "nodata_share": float(np.mean(bands == BAND_NODATA)),
-        "wetland_vegetation_area": float(np.count_nonzero((wetveg >= 1) & (wetveg <= 3)) * cell_area),
-    }
 
 
 def _existing(out, name, products, overwrite) -> dict | None:
@@ -162,108 +100,62 @@ def _existing(out, name, products, overwrite) -> dict | None:
     return {k: str(v) for k, v in paths.items()}
 
 
+# The tile tasks: each runs one step of gistools.tasks.steps (the steps' one implementation) on the tile's
+# rasters, as a whole tile at once (block=0: a tile fits in memory, and its class polygons stay whole).
+
 def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:
     """Height bands of one tile (S4-S5)."""
     done = _existing(out, name, ("bands",), p.overwrite["bands"])
     if done:
         return {"outputs": done}
-    ndsm, grid, _ = read_raster(ndsm_path)
-    top, _, _ = read_raster(top_path)
-    bands = height_bands(ndsm, p.thresholds, top_is_ground=np.isin(top, GROUNDISH), noise_floor=p.noise_floor)
-    path = Path(out) / "bands" / f"{name}.tif"
-    write_raster(path, bands, grid, nodata=BAND_NODATA, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "bands"})
-    outputs = {"bands": str(path)}
-    if p.band_points:
-        outputs["band_points"] = str(_write_band_points(Path(out) / "band_points" / f"{name}.gpkg", bands, ndsm, grid, p))
+    points = Path(out) / "band_points" / f"{name}.gpkg" if p.band_points else None
+    result = bands_from_ndsm(ndsm_path, Path(out) / "bands" / f"{name}.tif", top_class=top_path, thresholds=p.thresholds,
+                             noise_floor=p.noise_floor, z_unit=p.z_unit, points_out=points, block=0)
+    outputs = {"bands": str(result["bands"])}
+    if points:
+        outputs["band_points"] = str(points)
     return {"outputs": outputs}
-
-
-def _write_band_points(path: Path, bands, ndsm, grid: Grid, p) -> Path:
-    """The dissertation's Raster To Point: one point per cell centre of B0-B3 with its band and height (grid_code)."""
-    import geopandas as gpd
-
-    from ..grid import cell_centres
-    from ..io.vector import write_layer
-
-    rows, cols = np.nonzero(bands <= 3)
-    xs, ys = cell_centres(grid)
-    gdf = gpd.GeoDataFrame(
-        {"band": np.asarray(BAND_NAMES)[bands[rows, cols]], "grid_code": ndsm[rows, cols]},
-        geometry=shapely.points(xs[cols], ys[rows]), crs=p.crs_wkt)
-    return write_layer(gdf, path, "band_points")
 
 
 def _clip_tile(name, bands_path, vec, p, out) -> dict:
     """Road and water polygons of one tile from the breaklines (S6-S7), vegetation = band - road - water,
     vegetation inside wetlands (S8-S9)."""
     done = _existing(out, name, ("veg", "wetveg"), p.overwrite["clip"])
-    bands, grid, _ = read_raster(bands_path)
     if done:
-        wetveg, _, _ = read_raster(done["wetveg"])
-        return {"outputs": done, **_stats_of_bands(bands, wetveg, grid)}
-    frames = _frames(grid, vec["footprints"])
+        return {"outputs": done, **band_summary(bands_path, done["wetveg"], block=0)}
+    with rasterio.open(bands_path) as src:
+        frames = _frames(box(*src.bounds), vec["footprints"])
     road = shapely.union_all([road_polygons(vec["roads"], f, snap=p.snap, max_width=p.max_road_width) for f in frames])
     water = shapely.union_all([water_polygons(vec["hydro"], vec["waterbodies"], f, snap=p.snap, max_width=p.max_hydro_width,
                                               single_line_width=p.single_line_width) for f in frames])
-
-    def mask(geom):
-        if geom is None or geom.is_empty:
-            return np.zeros(grid.shape, bool)
-        # all_touched=False: a cell is in when its centre is (the Clip of Raster To Point centres)
-        return rasterize([geom], out_shape=grid.shape, transform=grid.transform, fill=0, default_value=1,
-                         all_touched=False, dtype="uint8").astype(bool)
-
-    road_m, water_m = mask(road), mask(water)
-    wet_m = mask(shapely.union_all(vec["wetlands"])) if vec["wetlands"] else np.zeros(grid.shape, bool)
-    veg, wetveg = vegetation(bands, road_m, water_m, wet_m)
-    outputs = {}
-    for product, array in (("veg", veg), ("wetveg", wetveg)):
-        path = Path(out) / product / f"{name}.tif"
-        write_raster(path, array, grid, nodata=255, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": product})
-        outputs[product] = str(path)
-    return {"outputs": outputs, **_stats_of_bands(bands, wetveg, grid)}
-
-
-def _read_with_halo(vrt_path, grid: Grid, halo: int, fill) -> np.ndarray:
-    cs = grid.cell_size
-    w, s, e, n = grid.bounds
-    with rasterio.open(vrt_path) as src:
-        window = from_bounds(w - halo * cs, s - halo * cs, e + halo * cs, n + halo * cs, src.transform)
-        window = window.round_offsets().round_lengths()
-        return src.read(1, window=window, boundless=True, fill_value=fill)
+    wetlands = [shapely.union_all(vec["wetlands"])] if vec["wetlands"] else []
+    paths = {product: Path(out) / product / f"{name}.tif" for product in ("veg", "wetveg")}
+    result = clip_bands(bands_path, paths["veg"], wetland_out=paths["wetveg"], road_polygons=[road], water_polygons=[water],
+                        wetlands=wetlands, block=0)
+    return {"outputs": {k: str(v) for k, v in paths.items()},
+            **{k: result[k] for k in ("band_area", "nodata_share", "wetland_vegetation_area")}}
 
 
 def _density_tile(name, veg_tif, veg_vrt, p, out) -> dict:
+    """Point density and cover of one tile's vegetation, its neighbours read through the mosaic (S10)."""
     done = _existing(out, name, ("density", "cover"), p.overwrite["density"])
     if done:
         return {"outputs": done}
-    veg, grid, _ = read_raster(veg_tif)
-    halo = halo_cells(p.radius, grid.cell_size)
-    big = _read_with_halo(veg_vrt, grid, halo, 0)
-    density, cover = vegetation_cover(big, grid.cell_size, p.radius, p.density_bands, halo)
-    outputs = {}
-    for product, array in (("density", density), ("cover", cover)):
-        path = Path(out) / product / f"{name}.tif"
-        write_raster(path, array, grid, overwrite=True, tags={"GISTOOLS_PRODUCT": product})
-        outputs[product] = str(path)
-    return {"outputs": outputs}
+    paths = {product: Path(out) / product / f"{name}.tif" for product in ("density", "cover")}
+    density_from_vegetation(veg_vrt, paths["cover"], density_out=paths["density"], radius=p.radius,
+                            density_bands=p.density_bands, like=veg_tif, block=0)
+    return {"outputs": {k: str(v) for k, v in paths.items()}}
 
 
 def _classes_tile(name, veg_tif, cover_tif, breaks, p, out) -> dict:
+    """Shrub classes of one tile, their areas and polygons (S11)."""
     path = Path(out) / "classes" / f"{name}.tif"
     if _existing(out, name, ("classes",), p.overwrite["classes"]):
-        classes, grid, _ = read_raster(path)
+        result = class_summary(path, block=0)
     else:
-        veg, grid, _ = read_raster(veg_tif)
-        cover, _, _ = read_raster(cover_tif)
-        classes = shrub_classes(cover, breaks, road=veg == VEG_ROAD, water=veg == VEG_WATER, nodata=np.isnan(cover))
-        write_raster(path, classes, grid, nodata=CLASS_NODATA, dtype="uint8", overwrite=True,
-                     tags={"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES)})
-    cell_area = grid.cell_size ** 2
-    class_area = {n: float(np.count_nonzero(classes == c) * cell_area) for c, n in CLASS_NAMES.items()}
-    regions = class_polygons(classes, grid.transform, mask=(classes >= 1) & (classes <= 5))
-    dissolved = [(c, shapely.to_wkb(g)) for c, g in regions.items()]
-    return {"outputs": {"classes": str(path)}, "class_area": class_area, "polygons": dissolved}
+        result = classes_from_cover(cover_tif, path, veg=veg_tif, breaks=breaks, keep_polygons=True, block=0)
+    dissolved = [(c, shapely.to_wkb(g)) for c, g in result["polygons"]]
+    return {"outputs": {"classes": str(path)}, "class_area": result["class_area"], "polygons": dissolved}
 
 
 def _early_vectors(inputs, crs_text, layers, settings, reproject):
@@ -292,9 +184,8 @@ def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, rep
     roads_g, hydro_g = load(roads, "--roads", lines), load(hydro, "--hydro", lines)
     wb_g, wet_g = load(waterbodies, "--waterbodies", polygons), load(wetlands, "--wetlands", polygons)
     idx_g = load(tile_index, "--tile-index", polygons)
-    if idx_g is not None and settings.tile_field not in idx_g.columns:
-        raise InputError(f"the tile index has no field {settings.tile_field!r} (fields: {', '.join(map(str, idx_g.columns))})",
-                         path=str(tile_index), hint="Pass --tile-field NAME")
+    if idx_g is not None:
+        check_field(idx_g, settings.tile_field, tile_index)
     return {
         "roads": list(roads_g.geometry) if roads_g is not None else [],
         "hydro": list(hydro_g.geometry) if hydro_g is not None else [],
@@ -446,7 +337,7 @@ def _step_params(summary: dict, settings: ShrubSettings, overwrite: bool, from_s
 
     return StepParams(
         thresholds=band_thresholds(z_unit, settings.bands, settings.band_breaks_m),
-        noise_floor=length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"),
+        noise_floor=length_to_crs_units(settings.noise_floor, z_unit, name="noise floor"), z_unit=z_unit,
         snap=length(settings.snap, "snap"), max_road_width=length(settings.max_road_width, "max road width"),
         max_hydro_width=length(settings.max_hydro_width, "max hydro width"),
         single_line_width=length(settings.single_line_width, "single-line hydro width"),
@@ -511,7 +402,8 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
     run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], p, out) for n in good], pool, states,
              good, keep_outputs, tick, "density", out)
     good = alive()
-    breaks = _breaks(settings, [out / "cover" / f"{n}.tif" for n in good])
+    cover = write_vrt(out / "cover.vrt", [out / "cover" / f"{n}.tif" for n in good])
+    breaks = class_breaks(cover, settings.classify, settings.class_breaks) if cover else DEFAULT_BREAKS
     run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, p, out) for n in good],
              pool, states, good, classes_done, tick, "classes", out)
     return mosaic, polygons, breaks
@@ -595,32 +487,6 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
         unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     with claim_output(out, "gistools map"):
         return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit)
-
-
-def _breaks(settings: ShrubSettings, cover_paths) -> tuple[float, float]:
-    """The class breaks: the given ones, or quantile / Jenks breaks of the tiles' cover on the sample lattice
-    (lidar.shrub.lattice_sample: the same cells as a mosaic's blocks give)."""
-    if settings.classify == "breaks":
-        return tuple(settings.class_breaks)  # type: ignore[return-value]
-    grids = []
-    for p in cover_paths:
-        with rasterio.open(p) as src:
-            grids.append(Grid(src.transform, src.width, src.height))
-    if not grids:
-        return DEFAULT_BREAKS
-    cs = grids[0].cell_size
-    west = min(g.bounds[0] for g in grids)
-    south = min(g.bounds[1] for g in grids)
-    east = max(g.bounds[2] for g in grids)
-    north = max(g.bounds[3] for g in grids)
-    step = sample_step(int(round((east - west) / cs)) * int(round((north - south) / cs)))
-    keys, values = [], []
-    for p in cover_paths:
-        a, grid, _ = read_raster(p)
-        k, v = lattice_sample(a, grid.col0, grid.row_top, step)
-        keys.append(k)
-        values.append(v)
-    return breaks_from_sample(keys, values, settings.classify)
 
 
 def _write_polygons(path, polygons, crs, tile_field, area_m2):
