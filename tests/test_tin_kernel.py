@@ -11,6 +11,11 @@ from gistools.lidar import tin
 from gistools.lidar.tin import delaunay_triangles, tin_engine, tin_to_grid
 
 
+def test_an_unknown_engine_is_refused():
+    with pytest.raises(ValueError, match="not one of kernel, triangle"):
+        tin_to_grid(np.arange(3.0), np.arange(3.0), np.arange(3.0), snapped_grid((0, 0, 3, 3), 1.0), engine="delaunator")
+
+
 def test_the_kernel_is_built_where_ci_runs():
     # the install (tools/run.sh: pip install -e .) compiles it; without it TINs fall back to Triangle, 3x slower
     if os.environ.get("CI") and os.environ.get("GISTOOLS_TIN", "") != "triangle":
@@ -20,10 +25,6 @@ def test_the_kernel_is_built_where_ci_runs():
 
 
 pytestmark_kernel = pytest.mark.skipif(tin.tin_engine() != "kernel", reason="the compiled TIN kernel is not built")
-
-
-def _triangle_engine(monkeypatch):
-    monkeypatch.setenv("GISTOOLS_TIN", "triangle")
 
 
 def _check_delaunay(x, y, tris):
@@ -50,12 +51,11 @@ def _check_delaunay(x, y, tris):
 
 
 @pytestmark_kernel
-def test_random_points_give_triangles_identical_to_triangle(monkeypatch):
+def test_random_points_give_triangles_identical_to_triangle():
     rng = np.random.default_rng(3)
     x, y = rng.uniform(400000, 401500, 20000), rng.uniform(1.8e6, 1.8e6 + 900, 20000)
-    ours = delaunay_triangles(x, y)
-    _triangle_engine(monkeypatch)
-    theirs = delaunay_triangles(x, y)
+    ours = delaunay_triangles(x, y, engine="kernel")
+    theirs = delaunay_triangles(x, y, engine="triangle")
     assert {tuple(sorted(t)) for t in ours.tolist()} == {tuple(sorted(t)) for t in theirs.tolist()}
     _check_delaunay(x, y, ours)
 
@@ -99,15 +99,14 @@ def test_collinear_and_tiny_inputs_give_no_area():
 
 @pytestmark_kernel
 @pytest.mark.parametrize("max_edge", [None, 9.0])
-def test_kernel_grid_equals_the_triangle_engine(monkeypatch, max_edge):
+def test_kernel_grid_equals_the_triangle_engine(max_edge):
     rng = np.random.default_rng(5)
     x = np.r_[rng.uniform(0, 300, 40000), rng.uniform(300, 600, 800)]  # a sparse half: long edges there
     y = np.r_[rng.uniform(0, 300, 40000), rng.uniform(0, 300, 800)]
     z = np.sin(x / 17) + 0.01 * y + rng.normal(0, 0.05, x.size)
     g = snapped_grid((-10, -10, 610, 310), 2.0)
-    ours = tin_to_grid(x, y, z, g, max_edge=max_edge)
-    _triangle_engine(monkeypatch)
-    theirs = tin_to_grid(x, y, z, g, max_edge=max_edge)
+    ours = tin_to_grid(x, y, z, g, max_edge=max_edge, engine="kernel")
+    theirs = tin_to_grid(x, y, z, g, max_edge=max_edge, engine="triangle")
     assert np.array_equal(np.isnan(ours), np.isnan(theirs))
     assert np.nanmax(np.abs(ours - theirs)) < 1e-9
     assert np.isfinite(ours).sum() > 0.4 * ours.size

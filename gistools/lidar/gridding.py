@@ -121,6 +121,7 @@ def dem_from_ground_points(
     max_distance: float | None = None,
     max_edge: float | None = None,
     water: np.ndarray | None = None,
+    engine: str | None = None,
 ) -> np.ndarray:
     """DEM of ground points on ``grid`` (float64, NaN = nodata).
 
@@ -131,6 +132,7 @@ def dem_from_ground_points(
     centre is farther from every ground point stay NaN (tin, idw). ``water``: a
     boolean grid of water cells, which stay NaN. ``max_edge`` (CRS units, tin):
     triangles with a longer edge are left out (default: 2 x ``max_distance``).
+    ``engine``: the TIN engine (lidar.tin; None = the default).
 
     Give ground points from a buffer around the grid (neighbouring tiles) so edge
     cells equal those of one mosaic-wide computation.
@@ -149,7 +151,7 @@ def dem_from_ground_points(
     else:
         if max_edge is None and max_distance is not None:
             max_edge = 2 * max_distance
-        dem = tin_to_grid(x, y, z, grid, max_edge=max_edge)
+        dem = tin_to_grid(x, y, z, grid, max_edge=max_edge, engine=engine)
     if method in ("tin", "idw") and len(x):
         dem[~_kept_cells(grid, x, y, max_distance, water)] = np.nan
     elif water is not None:
@@ -175,7 +177,7 @@ def _windows(todo: np.ndarray, gap: int = 2, limit: int = 64) -> list[tuple[slic
 
 
 def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, water: np.ndarray | None = None,
-                      inner_halo: float | None = None) -> np.ndarray:
+                      inner_halo: float | None = None, engine: str | None = None) -> np.ndarray:
     """TIN DEM of ground points given with a halo around ``grid`` (neighbouring tiles): the values of
     ``dem_from_ground_points(..., method="tin")`` on all of them, computed on fewer points.
 
@@ -186,8 +188,10 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
     all the points gives. The few others (gaps near the edges) are computed again from the points around
     them, in growing halos until their triangles are known to be Delaunay for all the points, or from the
     full ``halo`` around them (as a tile's TIN of its buffered points gives them).
-    ``water``: cells that stay nodata.
+    ``water``: cells that stay nodata. ``engine``: the TIN engine (lidar.tin; None = the default; the
+    "triangle" engine finds no exact cell, so it triangulates all the points at once).
     """
+    engine = tin_engine(engine)
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     cs = grid.cell_size
     w, s, e, n = grid.bounds
@@ -200,14 +204,14 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
         in_grid = np.count_nonzero((x >= w) & (x <= e) & (y >= s) & (y <= n))
         spacing = np.sqrt((e - w) * (n - s) / max(in_grid, 1))
         inner_halo = float(np.clip(10 * spacing, 2 * cs, halo))
-    if tin_engine() != "kernel" or inner_halo >= halo:
-        tin_to_grid(x, y, z, grid, dem, max_edge=max_edge)
+    if engine != "kernel" or inner_halo >= halo:
+        tin_to_grid(x, y, z, grid, dem, max_edge=max_edge, engine=engine)
         dem[~needed] = np.nan
         return dem
     extent = (x.min(), y.min(), x.max(), y.max())
     box = _open_box((w - inner_halo, s - inner_halo, e + inner_halo, n + inner_halo), extent)
     sel = (x >= w - inner_halo) & (x <= e + inner_halo) & (y >= s - inner_halo) & (y <= n + inner_halo)
-    dem, exact = tin_to_grid_exact(x[sel], y[sel], z[sel], grid, box, max_edge=max_edge)
+    dem, exact = tin_to_grid_exact(x[sel], y[sel], z[sel], grid, box, max_edge=max_edge, engine=engine)
     # centres outside the points' bounding box are outside every TIN of them (the edge of a block of tiles)
     xs, ys = cell_centres(grid)
     exact |= ((xs < extent[0]) | (xs > extent[2]))[None, :] | ((ys < extent[1]) | (ys > extent[3]))[:, None]
@@ -235,7 +239,7 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
         while left.any():
             pick = (cx >= sw - h) & (cx <= se + h) & (cy >= ss - h) & (cy <= sn + h)
             wbox = _open_box((sw - h, ss - h, se + h, sn + h), extent)
-            part, ex = tin_to_grid_exact(cx[pick], cy[pick], cz[pick], sub, wbox, max_edge=max_edge)
+            part, ex = tin_to_grid_exact(cx[pick], cy[pick], cz[pick], sub, wbox, max_edge=max_edge, engine=engine)
             if h >= halo or (wbox[0] < -1e299 and wbox[1] < -1e299 and wbox[2] > 1e299 and wbox[3] > 1e299):
                 done = left  # the full halo (or every point) around them: what one TIN of the tile's points gives
             else:

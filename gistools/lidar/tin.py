@@ -2,11 +2,13 @@
 
 Two engines give the same Delaunay triangulation (up to the choice between equally valid
 triangles of cocircular points): gistools' compiled kernel (``_tinkernel.c``: the sweep-hull
-algorithm of Delaunator with exact integer predicates, plus a rasteriser; about 3-4x faster than
-Triangle and the numpy evaluation on millions of points), built when the package is installed
-with a C compiler, and Shewchuk's Triangle (``triangle`` on PyPI) with a numpy evaluation, used
-when the kernel is not built or ``GISTOOLS_TIN=triangle`` is set. Either way the evaluation
-costs in proportion to the cells, not to points x cells.
+algorithm of Delaunator with exact integer predicates, plus a rasteriser; 2.3x faster than
+Triangle and the numpy evaluation on a 2 M point tile, README "Performance"), built when the package
+is installed with a C compiler, and Shewchuk's Triangle (``triangle`` on PyPI) with a numpy
+evaluation. Every function takes ``engine`` ("kernel" or "triangle"); None is ``DEFAULT_ENGINE``:
+the kernel when it is built, unless the environment variable ``GISTOOLS_TIN=triangle`` was set
+when gistools was imported (read once, here). Either way the evaluation costs in proportion to
+the cells, not to points x cells.
 """
 
 from __future__ import annotations
@@ -19,7 +21,7 @@ import triangle as _triangle
 
 from ..grid import Grid
 
-__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid", "tin_to_grid_exact", "tin_engine"]
+__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid", "tin_to_grid_exact", "tin_engine", "ENGINES", "DEFAULT_ENGINE"]
 
 
 def _load_kernel():
@@ -43,9 +45,21 @@ _KERNEL = _load_kernel()
 _QUANTUM_STEPS = 2**30  # the kernel's integer coordinates span at most this many steps (its exact predicates allow 2^30)
 
 
-def tin_engine() -> str:
-    """``kernel`` (gistools' compiled Delaunay) or ``triangle`` (the fallback): the engine TINs use now."""
-    return "kernel" if _KERNEL is not None and os.environ.get("GISTOOLS_TIN", "").lower() != "triangle" else "triangle"
+ENGINES = ("kernel", "triangle")
+DEFAULT_ENGINE = "kernel" if _KERNEL is not None and os.environ.get("GISTOOLS_TIN", "").lower() != "triangle" else "triangle"
+
+
+def tin_engine(engine: str | None = None) -> str:
+    """The engine a TIN uses: ``engine`` checked ("kernel": gistools' compiled Delaunay, "triangle": Shewchuk's
+    Triangle), or ``DEFAULT_ENGINE`` when None."""
+    if engine is None:
+        return DEFAULT_ENGINE
+    if engine not in ENGINES:
+        raise ValueError(f"TIN engine {engine!r} is not one of {', '.join(ENGINES)}")
+    if engine == "kernel" and _KERNEL is None:
+        raise RuntimeError("the compiled TIN kernel is not built (reinstall gistools with a C compiler)")
+    return engine
+
 
 _BATCH = 1_000_000  # triangles per evaluation batch (bounds temporary memory)
 
@@ -73,7 +87,7 @@ def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray)
     return z
 
 
-def delaunay_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def delaunay_triangles(x: np.ndarray, y: np.ndarray, *, engine: str | None = None) -> np.ndarray:
     """Delaunay triangles (m, 3) int32 vertex indices of distinct 2-D points.
 
     Coordinates are centred before triangulation to keep precision on large
@@ -81,7 +95,7 @@ def delaunay_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """
     if len(x) < 3:
         return np.empty((0, 3), np.int32)
-    if tin_engine() == "kernel":
+    if tin_engine(engine) == "kernel":
         return _kernel_triangles(np.asarray(x, np.float64), np.asarray(y, np.float64))
     pts = np.column_stack([x - x.mean(), y - y.mean()])
     try:
@@ -154,24 +168,26 @@ def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
     return tris[: 3 * m].reshape(-1, 3)
 
 
-def tin_to_grid_exact(x, y, z, grid: Grid, box, *, max_edge: float | None = None) -> tuple[np.ndarray, np.ndarray | None]:
-    """(tin_to_grid(...), exact): ``exact`` marks the cells whose value (or nodata) any TIN of a point set
-    that adds only points outside ``box`` would give too (their triangle's circumcircle lies inside ``box``).
+def tin_to_grid_exact(x, y, z, grid: Grid, box, *, max_edge: float | None = None,
+                      engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(tin_to_grid(...), exact): ``exact`` (bool, the grid's shape) marks the cells whose value (or nodata) any
+    TIN of a point set that adds only points outside ``box`` would give too (their triangle's circumcircle
+    lies inside ``box``).
 
-    Give all the points inside ``box`` (west, south, east, north, CRS units). ``exact`` is None when
-    the compiled kernel is not in use (no cell is known exact then).
+    Give all the points inside ``box`` (west, south, east, north, CRS units). Only the compiled kernel
+    finds exact cells: with the "triangle" engine none is marked.
     """
     out = np.full(grid.shape, np.nan)
-    if tin_engine() != "kernel":
-        return tin_to_grid(x, y, z, grid, out, max_edge=max_edge), None
     exact = np.zeros(grid.shape, np.uint8)
-    tin_to_grid(x, y, z, grid, out, max_edge=max_edge, exact=exact, exact_box=box)
+    if tin_engine(engine) != "kernel":
+        return tin_to_grid(x, y, z, grid, out, max_edge=max_edge, engine="triangle"), exact.view(bool)
+    tin_to_grid(x, y, z, grid, out, max_edge=max_edge, exact=exact, exact_box=box, engine="kernel")
     return out, exact.view(bool)
 
 
 def tin_to_grid(
     x: np.ndarray, y: np.ndarray, z: np.ndarray, grid: Grid, out: np.ndarray | None = None, *, max_edge: float | None = None,
-    exact: np.ndarray | None = None, exact_box=None,
+    exact: np.ndarray | None = None, exact_box=None, engine: str | None = None,
 ) -> np.ndarray:
     """Linear TIN interpolation of (x, y, z) at the cell centres of ``grid``.
 
@@ -179,7 +195,7 @@ def tin_to_grid(
     convex hull of the points are NaN, and so are cells in triangles with an edge
     longer than ``max_edge`` (CRS units; the hull's long bridges over concave data
     edges and big gaps, as WhiteboxTools' and PDAL's ``max_triangle_edge_length``).
-    Repeated (x, y) are merged (mean z).
+    Repeated (x, y) are merged (mean z). ``engine``: see the module.
     Returns a float64 array of ``grid.shape``; with ``out`` given, only cells the
     TIN covers are written into it.
     """
@@ -191,7 +207,8 @@ def tin_to_grid(
     u = (x / cs) - grid.col0
     v = grid.row_top - (y / cs)
     max_edge_cells = None if max_edge is None else max_edge / cs
-    if tin_engine() == "kernel":
+    engine = tin_engine(engine)
+    if engine == "kernel":
         if len(x) < 3 or (coords := _integer_coordinates(x, y)) is None:
             return out
         if out.dtype != np.float64 or not out.flags.c_contiguous or out.shape != grid.shape:
@@ -208,7 +225,7 @@ def tin_to_grid(
         if m < 0:
             raise MemoryError(f"not enough memory to triangulate {len(x)} points")
         return out
-    tris = delaunay_triangles(x, y)
+    tris = delaunay_triangles(x, y, engine=engine)
     if len(tris) == 0:
         return out
     z = merge_repeats(x, y, z, tris)
