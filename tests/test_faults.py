@@ -719,3 +719,30 @@ def test_an_interrupt_that_a_library_turned_into_another_error_stops_the_run(til
     finally:
         _INTERRUPT.clear()
     assert not list((tmp_path / "out").glob("tile_reports/*.json"))
+
+
+def _blas_threads() -> int:
+    from threadpoolctl import threadpool_info
+
+    return max([p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"] or [0])
+
+
+def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(monkeypatch):
+    """The pool's initializer limits BLAS in each worker (threadpoolctl); the parent's os.environ is not edited."""
+    from gistools.tasks.batch import WORKER_THREAD_ENV, ProcessPool
+
+    for k in WORKER_THREAD_ENV:
+        monkeypatch.delenv(k, raising=False)
+    before = dict(os.environ)
+    pool = ProcessPool(1)
+    try:
+        assert pool.submit(_blas_threads).result(timeout=120) in (0, 1)  # 0: numpy without a threaded BLAS
+    finally:
+        pool.close()
+    assert dict(os.environ) == before
+    monkeypatch.setenv("OPENBLAS_NUM_THREADS", "2")  # the user's choice is theirs
+    pool = ProcessPool(1)
+    try:
+        assert pool.submit(_blas_threads).result(timeout=120) in (0, 2)
+    finally:
+        pool.close()

@@ -89,26 +89,21 @@ def worker_timed(fn, args):
 
 # Thread pools of numeric libraries in worker processes: one thread each, as Dask's nanny sets them. The
 # processes are the parallelism; OpenBLAS's idle threads otherwise spin on the cores the other workers need.
+# A variable among these that the user set is respected (the limit is then theirs).
 WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "VECLIB_MAXIMUM_THREADS",
                      "NUMEXPR_NUM_THREADS")
 
 
-class _OneThreadProcess(multiprocessing.context.SpawnProcess):
-    """A spawned process whose numeric libraries start with one thread (variables the user set are kept)."""
-
-    def start(self):
-        added = [k for k in WORKER_THREAD_ENV if k not in os.environ]
-        for k in added:
-            os.environ[k] = "1"
-        try:
-            super().start()
-        finally:
-            for k in added:
-                os.environ.pop(k, None)
-
-
-class _SpawnContext(multiprocessing.context.SpawnContext):
-    Process = _OneThreadProcess
+def one_thread_per_worker() -> None:
+    """In a worker process: the BLAS and OpenMP pools already loaded limited to one thread (threadpoolctl),
+    unless the user set one of WORKER_THREAD_ENV. Changes nothing in the parent (its environment included)."""
+    if any(k in os.environ for k in WORKER_THREAD_ENV):
+        return
+    try:
+        from threadpoolctl import threadpool_limits
+    except ImportError:  # an install without it: the pools keep their size
+        return
+    threadpool_limits(limits=1)
 
 
 def _watch_parent(parent: int) -> None:
@@ -124,6 +119,7 @@ def _worker_start(parent: int, main_thread: bool) -> None:
     PR_SET_PDEATHSIG when the parent's main thread started the pool (the signal follows the thread), and
     everywhere a watchdog thread that exits once the parent is gone."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    one_thread_per_worker()
     if main_thread and sys.platform.startswith("linux"):
         try:
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
@@ -141,7 +137,7 @@ class ProcessPool:
     interrupt stops them at once instead of waiting for their tiles."""
 
     def __init__(self, jobs: int):
-        ctx = _SpawnContext()
+        ctx = multiprocessing.get_context("spawn")
         python = python_executable()
         if python != sys.executable:
             ctx.set_executable(python)
