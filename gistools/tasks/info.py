@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 
 from ..errors import GistoolsError
+from ..io.atomic import atomic_path
 from ..io.points import crs_label, iter_chunks, read_tile_info
 from ..io.tiles import find_tiles
 from ..progress import ProgressCallback, report
@@ -39,8 +42,11 @@ def tile_summary(path, crs=None) -> dict:
     }
 
 
-def tiles_summary(inputs, *, crs=None, progress: ProgressCallback | None = None) -> dict:
-    """:func:`tile_summary` of every tile of ``inputs``; a tile that cannot be read is listed with its error."""
+def tiles_summary(inputs, *, crs=None, out=None, progress: ProgressCallback | None = None) -> dict:
+    """:func:`tile_summary` of every tile of ``inputs``; a tile that cannot be read is listed with its error.
+
+    ``out``: also write the summary there as JSON (atomically; an existing file is replaced).
+    """
     paths = find_tiles(inputs)
     tiles = []
     for k, path in enumerate(paths):
@@ -50,10 +56,14 @@ def tiles_summary(inputs, *, crs=None, progress: ProgressCallback | None = None)
             tiles.append({"status": "failed", "file": str(path), "error": str(err)})
         report(progress, (k + 1) / len(paths), path.name)
     ok = [t for t in tiles if t["status"] == "ok"]
-    return {
+    summary = {
         "tool": "gistools info",
         "tiles": tiles,
         "counts": {s: sum(t["status"] == s for t in tiles) for s in ("ok", "failed")},
         "points": sum(t["points"] for t in ok),
         "crs": sorted({t["crs"] for t in ok}),
     }
+    if out is not None:
+        with atomic_path(out, overwrite=True) as tmp:
+            tmp.write_text(json.dumps(summary, indent=2, default=str))
+    return summary

@@ -1,0 +1,23 @@
+"""The gistools Processing algorithms, one module per group: each declares its parameters (choices and
+defaults read from the library), makes one gistools call and returns the output dict.
+
+base       the shared plumbing (GistoolsAlgorithm) and the library's choices and defaults
+tiles      info, points                    rasters    dsm, dem, rasters
+steps      ndsm, bands, breaklines, clip, density, classify (gistools.tasks.steps)
+shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
+runway     runway                          structure  structure
+
+A new algorithm goes in its group's module and into ALGORITHMS below.
+"""
+
+from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
+from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
+from .runway import RunwayAlgorithm
+from .shrub import ShrubChainAlgorithm
+from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipAlgorithm, DensityAlgorithm, NdsmAlgorithm
+from .structure import StructureAlgorithm
+from .tiles import InfoAlgorithm, PointsAlgorithm
+
+ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
+              BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
+              AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm)

@@ -1,0 +1,256 @@
+"""Shared plumbing of the gistools Processing algorithms: parameter helpers, progress and cancel through the
+feedback object, gistools errors as QgsProcessingException, and the library's choices and defaults.
+
+Lengths are text with a unit ("5ft", "0.1m"; a bare number is in the data's CRS units), as
+in the CLI: QGIS distance widgets hold a number in the layer's units, and the dissertation's
+defaults (25 ft, 0.2 ft, ...) must not turn into 25 m on metre data.
+"""
+
+from __future__ import annotations
+
+import inspect
+from pathlib import Path
+
+from qgis.core import (
+    QgsProcessing,
+    QgsProcessingAlgorithm,
+    QgsProcessingContext,
+    QgsProcessingException,
+    QgsProcessingParameterCrs,
+    QgsProcessingParameterDefinition,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterMultipleLayers,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
+)
+from qgis.PyQt.QtGui import QIcon
+
+from gistools.lidar import bands as _bands
+from gistools.lidar import gridding as _gridding
+from gistools.lidar import shrub as _shrub
+from gistools.tasks import points as _points
+from gistools.tasks.aquifer import AquiferSettings
+from gistools.tasks.runway import RunwaySettings
+from gistools.tasks.settings import ShrubSettings
+
+HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
+
+GROUP_LIDAR = ("LiDAR", "lidar")
+GROUP_SHRUB = ("Shrub chain", "shrub")
+
+# choices are the library's own (the provider loads only once gistools imports)
+DEM_METHODS = list(_gridding.DEM_METHODS)
+RETURNS = list(_points.RETURNS)
+PRESETS = list(_bands.PRESETS)
+CLASSIFY = list(_shrub.CLASS_METHODS)
+Z_UNITS = ["from the raster", "m", "ft", "ftUS"]
+BANDS = ["B1 (0-1 m)", "B2 (1-2 m)", "B3 (2-6 m)"]
+
+# defaults are the library's own too: the settings objects' defaults, never copies
+SHRUB = ShrubSettings()
+RASTER = SHRUB.raster
+AQUIFER = AquiferSettings()
+RUNWAY = RunwaySettings()
+POINTS = {k: v.default for k, v in inspect.signature(_points.points_from_tiles).parameters.items()}
+
+
+def band_choices(bands) -> list[int]:
+    """The BANDS enum indices of density bands (1-3)."""
+    return [b - 1 for b in bands]
+
+
+def text_list(values) -> str:
+    """A tuple of numbers as the comma-separated text of a string parameter."""
+    return ",".join(f"{v:g}" for v in values)
+
+
+def int_list(text: str, name: str):
+    text = (text or "").strip()
+    if not text:
+        return None
+    try:
+        return tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise QgsProcessingException(f"{name}: {text!r} is not a comma-separated list of integers, e.g. 1,2") from None
+
+
+def float_list(text: str, name: str, count: int):
+    text = (text or "").strip()
+    if not text:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != count:
+        raise QgsProcessingException(f"{name}: {text!r} must be {count} comma-separated numbers")
+    return values
+
+
+class GistoolsAlgorithm(QgsProcessingAlgorithm):
+    """Shared plumbing: progress and cancel through the feedback object, gistools errors as QgsProcessingException."""
+
+    _name = ""
+    _display = ""
+    _group = GROUP_LIDAR
+    _help = ""
+
+    def name(self):
+        return self._name
+
+    def displayName(self):  # noqa: N802
+        return self._display
+
+    def group(self):
+        return self._group[0]
+
+    def groupId(self):  # noqa: N802
+        return self._group[1]
+
+    def shortHelpString(self):  # noqa: N802
+        return self._help
+
+    def icon(self):
+        return QIcon(str(HERE / "icon.svg"))
+
+    def createInstance(self):  # noqa: N802
+        return type(self)()
+
+    # --- parameter helpers
+    def add(self, param, advanced: bool = False):
+        if advanced:
+            param.setFlags(param.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+        self.addParameter(param)
+        return param
+
+    def add_tiles(self):
+        self.add(QgsProcessingParameterFile("INPUT", "LAS/LAZ tiles (a folder, or one file)",
+                                            behavior=QgsProcessingParameterFile.Folder, optional=True))
+        self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", "Or point cloud layers (LAS/LAZ files)",
+                                                      layerType=QgsProcessing.TypePointCloud, optional=True))
+
+    def tiles(self, parameters, context):
+        """The tile folder and / or the files of the chosen point cloud layers, as gistools inputs."""
+        inputs = []
+        folder = self.text(parameters, "INPUT", context)
+        if folder:
+            inputs.append(folder)
+        if parameters.get("POINT_CLOUDS"):
+            for layer in self.parameterAsLayerList(parameters, "POINT_CLOUDS", context):
+                inputs.append(layer.source().split("|")[0])
+        if not inputs:
+            raise QgsProcessingException("no tiles: give a folder of LAS/LAZ tiles (INPUT) or point cloud layers "
+                                         "(POINT_CLOUDS)")
+        return inputs
+
+    def add_crs(self):
+        self.add(QgsProcessingParameterCrs("CRS", "Input CRS (overrides the tiles' own; needed for tiles that carry none)",
+                                           optional=True), advanced=True)
+
+    def add_parallel(self):
+        self.add(QgsProcessingParameterNumber("JOBS", "Tiles in parallel (local processes)", defaultValue=1, minValue=1),
+                 advanced=True)
+        self.add(QgsProcessingParameterString("SCHEDULER", "Dask scheduler address (tcp://host:8786), or 'local'",
+                                              optional=True), advanced=True)
+
+    def add_length(self, name, description, default, optional=False, advanced=False):
+        self.add(QgsProcessingParameterString(name, f"{description} (with unit: m, ft, ftUS)", defaultValue=default,
+                                              optional=optional), advanced=advanced)
+
+    # --- parameter readers
+    def text(self, parameters, name, context):
+        value = self.parameterAsString(parameters, name, context)
+        return value.strip() if value else None
+
+    def crs_text(self, parameters, context):
+        if not parameters.get("CRS"):
+            return None
+        crs = self.parameterAsCrs(parameters, "CRS", context)
+        if not crs.isValid():
+            return None
+        return crs.authid() or crs.toWkt()
+
+    def layer_spec(self, parameters, name, context, feedback):
+        """A vector input as gistools reads it (``file.gpkg:LAYER``); memory or filtered layers are exported first."""
+        if parameters.get(name) in (None, ""):
+            return None
+        path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
+            parameters, name, context, ["gpkg", "shp"], "gpkg", feedback)
+        if not path:
+            return None
+        return f"{path}:{layer}" if layer and path.lower().endswith(".gpkg") else path
+
+    def output_path(self, parameters, name, context, optional=False):
+        """A destination's file; None for an optional one left out; a temporary file when a model leaves it empty."""
+        if optional and parameters.get(name) in (None, ""):
+            return None
+        path = self.parameterAsOutputLayer(parameters, name, context)
+        if not path:
+            path = self.parameterDefinition(name).generateTemporaryDestination()
+        return path
+
+    def output_folder(self, parameters, context, name="OUTPUT_FOLDER"):
+        path = self.parameterAsString(parameters, name, context)
+        if not path or path == "TEMPORARY_OUTPUT":
+            path = self.parameterDefinition(name).generateTemporaryDestination()
+        return path
+
+    def layer_crs(self, parameters, name, context):
+        """The CRS of a vector layer parameter as gistools takes it (authority id, else WKT), None if it has none."""
+        layer = self.parameterAsVectorLayer(parameters, name, context)
+        if layer is None or not layer.crs().isValid():
+            return None
+        return layer.crs().authid() or layer.crs().toWkt()
+
+    def raster_path(self, parameters, name, context):
+        if parameters.get(name) in (None, ""):
+            return None
+        layer = self.parameterAsRasterLayer(parameters, name, context)
+        if layer is None:
+            raise QgsProcessingException(f"{name}: not a raster layer or file: {parameters.get(name)!r}")
+        return layer.source()
+
+    # --- run
+    def progress(self, feedback):
+        state = {"text": None}
+
+        def callback(fraction, message=""):
+            feedback.setProgress(100.0 * fraction)
+            if message and message != state["text"]:
+                state["text"] = message
+                feedback.setProgressText(message)
+            return not feedback.isCanceled()
+
+        return callback
+
+    def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
+        from gistools.errors import Cancelled, GistoolsError
+
+        try:
+            return self.run_gistools(parameters, context, feedback)
+        except Cancelled:
+            feedback.reportError("gistools: cancelled; no partial output was written")
+            raise QgsProcessingException("cancelled by the user; no partial output was written") from None
+        except GistoolsError as err:
+            raise QgsProcessingException(str(err)) from None
+
+    def run_gistools(self, parameters, context, feedback):  # pragma: no cover - every algorithm overrides it
+        raise NotImplementedError(f"{type(self).__name__} declares no gistools call")
+
+    def report_tiles(self, result, feedback, what="tiles"):
+        """Failed tiles are reported (the batch goes on); a run where every tile failed is an error."""
+        tiles = result.get("tiles", [])
+        failed = [t for t in tiles if t.get("status") == "failed"]
+        for t in failed:
+            feedback.reportError(f"FAILED {t.get('error')}")
+        for t in tiles:
+            for w in t.get("warnings") or []:
+                feedback.pushWarning(f"WARNING {w}") if hasattr(feedback, "pushWarning") else feedback.reportError(f"WARNING {w}")
+        feedback.pushInfo(f"{len(tiles) - len(failed)} {what} ok, {len(failed)} failed")
+        if tiles and len(failed) == len(tiles):
+            raise QgsProcessingException(failed[0].get("error") or "every tile failed")
+        return len(failed)
+
+    def load_on_completion(self, context, path, name, output):
+        if path and Path(path).exists():
+            context.addLayerToLoadOnCompletion(str(path), QgsProcessingContext.LayerDetails(name, context.project(), output))

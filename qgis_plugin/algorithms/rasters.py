@@ -1,0 +1,87 @@
+"""DSM, DEM and nDSM of a tile folder (gistools rasters)."""
+
+from __future__ import annotations
+
+from qgis.core import (
+    QgsProcessingOutputRasterLayer,
+    QgsProcessingParameterEnum,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterString,
+)
+
+from .base import GistoolsAlgorithm, DEM_METHODS, int_list, RASTER
+
+
+class _RastersBase(GistoolsAlgorithm):
+    """Tile folder -> per-tile GeoTIFFs + VRT mosaics (gistools rasters)."""
+
+    products: tuple = ()
+    outputs = {}  # product -> (output name, description)
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add_tiles()
+        self.add_length("CELL_SIZE", "Cell size", RASTER.cell_size)
+        if "dsm" in self.products:
+            self.add(QgsProcessingParameterString("DSM_CLASSES", "Classes in the DSM (empty = all but noise 7, 18)",
+                                                  optional=True), advanced=True)
+        if "dem" in self.products:
+            self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=DEM_METHODS,
+                                                defaultValue=DEM_METHODS.index(RASTER.dem_method)))
+            self.add_length("DEM_MAX_DISTANCE", "DEM: leave cells farther than this from ground points empty", RASTER.dem_max_distance,
+                            advanced=True)
+        self.add_crs()
+        self.add_parallel()
+        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (one GeoTIFF per tile + VRT)"))
+        for product in self.products:
+            name, description = self.outputs[product]
+            self.addOutput(QgsProcessingOutputRasterLayer(name, description))
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+
+        out = self.output_folder(parameters, context)
+        kwargs = {"cell_size": self.text(parameters, "CELL_SIZE", context), "crs": self.crs_text(parameters, context),
+                  "products": self.products}
+        if "dsm" in self.products:
+            kwargs["dsm_classes"] = int_list(self.parameterAsString(parameters, "DSM_CLASSES", context), "DSM classes")
+        if "dem" in self.products:
+            kwargs["dem_method"] = DEM_METHODS[self.parameterAsEnum(parameters, "DEM_METHOD", context)]
+            kwargs["dem_max_distance"] = self.text(parameters, "DEM_MAX_DISTANCE", context)
+        settings = RasterSettings(**kwargs)
+        result = rasters_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+                                    jobs=self.parameterAsInt(parameters, "JOBS", context),
+                                    scheduler=self.text(parameters, "SCHEDULER", context),
+                                    progress=self.progress(feedback))
+        self.report_tiles(result, feedback)
+        outputs = {"OUTPUT_FOLDER": out}
+        for product in self.products:
+            name, description = self.outputs[product]
+            path = result.get("mosaics", {}).get(product)
+            outputs[name] = str(path) if path else None
+            self.load_on_completion(context, path, description, name)
+        return outputs
+
+
+class DsmAlgorithm(_RastersBase):
+    _name, _display = "dsm", "DSM (max of first returns)"
+    _help = ("Digital surface model: the highest first return in each cell, on a lattice snapped to multiples of the "
+             "cell size so tiles mosaic without seams. Also the class of that return (TOP_CLASS), which the height "
+             "bands use to keep bare ground out of the low shrub band.")
+    products = ("dsm", "topclass")
+    outputs = {"dsm": ("OUTPUT", "DSM"), "topclass": ("TOP_CLASS", "Class of the highest first return")}
+
+
+class DemAlgorithm(_RastersBase):
+    _name, _display = "dem", "DEM (ground TIN)"
+    _help = ("Digital elevation model from ground points (class 2): a Delaunay TIN evaluated at cell centres, reading "
+             "ground points of neighbouring tiles so tile edges do not show; water (class 9) cells stay empty.")
+    products = ("dem",)
+    outputs = {"dem": ("OUTPUT", "DEM")}
+
+
+class RastersAlgorithm(_RastersBase):
+    _name, _display = "rasters", "DSM, DEM and nDSM of a tile folder"
+    _help = "DSM, DEM and nDSM (= DSM - DEM) of every tile, each tile decoded once (gistools rasters)."
+    products = ("dsm", "dem", "ndsm", "topclass")
+    outputs = {"dsm": ("DSM", "DSM"), "dem": ("DEM", "DEM"), "ndsm": ("NDSM", "nDSM"),
+               "topclass": ("TOP_CLASS", "Class of the highest first return")}

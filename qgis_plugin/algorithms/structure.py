@@ -1,0 +1,49 @@
+"""Structure reconstruction (gistools structure)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from qgis.core import (
+    QgsProcessingOutputFile,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputString,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterNumber,
+)
+
+from .base import GistoolsAlgorithm
+
+
+class StructureAlgorithm(GistoolsAlgorithm):
+    _name, _display, _group = "structure", "Structure reconstruction (closed 3D mesh)", ("Structure", "structure")
+    _help = ("A building's point cloud (ID X Y Z text, or LAS/LAZ) of floor outlines and floor plates to levels, "
+             "clusters, loops with holes, matched walls and a watertight, consistently wound mesh (PLY, OBJ), with the "
+             "loops as 3D lines (gistools structure). Parameters are estimated from the data unless given.")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add(QgsProcessingParameterFile("INPUT", "Point cloud (ID X Y Z text, or LAS/LAZ)"))
+        for name, text in (("HEIGHT_INTERVAL", "Height interval h, m (0: estimated)"),
+                           ("DISTANCE", "Planimetric distance d, m (0: estimated)"),
+                           ("TOLERANCE", "Tolerance t, m (0: 4 m)")):
+            self.add(QgsProcessingParameterNumber(name, text, type=QgsProcessingParameterNumber.Double, defaultValue=0.0,
+                                                  minValue=0.0))
+        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
+        self.addOutput(QgsProcessingOutputFile("MESH", "Mesh (PLY)"))
+        self.addOutput(QgsProcessingOutputVectorLayer("LOOPS", "Loops (GeoPackage)"))
+        self.addOutput(QgsProcessingOutputNumber("VOLUME", "Volume (m3)"))
+        self.addOutput(QgsProcessingOutputString("WATERTIGHT", "Watertight"))
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.structure import structure_model
+
+        out = Path(self.output_folder(parameters, context))
+        value = {k: self.parameterAsDouble(parameters, k, context) or None for k in ("HEIGHT_INTERVAL", "DISTANCE", "TOLERANCE")}
+        rep = structure_model(self.parameterAsFile(parameters, "INPUT", context), out, h=value["HEIGHT_INTERVAL"],
+                              d=value["DISTANCE"], t=value["TOLERANCE"], overwrite=True, progress=self.progress(feedback))
+        feedback.pushInfo(f"{rep['levels']} levels, {rep['clusters']} clusters, {rep['triangles']} triangles, volume "
+                          f"{rep['volume']:,.1f} m3, watertight {rep['watertight']}, Euler {rep['euler']}")
+        return {"OUTPUT_FOLDER": str(out), "MESH": rep["outputs"]["ply"], "LOOPS": rep["outputs"]["gpkg"],
+                "VOLUME": rep["volume"], "WATERTIGHT": str(rep["watertight"])}
