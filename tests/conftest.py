@@ -8,6 +8,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 import pytest
+from scipy import ndimage
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE = ROOT / "sample_tiles"
@@ -75,20 +76,52 @@ def read_las_independently(paths):
 
 
 def tin_oracle(grid, paths, max_distance):
-    """An independent TIN DEM: scipy LinearNDInterpolator (Qhull) of ground points at cell centres; repeated xy averaged."""
+    """An independent TIN DEM: scipy LinearNDInterpolator (Qhull) of ground points at cell centres; repeated xy averaged.
+
+    Returns (ref, interior, nodata, decided): ``interior`` the cells to compare values on; ``nodata`` the cells the
+    DEM must leave empty by an independent rule: centre farther than ``max_distance`` from every ground point
+    (scipy cKDTree), or a water cell (water points and no ground point in it), or outside the hull, or in a Qhull
+    triangle with an edge longer than 2 x ``max_distance``; ``decided`` the cells where that rule is not within
+    1e-6 of a threshold (ties between cocircular points aside)."""
+    from scipy.interpolate import LinearNDInterpolator
+    from scipy.spatial import Delaunay, cKDTree
+
+    from gistools.grid import cell_centres
+
     x, y, z, cls, _, withheld = read_las_independently(paths)
     g = (cls == 2) & ~withheld
     xy, inv = np.unique(np.column_stack([x[g], y[g]]), axis=0, return_inverse=True)
     zz = np.bincount(inv.ravel(), weights=z[g]) / np.bincount(inv.ravel())
-    from scipy.interpolate import LinearNDInterpolator
-
-    from gistools.grid import cell_centres
-    from gistools.lidar import within_distance
-
     xs, ys = cell_centres(grid)
     cx, cy = np.meshgrid(xs, ys)
-    ref = LinearNDInterpolator(xy - xy.mean(axis=0), zz)(cx - xy[:, 0].mean(), cy - xy[:, 1].mean())
-    interior = within_distance(grid, xy[:, 0], xy[:, 1], max_distance) & np.isfinite(ref)
-    # interior: away from the hull edge, where Qhull and Triangle may close the hull differently
-    interior[:3, :] = interior[-3:, :] = interior[:, :3] = interior[:, -3:] = False
-    return ref, interior
+    shift = xy.mean(axis=0)
+    tri = Delaunay(xy - shift)
+    ref = LinearNDInterpolator(tri, zz)(cx - shift[0], cy - shift[1])
+    centres = np.column_stack([cx.ravel() - shift[0], cy.ravel() - shift[1]])
+    dist = cKDTree(xy - shift).query(centres)[0].reshape(grid.shape)
+    simplex = tri.find_simplex(centres)
+    corners = tri.points[tri.simplices[np.maximum(simplex, 0)]]
+    edge = np.max([np.hypot(*(corners[:, i] - corners[:, (i + 1) % 3]).T) for i in range(3)], axis=0).reshape(grid.shape)
+    outside = (simplex < 0).reshape(grid.shape)
+    from scipy.stats import binned_statistic_2d
+
+    w, s_, e, n = grid.bounds
+
+    def counts(mask):  # points per cell, cells [west, east) x [south, north) as scipy bins them
+        if not mask.any():
+            return np.zeros(grid.shape)
+        c = binned_statistic_2d(y[mask], x[mask], None, "count", bins=[np.linspace(s_, n, grid.height + 1),
+                                                                     np.linspace(w, e, grid.width + 1)])[0]
+        return c[::-1]
+
+    water = (counts((cls == 9) & ~withheld) > 0) & (counts(g) == 0)
+    nodata = (dist > max_distance) | water | outside | (edge > 2 * max_distance)
+    decided = (np.abs(dist - max_distance) > 1e-6) & (np.abs(edge - 2 * max_distance) > 1e-6)
+    interior = ~nodata & np.isfinite(ref)
+    # away from the grid's edge and the hull's, where Qhull and the TIN may close the hull differently
+    near_hull = ndimage.binary_dilation(outside, iterations=2)
+    interior &= ~near_hull
+    decided &= ~near_hull
+    for a in (interior, decided):
+        a[:3, :] = a[-3:, :] = a[:, :3] = a[:, -3:] = False
+    return ref, interior, nodata, decided

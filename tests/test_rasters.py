@@ -84,7 +84,8 @@ def test_dsm_equals_independent_max_on_real_files(real_tile, tmp_path):
 def test_dem_tin_matches_scipy_on_sample(sample_run, sample_tiles):
     out, summary = sample_run
     dem, grid, _ = mosaic(out, "dem")
-    ref, interior = tin_oracle(grid, sample_tiles, summary["dem_max_distance"])
+    ref, interior, nodata, decided = tin_oracle(grid, sample_tiles, summary["dem_max_distance"])
+    assert np.array_equal(np.isnan(dem)[decided], nodata[decided])  # nodata by an independent rule
     both = interior & np.isfinite(dem)
     assert both.sum() > 0.9 * grid.width * grid.height * 0.9
     assert np.max(np.abs(dem[both] - ref[both])) < 0.001 / US_SURVEY_FOOT  # 1 mm
@@ -93,7 +94,8 @@ def test_dem_tin_matches_scipy_on_sample(sample_run, sample_tiles):
 def test_dem_tin_matches_scipy_on_real_files(real_tile, tmp_path):
     summary = rasters_from_tiles([real_tile], tmp_path, RasterSettings(cell_size="1m"))
     dem, grid, _ = mosaic(tmp_path, "dem")
-    ref, interior = tin_oracle(grid, [real_tile], summary["dem_max_distance"])
+    ref, interior, nodata, decided = tin_oracle(grid, [real_tile], summary["dem_max_distance"])
+    assert np.array_equal(np.isnan(dem)[decided], nodata[decided])  # nodata by an independent rule
     both = interior & np.isfinite(dem)
     assert both.sum() > 1000
     diff = np.abs(dem[both] - ref[both])

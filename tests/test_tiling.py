@@ -135,7 +135,8 @@ def test_tiles_with_different_scales_and_offsets(sample_tiles, sample_run, tmp_p
     summary = rasters_from_tiles([tiles], tmp_path / "out")
     assert summary["counts"]["ok"] == 4
     dem, grid, _ = read_raster(tmp_path / "out" / "dem.vrt")
-    ref, interior = tin_oracle(grid, sample_tiles, summary["dem_max_distance"])  # from the original tiles
+    ref, interior, nodata, decided = tin_oracle(grid, sample_tiles, summary["dem_max_distance"])  # from the original tiles
+    assert np.array_equal(np.isnan(dem)[decided], nodata[decided])  # nodata by an independent rule
     both = interior & np.isfinite(dem)
     assert both.sum() > 0.8 * grid.width * grid.height
     assert np.max(np.abs(dem[both] - ref[both])) < 0.001 / 0.3048  # 1 mm, in ftUS
