@@ -66,9 +66,10 @@ class RasterSettings:
     The dissertation's set is (1, 2). products: any of dsm, dem, ndsm, topclass (the ASPRS
     class of each cell's highest first return, uint8; a DSM-only run keeps no ground points).
     tin_block_points: the DEM is built in strips of about this many ground points, bounding
-    memory (about 200 bytes per point). dem_max_distance: cells farther than this from every
-    ground point stay nodata (TIN, IDW). buffer: how far into neighbouring tiles ground points
-    are read (default: 2 x dem_max_distance, at least 20 cells). return_band_breaks: heights
+    memory (about 110 bytes per point in the TIN kernel, README "Performance"). dem_max_distance:
+    cells farther than this from every ground point stay nodata (TIN, IDW). buffer: how far
+    into neighbouring tiles ground points are read (default: 2 x dem_max_distance, at least 20
+    cells). return_band_breaks: heights
     (with units) h0 <= h1 < h2 < h3; when given, each tile's first returns are counted by
     height above the DEM in bands (h <= h0, h0-h1, h1-h2, h2-h3, > h3; ground and water
     returns in the first): band areas that do not depend on the cell grid.
