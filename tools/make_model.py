@@ -41,6 +41,12 @@ def build():
     )
     from qgis.PyQt.QtCore import QPointF
 
+    from gistools.lidar.bands import PRESETS
+    from gistools.lidar.gridding import DEM_METHODS
+    from gistools.lidar.shrub import CLASS_METHODS
+    from gistools.tasks.settings import DEFAULTS as D
+
+    R = D.raster  # the values the model passes are the library's defaults, as the algorithms' own
     model = QgsProcessingModelAlgorithm("shrub_density", "Models")
     model.setHelpContent({"ALG_DESC": HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1"})
 
@@ -55,9 +61,9 @@ def build():
                                            optional=True), 4),
         (QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", [QgsProcessing.TypeVectorPolygon],
                                            optional=True), 5),
-        (QgsProcessingParameterString("TILE_FIELD", "Tile number field", defaultValue="TILE_ID"), 6),
-        (QgsProcessingParameterString("CELL_SIZE", "Cell size (with unit)", defaultValue="5ft"), 7),
-        (QgsProcessingParameterString("RADIUS", "Density radius (with unit)", defaultValue="25ft"), 8),
+        (QgsProcessingParameterString("TILE_FIELD", "Tile number field", defaultValue=D.tile_field), 6),
+        (QgsProcessingParameterString("CELL_SIZE", "Cell size (with unit)", defaultValue=R.cell_size), 7),
+        (QgsProcessingParameterString("RADIUS", "Density radius (with unit)", defaultValue=D.radius), 8),
     ]
     for definition, row in inputs:
         component = QgsProcessingModelParameter(definition.name())
@@ -91,26 +97,29 @@ def build():
     child("dsm", "gistools:dsm", "DSM (max of first returns)", 420, 200,
           {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "JOBS": V(1)})
     child("dem", "gistools:dem", "DEM (ground TIN)", 420, 280,
-          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "DEM_METHOD": V(0), "DEM_MAX_DISTANCE": V("15m"),
+          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "DEM_METHOD": V(list(DEM_METHODS).index(R.dem_method)),
+           "DEM_MAX_DISTANCE": V(R.dem_max_distance),
            "JOBS": V(1)})
     child("ndsm", "gistools:ndsm", "nDSM = DSM - DEM", 680, 240,
           {"DSM": C("dsm", "OUTPUT"), "DEM": C("dem", "OUTPUT")})
     child("bands", "gistools:bands", "Height bands B0-B3", 900, 240,
-          {"NDSM": C("ndsm", "OUTPUT"), "TOP_CLASS": C("dsm", "TOP_CLASS"), "PRESET": V(0), "NOISE_FLOOR": V("0.1m"),
+          {"NDSM": C("ndsm", "OUTPUT"), "TOP_CLASS": C("dsm", "TOP_CLASS"), "PRESET": V(list(PRESETS).index(D.bands)),
+           "NOISE_FLOOR": V(D.noise_floor),
            "Z_UNIT": V(0)})
     child("breaklines", "gistools:breaklines", "Split breaklines by tiles, polygonise roads and water", 680, 420,
           {"ROADS": P("ROADS"), "HYDRO": P("HYDRO"), "WATERBODIES": P("WATERBODIES"), "TILE_INDEX": P("TILE_INDEX"),
-           "TILE_FIELD": P("TILE_FIELD"), "SNAP": V("0.2ft"), "MAX_ROAD_WIDTH": V("60ft"), "MAX_HYDRO_WIDTH": V("500ft"),
-           "SINGLE_LINE_WIDTH": V("8ft"), "REPROJECT": V(False)})
+           "TILE_FIELD": P("TILE_FIELD"), "SNAP": V(D.snap), "MAX_ROAD_WIDTH": V(D.max_road_width),
+           "MAX_HYDRO_WIDTH": V(D.max_hydro_width), "SINGLE_LINE_WIDTH": V(D.single_line_width), "REPROJECT": V(False)})
     child("clip", "gistools:clip", "Clip roads and water; select wetland vegetation", 1120, 330,
           {"BANDS": C("bands", "OUTPUT"), "ROAD_POLYGONS": C("breaklines", "OUTPUT_ROADS"),
            "WATER_POLYGONS": C("breaklines", "OUTPUT_WATER"), "WETLANDS": P("WETLANDS"), "REPROJECT": V(False)},
           outputs={"OUTPUT_WETLAND": ("Vegetation in wetlands", None)})
     child("density", "gistools:density", "Point density and cover of vegetation", 1340, 330,
-          {"VEGETATION": C("clip", "OUTPUT"), "RADIUS": P("RADIUS"), "DENSITY_BANDS": V([0, 1, 2])},
+          {"VEGETATION": C("clip", "OUTPUT"), "RADIUS": P("RADIUS"), "DENSITY_BANDS": V([b - 1 for b in D.density_bands])},
           outputs={"OUTPUT": ("Cover", None)})
     child("classify", "gistools:classify", "Light / medium / heavy shrub classes", 1560, 330,
-          {"COVER": C("density", "OUTPUT"), "VEGETATION": C("clip", "OUTPUT"), "METHOD": V(0), "BREAKS": V("0.3,0.7")},
+          {"COVER": C("density", "OUTPUT"), "VEGETATION": C("clip", "OUTPUT"), "METHOD": V(list(CLASS_METHODS).index(D.classify)),
+           "BREAKS": V(",".join(f"{b:g}" for b in D.class_breaks))},
           outputs={"OUTPUT": ("Shrub classes", None), "OUTPUT_POLYGONS": ("Shrub class polygons", None)})
     # the model outputs become destination parameters of the model (as the Model Designer does on save)
     model.updateDestinationParameters()
