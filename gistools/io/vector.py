@@ -9,7 +9,7 @@ import geopandas as gpd
 import numpy as np
 import pyproj
 
-from ..errors import CRSMismatchError, DataFileError, InputError, OutputError
+from ..errors import CRSMismatchError, DataFileError, InputError
 from ..validation import check_geometry_types
 from .points import crs_label
 

@@ -13,6 +13,7 @@ from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..grid import Grid, cell_centres, cell_index
+from .accumulate import finish_surface, max_into
 from .tin import tin_engine, tin_to_grid, tin_to_grid_exact
 
 __all__ = [
@@ -52,8 +53,14 @@ def cell_statistic(grid: Grid, x, y, z, statistic: str = "max") -> np.ndarray:
 
 
 def dsm_from_points(x, y, z, grid: Grid) -> np.ndarray:
-    """DSM: maximum z per cell (give first returns of the chosen classes). NaN where empty."""
-    return cell_statistic(grid, x, y, z, "max")
+    """DSM: maximum z per cell (give first returns of the chosen classes). NaN where empty.
+
+    The same accumulation (lidar.accumulate) as a streamed tile's, on all the points at once."""
+    flat = cell_index(grid, x, y)
+    inside = flat >= 0
+    dsm = np.full(grid.width * grid.height, -np.inf)
+    max_into(dsm, flat[inside], np.asarray(z, np.float64)[inside])
+    return finish_surface(dsm).reshape(grid.shape)
 
 
 def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:

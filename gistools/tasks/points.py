@@ -6,7 +6,6 @@ chunks: GeoPackage by default, GeoParquet (needs pyarrow) for tiles of millions 
 
 from __future__ import annotations
 
-import os
 import time
 from pathlib import Path
 

@@ -33,6 +33,8 @@ from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
 from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
+from ..lidar.accumulate import (NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
+                               max_with_class, merge_top_class, surface_classes)
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report
 from .batch import drive, fail, make_pool, timed, worker_timed
@@ -49,11 +51,6 @@ log = logging.getLogger(__name__)
 
 PRODUCTS = ("dsm", "dem", "ndsm", "topclass")
 DEFAULT_PRODUCTS = ("dsm", "dem", "ndsm")
-TOPCLASS_NODATA = 255
-GROUNDISH = (2, 9)  # ground and water: a cell topped by these is bare (band B0)
-_IS_GROUNDISH = np.zeros(256, bool)  # class code -> bare, one gather (np.isin sorts each call)
-_IS_GROUNDISH[list(GROUNDISH)] = True
-NOISE_CLASSES = (7, 18)
 GROUND_CLASS = 2
 WATER_CLASS = 9
 
@@ -177,7 +174,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
         first_out = files.enter_context(open(first_path, "wb"))
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
-        surface_class = _surface_classes(run.dsm_classes)
+        surface_class = surface_classes(run.dsm_classes)
         flat_dsm = dsm  # 1-D view
         for chunk in iter_chunks(info, run.chunk_size, fields=fields):
             cls = chunk.classification
@@ -195,7 +192,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             if run.return_breaks is not None:
                 # first returns for band counts: bare ones (ground / water) counted per cell, the others kept as
                 # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
-                bare = surface & _IS_GROUNDISH[cls]
+                bare = surface & is_groundish[cls]
                 bare_first += np.bincount(cell[bare], minlength=n)
                 other = surface & ~bare
                 rec = np.empty(int(np.count_nonzero(other)), dtype=FIRST_DTYPE)
@@ -203,9 +200,9 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 rec["z"] = scaled(chunk, "z", other)
                 rec.tofile(first_out)
             if track_top:
-                _max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
+                max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
             else:
-                np.maximum.at(flat_dsm, cell[surface], scaled(chunk, "z", surface))
+                max_into(flat_dsm, cell[surface], scaled(chunk, "z", surface))
             if need_dem:
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
@@ -218,7 +215,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps(meta))
-    dsm[np.isinf(dsm)] = np.nan
+    finish_surface(dsm)
     save_grids(
         grids_folder(run.scratch, info.name),
         dsm=dsm.reshape(grid.shape),
@@ -234,17 +231,6 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_outside_header_bounds": outside,
         "warnings": warnings,
     }
-
-
-def _surface_classes(dsm_classes) -> np.ndarray:
-    """Class code -> in the DSM (every class but noise when ``dsm_classes`` is None), one gather per chunk."""
-    if dsm_classes is None:
-        table = np.ones(256, bool)
-        table[list(NOISE_CLASSES)] = False
-    else:
-        table = np.zeros(256, bool)
-        table[list(dsm_classes)] = True
-    return table
 
 
 def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, sides: dict) -> None:
@@ -284,36 +270,6 @@ def _outside_bounds(info: TileInfo, outside: int, done: int, out_box) -> list[st
         f"{outside:,} of {done:,} points lie outside the header's bounds ({w0:.3f}, {s0:.3f}, {e0:.3f}, {n0:.3f}); "
         f"the points span ({w:.3f}, {s_:.3f}, {e:.3f}, {n_:.3f})",
         path=info.path, hint="Repair the header's bounds (lasinfo -repair_bb, or pdal translate) and run again")
-
-
-def _max_with_class(dsm, top_class, cell, z, cls) -> None:
-    """Per-cell max of z into ``dsm`` and the class of the point that gives it into ``top_class``.
-
-    Ties go to ground or water (a cell whose top is bare ground at the same height as a
-    vegetation return is bare)."""
-    n = len(dsm)
-    cm = np.full(n, -np.inf)
-    np.maximum.at(cm, cell, z)
-    top = z == cm[cell]
-    tcell, tcls = cell[top], cls[top]
-    tc = np.full(n, TOPCLASS_NODATA, np.uint8)
-    bare = _IS_GROUNDISH[tcls]
-    tc[tcell[~bare]] = tcls[~bare]
-    tc[tcell[bare]] = tcls[bare]
-    higher = cm > dsm
-    top_class[higher] = tc[higher]
-    tie = (cm == dsm) & _IS_GROUNDISH[tc]
-    top_class[tie] = tc[tie]
-    np.maximum(dsm, cm, out=dsm)
-
-
-def _merge_top_class(top_class, dsm, other_class, other_dsm) -> None:
-    """In place: take the neighbour's top class where its DSM is higher, or equal and bare."""
-    higher = other_dsm > dsm
-    higher |= np.isnan(dsm) & ~np.isnan(other_dsm)
-    tie = (other_dsm == dsm) & _IS_GROUNDISH[other_class]
-    take = higher | tie
-    top_class[take] = other_class[take]
 
 
 def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, bare: int, chunk_points: int = 4_000_000) -> list[int]:
@@ -409,7 +365,7 @@ def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, g
         if window is not None:
             rs, cs_, ro, co = window
             nb = {k: load_grid(folder, k, mmap=True)[ro, co] for k in ("dsm", "top_class", "ground_count", "water_count")}
-            _merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"], nb["dsm"])
+            merge_top_class(top_class[rs, cs_], dsm[rs, cs_], nb["top_class"], nb["dsm"])
             dsm[rs, cs_] = np.fmax(dsm[rs, cs_], nb["dsm"])
             ground_count[rs, cs_] += nb["ground_count"]
             water_count[rs, cs_] += nb["water_count"]

@@ -39,7 +39,7 @@ from ..units import LinearUnit, horizontal_unit, length_to_crs_units, unit_from_
 from ..vector.breaklines import road_polygons, water_polygons
 from ..vector.regions import class_polygons
 from ..validation import check_breaks, check_length
-from .rasters import GROUNDISH
+from ..lidar.accumulate import GROUNDISH
 from .settings import DEFAULTS
 
 __all__ = ["ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands", "density_from_vegetation",
