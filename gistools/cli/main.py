@@ -76,6 +76,7 @@ def cli(verbose):
                         format="%(levelname)s %(name)s: %(message)s")
 
 
+from . import ground as _ground  # noqa: E402
 from . import info as _info  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
 from . import points as _points  # noqa: E402
@@ -85,6 +86,7 @@ from . import runway as _runway  # noqa: E402
 from . import structure as _structure  # noqa: E402
 
 cli.add_command(_info.info)
+cli.add_command(_ground.ground)
 cli.add_command(_rasters.rasters)
 cli.add_command(_aquifer.aquifer)
 cli.add_command(_runway.runway)

@@ -352,3 +352,75 @@ def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", poi
     with atomic_path(path, overwrite=overwrite, keep_suffix=True) as tmp:  # laspy picks LAZ by the suffix
         las.write(tmp)
     return path
+
+
+def read_all_points(path):
+    """The whole tile as a laspy LasData (every dimension, extra bytes and VLR kept), or DataFileError."""
+    try:
+        return laspy.read(path)
+    except Exception as err:  # laspy / lazrs raise many types for damaged files
+        raise DataFileError(f"cannot read the points ({type(err).__name__}: {err})", path=path,
+                            hint="Check the file (a truncated copy?), or leave it out") from None
+
+
+def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE) -> dict:
+    """x, y, z, return_number, number_of_returns, classification of a tile's points inside ``box`` (west, south,
+    east, north; CRS units), withheld ones left out: a neighbour's buffer strip. COPC files are queried by
+    bounds (only the nodes that reach the box are decoded); others are streamed in chunks."""
+    w, s, e, n = box
+    parts = []
+    if _is_copc(info.path):
+        parts = [_copc_box(info.path, box)]
+    else:
+        for chunk in iter_chunks(info, chunk_size):
+            keep = (chunk.x >= w) & (chunk.x <= e) & (chunk.y >= s) & (chunk.y <= n) & ~chunk.withheld
+            if keep.any():
+                parts.append({k: getattr(chunk, k)[keep] for k in ("x", "y", "z", "return_number", "number_of_returns",
+                                                                    "classification")})
+    if not parts:
+        return {k: np.zeros(0) for k in ("x", "y", "z", "return_number", "number_of_returns", "classification")}
+    return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+
+
+def _is_copc(path) -> bool:
+    try:
+        with laspy.open(path) as reader:
+            return any(getattr(v, "user_id", "") == "copc" for v in reader.header.vlrs)
+    except Exception:
+        return False
+
+
+def _copc_box(path, box) -> dict:
+    w, s, e, n = box
+    try:
+        with laspy.CopcReader.open(path) as reader:
+            lo, hi = reader.header.mins, reader.header.maxs  # a query box beyond the file overflows laspy's int32 keys
+            qw, qs, qe, qn = max(w, lo[0]), max(s, lo[1]), min(e, hi[0]), min(n, hi[1])
+            if qw > qe or qs > qn:
+                return {k: np.zeros(0) for k in ("x", "y", "z", "return_number", "number_of_returns", "classification")}
+            pts = reader.query(laspy.copc.Bounds(np.array([qw, qs]), np.array([qe, qn])))
+    except Exception as err:
+        raise DataFileError(f"cannot query the COPC file ({type(err).__name__}: {err})", path=path,
+                            hint="Check the file, or convert it to LAZ") from None
+    x, y = np.asarray(pts.x, np.float64), np.asarray(pts.y, np.float64)
+    keep = (x >= w) & (x <= e) & (y >= s) & (y <= n) & ~np.asarray(pts.withheld, bool)
+    return {"x": x[keep], "y": y[keep], "z": np.asarray(pts.z, np.float64)[keep],
+            "return_number": np.asarray(pts.return_number, np.uint8)[keep],
+            "number_of_returns": np.asarray(pts.number_of_returns, np.uint8)[keep],
+            "classification": np.asarray(pts.classification, np.uint8)[keep]}
+
+
+def write_all_points(las, path, *, overwrite: bool = False) -> Path:
+    """Write a LasData (LAS or LAZ by the suffix) atomically; the file is read back (header and point count)
+    before it takes its name."""
+    from .atomic import atomic_path
+
+    def verify(tmp):
+        with laspy.open(tmp) as reader:
+            if reader.header.point_count != len(las.points):
+                raise DataFileError(f"wrote {reader.header.point_count} of {len(las.points)} points", path=path)
+
+    path = Path(path)
+    with atomic_path(path, overwrite=overwrite, keep_suffix=True, verify=verify) as tmp:
+        las.write(tmp)
+    return path

@@ -6,6 +6,7 @@ import glob
 from pathlib import Path
 
 from ..errors import InputError
+from .vpc import VPC_SUFFIX, read_vpc
 
 __all__ = ["find_tiles", "LAS_SUFFIXES"]
 
@@ -13,7 +14,8 @@ LAS_SUFFIXES = (".las", ".laz")
 
 
 def find_tiles(inputs) -> list[Path]:
-    """LAS/LAZ files from files, folders (their *.las / *.laz, not recursive) and glob patterns.
+    """LAS/LAZ (and COPC) files from files, folders (their *.las / *.laz, not recursive), glob patterns and
+    virtual point clouds (``.vpc``: the files it lists).
 
     Explicit files are kept whatever their suffix (so a bad file is reported, not
     silently skipped). Raises InputError when nothing matches or two tiles share a name.
@@ -25,6 +27,8 @@ def find_tiles(inputs) -> list[Path]:
         p = Path(item)
         if p.is_dir():
             found += sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in LAS_SUFFIXES)
+        elif p.is_file() and p.suffix.lower() == VPC_SUFFIX:
+            found += [item["path"] for item in read_vpc(p)]
         elif p.is_file():
             found.append(p)
         else:

@@ -1,0 +1,90 @@
+"""Virtual point clouds (``.vpc``): a STAC ItemCollection of point cloud files, as pdal_wrench ``build_vpc``,
+lasR ``write_vpc()`` and QGIS 3.32+ read and write them.
+
+Each item holds the file's native bounds (``proj:bbox``, ``proj:geometry``), its CRS (``proj:wkt2``, and
+``proj:epsg`` when it has one), a WGS84 ``bbox`` and geometry, the point count (``pc:count``) and the file as
+a relative ``assets.data.href``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pyproj
+
+from ..errors import DataFileError
+from .atomic import atomic_path
+
+__all__ = ["write_vpc", "read_vpc", "VPC_SUFFIX"]
+
+VPC_SUFFIX = ".vpc"
+_EXTENSIONS = ["https://stac-extensions.github.io/pointcloud/v1.0.0/schema.json",
+               "https://stac-extensions.github.io/projection/v1.1.0/schema.json"]
+
+
+def _ring(w, s, e, n) -> list:
+    return [[w, s], [e, s], [e, n], [w, n], [w, s]]
+
+
+def _item(vpc_dir: Path, path: Path, bounds, z_range, count: int, crs: pyproj.CRS) -> dict:
+    w, s, e, n = (float(v) for v in bounds)
+    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+    to_wgs84 = pyproj.Transformer.from_crs(horizontal, "EPSG:4326", always_xy=True)
+    lon0, lat0, lon1, lat1 = to_wgs84.transform_bounds(w, s, e, n, densify_pts=21)
+    props = {
+        "datetime": "0001-01-01T00:00:00Z",
+        "pc:count": int(count),
+        "pc:type": "lidar",
+        "pc:encoding": "?",
+        "pc:schemas": [],
+        "proj:bbox": [w, s, float(z_range[0]), e, n, float(z_range[1])],
+        "proj:geometry": {"type": "Polygon", "coordinates": [_ring(w, s, e, n)]},
+        "proj:wkt2": crs.to_wkt(),
+    }
+    epsg = crs.to_epsg()
+    if epsg is not None:
+        props["proj:epsg"] = epsg
+    return {
+        "type": "Feature",
+        "stac_version": "1.0.0",
+        "stac_extensions": _EXTENSIONS,
+        "id": path.stem,
+        "geometry": {"type": "Polygon", "coordinates": [_ring(lon0, lat0, lon1, lat1)]},
+        "bbox": [lon0, lat0, float(z_range[0]), lon1, lat1, float(z_range[1])],
+        "properties": props,
+        "links": [],
+        "assets": {"data": {"href": "./" + Path(os.path.relpath(path, vpc_dir)).as_posix(), "roles": ["data"]}},
+    }
+
+
+def write_vpc(path, tiles, *, overwrite: bool = True) -> Path:
+    """Write the VPC of ``tiles`` [(file, (west, south, east, north), (zmin, zmax), point count, CRS)], atomically."""
+    path = Path(path)
+    items = [_item(path.parent.resolve(), Path(f).resolve(), b, zr, c, crs) for f, b, zr, c, crs in tiles]
+    doc = {"type": "FeatureCollection", "features": items}
+    with atomic_path(path, overwrite=overwrite) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1))
+    return path
+
+
+def read_vpc(path) -> list[dict]:
+    """The files of a VPC: [{"path", "bounds" (native west, south, east, north), "count", "crs_wkt"}]."""
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8-sig"))
+        items = doc["features"]
+        out = []
+        for it in items:
+            props = it.get("properties", {})
+            href = it["assets"]["data"]["href"]
+            bbox = props.get("proj:bbox")
+            bounds = (bbox[0], bbox[1], bbox[3], bbox[4]) if bbox and len(bbox) == 6 else (tuple(bbox) if bbox else None)
+            wkt = props.get("proj:wkt2") or (pyproj.CRS.from_epsg(props["proj:epsg"]).to_wkt() if props.get("proj:epsg") else None)
+            out.append({"path": (path.parent / href).resolve() if not Path(href).is_absolute() else Path(href),
+                        "bounds": bounds, "count": props.get("pc:count"), "crs_wkt": wkt})
+    except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
+        raise DataFileError(f"not a virtual point cloud (STAC ItemCollection) ({type(err).__name__}: {err})", path=path,
+                            hint="Give a .vpc written by gistools, pdal_wrench build_vpc, lasR or QGIS") from None
+    return out

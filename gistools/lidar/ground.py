@@ -1,0 +1,261 @@
+"""Ground points: the Simple Morphological Filter (SMRF; Pingel, Clarke & McBride 2013), as PDAL ``filters.smrf``.
+
+Pure functions over coordinate arrays. Lengths are in CRS units (x, y) and the vertical unit (z); the
+caller converts the metre defaults (``tasks.ground``). The steps, as in the paper and PDAL:
+
+1. ZImin: the lowest point of each cell (on the absolute lattice of ``cell``: a tile with a buffer of its
+   neighbours has the cells of the merged tiles), empty cells inpainted;
+2. low outliers: the filter on the inverted surface (slope 5, window 1 cell);
+3. objects: the progressive morphological filter, openings by a diamond of radius 1 ... window / cell, a cell is an
+   object when the surface drops by more than slope x cell x radius at one step;
+4. ZIpro: ZImin without objects and low cells, inpainted; a point is ground when it lies within
+   ``threshold + scalar x slope of ZIpro`` of ZIpro (bilinear at the point).
+
+Empty cells are filled by the mean of their filled 3 x 3 neighbours, grown ring by ring (deterministic,
+so a tiled run equals a merged one; PDAL averages the 8 nearest filled cells, whose ties depend on
+the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+__all__ = ["SmrfParams", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
+           "progressive_filter", "min_surface", "GROUND_METHODS"]
+
+FILL_RINGS = 32
+
+
+@dataclass(frozen=True)
+class SmrfParams:
+    """SMRF parameters in the data's units: ``cell``, ``window`` in CRS units; ``threshold``, ``scalar`` in the
+    vertical unit; ``slope`` dimensionless (rise over run in true lengths); ``z_per_xy``: vertical units per CRS
+    unit of the same length (1 when both are metres or both feet)."""
+
+    cell: float
+    slope: float
+    window: float
+    threshold: float
+    scalar: float
+    z_per_xy: float = 1.0
+
+
+def min_surface(x, y, z, cell: float):
+    """(ZImin with NaN where empty, col0, row_top, flat cell of each point): the lowest z per cell of the
+    lattice of multiples of ``cell`` covering the points; row 0 is the north."""
+    col0 = math.floor(float(np.min(x)) / cell)
+    row_top = math.floor(float(np.max(y)) / cell) + 1
+    width = math.floor(float(np.max(x)) / cell) - col0 + 1
+    height = row_top - math.floor(float(np.min(y)) / cell)
+    col = np.floor(x / cell).astype(np.int64) - col0
+    row = row_top - 1 - np.floor(y / cell).astype(np.int64)
+    flat = row * width + col
+    zmin = np.full(width * height, np.inf)
+    np.minimum.at(zmin, flat, z)
+    zmin[np.isinf(zmin)] = np.nan
+    return zmin.reshape(height, width), col0, row_top, flat
+
+
+def fill_gaps(surface: np.ndarray, rings: int = FILL_RINGS) -> np.ndarray:
+    """NaN cells filled by the mean of their filled 3 x 3 neighbours, one ring at a time; past ``rings`` rings
+    (wide gaps: water, large buildings), by the nearest filled cell."""
+    z = surface.copy()
+    empty = np.isnan(z)
+    if not empty.any() or empty.all():
+        return z
+    ones = np.ones((3, 3))
+    for _ in range(rings):
+        if not empty.any():
+            return z
+        vals = np.where(empty, 0.0, z)
+        s = ndimage.convolve(vals, ones, mode="constant")
+        c = ndimage.convolve((~empty).astype(np.float64), ones, mode="constant")
+        new = empty & (c > 0)
+        z[new] = s[new] / c[new]
+        empty &= ~new
+    if empty.any():
+        _, (ri, ci) = ndimage.distance_transform_edt(empty, return_indices=True)
+        z[empty] = z[ri[empty], ci[empty]]
+    return z
+
+
+def _erode1(a: np.ndarray) -> np.ndarray:
+    """Grey erosion by the 4-neighbour cross (a diamond of radius 1); edges use the neighbours they have."""
+    out = a.copy()
+    np.minimum(out[1:], a[:-1], out=out[1:])
+    np.minimum(out[:-1], a[1:], out=out[:-1])
+    np.minimum(out[:, 1:], a[:, :-1], out=out[:, 1:])
+    np.minimum(out[:, :-1], a[:, 1:], out=out[:, :-1])
+    return out
+
+
+def _dilate1(a: np.ndarray) -> np.ndarray:
+    out = a.copy()
+    np.maximum(out[1:], a[:-1], out=out[1:])
+    np.maximum(out[:-1], a[1:], out=out[:-1])
+    np.maximum(out[:, 1:], a[:, :-1], out=out[:, 1:])
+    np.maximum(out[:, :-1], a[:, 1:], out=out[:, :-1])
+    return out
+
+
+def progressive_filter(surface: np.ndarray, cell: float, slope_z: float, window: float) -> np.ndarray:
+    """Object cells of the progressive morphological filter: openings by diamonds of radius 1 ... ceil(window /
+    cell) cells; a cell is an object when the opened surface drops by more than ``slope_z`` x cell x radius
+    (vertical units) from the previous one (PDAL's progressiveFilter)."""
+    obj = np.zeros(surface.shape, bool)
+    previous, erosion = surface, surface
+    for radius in range(1, int(math.ceil(window / cell)) + 1):
+        erosion = _erode1(erosion)  # erosion by the diamond of this radius
+        opening = erosion
+        for _ in range(radius):
+            opening = _dilate1(opening)
+        obj |= (previous - opening) > slope_z * cell * radius
+        previous = opening
+    return obj
+
+
+def _bilinear(surface: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``surface`` at fractional (col, row) positions of cell centres (u = col + 0.5 at a centre), clamped."""
+    h, w = surface.shape
+    fu = np.clip(u - 0.5, 0, w - 1)
+    fv = np.clip(v - 0.5, 0, h - 1)
+    c0 = np.minimum(np.floor(fu).astype(np.int64), max(w - 2, 0))
+    r0 = np.minimum(np.floor(fv).astype(np.int64), max(h - 2, 0))
+    c1, r1 = np.minimum(c0 + 1, w - 1), np.minimum(r0 + 1, h - 1)
+    tu, tv = fu - c0, fv - r0
+    top = surface[r0, c0] * (1 - tu) + surface[r0, c1] * tu
+    bottom = surface[r1, c0] * (1 - tu) + surface[r1, c1] * tu
+    return top * (1 - tv) + bottom * tv
+
+
+def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndarray, np.ndarray]:
+    """(ground, provisional DEM at each point): ``ground`` True for the ``candidates`` (e.g. last and only returns,
+    not noise) within the threshold of ZIpro; the DEM (vertical units) for every point, for noise rules."""
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    ground = np.zeros(len(x), bool)
+    if not candidates.any():
+        return ground, np.full(len(x), np.nan)
+    cx, cy, cz = x[candidates], y[candidates], z[candidates]
+    zimin, col0, row_top, _ = min_surface(cx, cy, cz, p.cell)
+    zimin = fill_gaps(zimin)
+    slope_z = p.slope * p.z_per_xy
+    low = progressive_filter(-zimin, p.cell, 5.0 * p.z_per_xy, p.cell)
+    obj = progressive_filter(zimin, p.cell, slope_z, p.window)
+    zipro = zimin.copy()
+    zipro[obj | low] = np.nan
+    zipro = fill_gaps(zipro)
+    gy, gx = np.gradient(zipro, p.cell)
+    grade = np.hypot(gx, gy) / p.z_per_xy  # true rise over run
+    thresh = p.threshold + p.scalar * grade
+    u = x / p.cell - col0
+    v = row_top - y / p.cell
+    dem = _bilinear(zipro, u, v)
+    cell_thresh = _bilinear(thresh, u, v)
+    ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
+    return ground, dem
+
+
+GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
+RECLASSIFIED = (0, 1, 2, 7, 18)  # never classified, unclassified, ground, noise: the classes a run decides anew
+GROUND_METHODS = ("smrf", "csf")
+
+
+@dataclass(frozen=True)
+class NoiseParams:
+    """Noise rules in the data's units: ``method`` ivf | sor | none; IVF voxel ``res`` (CRS units) and ``n``; SOR
+    ``k`` and ``multiplier``; ``low_depth`` (vertical unit): a point this far below the ground surface is low noise."""
+
+    method: str = "ivf"
+    res: float = 5.0
+    n: int = 6
+    k: int = 8
+    multiplier: float = 2.0
+    low_depth: float = 1.0
+
+
+@dataclass(frozen=True)
+class CsfParams:
+    """Cloth Simulation Filter parameters (lidR ``csf()`` / PDAL ``filters.csf``): ``resolution`` (CRS units),
+    ``threshold`` (vertical unit), ``rigidness`` 1-3, ``time_step``, ``iterations``, ``slope_smooth``."""
+
+    resolution: float = 0.5
+    threshold: float = 0.5
+    rigidness: int = 1
+    time_step: float = 0.65
+    iterations: int = 500
+    slope_smooth: bool = False
+
+
+def csf_ground(x, y, z, candidates: np.ndarray, p: CsfParams) -> np.ndarray:
+    """Ground by the Cloth Simulation Filter (Zhang et al. 2016) through ``cloth-simulation-filter`` (its ``CSF``
+    module); True for the ``candidates`` it calls ground."""
+    try:
+        import CSF
+    except ImportError:
+        raise ImportError("the csf method needs cloth-simulation-filter: pip install 'gistools[ground]'") from None
+    ground = np.zeros(len(x), bool)
+    idx = np.flatnonzero(candidates)
+    if len(idx) == 0:
+        return ground
+    pts = np.column_stack([x[idx], y[idx], z[idx]])
+    shift = pts.min(axis=0)
+    csf = CSF.CSF()
+    csf.params.bSloopSmooth = p.slope_smooth
+    csf.params.cloth_resolution = p.resolution
+    csf.params.class_threshold = p.threshold
+    csf.params.rigidness = p.rigidness
+    csf.params.time_step = p.time_step
+    csf.params.interations = p.iterations  # sic: the library's spelling
+    csf.setPointCloud(pts - shift)
+    g, ng = CSF.VecInt(), CSF.VecInt()
+    csf.do_filtering(g, ng, exportCloth=False)
+    ground[idx[np.asarray(g, np.int64)]] = True
+    return ground
+
+
+def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
+                              smrf: SmrfParams | None = None, csf: CsfParams | None = None,
+                              noise: NoiseParams = NoiseParams(), keep_classes: bool = False) -> np.ndarray:
+    """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
+    noise above it; the 5-bit class field of point formats 0-5 holds 18 too), then ground (2) among the last
+    and only returns that are not noise; points more than ``noise.low_depth`` below the SMRF surface are low
+    noise even in clusters (multipath). Only points of RECLASSIFIED classes change: water (9), buildings (6),
+    vegetation (3-5) and any other class a provider gave stay as they are (and out of the ground surface).
+    Points that were ground or noise and are not now become 1, unless ``keep_classes``."""
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    rn, nr = np.asarray(return_number), np.asarray(number_of_returns)
+    old = np.asarray(classification)
+    if noise.method == "ivf":
+        from .noise import isolated_points
+
+        is_noise = isolated_points(x, y, z, res=noise.res, n=noise.n)
+    elif noise.method == "sor":
+        from .noise import statistical_outliers
+
+        is_noise = statistical_outliers(x, y, z, k=noise.k, multiplier=noise.multiplier)
+    else:
+        is_noise = np.zeros(len(x), bool)
+    open_ = np.isin(old, RECLASSIFIED)
+    is_noise &= open_
+    candidates = open_ & (rn >= nr) & ~is_noise  # last and only returns (return number 0 = not recorded: only)
+    if method == "csf":
+        ground = csf_ground(x, y, z, candidates, csf or CsfParams())
+        surface = None
+    else:
+        ground, surface = smrf_ground(x, y, z, candidates, smrf)
+    new = old.copy()
+    if not keep_classes:
+        new[open_ & np.isin(old, (GROUND_CLASS, LOW_NOISE, HIGH_NOISE))] = UNCLASSIFIED
+    new[ground] = GROUND_CLASS
+    if surface is not None and noise.low_depth is not None:
+        deep = open_ & ~ground & (z < surface - noise.low_depth)  # multipath: far below the ground, even in a cluster
+        is_noise |= deep
+    if surface is not None:
+        new[is_noise] = np.where(z[is_noise] < surface[is_noise], LOW_NOISE, HIGH_NOISE)
+    else:
+        new[is_noise] = HIGH_NOISE
+    return new.astype(old.dtype, copy=False)

@@ -1,0 +1,57 @@
+"""Noise points: isolated points (IVF) and statistical outliers (SOR), before a ground filter sees them.
+
+Pure functions over coordinate arrays (CRS units). Voxels lie on an absolute lattice (multiples of ``res``),
+so a tile read with a buffer of its neighbours marks the same points as the merged tiles do.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+__all__ = ["isolated_points", "statistical_outliers", "NOISE_METHODS"]
+
+NOISE_METHODS = ("ivf", "sor", "none")
+
+
+def _voxel_keys(ix, iy, iz) -> np.ndarray:
+    """One int64 key per voxel index triple (21 bits each, offset so negative indices work)."""
+    off = 1 << 20
+    return ((ix + off) << 42) | ((iy + off) << 21) | (iz + off)
+
+
+def isolated_points(x, y, z, *, res: float, n: int = 6) -> np.ndarray:
+    """Isolated Voxel Filter (lidR ``ivf`` / lasR ``classify_with_ivf``): True for each point with at most ``n``
+    other points in its 3 x 3 x 3 voxels of ``res`` (CRS units; lidR's default 5 m, n = 6)."""
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    if len(x) == 0:
+        return np.zeros(0, bool)
+    ix, iy, iz = (np.floor(a / res).astype(np.int64) for a in (x, y, z))
+    for a in (ix, iy, iz):
+        a -= a.min() - 1  # voxel indices from 1: the 21-bit keys hold any tile with its buffer
+    if max(ix.max(), iy.max(), iz.max()) >= (1 << 20) - 2:
+        raise ValueError(f"voxels of {res} span more than 2^20 along an axis: give a larger resolution")
+    keys = _voxel_keys(ix, iy, iz)
+    uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
+    vx, vy, vz = (uniq >> 42) - (1 << 20), ((uniq >> 21) & ((1 << 21) - 1)) - (1 << 20), (uniq & ((1 << 21) - 1)) - (1 << 20)
+    around = np.zeros(len(uniq), np.int64)
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                k = _voxel_keys(vx + dx, vy + dy, vz + dz)
+                pos = np.minimum(np.searchsorted(uniq, k), len(uniq) - 1)
+                hit = uniq[pos] == k
+                around[hit] += counts[pos[hit]]
+    others = around[inverse.ravel()] - 1
+    return others <= n
+
+
+def statistical_outliers(x, y, z, *, k: int = 8, multiplier: float = 2.0) -> np.ndarray:
+    """Statistical outlier rule (PDAL ``filters.outlier`` statistical, lidR ``sor``): True for each point whose mean
+    distance to its ``k`` nearest neighbours exceeds the mean of those distances by ``multiplier`` standard deviations."""
+    pts = np.column_stack([np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64)])
+    if len(pts) <= k:
+        return np.zeros(len(pts), bool)
+    d, _ = cKDTree(pts - pts.mean(axis=0)).query(pts - pts.mean(axis=0), k=k + 1)
+    mean = d[:, 1:].mean(axis=1)
+    return mean > mean.mean() + multiplier * mean.std()

@@ -1,0 +1,286 @@
+"""Ground and noise classification of LAS/LAZ tiles (``gistools ground``, ``gistools:ground``).
+
+Each tile is read whole, with its neighbours' points within a buffer (so a tiled run equals a run on the
+merged tiles), classified by ``lidar.ground.classify_ground_and_noise`` (noise, then SMRF or CSF), and
+written with only its classification changed: every point, the point order, every other dimension,
+the extra bytes and the VLRs as they were. A ``.vpc`` (virtual point cloud) indexes the written tiles.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GistoolsError, InputError
+from ..io.atomic import atomic_path
+from ..io.outdir import claim_output
+from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, points_in_box, read_all_points, read_tile_info,
+                         write_all_points)
+from ..io.tiles import find_tiles
+from ..io.vpc import write_vpc
+from ..lidar.ground import GROUND_METHODS, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
+from ..lidar.noise import NOISE_METHODS
+from ..progress import ProgressCallback, report
+from ..units import length_to_crs_units
+from ..validation import check_count, check_length, check_number, check_scheduler
+from .batch import make_pool, run_each
+
+__all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
+
+FORMATS = ("laz", "las")
+
+
+@dataclass(frozen=True)
+class GroundSettings:
+    """Parameters of ``gistools ground``. Lengths take a unit ("1m", "3ft") or are in the tiles' CRS units
+    (heights: their vertical unit).
+
+    SMRF (Pingel et al. 2013; PDAL's names): ``cell``, ``slope`` (rise over run), ``window`` (largest opening
+    radius), ``threshold`` and ``scalar`` (a point within threshold + scalar x local slope of the surface is
+    ground). The defaults were chosen on the real files of ../shared/data (README "Ground"): PDAL's own are
+    cell 1 m, slope 0.15, window 18 m, threshold 0.5 m, scalar 1.25 m. CSF (lidR ``csf()`` defaults):
+    ``csf_resolution``, ``csf_threshold``, ``csf_rigidness``, ``csf_time_step``, ``csf_iterations``,
+    ``csf_slope_smooth``. Noise: ``noise`` ivf (lasR ``classify_with_ivf``: ``ivf_res`` 5 m, ``ivf_n`` 6),
+    sor (``sor_k``, ``sor_multiplier``) or none; ``low_noise_depth``: points this far below the ground
+    surface are low noise (7) even in clusters. ``buffer``: how far the neighbours' points are read (default
+    2 x window + 10 cells). ``keep_classes``: points that were ground / noise and are not now keep their class
+    (else 1). ``format``: laz or las.
+    """
+
+    method: str = "smrf"
+    noise: str = "ivf"
+    cell: str | float = "1m"
+    slope: float = 0.1
+    window: str | float = "18m"
+    threshold: str | float = "0.15m"
+    scalar: str | float = "0.5m"
+    csf_resolution: str | float = "0.5m"
+    csf_threshold: str | float = "0.5m"
+    csf_rigidness: int = 1
+    csf_time_step: float = 0.65
+    csf_iterations: int = 500
+    csf_slope_smooth: bool = False
+    ivf_res: str | float = "5m"
+    ivf_n: int = 6
+    sor_k: int = 8
+    sor_multiplier: float = 2.0
+    low_noise_depth: str | float = "1m"
+    buffer: str | float | None = None
+    keep_classes: bool = False
+    format: str = "laz"
+    crs: str | None = None
+
+    def validate(self) -> None:
+        """Every option checked before anything is read or written."""
+        if self.method not in GROUND_METHODS:
+            raise InputError(f"--method {self.method!r} is not one of {', '.join(GROUND_METHODS)}", hint="Use --method smrf")
+        if self.noise not in NOISE_METHODS:
+            raise InputError(f"--noise {self.noise!r} is not one of {', '.join(NOISE_METHODS)}", hint="Use --noise ivf")
+        if self.format not in FORMATS:
+            raise InputError(f"--format {self.format!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
+        for value, name in ((self.cell, "--cell"), (self.window, "--window"), (self.csf_resolution, "--csf-resolution"),
+                            (self.ivf_res, "--ivf-res"), (self.threshold, "--threshold"),
+                            (self.csf_threshold, "--csf-threshold")):
+            check_length(value, name, example="1m")
+        check_length(self.scalar, "--scalar", allow_equal=True, example="0.5m")
+        check_length(self.low_noise_depth, "--low-noise-depth", example="1m")
+        if self.buffer is not None:
+            check_length(self.buffer, "--buffer", allow_equal=True, example="50m")
+        check_number(self.slope, "--slope", low=0, example="0.1")
+        check_number(self.csf_time_step, "--csf-time-step", low=0, example="0.65")
+        check_number(self.sor_multiplier, "--sor-multiplier", low=0, example="2")
+        for value, name in ((self.csf_iterations, "--csf-iterations"), (self.sor_k, "--sor-k")):
+            check_count(value, name, example="8")
+        check_count(self.ivf_n, "--ivf-n", minimum=0, example="6")
+        if self.csf_rigidness not in (1, 2, 3):
+            raise InputError(f"--csf-rigidness {self.csf_rigidness} is not 1, 2 or 3", hint="1 for steep terrain, 3 for flat")
+        if self.method == "csf":
+            try:
+                import CSF  # noqa: F401  (the optional extra)
+            except ImportError:
+                raise InputError("--method csf needs cloth-simulation-filter, which is not installed",
+                                 hint="pip install 'gistools[ground]', or use --method smrf") from None
+
+
+@dataclass(frozen=True)
+class _Params:
+    """The settings in one run's units (picklable, for the workers)."""
+
+    method: str
+    smrf: SmrfParams
+    csf: CsfParams
+    noise: NoiseParams
+    keep_classes: bool
+    buffer: float
+
+
+def _params(s: GroundSettings, info: TileInfo) -> _Params:
+    xy, z = info.unit, info.z_unit
+
+    def h(v, n):  # horizontal lengths
+        return length_to_crs_units(v, xy, name=n)
+
+    def v(val, n):  # heights
+        return length_to_crs_units(val, z, name=n)
+
+    smrf = SmrfParams(cell=h(s.cell, "cell"), slope=float(s.slope), window=h(s.window, "window"),
+                      threshold=v(s.threshold, "threshold"), scalar=v(s.scalar, "scalar"), z_per_xy=xy.metres / z.metres)
+    csf = CsfParams(resolution=h(s.csf_resolution, "CSF resolution"), threshold=v(s.csf_threshold, "CSF threshold"),
+                    rigidness=int(s.csf_rigidness), time_step=float(s.csf_time_step), iterations=int(s.csf_iterations),
+                    slope_smooth=bool(s.csf_slope_smooth))
+    noise = NoiseParams(method=s.noise, res=h(s.ivf_res, "IVF resolution"), n=int(s.ivf_n), k=int(s.sor_k),
+                        multiplier=float(s.sor_multiplier), low_depth=v(s.low_noise_depth, "low noise depth"))
+    buffer = h(s.buffer, "buffer") if s.buffer is not None else 2 * smrf.window + 10 * smrf.cell
+    return _Params(s.method, smrf, csf, noise, bool(s.keep_classes), buffer)
+
+
+def _output_name(path: Path, fmt: str) -> str:
+    stem = path.name[: -len(".copc.laz")] if path.name.lower().endswith(".copc.laz") else path.stem
+    return f"{stem}.{fmt}"
+
+
+def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str) -> dict:
+    """Classify one tile with its neighbours' buffer strips and write it; the class counts before and after."""
+    override = parse_crs_text(crs_text) if crs_text else None
+    info = read_tile_info(path, override)
+    las = read_all_points(path)
+    own = {"x": np.asarray(las.x, np.float64), "y": np.asarray(las.y, np.float64), "z": np.asarray(las.z, np.float64),
+           "return_number": np.asarray(las.return_number, np.uint8),
+           "number_of_returns": np.asarray(las.number_of_returns, np.uint8),
+           "classification": np.asarray(las.classification, np.uint8)}
+    withheld = np.asarray(las.withheld, bool) if "withheld" in las.point_format.dimension_names else np.zeros(len(own["x"]), bool)
+    w, s, e, n = info.bounds
+    box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
+    parts = [{k: a[~withheld] for k, a in own.items()}]
+    used = []
+    for nb in neighbours:
+        parts.append(points_in_box(read_tile_info(nb, override), box))
+        used.append(Path(nb).stem)
+    allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
+    new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
+                                    allp["classification"], method=p.method, smrf=p.smrf, csf=p.csf, noise=p.noise,
+                                    keep_classes=p.keep_classes)
+    before = own["classification"].copy()
+    after = before.copy()
+    after[~withheld] = new[: int(np.count_nonzero(~withheld))]
+    las.classification = after
+    write_all_points(las, target, overwrite=True)
+    counts = {int(c): int(k) for c, k in enumerate(np.bincount(after, minlength=256)) if k}
+    return {"output": target, "points": int(len(after)), "changed": int(np.count_nonzero(after != before)),
+            "points_by_class": counts, "neighbours": used, "bounds": list(info.bounds), "z_range": list(info.z_range)}
+
+
+@dataclass
+class _TileState:
+    name: str
+    path: str
+    status: str = "ok"
+    error: str | None = None
+    output: str | None = None
+    points: int = 0
+    changed: int = 0
+    points_by_class: dict | None = None
+    neighbours: list | None = None
+    seconds: float = 0.0
+
+
+def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,
+                      overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+    """Classify ground (2) and noise (7, 18) of the tiles of ``inputs`` (files, folders, globs, a .vpc) into
+    ``out/<tile>.laz`` (or .las), plus ``out/ground.vpc`` and ``out/report.json``; returns the report.
+
+    Tiles whose output exists are kept (a rerun resumes) unless ``overwrite``. One bad tile is reported and
+    the others go on; inputs are never written.
+    """
+    settings = settings or GroundSettings()
+    settings.validate()
+    check_scheduler(scheduler)
+    check_count(jobs, "--jobs", example="2")
+    out = Path(out)
+    override = parse_crs_text(settings.crs) if settings.crs else None
+    paths = find_tiles(inputs)
+    with claim_output(out, "gistools ground"):
+        return _ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress)
+
+
+def _neighbours(infos: dict, name: str, buffer: float) -> list[str]:
+    w, s, e, n = infos[name].bounds
+    hits = []
+    for other, info in infos.items():
+        ow, os_, oe, on = info.bounds
+        if other != name and ow <= e + buffer and oe >= w - buffer and os_ <= n + buffer and on >= s - buffer:
+            hits.append(str(info.path))
+    return hits
+
+
+def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress) -> dict:
+    started = time.time()
+    states, infos = {}, {}
+    for p in paths:
+        st = states[p.stem] = _TileState(p.stem, str(p))
+        if Path(p).resolve().parent == out.resolve() and _output_name(p, settings.format) == p.name:
+            st.status, st.error = "failed", f"{p}: the output would overwrite this input; choose another --out"
+            continue
+        try:
+            infos[p.stem] = read_tile_info(p, override)
+        except GistoolsError as err:
+            st.status, st.error = "failed", str(err)
+    crs = common_crs(list(infos.values())) if infos else None
+    p = _params(settings, next(iter(infos.values()))) if infos else None
+    names = list(infos)
+    todo, targets = [], {}
+    for name in names:
+        targets[name] = out / _output_name(infos[name].path, settings.format)
+        if targets[name].exists() and not overwrite:
+            states[name].status, states[name].output = "skipped", str(targets[name])
+        else:
+            todo.append(name)
+    done = [0]
+
+    def on_done(name, value, seconds):
+        st = states[name if name in states else Path(name).stem]
+        for k in ("output", "points", "changed", "points_by_class", "neighbours"):
+            setattr(st, k, value[k])
+        st.seconds = round(seconds, 3)
+
+    def tick(message):
+        done[0] += 1
+        report(progress, done[0] / max(len(todo), 1), message)
+
+    arglist = [(str(infos[n].path), _neighbours(infos, n, p.buffer), settings.crs, p, str(targets[n])) for n in todo]
+    pool = make_pool(jobs, scheduler, len(todo))
+    try:
+        run_each(_ground_tile_named, [(n, *a) for n, a in zip(todo, arglist)], pool, states, todo, on_done, tick,
+                 "classified", out)
+    finally:
+        if pool is not None:
+            pool.close()
+    written = [n for n in names if states[n].status in ("ok", "skipped") and states[n].output]
+    vpc = None
+    if written:
+        vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range,
+                                              infos[n].point_count, crs) for n in written])
+    result = {
+        "tool": "gistools ground",
+        "crs": crs_label(crs) if crs is not None else None,
+        "settings": asdict(settings),
+        "units": None if p is None else {"cell": p.smrf.cell, "window": p.smrf.window, "threshold": p.smrf.threshold,
+                                         "scalar": p.smrf.scalar, "buffer": p.buffer,
+                                         "horizontal_unit": next(iter(infos.values())).unit.name,
+                                         "vertical_unit": next(iter(infos.values())).z_unit.name},
+        "vpc": str(vpc) if vpc else None,
+        "tiles": [asdict(st) for st in states.values()],
+        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
+        "seconds": round(time.time() - started, 3),
+    }
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(result, indent=2, default=str))
+    return result
+
+
+def _ground_tile_named(name, *args):
+    return _ground_tile(*args)
