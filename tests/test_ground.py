@@ -201,3 +201,19 @@ def test_bad_options_are_refused_before_anything_is_written(tmp_path):
         assert not (tmp_path / "o").exists()
     with pytest.raises(Exception, match="--csf-rigidness"):
         GroundSettings(csf_rigidness=5).validate()
+
+
+def test_info_shows_files_without_a_crs_or_with_a_broken_one(tmp_path):
+    need_shared(LASR)
+    r = CliRunner().invoke(cli, ["info", str(LASR / "extra_byte.las"), "--json"])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.output)[0]
+    assert s["crs"] == "no CRS" and "has no CRS" in s["crs_note"] and s["points"] == 62
+    r = CliRunner().invoke(cli, ["info", str(LASR / "las14_pdrf6.laz"), "--json"])
+    assert r.exit_code == 0, r.output
+    s = json.loads(r.output[r.output.index("["):])[0]
+    assert "compound CRS should have at least 2 components" in s["crs_note"] and "horizontal part" in s["crs_note"]
+    assert "UTM" in s["crs"] and s["horizontal_unit"].startswith("metre")
+    # a command that needs the CRS names what is wrong, not "no CRS" for a broken one
+    r = CliRunner().invoke(cli, ["rasters", str(LASR / "extra_byte.las"), "--out", str(tmp_path / "r"), "-q"])
+    assert r.exit_code == 1 and "header has no CRS" in r.output

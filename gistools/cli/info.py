@@ -38,7 +38,10 @@ def info(tiles, crs, as_json):
             click.echo(f"{s['file']}")
             click.echo(f"  LAS {s['las_version']}, point format {s['point_format']}, {s['points']:,} points"
                        f"{' (LAZ)' if s['compressed'] else ''}")
-            click.echo(f"  CRS: {s['crs']} (from {s['crs_source']}); units: x/y {s['horizontal_unit']}, z {s['vertical_unit']}")
+            if s["crs_source"]:
+                click.echo(f"  CRS: {s['crs']} (from {s['crs_source']}); units: x/y {s['horizontal_unit']}, z {s['vertical_unit']}")
+            if s["crs_note"]:
+                click.echo(f"  CRS: {s['crs_note']}")
             w, so, e, n = s["bounds"]
             click.echo(f"  bounds: x {w:.2f} .. {e:.2f}, y {so:.2f} .. {n:.2f}, z {s['z_range'][0]:.2f} .. {s['z_range'][1]:.2f}")
             click.echo("  by class: " + ", ".join(f"{c}: {n:,}" for c, n in s["points_by_class"].items()))

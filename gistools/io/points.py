@@ -53,6 +53,7 @@ class TileInfo:
     compressed: bool
     points_by_return: tuple[int, ...] = field(default=())
     geokey_z_unit: LinearUnit | None = None  # from the GeoTIFF vertical keys, when the CRS is not compound
+    crs_note: str | None = None  # what was wrong with the file's CRS record, and what was used instead
 
     @property
     def name(self) -> str:
@@ -159,11 +160,50 @@ def _add_vertical_geokeys(header, epsg: int) -> None:
             return
 
 
-def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
+def _balanced(text: str, start: int) -> str | None:
+    """The bracketed element of WKT ``text`` that starts at ``start`` (its keyword), brackets balanced."""
+    depth, i = 0, text.find("[", start)
+    if i < 0:
+        return None
+    for j in range(i, len(text)):
+        depth += {"[": 1, "]": -1}.get(text[j], 0)
+        if depth == 0:
+            return text[start: j + 1]
+    return None
+
+
+def _proj_reason(err: Exception) -> str:
+    """PROJ's reason for refusing a CRS, without the whole WKT pyproj puts before it."""
+    import re
+
+    m = re.search(r"proj_create: ([^)]*)", str(err))
+    return f"PROJ: {m.group(1)}" if m else str(err)[-160:]
+
+
+def _horizontal_from_wkt(header):
+    """The horizontal CRS inside a WKT record that does not parse as a whole (a broken compound CRS), or None."""
+    for vlr in header.vlrs:
+        text = getattr(vlr, "string", None)
+        if not isinstance(text, str):
+            continue
+        for key in ("PROJCRS[", "PROJCS[", "PROJECTEDCRS["):
+            at = text.upper().find(key)
+            part = _balanced(text, at) if at >= 0 else None
+            if part:
+                try:
+                    return pyproj.CRS.from_wkt(part)
+                except pyproj.exceptions.CRSError:
+                    continue
+    return None
+
+
+def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bool = True) -> TileInfo:
     """Header facts of one tile, reading no points.
 
-    ``crs`` overrides the file's CRS and is required when the file has none.
-    Raises DataFileError (unreadable, truncated), MissingCRSError, EmptyTileError.
+    ``crs`` overrides the file's CRS and is required when the file has none (unless not ``require_crs``: the
+    info then has ``crs`` None). A CRS record that does not parse is named as such; when its horizontal part
+    parses, that is used (``crs_note`` says so). Raises DataFileError (unreadable, truncated),
+    MissingCRSError, EmptyTileError.
     """
     path = Path(path)
     if isinstance(crs, str):
@@ -173,11 +213,14 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
     try:
         with laspy.open(path) as reader:
             header = reader.header
+            crs_note = None
             try:
                 file_crs = header.parse_crs()
             except Exception as err:  # malformed CRS VLRs
-                log.warning("%s: CRS records could not be parsed (%s)", path, err)
-                file_crs = None
+                file_crs = _horizontal_from_wkt(header)
+                crs_note = f"the CRS record cannot be parsed ({_proj_reason(err)})" + (
+                    f"; its horizontal part ({file_crs.name}) is used" if file_crs is not None else "")
+                log.warning("%s: %s", path, crs_note)
             geokey_z = _geokey_z_unit(header)
     except Exception as err:
         raise _open_error(path, err) from None
@@ -205,17 +248,18 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
                 hint="Repair the header's point count (e.g. lasinfo -repair, or pdal translate) and run again",
             )
     _check_header_numbers(path, header)
-    if crs is None and file_crs is None:
+    if crs is None and file_crs is None and require_crs:
         raise MissingCRSError(
-            "header has no CRS",
+            crs_note or "header has no CRS",
             path=path,
             hint='Pass the tiles\' CRS with --crs, e.g. --crs EPSG:2882 (CLI), or set "Input CRS" (QGIS)',
         )
     used = crs if crs is not None else file_crs
-    try:
-        horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
-    except InputError as err:
-        raise InputError(str(err), path=path) from None
+    if require_crs:
+        try:
+            horizontal_unit(used)  # refuses geographic CRSs early, naming the CRS
+        except InputError as err:
+            raise InputError(str(err), path=path) from None
     return TileInfo(
         path=path,
         point_count=count,
@@ -230,6 +274,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None) -> TileInfo:
         compressed=compressed,
         points_by_return=tuple(int(n) for n in header.number_of_points_by_return),
         geokey_z_unit=geokey_z,
+        crs_note=None if crs is not None else crs_note,
     )
 
 

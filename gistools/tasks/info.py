@@ -16,8 +16,9 @@ __all__ = ["tile_summary", "tiles_summary"]
 
 
 def tile_summary(path, crs=None) -> dict:
-    """Header facts plus point counts by class and by return (reads every point, in chunks)."""
-    info = read_tile_info(path, crs)
+    """Header facts plus point counts by class and by return (reads every point, in chunks). A file without a
+    usable CRS is summarised too: ``crs`` "no CRS", units None, and ``crs_note`` says what is wrong."""
+    info = read_tile_info(path, crs, require_crs=False)
     by_class = np.zeros(256, np.int64)
     by_return = np.zeros(16, np.int64)
     for chunk in iter_chunks(info):
@@ -34,12 +35,23 @@ def tile_summary(path, crs=None) -> dict:
         "scales": info.scales,
         "offsets": info.offsets,
         "crs": crs_label(info.crs),
-        "crs_source": "file" if info.crs_from_file else "--crs",
-        "horizontal_unit": info.unit.name,
-        "vertical_unit": info.z_unit.name,
+        "crs_source": None if info.crs is None else "file" if info.crs_from_file else "--crs",
+        "crs_note": info.crs_note if info.crs is not None or info.crs_note else
+        "the header has no CRS: give one with --crs (CLI) or 'Input CRS' (QGIS) to use the file",
+        "horizontal_unit": _unit_name(info, "unit"),
+        "vertical_unit": _unit_name(info, "z_unit"),
         "points_by_class": {int(c): int(n) for c, n in enumerate(by_class) if n},
         "points_by_return": {int(r): int(n) for r, n in enumerate(by_return) if n},
     }
+
+
+def _unit_name(info, which: str):
+    if info.crs is None:
+        return None
+    try:
+        return getattr(info, which).name
+    except GistoolsError:  # a geographic CRS: no linear unit
+        return None
 
 
 def tiles_summary(inputs, *, crs=None, out=None, progress: ProgressCallback | None = None) -> dict:
