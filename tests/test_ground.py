@@ -217,3 +217,27 @@ def test_info_shows_files_without_a_crs_or_with_a_broken_one(tmp_path):
     # a command that needs the CRS names what is wrong, not "no CRS" for a broken one
     r = CliRunner().invoke(cli, ["rasters", str(LASR / "extra_byte.las"), "--out", str(tmp_path / "r"), "-q"])
     assert r.exit_code == 1 and "header has no CRS" in r.output
+
+
+def test_the_shrub_chain_on_tiles_without_ground_classes_matches_the_delivered_classes(tmp_path):
+    """--classify-ground smrf on the sample with its ground classes wiped (2 -> 1; water 9 kept): every class
+    area within 3 % of the run on the delivered classes."""
+    tiles = sorted(SAMPLE.glob("*.la[sz]"))
+    crs = read_tile_info(tiles[0]).crs
+    for p in tiles:
+        las = laspy.read(p)
+        d = {k: np.asarray(getattr(las, k)) for k in FIELDS}
+        d["classification"] = np.where(d["classification"] == 2, 1, d["classification"]).astype(np.uint8)
+        write_tile(tmp_path / "raw" / f"{p.stem}.las", d, crs, version="1.2", point_format=1,
+                   offsets=[430000.0, 1810000.0, 0.0])
+    b = SAMPLE / "breaklines.gpkg"
+    vectors = ["--roads", f"{b}:ROADBREAKLINE", "--hydro", f"{b}:HYDROGRAPHICFEATURE", "--waterbodies", f"{b}:WATERBODY",
+               "--wetlands", f"{b}:WETLAND", "--tile-index", f"{b}:FOOTPRINT", "-q", "--no-map"]
+    areas = {}
+    for name, src, extra in (("delivered", SAMPLE, []), ("classified", tmp_path / "raw", ["--classify-ground", "smrf"])):
+        r = CliRunner().invoke(cli, ["shrub", str(src), "--out", str(tmp_path / name), *vectors, *extra])
+        assert r.exit_code == 0, r.output
+        areas[name] = json.loads((tmp_path / name / "report.json").read_text())["class_area"]
+    assert (tmp_path / "classified" / "classified" / "ground.vpc").exists()
+    for cls, area in areas["delivered"].items():
+        assert areas["classified"][cls] == pytest.approx(area, rel=0.03), cls

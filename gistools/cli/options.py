@@ -61,3 +61,15 @@ def parse_classes(ctx, param, value):
     if not classes or any(not 0 <= c <= 255 for c in classes):
         raise click.BadParameter(f"{value!r}: class codes are integers 0-255, e.g. 1,2")
     return classes
+
+
+def _ground_methods():
+    from ..lidar.ground import GROUND_METHODS
+
+    return list(GROUND_METHODS)
+
+
+classify_ground_opt = click.option(
+    "--classify-ground", type=click.Choice(_ground_methods()), default=None,
+    help="For tiles without ground classes: classify ground and noise first (gistools ground, with its defaults) "
+         "into OUT/classified/ and make the rasters from those.")

@@ -6,7 +6,7 @@ import click
 
 from ..lidar.gridding import DEM_METHODS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
-from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 _DEFAULTS = RasterSettings()  # the options' defaults are the library's
@@ -24,6 +24,7 @@ _DEFAULTS = RasterSettings()  # the options' defaults are the library's
               help="DEM cells farther than this from every ground point stay nodata (tin, idw).")
 @click.option("--buffer", default=None, help="How far to read ground points from neighbouring tiles. Default: 2 x --dem-max-distance, at least 20 cells.")
 @click.option("--products", default=",".join(_DEFAULTS.products), show_default=True, help="Which rasters to write, comma-separated.")
+@classify_ground_opt
 @crs_opt
 @jobs_opt
 @chunk_opt
@@ -32,7 +33,7 @@ _DEFAULTS = RasterSettings()  # the options' defaults are the library's
               help="Run the tiles on a Dask cluster: its scheduler address (tcp://host:8786), or 'local' for a "
                    "LocalCluster of --jobs workers. Workers must see the tiles and --out at the same paths.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, crs, jobs, chunk_size, overwrite, scheduler, quiet):
+def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, classify_ground, crs, jobs, chunk_size, overwrite, scheduler, quiet):
     """DSM, DEM and nDSM GeoTIFFs for every tile of INPUTS (files, folders or globs).
 
     Writes OUT/dsm/<tile>.tif, OUT/dem/<tile>.tif, OUT/ndsm/<tile>.tif, VRT mosaics
@@ -49,6 +50,7 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
     """
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
+                              classify_ground=classify_ground,
                               products=tuple(p.strip() for p in products.split(",") if p.strip()))
     with progress_bar(quiet) as progress:
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,

@@ -9,7 +9,7 @@ from ..lidar.bands import PRESETS
 from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
-from .options import chunk_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 def _floats(ctx, param, value):
@@ -72,6 +72,7 @@ _step_parameters = _options([
 @click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_S.raster.dem_method, show_default=True)
 @click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
 @click.option("--dem-max-distance", default=_S.raster.dem_max_distance, show_default=True)
+@classify_ground_opt
 @_step_parameters
 @click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'.")
@@ -81,7 +82,7 @@ _step_parameters = _options([
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size, dem_method,
-          dsm_classes, dem_max_distance, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
+          dsm_classes, dem_max_distance, classify_ground, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
           max_road_width, snap, no_map, band_points, scheduler, crs, jobs, chunk_size, overwrite, quiet):
     """Shrub density map of LAS/LAZ tiles: DSM/DEM/nDSM, height bands, road and water clipping,
     vegetation density, light / medium / heavy classes, polygons and a printable map.
@@ -96,7 +97,8 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
     """
     settings = ShrubSettings(
         raster=RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
-                              dem_max_distance=dem_max_distance, crs=crs, chunk_size=chunk_size),
+                              dem_max_distance=dem_max_distance, crs=crs, chunk_size=chunk_size,
+                              classify_ground=classify_ground),
         bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
         density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,

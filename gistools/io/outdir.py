@@ -31,7 +31,7 @@ LOCK_NAME = ".gistools.lock"
 SCRATCH_PREFIX = ".gistools-scratch-"
 # the folders under --out that gistools writes (one per raster product, the tile reports, band points)
 OUTPUT_FOLDERS = ("dsm", "dem", "ndsm", "topclass", "bands", "veg", "wetveg", "density", "cover", "classes",
-                  "band_points", "tile_reports")
+                  "band_points", "tile_reports", "classified")
 _HELD: dict[str, int] = {}  # output folders this process holds, with a nesting count (shrub runs rasters inside)
 _HELD_LOCK = threading.Lock()
 

@@ -42,6 +42,7 @@ class SmrfParams:
     threshold: float
     scalar: float
     z_per_xy: float = 1.0
+    refine: bool = True  # measure the points again against the mean of the ground found (see smrf_ground)
 
 
 def min_surface(x, y, z, cell: float):
@@ -156,6 +157,19 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     dem = _bilinear(zipro, u, v)
     cell_thresh = _bilinear(thresh, u, v)
     ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
+    if p.refine and ground.any():
+        # ZIpro is a surface of cell minima, below the mean ground by about two noise deviations: the
+        # upper half of noisy ground returns falls outside a tight threshold. Measure again against
+        # the mean of the ground points found (ZIfin, Pingel's final surface), inpainted the same way.
+        flat = (row_top - 1 - np.floor(y[ground] / p.cell).astype(np.int64)) * zimin.shape[1] + (
+            np.floor(x[ground] / p.cell).astype(np.int64) - col0)
+        total = np.bincount(flat, weights=z[ground], minlength=zimin.size)
+        count = np.bincount(flat, minlength=zimin.size)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            zifin = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(zimin.shape)
+        zifin = fill_gaps(zifin)
+        dem = _bilinear(zifin, u, v)
+        ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
     return ground, dem
 
 

@@ -36,7 +36,7 @@ from ..io.tiles import find_tiles
 from ..lidar.accumulate import (NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
                                max_with_class, merge_top_class, surface_classes)
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
-from ..progress import ProgressCallback, report
+from ..progress import ProgressCallback, report, sub_progress
 from .batch import drive, fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
@@ -82,6 +82,7 @@ class RasterSettings:
     products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 5_000_000
     return_band_breaks: tuple | None = None
+    classify_ground: str | None = None
 
     def validate(self) -> None:
         bad = [p for p in self.products if p not in PRODUCTS]
@@ -99,6 +100,12 @@ class RasterSettings:
             check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
         if self.dsm_classes is not None and (not self.dsm_classes or any(not 0 <= int(c) <= 255 for c in self.dsm_classes)):
             raise InputError(f"--dsm-classes {self.dsm_classes}: class codes are integers 0-255", hint="e.g. --dsm-classes 1,2")
+        if self.classify_ground is not None:
+            from ..lidar.ground import GROUND_METHODS
+
+            if self.classify_ground not in GROUND_METHODS:
+                raise InputError(f"--classify-ground {self.classify_ground!r} is not one of {', '.join(GROUND_METHODS)}",
+                                 hint="Use --classify-ground smrf")
         if self.return_band_breaks is not None:
             values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
             if len(values) < 2:
@@ -457,12 +464,32 @@ def rasters_from_tiles(
     paths = find_tiles(inputs)
     override = parse_crs_text(settings.crs) if settings.crs else None
     with claim_output(out, "gistools rasters"):
-        return _rasters_in(paths, override, out, settings, started, jobs, overwrite, progress, scheduler, pool)
+        failed = {}
+        if settings.classify_ground:
+            paths, failed = _classified(paths, out, settings, jobs, overwrite, scheduler, progress)
+            progress = sub_progress(progress, 0.3, 1.0)
+        return _rasters_in(paths, override, out, settings, started, jobs, overwrite, progress, scheduler, pool, failed)
+
+
+CLASSIFIED = "classified"  # the folder of the tiles classified by --classify-ground
+
+
+def _classified(paths, out: Path, settings: RasterSettings, jobs, overwrite, scheduler, progress):
+    """--classify-ground: the tiles classified first (gistools ground, into out/classified/); (their paths,
+    {tile: error} of those that failed)."""
+    from .ground import GroundSettings, ground_from_tiles
+
+    report_ = ground_from_tiles(paths, out / CLASSIFIED, GroundSettings(method=settings.classify_ground, crs=settings.crs),
+                                jobs=jobs, scheduler=scheduler, overwrite=overwrite, progress=sub_progress(progress, 0, 0.3))
+    done = [Path(t["output"]) for t in report_["tiles"] if t["status"] != "failed" and t["output"]]
+    return done, {t["name"]: f"ground classification: {t['error']}" for t in report_["tiles"] if t["status"] == "failed"}
 
 
 def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, jobs, overwrite, progress, scheduler,
-                pool) -> dict:
+                pool, failed=None) -> dict:
     results = {p.stem: TileResult(name=p.stem, path=str(p)) for p in paths}
+    for name, error in (failed or {}).items():
+        results[name] = TileResult(name=name, path=name, status="failed", error=error)
     infos = _readable_tiles(paths, override, results)
     run = None
     scratch_peak = 0
