@@ -37,7 +37,7 @@ import build_plugin  # noqa: E402
 B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
-ALGORITHMS = {"info", "points", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
+ALGORITHMS = {"info", "points", "ground", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
               "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -528,3 +528,18 @@ def test_classify_jenks_in_processing_equals_the_cli(qgis, reference, tmp_path):
     cls = qgis.run("gistools:classify", {"COVER": str(out / "cover.vrt"), "VEGETATION": str(out / "veg.vrt"),
                                          "METHOD": 2, "OUTPUT": str(tmp_path / "classes.tif")})
     same_cells(cls["OUTPUT"], out / "classes.vrt")
+
+
+def test_ground_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:ground writes the classes the library writes, and a VPC of them (loaded as its output)."""
+    import laspy
+
+    from gistools.tasks.ground import ground_from_tiles
+
+    lib = ground_from_tiles(SAMPLE, tmp_path / "lib")
+    res = qgis.run("gistools:ground", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert Path(res["VPC"]).is_file() and res["CHANGED"] == sum(t["changed"] for t in lib["tiles"])
+    for t in lib["tiles"]:
+        a = laspy.read(t["output"]).classification
+        b = laspy.read(tmp_path / "q" / Path(t["output"]).name).classification
+        assert np.array_equal(np.asarray(a), np.asarray(b)), t["name"]

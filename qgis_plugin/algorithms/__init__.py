@@ -3,6 +3,7 @@ defaults read from the library), makes one gistools call and returns the output 
 
 base       the shared plumbing (GistoolsAlgorithm) and the library's choices and defaults
 tiles      info, points                    rasters    dsm, dem, rasters
+ground     ground (ground and noise classes)
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.tasks.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
@@ -11,6 +12,7 @@ A new algorithm goes in its group's module and into ALGORITHMS below.
 """
 
 from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
+from .ground import GroundAlgorithm
 from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
 from .runway import RunwayAlgorithm
 from .shrub import ShrubChainAlgorithm
@@ -18,6 +20,6 @@ from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipA
 from .structure import StructureAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
 
-ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
+ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm)

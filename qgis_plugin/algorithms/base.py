@@ -29,6 +29,9 @@ from gistools.lidar import bands as _bands
 from gistools.lidar import gridding as _gridding
 from gistools.lidar import shrub as _shrub
 from gistools.tasks import points as _points
+from gistools.lidar import ground as _ground
+from gistools.lidar import noise as _noise
+from gistools.tasks import ground as _ground_task
 from gistools.tasks.aquifer import AquiferSettings
 from gistools.tasks.runway import RunwaySettings
 from gistools.tasks.settings import ShrubSettings
@@ -47,6 +50,10 @@ Z_UNITS = ["from the raster", "m", "ft", "ftUS"]
 BANDS = ["B1 (0-1 m)", "B2 (1-2 m)", "B3 (2-6 m)"]
 
 # defaults are the library's own too: the settings objects' defaults, never copies
+GROUND_METHODS = list(_ground.GROUND_METHODS)
+NOISE_METHODS = list(_noise.NOISE_METHODS)
+POINT_FORMATS = list(_ground_task.FORMATS)
+GROUND = _ground_task.GroundSettings()
 SHRUB = ShrubSettings()
 RASTER = SHRUB.raster
 AQUIFER = AquiferSettings()

@@ -1,0 +1,152 @@
+#!/usr/bin/env python3
+"""Quality and speed of ground / noise classification (``gistools ground``) against the libraries' defaults.
+
+Quality, on the real files of ../shared/data/lidar (autzen: suburban, international feet; Megaplot: boreal
+forest, metres, heights already normalised: its ground is z = 0): the classes are wiped (every point class 1),
+0.5 % of the points are injected as noise (half low: 20-50 m below ground, multipath; half high: 20-60 m above
+the highest point within 10 m, birds), each method classifies, and
+
+* type I (ground called non-ground), type II (non-ground called ground), total error, against the provider's
+  ground;
+* DEM RMSE and p95 |error| (metres): TIN DEM at 1 m from the classified ground against the TIN DEM from the
+  provider's ground, on the cells both have;
+* noise found (injected points classed 7 / 18) and real points classed noise.
+
+Methods: gistools SMRF with its defaults; the same SMRF with PDAL's default parameters (cell 1 m, slope 0.15,
+window 18 m, threshold 0.5 m, scalar 1.25 m); the Cloth Simulation Filter with lidR's defaults, run directly
+through the ``cloth-simulation-filter`` library (resolution 0.5 m, threshold 0.5 m, rigidness 1, 500
+iterations, no slope smoothing; no noise step: the library has none).
+
+Speed: ``gistools ground`` on a synthetic block of 5000 ft tiles (bench_shrub's generator, cached in
+--workdir), --jobs 1 and 2, points per second per core.
+
+    python benchmarks/bench_ground.py [--points 16e6] [--workdir /tmp/gistools-bench-shrub]
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+SHARED = ROOT.parent / "shared" / "data" / "lidar"
+FILES = {"autzen (suburban, ft)": SHARED / "autzen" / "autzen_trim.las",
+         "Megaplot (boreal forest, m)": SHARED / "megaplot" / "Megaplot.laz"}
+
+
+def _inject_noise(x, y, z, truth, zm, rng, share=0.005):
+    """Noise points at the positions of ``share`` of the points: half 20-50 m below the ground there (multipath),
+    half 20-60 m above the highest point within 10 m (birds over the canopy). (indices, low, their z)."""
+    from scipy.spatial import cKDTree
+
+    k = max(int(len(x) * share), 2)
+    pick = rng.choice(len(x), k, replace=False)
+    low = np.arange(k) < k // 2
+    g = cKDTree(np.column_stack([x[truth], y[truth]]))
+    ground_z = z[truth][g.query(np.column_stack([x[pick], y[pick]]))[1]]
+    allp = cKDTree(np.column_stack([x, y]))
+    top = np.array([z[i].max() for i in allp.query_ball_point(np.column_stack([x[pick], y[pick]]), 10 / zm)])
+    nz = np.where(low, ground_z - rng.uniform(20, 50, k) / zm, top + rng.uniform(20, 60, k) / zm)
+    return pick, low, nz
+
+
+def quality(path: Path, rng) -> list[dict]:
+    import laspy
+
+    from gistools.grid import snapped_grid
+    from gistools.io.points import read_tile_info
+    from gistools.lidar.ground import CsfParams, csf_ground, classify_ground_and_noise
+    from gistools.lidar.gridding import dem_from_ground_points
+    from gistools.tasks.ground import GroundSettings, _params
+
+    las = laspy.read(path)
+    info = read_tile_info(path)
+    x, y, z = (np.asarray(a, np.float64) for a in (las.x, las.y, las.z))
+    rn, nr = np.asarray(las.return_number), np.asarray(las.number_of_returns)
+    truth = np.asarray(las.classification) == 2
+    zm = info.z_unit.metres
+    pick, low, nz = _inject_noise(x, y, z, truth, zm, rng)
+    nx, ny = x[pick], y[pick]
+    X, Y, Z = np.r_[x, nx], np.r_[y, ny], np.r_[z, nz]
+    RN, NR = np.r_[rn, np.ones(len(pick), rn.dtype)], np.r_[nr, np.ones(len(pick), nr.dtype)]
+    ones = np.ones(len(X), np.uint8)
+    m = 1 / info.unit.metres
+    grid = snapped_grid((x.min(), y.min(), x.max(), y.max()), 1 * m)
+    ref = dem_from_ground_points(x[truth], y[truth], z[truth], grid, max_distance=10 * m)
+    ours = _params(GroundSettings(), info)
+    pdal = _params(GroundSettings(slope=0.15, threshold="0.5m", scalar="1.25m"), info)
+    methods = {
+        "gistools smrf (defaults)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=ours.smrf, noise=ours.noise),
+        "smrf, PDAL's parameters": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=pdal.smrf, noise=pdal.noise),
+        "CSF, lidR's defaults (library)": lambda: np.where(
+            csf_ground(X, Y, Z, np.ones(len(X), bool), CsfParams(resolution=0.5 * m, threshold=0.5 / zm)), 2, 1),
+    }
+    rows = []
+    for name, run in methods.items():
+        t = time.perf_counter()
+        cls = run()
+        seconds = time.perf_counter() - t
+        g = cls[: len(x)] == 2
+        new = dem_from_ground_points(x[g], y[g], z[g], grid, max_distance=10 * m)
+        both = np.isfinite(ref) & np.isfinite(new)
+        err = (new - ref)[both] * zm
+        noise = cls[len(x):]
+        rows.append({
+            "method": name,
+            "type I": float(np.mean(~g[truth])), "type II": float(np.mean(g[~truth])), "total": float(np.mean(g != truth)),
+            "RMSE m": float(np.sqrt(np.mean(err ** 2))), "p95 m": float(np.percentile(np.abs(err), 95)),
+            "noise found": float(np.mean(np.isin(noise, (7, 18)))),
+            "real as noise": float(np.mean(np.isin(cls[: len(x)], (7, 18)))),
+            "Mpts/s": len(X) / seconds / 1e6,
+        })
+    return rows
+
+
+def speed(workdir: Path, points: float) -> list[tuple[int, float, int]]:
+    import bench_shrub
+
+    info = bench_shrub.generate(workdir, points)
+    rows = []
+    for jobs in (1, 2):
+        out = workdir / f"ground_out_{jobs}"
+        t = time.perf_counter()
+        subprocess.run([sys.executable, "-m", "gistools.cli.main", "ground", str(workdir / "tiles"), "--out", str(out), "-q",
+                        "--overwrite", "--jobs", str(jobs)], check=True, cwd=ROOT)
+        rows.append((jobs, time.perf_counter() - t, info["points"]))
+    return rows
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--points", type=float, default=16e6)
+    ap.add_argument("--workdir", default="/tmp/gistools-bench-shrub")
+    ap.add_argument("--no-speed", action="store_true", help="Only the quality table.")
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(2012)
+    print("| file | method | type I | type II | total | DEM RMSE (m) | DEM p95 (m) | noise found | real as noise | M points/s |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for label, path in FILES.items():
+        if not path.exists():
+            print(f"| {label} | (missing: {path}) |")
+            continue
+        for r in quality(path, rng):
+            print(f"| {label} | {r['method']} | {r['type I']:.3f} | {r['type II']:.3f} | {r['total']:.3f} | {r['RMSE m']:.3f} | "
+                  f"{r['p95 m']:.3f} | {r['noise found']:.1%} | {r['real as noise']:.2%} | {r['Mpts/s']:.2f} |")
+    if not args.no_speed:
+        print()
+        print("| gistools ground on the block | points | seconds | M points/s | per core |")
+        print("|---|---:|---:|---:|---:|")
+        for jobs, seconds, n in speed(Path(args.workdir), args.points):
+            print(f"| --jobs {jobs} | {n:,} | {seconds:.1f} | {n / seconds / 1e6:.2f} | {n / seconds / 1e6 / jobs:.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
