@@ -241,3 +241,21 @@ def test_the_shrub_chain_on_tiles_without_ground_classes_matches_the_delivered_c
     assert (tmp_path / "classified" / "classified" / "ground.vpc").exists()
     for cls, area in areas["delivered"].items():
         assert areas["classified"][cls] == pytest.approx(area, rel=0.03), cls
+
+
+def test_the_compiled_morphology_equals_the_numpy_one(monkeypatch):
+    """The kernel's progressive filter and gap filling give the values of the numpy code they replace."""
+    from gistools.lidar import ground as G
+
+    if G._PROGRESSIVE is None or G._FILL is None:
+        pytest.skip("the compiled kernel is not built here")
+    rng = np.random.default_rng(3)
+    a = np.cumsum(rng.normal(size=(300, 400)), axis=1) * 0.1 + rng.uniform(0, 3, (300, 400)) * (rng.uniform(size=(300, 400)) < 0.2)
+    holes = a.copy()
+    holes[rng.uniform(size=a.shape) < 0.5] = np.nan
+    holes[100:150, 100:180] = np.nan
+    compiled = G.progressive_filter(a, 1.0, 0.15, 18.0), G.fill_gaps(holes)
+    monkeypatch.setattr(G, "_PROGRESSIVE", None)
+    monkeypatch.setattr(G, "_FILL", None)
+    assert np.array_equal(G.progressive_filter(a, 1.0, 0.15, 18.0), compiled[0])
+    assert np.array_equal(G.fill_gaps(holes), compiled[1])

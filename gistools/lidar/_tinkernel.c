@@ -570,8 +570,119 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
     return written;
 }
 
+/* ------------------------------------------------------------------ grid morphology (lidar/ground.py: SMRF)
+ * `iterations` grey dilations (is_max = 1) or erosions (0) of a rows x cols row-major grid by the 4-neighbour
+ * cross (a diamond of radius `iterations`); edges use the neighbours they have. `out` and `work` are
+ * caller-owned arrays of the same size; the result is in `out`. Values are finite (the caller fills gaps).
+ */
+static void cross_row(const double *row, const double *up, const double *down, double *o, int64_t cols, int is_max) {
+    /* up / down: the rows above and below, or the row itself at the grid's edge (max(x, x) = x) */
+    if (cols == 1) {
+        double v = row[0];
+        v = is_max ? dmax(v, dmax(up[0], down[0])) : dmin(v, dmin(up[0], down[0]));
+        o[0] = v;
+        return;
+    }
+    if (is_max) {
+        o[0] = dmax(dmax(row[0], row[1]), dmax(up[0], down[0]));
+        for (int64_t c = 1; c < cols - 1; c++)
+            o[c] = dmax(dmax(dmax(row[c - 1], row[c]), row[c + 1]), dmax(up[c], down[c]));
+        o[cols - 1] = dmax(dmax(row[cols - 2], row[cols - 1]), dmax(up[cols - 1], down[cols - 1]));
+    } else {
+        o[0] = dmin(dmin(row[0], row[1]), dmin(up[0], down[0]));
+        for (int64_t c = 1; c < cols - 1; c++)
+            o[c] = dmin(dmin(dmin(row[c - 1], row[c]), row[c + 1]), dmin(up[c], down[c]));
+        o[cols - 1] = dmin(dmin(row[cols - 2], row[cols - 1]), dmin(up[cols - 1], down[cols - 1]));
+    }
+}
+
+void gt_cross_filter(const double *in, double *out, double *work, int64_t rows, int64_t cols, int32_t is_max,
+                     int32_t iterations) {
+    int64_t n = rows * cols;
+    const double *src = in;
+    double *bufs[2] = {out, work};
+    int which = (iterations % 2 == 1) ? 0 : 1; /* ping-pong so that the last pass lands in out */
+    if (iterations <= 0) {
+        memcpy(out, in, (size_t)n * sizeof(double));
+        return;
+    }
+    for (int32_t it = 0; it < iterations; it++) {
+        double *dst = bufs[which];
+        for (int64_t r = 0; r < rows; r++) {
+            const double *row = src + r * cols;
+            cross_row(row, r > 0 ? row - cols : row, r < rows - 1 ? row + cols : row, dst + r * cols, cols, is_max);
+        }
+        src = dst;
+        which ^= 1;
+    }
+}
+
+/* Ring-by-ring gap filling (lidar/ground.py fill_gaps): each NaN cell with a filled 8-neighbour takes the mean of
+ * its filled neighbours, summed in the order NW, N, NE, W, E, SW, S, SE, from the grid as it was before the
+ * ring; up to `rings` rings. `prev` is caller-owned scratch of the same size. Returns the cells still empty. */
+int64_t gt_fill_rings(double *z, double *prev, int64_t rows, int64_t cols, int32_t rings) {
+    int64_t n = rows * cols, left = 0;
+    for (int64_t i = 0; i < n; i++) left += isnan(z[i]) ? 1 : 0;
+    for (int32_t ring = 0; ring < rings && left > 0; ring++) {
+        memcpy(prev, z, (size_t)n * sizeof(double));
+        int64_t filled = 0;
+        for (int64_t r = 0; r < rows; r++) {
+            for (int64_t c = 0; c < cols; c++) {
+                int64_t i = r * cols + c;
+                if (!isnan(prev[i])) continue;
+                double sum = 0.0;
+                int cnt = 0;
+                for (int dr = -1; dr <= 1; dr++) {
+                    int64_t rr = r + dr;
+                    if (rr < 0 || rr >= rows) continue;
+                    for (int dc = -1; dc <= 1; dc++) {
+                        int64_t cc = c + dc;
+                        if ((dr == 0 && dc == 0) || cc < 0 || cc >= cols) continue;
+                        double v = prev[rr * cols + cc];
+                        if (!isnan(v)) {
+                            sum += v;
+                            cnt++;
+                        }
+                    }
+                }
+                if (cnt) {
+                    z[i] = sum / cnt;
+                    filled++;
+                }
+            }
+        }
+        if (!filled) break;
+        left -= filled;
+    }
+    return left;
+}
+
+/* The progressive morphological filter of SMRF (lidar/ground.py progressive_filter) in one call: for radius
+ * 1 ... max_radius, the surface eroded by the diamond of that radius (one more cross erosion each step) and dilated
+ * back `radius` times; obj[i] = 1 where the opened surface drops by more than slope_z * cell * radius from the
+ * previous one. `work` holds 4 * rows * cols doubles. */
+void gt_progressive(const double *z, uint8_t *obj, double *work, int64_t rows, int64_t cols, double cell, double slope_z,
+                    int32_t max_radius) {
+    int64_t n = rows * cols;
+    double *prev = work, *eros = work + n, *a = work + 2 * n, *b = work + 3 * n;
+    memcpy(prev, z, (size_t)n * sizeof(double));
+    memcpy(eros, z, (size_t)n * sizeof(double));
+    for (int32_t radius = 1; radius <= max_radius; radius++) {
+        gt_cross_filter(eros, a, b, rows, cols, 0, 1); /* eros <- erode(eros): result in a */
+        memcpy(eros, a, (size_t)n * sizeof(double));
+        gt_cross_filter(eros, a, b, rows, cols, 1, radius); /* the opening, in a */
+        double thr = slope_z * cell * radius;
+        for (int64_t i = 0; i < n; i++) {
+            if (prev[i] - a[i] > thr) obj[i] = 1;
+        }
+        double *t = prev;
+        prev = a;
+        a = t;
+    }
+}
+
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_tinkernel",
-                                    "Compiled Delaunay triangulation and TIN rasterisation (called through ctypes).", -1,
+                                    "Compiled Delaunay triangulation, TIN rasterisation and grid morphology (called through ctypes).", -1,
                                     NULL};
 
 PyMODINIT_FUNC PyInit__tinkernel(void) { return PyModule_Create(&module); }

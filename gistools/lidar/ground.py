@@ -62,26 +62,126 @@ def min_surface(x, y, z, cell: float):
 
 
 def fill_gaps(surface: np.ndarray, rings: int = FILL_RINGS) -> np.ndarray:
-    """NaN cells filled by the mean of their filled 3 x 3 neighbours, one ring at a time; past ``rings`` rings
-    (wide gaps: water, large buildings), by the nearest filled cell."""
-    z = surface.copy()
+    """NaN cells filled by the mean of their filled 3 x 3 neighbours, one ring at a time (each ring from the values
+    before it); past ``rings`` rings (wide gaps: water, large buildings), by the nearest filled cell. Work goes
+    to the cells on the front of each ring only."""
+    z = np.ascontiguousarray(surface, np.float64).copy()
     empty = np.isnan(z)
     if not empty.any() or empty.all():
         return z
-    ones = np.ones((3, 3))
-    for _ in range(rings):
-        if not empty.any():
-            return z
-        vals = np.where(empty, 0.0, z)
-        s = ndimage.convolve(vals, ones, mode="constant")
-        c = ndimage.convolve((~empty).astype(np.float64), ones, mode="constant")
-        new = empty & (c > 0)
-        z[new] = s[new] / c[new]
-        empty &= ~new
+    if _FILL is not None:
+        _FILL(z, np.empty_like(z), z.shape[0], z.shape[1], int(rings))
+    else:
+        z = _fill_rings_numpy(z, rings)
+    empty = np.isnan(z)
     if empty.any():
         _, (ri, ci) = ndimage.distance_transform_edt(empty, return_indices=True)
         z[empty] = z[ri[empty], ci[empty]]
     return z
+
+
+def _fill_rings_numpy(z: np.ndarray, rings: int) -> np.ndarray:
+    """fill_gaps' rings without the compiled kernel (the same sums in the same order)."""
+    h, w = z.shape
+    wp = w + 2
+    flat = np.full((h + 2) * wp, np.nan)
+    flat.reshape(h + 2, wp)[1:-1, 1:-1] = z
+    inside = np.zeros((h + 2, wp), bool)
+    inside[1:-1, 1:-1] = True
+    inside = inside.ravel()
+    offsets = np.array([-wp - 1, -wp, -wp + 1, -1, 1, wp - 1, wp, wp + 1])
+    filled = ~np.isnan(flat) & inside
+    # the first front: empty cells next to a filled one
+    front = np.flatnonzero(~filled & inside)
+    for _ in range(rings):
+        if front.size == 0:
+            break
+        vals = flat[front[:, None] + offsets]
+        ok = ~np.isnan(vals)
+        count = ok.sum(axis=1)
+        new = count > 0
+        if not new.any():
+            break
+        cells = front[new]
+        total = np.zeros(len(cells))
+        for j in range(8):  # in the kernel's order, one neighbour at a time: the same rounding
+            total += np.where(ok[new, j], vals[new, j], 0.0)
+        flat[cells] = total / count[new]
+        near = np.unique((cells[:, None] + offsets).ravel())
+        front = near[inside[near] & np.isnan(flat[near])]
+    return flat.reshape(h + 2, wp)[1:-1, 1:-1].copy()
+
+
+def _box3_sum(a: np.ndarray) -> np.ndarray:
+    """The sum of each cell's 3 x 3 neighbourhood (zero beyond the edges), as two 1-D passes."""
+    p = np.pad(a, 1)
+    rows = p[:-2] + p[1:-1] + p[2:]
+    return rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]
+
+
+def _kernel_cross():
+    """gistools' compiled cross filter (lidar/_tinkernel.c), or None where the kernel is not built."""
+    import ctypes
+
+    from .tin import _KERNEL
+
+    if _KERNEL is None or not hasattr(_KERNEL, "gt_cross_filter"):
+        return None
+    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+    _KERNEL.gt_cross_filter.argtypes = [f64, f64, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_int32, ctypes.c_int32]
+    _KERNEL.gt_cross_filter.restype = None
+    return _KERNEL.gt_cross_filter
+
+
+_CROSS = _kernel_cross()
+
+
+def _kernel_fill():
+    import ctypes
+
+    from .tin import _KERNEL
+
+    if _KERNEL is None or not hasattr(_KERNEL, "gt_fill_rings"):
+        return None
+    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+    _KERNEL.gt_fill_rings.argtypes = [f64, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_int32]
+    _KERNEL.gt_fill_rings.restype = ctypes.c_int64
+    return _KERNEL.gt_fill_rings
+
+
+_FILL = _kernel_fill()
+
+
+def _kernel_progressive():
+    import ctypes
+
+    from .tin import _KERNEL
+
+    if _KERNEL is None or not hasattr(_KERNEL, "gt_progressive"):
+        return None
+    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+    u8 = np.ctypeslib.ndpointer(np.uint8, flags="C_CONTIGUOUS")
+    _KERNEL.gt_progressive.argtypes = [f64, u8, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_double, ctypes.c_double,
+                                       ctypes.c_int32]
+    _KERNEL.gt_progressive.restype = None
+    return _KERNEL.gt_progressive
+
+
+_PROGRESSIVE = _kernel_progressive()
+
+
+def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:
+    """``iterations`` grey dilations (``maximum``) or erosions by the 4-neighbour cross: the filter by a diamond of
+    that radius. The compiled kernel when built (one pass a step), else numpy (the same values)."""
+    a = np.ascontiguousarray(a, np.float64)
+    if _CROSS is not None:
+        out, work = np.empty_like(a), np.empty_like(a)
+        _CROSS(a, out, work, a.shape[0], a.shape[1], 1 if maximum else 0, int(iterations))
+        return out
+    step = _dilate1 if maximum else _erode1
+    for _ in range(iterations):
+        a = step(a)
+    return a
 
 
 def _erode1(a: np.ndarray) -> np.ndarray:
@@ -107,29 +207,40 @@ def progressive_filter(surface: np.ndarray, cell: float, slope_z: float, window:
     """Object cells of the progressive morphological filter: openings by diamonds of radius 1 ... ceil(window /
     cell) cells; a cell is an object when the opened surface drops by more than ``slope_z`` x cell x radius
     (vertical units) from the previous one (PDAL's progressiveFilter)."""
+    max_radius = int(math.ceil(window / cell))
+    if _PROGRESSIVE is not None:
+        z = np.ascontiguousarray(surface, np.float64)
+        obj = np.zeros(z.shape, np.uint8)
+        _PROGRESSIVE(z, obj, np.empty(4 * z.size), z.shape[0], z.shape[1], float(cell), float(slope_z), max_radius)
+        return obj.view(bool)
     obj = np.zeros(surface.shape, bool)
     previous, erosion = surface, surface
-    for radius in range(1, int(math.ceil(window / cell)) + 1):
-        erosion = _erode1(erosion)  # erosion by the diamond of this radius
-        opening = erosion
-        for _ in range(radius):
-            opening = _dilate1(opening)
+    for radius in range(1, max_radius + 1):
+        erosion = cross_filter(erosion, 1, maximum=False)  # erosion by the diamond of this radius
+        opening = cross_filter(erosion, radius, maximum=True)
         obj |= (previous - opening) > slope_z * cell * radius
         previous = opening
     return obj
 
 
-def _bilinear(surface: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``surface`` at fractional (col, row) positions of cell centres (u = col + 0.5 at a centre), clamped."""
-    h, w = surface.shape
+def _bilinear_at(shape, u: np.ndarray, v: np.ndarray):
+    """Where fractional (col, row) positions (u = col + 0.5 at a cell centre) fall between cell centres, clamped:
+    (flat index of the upper-left centre, the step to the next column, to the next row, the two fractions)."""
+    h, w = shape
     fu = np.clip(u - 0.5, 0, w - 1)
     fv = np.clip(v - 0.5, 0, h - 1)
-    c0 = np.minimum(np.floor(fu).astype(np.int64), max(w - 2, 0))
-    r0 = np.minimum(np.floor(fv).astype(np.int64), max(h - 2, 0))
-    c1, r1 = np.minimum(c0 + 1, w - 1), np.minimum(r0 + 1, h - 1)
+    c0 = np.minimum(fu.astype(np.int64), max(w - 2, 0))  # fu >= 0: the cast is the floor
+    r0 = np.minimum(fv.astype(np.int64), max(h - 2, 0))
     tu, tv = fu - c0, fv - r0
-    top = surface[r0, c0] * (1 - tu) + surface[r0, c1] * tu
-    bottom = surface[r1, c0] * (1 - tu) + surface[r1, c1] * tu
+    return r0 * w + c0, (1 if w > 1 else 0), (w if h > 1 else 0), tu, tv
+
+
+def _bilinear(surface: np.ndarray, at) -> np.ndarray:
+    """``surface`` at the positions of ``_bilinear_at``."""
+    i, dc, dr, tu, tv = at
+    f = surface.ravel()
+    top = f[i] * (1 - tu) + f[i + dc] * tu
+    bottom = f[i + dr] * (1 - tu) + f[i + dr + dc] * tu
     return top * (1 - tv) + bottom * tv
 
 
@@ -152,10 +263,9 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     gy, gx = np.gradient(zipro, p.cell)
     grade = np.hypot(gx, gy) / p.z_per_xy  # true rise over run
     thresh = p.threshold + p.scalar * grade
-    u = x / p.cell - col0
-    v = row_top - y / p.cell
-    dem = _bilinear(zipro, u, v)
-    cell_thresh = _bilinear(thresh, u, v)
+    at = _bilinear_at(zipro.shape, x / p.cell - col0, row_top - y / p.cell)
+    dem = _bilinear(zipro, at)
+    cell_thresh = _bilinear(thresh, at)
     ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
     if p.refine and ground.any():
         # ZIpro is a surface of cell minima, below the mean ground by about two noise deviations: the
@@ -168,7 +278,7 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         with np.errstate(invalid="ignore", divide="ignore"):
             zifin = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(zimin.shape)
         zifin = fill_gaps(zifin)
-        dem = _bilinear(zifin, u, v)
+        dem = _bilinear(zifin, at)
         ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
     return ground, dem
 
