@@ -197,6 +197,40 @@ def _horizontal_from_wkt(header):
     return None
 
 
+def _file_crs(header, path):
+    """(the file's CRS or None, a note on a CRS record that does not parse)."""
+    try:
+        return header.parse_crs(), None
+    except Exception as err:  # malformed CRS VLRs
+        file_crs = _horizontal_from_wkt(header)
+        note = f"the CRS record cannot be parsed ({_proj_reason(err)})" + (
+            f"; its horizontal part ({file_crs.name}) is used" if file_crs is not None else "")
+        log.warning("%s: %s", path, note)
+        return file_crs, note
+
+
+def _check_record_count(path: Path, header, count: int) -> None:
+    """Refuse an uncompressed file shorter than its header promises, or holding more records than it counts."""
+    record = header.point_format.size
+    needed = header.offset_to_point_data + count * record
+    size = os.path.getsize(path)
+    if size < needed:
+        raise DataFileError(
+            f"truncated: the header promises {count:,} points ({needed:,} bytes) but the file has {size:,} bytes",
+            path=path,
+            hint="Re-copy or re-export the tile",
+        )
+    evlrs = _evlr_start(header)
+    end = evlrs if evlrs and evlrs >= needed else size
+    held = (end - header.offset_to_point_data) // record
+    if held > count:  # a header that counts fewer points than the file holds: laspy would read only those
+        raise DataFileError(
+            f"the header counts {count:,} points but the file holds {held:,} point records",
+            path=path,
+            hint="Repair the header's point count (e.g. lasinfo -repair, or pdal translate) and run again",
+        )
+
+
 def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bool = True) -> TileInfo:
     """Header facts of one tile, reading no points.
 
@@ -213,14 +247,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
     try:
         with laspy.open(path) as reader:
             header = reader.header
-            crs_note = None
-            try:
-                file_crs = header.parse_crs()
-            except Exception as err:  # malformed CRS VLRs
-                file_crs = _horizontal_from_wkt(header)
-                crs_note = f"the CRS record cannot be parsed ({_proj_reason(err)})" + (
-                    f"; its horizontal part ({file_crs.name}) is used" if file_crs is not None else "")
-                log.warning("%s: %s", path, crs_note)
+            file_crs, crs_note = _file_crs(header, path)
             geokey_z = _geokey_z_unit(header)
     except Exception as err:
         raise _open_error(path, err) from None
@@ -229,24 +256,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
     if count == 0:
         raise EmptyTileError("the tile holds no points", path=path, hint="Remove it from the input or re-export it")
     if not compressed:
-        record = header.point_format.size
-        needed = header.offset_to_point_data + count * record
-        size = os.path.getsize(path)
-        if size < needed:
-            raise DataFileError(
-                f"truncated: the header promises {count:,} points ({needed:,} bytes) but the file has {size:,} bytes",
-                path=path,
-                hint="Re-copy or re-export the tile",
-            )
-        evlrs = _evlr_start(header)
-        end = evlrs if evlrs and evlrs >= needed else size
-        held = (end - header.offset_to_point_data) // record
-        if held > count:  # a header that counts fewer points than the file holds: laspy would read only those
-            raise DataFileError(
-                f"the header counts {count:,} points but the file holds {held:,} point records",
-                path=path,
-                hint="Repair the header's point count (e.g. lasinfo -repair, or pdal translate) and run again",
-            )
+        _check_record_count(path, header, count)
     _check_header_numbers(path, header)
     if crs is None and file_crs is None and require_crs:
         raise MissingCRSError(

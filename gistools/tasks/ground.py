@@ -99,11 +99,11 @@ class GroundSettings:
         if self.csf_rigidness not in (1, 2, 3):
             raise InputError(f"--csf-rigidness {self.csf_rigidness} is not 1, 2 or 3", hint="1 for steep terrain, 3 for flat")
         if self.method == "csf":
-            try:
-                import CSF  # noqa: F401  (the optional extra)
-            except ImportError:
+            import importlib.util
+
+            if importlib.util.find_spec("CSF") is None:  # cloth-simulation-filter, the optional extra
                 raise InputError("--method csf needs cloth-simulation-filter, which is not installed",
-                                 hint="pip install 'gistools[ground]', or use --method smrf") from None
+                                 hint="pip install 'gistools[ground]', or use --method smrf")
 
 
 @dataclass(frozen=True)
@@ -217,8 +217,8 @@ def _neighbours(infos: dict, name: str, buffer: float) -> list[str]:
     return hits
 
 
-def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress) -> dict:
-    started = time.time()
+def _read_headers(paths, out: Path, settings: GroundSettings, override) -> tuple[dict, dict]:
+    """(a state per tile, the header of each tile that reads); a tile whose output would be itself fails."""
     states, infos = {}, {}
     for p in paths:
         st = states[p.stem] = _TileState(p.stem, str(p))
@@ -229,20 +229,37 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
             infos[p.stem] = read_tile_info(p, override)
         except GistoolsError as err:
             st.status, st.error = "failed", str(err)
+    return states, infos
+
+
+def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress) -> dict:
+    started = time.time()
+    states, infos = _read_headers(paths, out, settings, override)
     crs = common_crs(list(infos.values())) if infos else None
     p = _params(settings, next(iter(infos.values()))) if infos else None
-    names = list(infos)
-    todo, targets = [], {}
-    for name in names:
-        targets[name] = out / _output_name(infos[name].path, settings.format)
-        if targets[name].exists() and not overwrite:
-            states[name].status, states[name].output = "skipped", str(targets[name])
+    targets = {name: out / _output_name(info.path, settings.format) for name, info in infos.items()}
+    todo = []
+    for name, target in targets.items():
+        if target.exists() and not overwrite:
+            states[name].status, states[name].output = "skipped", str(target)
         else:
             todo.append(name)
+    _classify_tiles(todo, infos, targets, states, p, settings.crs, out, jobs, scheduler, progress)
+    written = [n for n in infos if states[n].status in ("ok", "skipped") and states[n].output]
+    vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range, infos[n].point_count, crs)
+                                         for n in written]) if written else None
+    result = _ground_report(settings, p, infos, states, crs, vpc, started)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(result, indent=2, default=str))
+    return result
+
+
+def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress) -> None:
+    """Run the tile tasks (inline, on local processes or on Dask); a failed tile is marked, the others go on."""
     done = [0]
 
     def on_done(name, value, seconds):
-        st = states[name if name in states else Path(name).stem]
+        st = states[name]
         for k in ("output", "points", "changed", "points_by_class", "neighbours"):
             setattr(st, k, value[k])
         st.seconds = round(seconds, 3)
@@ -251,35 +268,29 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
         done[0] += 1
         report(progress, done[0] / max(len(todo), 1), message)
 
-    arglist = [(str(infos[n].path), _neighbours(infos, n, p.buffer), settings.crs, p, str(targets[n])) for n in todo]
+    arglist = [(n, str(infos[n].path), _neighbours(infos, n, p.buffer), crs_text, p, str(targets[n])) for n in todo]
     pool = make_pool(jobs, scheduler, len(todo))
     try:
-        run_each(_ground_tile_named, [(n, *a) for n, a in zip(todo, arglist)], pool, states, todo, on_done, tick,
-                 "classified", out)
+        run_each(_ground_tile_named, arglist, pool, states, todo, on_done, tick, "classified", out)
     finally:
         if pool is not None:
             pool.close()
-    written = [n for n in names if states[n].status in ("ok", "skipped") and states[n].output]
-    vpc = None
-    if written:
-        vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range,
-                                              infos[n].point_count, crs) for n in written])
-    result = {
+
+
+def _ground_report(settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc, started) -> dict:
+    first = next(iter(infos.values()), None)
+    return {
         "tool": "gistools ground",
         "crs": crs_label(crs) if crs is not None else None,
         "settings": asdict(settings),
         "units": None if p is None else {"cell": p.smrf.cell, "window": p.smrf.window, "threshold": p.smrf.threshold,
                                          "scalar": p.smrf.scalar, "buffer": p.buffer,
-                                         "horizontal_unit": next(iter(infos.values())).unit.name,
-                                         "vertical_unit": next(iter(infos.values())).z_unit.name},
+                                         "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name},
         "vpc": str(vpc) if vpc else None,
         "tiles": [asdict(st) for st in states.values()],
         "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
         "seconds": round(time.time() - started, 3),
     }
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
 
 
 def _ground_tile_named(name, *args):
