@@ -259,3 +259,28 @@ def test_the_compiled_morphology_equals_the_numpy_one(monkeypatch):
     monkeypatch.setattr(G, "_FILL", None)
     assert np.array_equal(G.progressive_filter(a, 1.0, 0.15, 18.0), compiled[0])
     assert np.array_equal(G.fill_gaps(holes), compiled[1])
+
+
+def test_copc_output_is_read_back_by_bounds_with_the_classes_of_the_laz_output(tmp_path):
+    pytest.importorskip("copclib")
+    laz = ground_from_tiles(SAMPLE, tmp_path / "laz")
+    copc = ground_from_tiles(SAMPLE, tmp_path / "copc", GroundSettings(format="copc"))
+    assert copc["counts"]["ok"] == 4 and json.loads(Path(copc["vpc"]).read_text())["features"][0]["assets"]["data"][
+        "href"].endswith(".copc.laz")
+    for t in laz["tiles"]:
+        ref = laspy.read(t["output"])
+        path = tmp_path / "copc" / f"{t['name']}.copc.laz"
+        x, y = np.asarray(ref.x), np.asarray(ref.y)
+        w, e = np.percentile(x, [20, 55])
+        s, n = np.percentile(y, [30, 70])
+        with laspy.CopcReader.open(path) as reader:
+            assert reader.header.point_format.id == 6 and str(reader.header.version) == "1.4"
+            every = reader.query()
+            part = reader.query(laspy.copc.Bounds(np.array([w, s]), np.array([e, n])))
+        inside = (x >= w) & (x <= e) & (y >= s) & (y <= n)
+        assert len(every) == len(x) and len(part) == inside.sum()
+        # the same points with the same classes, in the octree's order
+        key = lambda p: np.lexsort((np.asarray(p.gps_time), np.asarray(p.z), np.asarray(p.y), np.asarray(p.x)))  # noqa: E731
+        a, b = key(ref), key(every)
+        assert np.array_equal(np.asarray(ref.classification)[a], np.asarray(every.classification)[b])
+        assert np.allclose(np.asarray(ref.x)[a], np.asarray(every.x)[b])

@@ -29,6 +29,8 @@ _D = GroundSettings()  # the options' defaults are the library's
 @click.option("--csf-threshold", default=_D.csf_threshold, show_default=True, help="CSF class threshold (with unit).")
 @click.option("--csf-rigidness", type=click.IntRange(1, 3), default=_D.csf_rigidness, show_default=True, help="CSF rigidness 1-3.")
 @click.option("--csf-iterations", type=click.IntRange(1), default=_D.csf_iterations, show_default=True, help="CSF iterations.")
+@click.option("--csf-time-step", type=float, default=_D.csf_time_step, show_default=True, help="CSF time step.")
+@click.option("--csf-slope-smooth", is_flag=True, default=_D.csf_slope_smooth, help="CSF post-processing of steep slopes.")
 @click.option("--ivf-res", default=_D.ivf_res, show_default=True, help="IVF voxel size (with unit).")
 @click.option("--ivf-n", type=click.IntRange(0), default=_D.ivf_n, show_default=True,
               help="IVF: a point with at most this many other points in its 27 voxels is noise.")
@@ -43,7 +45,7 @@ _D = GroundSettings()  # the options' defaults are the library's
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler address, or 'local'.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def ground(inputs, out, method, noise, cell, slope, window, threshold, scalar, csf_resolution, csf_threshold, csf_rigidness,
-           csf_iterations, ivf_res, ivf_n, low_noise_depth, buffer, keep_classes, fmt, crs, jobs, overwrite, scheduler, quiet):
+           csf_iterations, csf_time_step, csf_slope_smooth, ivf_res, ivf_n, low_noise_depth, buffer, keep_classes, fmt, crs, jobs, overwrite, scheduler, quiet):
     """Classify ground (2) and noise (7 low, 18 high) of every tile of INPUTS (files, folders, globs or a .vpc).
 
     Writes OUT/<tile>.laz with only the classification changed (every point, the point order and every
@@ -60,7 +62,8 @@ def ground(inputs, out, method, noise, cell, slope, window, threshold, scalar, c
     """
     settings = GroundSettings(method=method, noise=noise, cell=cell, slope=slope, window=window, threshold=threshold,
                               scalar=scalar, csf_resolution=csf_resolution, csf_threshold=csf_threshold,
-                              csf_rigidness=csf_rigidness, csf_iterations=csf_iterations, ivf_res=ivf_res, ivf_n=ivf_n,
+                              csf_rigidness=csf_rigidness, csf_iterations=csf_iterations, csf_time_step=csf_time_step,
+                              csf_slope_smooth=csf_slope_smooth, ivf_res=ivf_res, ivf_n=ivf_n,
                               low_noise_depth=low_noise_depth, buffer=buffer, keep_classes=keep_classes, format=fmt, crs=crs)
     with progress_bar(quiet) as progress:
         report = ground_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler, overwrite=overwrite,

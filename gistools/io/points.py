@@ -465,17 +465,27 @@ def _copc_box(path, box) -> dict:
             "classification": np.asarray(pts.classification, np.uint8)[keep]}
 
 
-def write_all_points(las, path, *, overwrite: bool = False) -> Path:
-    """Write a LasData (LAS or LAZ by the suffix) atomically; the file is read back (header and point count)
-    before it takes its name."""
+def write_all_points(las, path, *, overwrite: bool = False, copc_wkt: str | None = None) -> Path:
+    """Write a LasData (LAS or LAZ by the suffix; COPC when ``copc_wkt`` is given, the CRS as WKT) atomically;
+    the file is read back (header and point count; COPC: its octree) before it takes its name."""
     from .atomic import atomic_path
 
     def verify(tmp):
-        with laspy.open(tmp) as reader:
-            if reader.header.point_count != len(las.points):
-                raise DataFileError(f"wrote {reader.header.point_count} of {len(las.points)} points", path=path)
+        if copc_wkt is not None:
+            with laspy.CopcReader.open(tmp) as reader:
+                got = len(reader.query())
+        else:
+            with laspy.open(tmp) as reader:
+                got = reader.header.point_count
+        if got != len(las.points):
+            raise DataFileError(f"wrote {got} of {len(las.points)} points", path=path)
 
     path = Path(path)
     with atomic_path(path, overwrite=overwrite, keep_suffix=True, verify=verify) as tmp:
-        las.write(tmp)
+        if copc_wkt is not None:
+            from .copc import write_copc
+
+            write_copc(las, tmp, crs_wkt=copc_wkt)
+        else:
+            las.write(tmp)
     return path

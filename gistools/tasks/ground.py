@@ -31,7 +31,7 @@ from .batch import make_pool, run_each
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
-FORMATS = ("laz", "las")
+FORMATS = ("laz", "las", "copc")
 
 
 @dataclass(frozen=True)
@@ -48,7 +48,8 @@ class GroundSettings:
     sor (``sor_k``, ``sor_multiplier``) or none; ``low_noise_depth``: points this far below the ground
     surface are low noise (7) even in clusters. ``buffer``: how far the neighbours' points are read (default
     2 x window + 10 cells). ``keep_classes``: points that were ground / noise and are not now keep their class
-    (else 1). ``format``: laz or las.
+    (else 1). ``format``: laz, las or copc (needs copclib: ``pip install 'gistools[copc]'``; COPC holds point
+    formats 6-8, so formats 0-5 are converted, and stores points in octree order).
     """
 
     method: str = "smrf"
@@ -98,6 +99,12 @@ class GroundSettings:
         check_count(self.ivf_n, "--ivf-n", minimum=0, example="6")
         if self.csf_rigidness not in (1, 2, 3):
             raise InputError(f"--csf-rigidness {self.csf_rigidness} is not 1, 2 or 3", hint="1 for steep terrain, 3 for flat")
+        if self.format == "copc":
+            from ..io.copc import copc_available
+
+            if not copc_available():
+                raise InputError("--format copc needs copclib, which is not installed",
+                                 hint="pip install 'gistools[copc]', or use --format laz")
         if self.method == "csf":
             import importlib.util
 
@@ -140,7 +147,7 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
 
 def _output_name(path: Path, fmt: str) -> str:
     stem = path.name[: -len(".copc.laz")] if path.name.lower().endswith(".copc.laz") else path.stem
-    return f"{stem}.{fmt}"
+    return f"{stem}.copc.laz" if fmt == "copc" else f"{stem}.{fmt}"
 
 
 def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str) -> dict:
@@ -168,10 +175,17 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str)
     after = before.copy()
     after[~withheld] = new[: int(np.count_nonzero(~withheld))]
     las.classification = after
-    write_all_points(las, target, overwrite=True)
+    write_all_points(las, target, overwrite=True, copc_wkt=_wkt1(info.crs) if target.endswith(".copc.laz") else None)
     counts = {int(c): int(k) for c, k in enumerate(np.bincount(after, minlength=256)) if k}
     return {"output": target, "points": int(len(after)), "changed": int(np.count_nonzero(after != before)),
             "points_by_class": counts, "neighbours": used, "bounds": list(info.bounds), "z_range": list(info.z_range)}
+
+
+def _wkt1(crs) -> str:
+    try:
+        return crs.to_wkt("WKT1_GDAL")
+    except Exception:  # a CRS WKT1 cannot express
+        return crs.to_wkt()
 
 
 @dataclass
