@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import shapely
 
 from ..errors import GistoolsError, InputError
 from ..io.atomic import atomic_path
@@ -22,7 +23,7 @@ from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, points
                          write_all_points)
 from ..io.tiles import find_tiles
 from ..io.vpc import write_vpc
-from ..lidar.ground import GROUND_METHODS, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
+from ..lidar.ground import GROUND_METHODS, RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
 from ..lidar.noise import NOISE_METHODS
 from ..progress import ProgressCallback, report
 from ..units import length_to_crs_units
@@ -32,6 +33,7 @@ from .batch import make_pool, run_each
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
 FORMATS = ("laz", "las", "copc")
+WATER = 9
 
 
 @dataclass(frozen=True)
@@ -150,7 +152,7 @@ def _output_name(path: Path, fmt: str) -> str:
     return f"{stem}.copc.laz" if fmt == "copc" else f"{stem}.{fmt}"
 
 
-def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str) -> dict:
+def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str, water_wkb=()) -> dict:
     """Classify one tile with its neighbours' buffer strips and write it; the class counts before and after."""
     override = parse_crs_text(crs_text) if crs_text else None
     info = read_tile_info(path, override)
@@ -168,6 +170,10 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str)
         parts.append(points_in_box(read_tile_info(nb, override), box))
         used.append(Path(nb).stem)
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
+    if water_wkb:  # returns on the water polygons are water, out of the ground filter
+        inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
+        allp["classification"] = np.where(inside & np.isin(allp["classification"], RECLASSIFIED), WATER,
+                                          allp["classification"]).astype(np.uint8)
     new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
                                     allp["classification"], method=p.method, smrf=p.smrf, csf=p.csf, noise=p.noise,
                                     keep_classes=p.keep_classes)
@@ -203,12 +209,13 @@ class _TileState:
 
 
 def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,
-                      overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+                      overwrite: bool = False, progress: ProgressCallback | None = None, water=None) -> dict:
     """Classify ground (2) and noise (7, 18) of the tiles of ``inputs`` (files, folders, globs, a .vpc) into
     ``out/<tile>.laz`` (or .las), plus ``out/ground.vpc`` and ``out/report.json``; returns the report.
 
     Tiles whose output exists are kept (a rerun resumes) unless ``overwrite``. One bad tile is reported and
-    the others go on; inputs are never written.
+    the others go on; inputs are never written. ``water``: polygons (the tiles' CRS units) whose points of
+    classes 0, 1, 2, 7, 18 become water (9) before the filters (the shrub chain passes its hydro polygons).
     """
     settings = settings or GroundSettings()
     settings.validate()
@@ -218,7 +225,7 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     override = parse_crs_text(settings.crs) if settings.crs else None
     paths = find_tiles(inputs)
     with claim_output(out, "gistools ground"):
-        return _ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress)
+        return _ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress, water)
 
 
 def _neighbours(infos: dict, name: str, buffer: float) -> list[str]:
@@ -246,7 +253,8 @@ def _read_headers(paths, out: Path, settings: GroundSettings, override) -> tuple
     return states, infos
 
 
-def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress) -> dict:
+def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress,
+               water=None) -> dict:
     started = time.time()
     states, infos = _read_headers(paths, out, settings, override)
     crs = common_crs(list(infos.values())) if infos else None
@@ -258,7 +266,7 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
             states[name].status, states[name].output = "skipped", str(target)
         else:
             todo.append(name)
-    _classify_tiles(todo, infos, targets, states, p, settings.crs, out, jobs, scheduler, progress)
+    _classify_tiles(todo, infos, targets, states, p, settings.crs, out, jobs, scheduler, progress, water)
     written = [n for n in infos if states[n].status in ("ok", "skipped") and states[n].output]
     vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range, infos[n].point_count, crs)
                                          for n in written]) if written else None
@@ -268,7 +276,16 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
     return result
 
 
-def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress) -> None:
+def _near(water, bounds, margin: float) -> list:
+    """The water polygons that reach a tile's box grown by ``margin``, as WKB (small to send to a worker)."""
+    if not water:
+        return []
+    w, s, e, n = bounds
+    area = shapely.box(w - margin, s - margin, e + margin, n + margin)
+    return [shapely.to_wkb(g) for g in water if g.intersects(area)]
+
+
+def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
     """Run the tile tasks (inline, on local processes or on Dask); a failed tile is marked, the others go on."""
     done = [0]
 
@@ -282,7 +299,8 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
         done[0] += 1
         report(progress, done[0] / max(len(todo), 1), message)
 
-    arglist = [(n, str(infos[n].path), _neighbours(infos, n, p.buffer), crs_text, p, str(targets[n])) for n in todo]
+    arglist = [(n, str(infos[n].path), _neighbours(infos, n, p.buffer), crs_text, p, str(targets[n]),
+                _near(water, infos[n].bounds, p.buffer)) for n in todo]
     pool = make_pool(jobs, scheduler, len(todo))
     try:
         run_each(_ground_tile_named, arglist, pool, states, todo, on_done, tick, "classified", out)

@@ -441,6 +441,7 @@ def rasters_from_tiles(
     progress: ProgressCallback | None = None,
     scheduler: str | None = None,
     pool=None,
+    water=None,
 ) -> dict:
     """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
 
@@ -454,7 +455,8 @@ def rasters_from_tiles(
     dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
     ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
     ``out`` (where the scratch folder lives) at the same paths. ``pool``: a worker pool to use
-    instead of starting one (``gistools.tasks.batch.make_pool``; the caller closes it).
+    instead of starting one (``gistools.tasks.batch.make_pool``; the caller closes it). ``water``: with
+    ``classify_ground``, polygons (CRS units) whose points are water (9) before the ground filter.
     """
     settings = settings or RasterSettings()
     settings.validate()
@@ -466,7 +468,7 @@ def rasters_from_tiles(
     with claim_output(out, "gistools rasters"):
         failed = {}
         if settings.classify_ground:
-            paths, failed = _classified(paths, out, settings, jobs, overwrite, scheduler, progress)
+            paths, failed = _classified(paths, out, settings, jobs, overwrite, scheduler, progress, water)
             progress = sub_progress(progress, 0.3, 1.0)
         return _rasters_in(paths, override, out, settings, started, jobs, overwrite, progress, scheduler, pool, failed)
 
@@ -474,13 +476,14 @@ def rasters_from_tiles(
 CLASSIFIED = "classified"  # the folder of the tiles classified by --classify-ground
 
 
-def _classified(paths, out: Path, settings: RasterSettings, jobs, overwrite, scheduler, progress):
+def _classified(paths, out: Path, settings: RasterSettings, jobs, overwrite, scheduler, progress, water=None):
     """--classify-ground: the tiles classified first (gistools ground, into out/classified/); (their paths,
     {tile: error} of those that failed)."""
     from .ground import GroundSettings, ground_from_tiles
 
     report_ = ground_from_tiles(paths, out / CLASSIFIED, GroundSettings(method=settings.classify_ground, crs=settings.crs),
-                                jobs=jobs, scheduler=scheduler, overwrite=overwrite, progress=sub_progress(progress, 0, 0.3))
+                                jobs=jobs, scheduler=scheduler, overwrite=overwrite, progress=sub_progress(progress, 0, 0.3),
+                                water=water)
     done = [Path(t["output"]) for t in report_["tiles"] if t["status"] != "failed" and t["output"]]
     return done, {t["name"]: f"ground classification: {t['error']}" for t in report_["tiles"] if t["status"] == "failed"}
 

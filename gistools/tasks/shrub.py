@@ -38,7 +38,7 @@ from ..lidar.bands import BAND_NAMES, band_thresholds
 from ..lidar.vegetation import VEG_ROAD, VEG_WATER
 from ..lidar.shrub import CLASS_NAMES, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
-from ..units import LinearUnit, length_to_crs_units
+from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
 from .batch import make_pool, run_each
@@ -174,6 +174,32 @@ def _early_vectors(inputs, crs_text, layers, settings, reproject):
     return None
 
 
+def _water_for_ground(inputs, rs: RasterSettings, early, settings: ShrubSettings):
+    """--classify-ground with breaklines: the water polygons of each tile frame (the clip step's), so that the
+    returns on water are class 9 before the ground filter (they would otherwise be ground and pull the DEM
+    down along the banks). None without hydro layers."""
+    if early is None or not (early[1]["hydro"] or early[1]["waterbodies"]):
+        return None
+    crs, vec = early
+    unit = horizontal_unit(crs)
+    override = parse_crs_text(rs.crs) if rs.crs else None
+    frames = vec["footprints"]
+    if frames is None:
+        boxes = []
+        for path in find_tiles(inputs):
+            try:
+                boxes.append(box(*read_tile_info(path, override).bounds))
+            except GistoolsError:
+                continue
+        frames = boxes
+    length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
+    snap, max_w, single = (length(settings.snap, "snap"), length(settings.max_hydro_width, "max hydro width"),
+                           length(settings.single_line_width, "single-line hydro width"))
+    parts = [water_polygons(vec["hydro"], vec["waterbodies"], f, snap=snap, max_width=max_w, single_line_width=single)
+             for f in frames]
+    return [g for g in parts if g is not None and not g.is_empty]
+
+
 def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject):
     def load(spec, name, kinds):
         if spec is None:
@@ -288,8 +314,9 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
     pool = make_pool(jobs, scheduler, n_tasks)  # one pool for the rasters and the steps: workers start once
     try:
         if summary is None:
+            water = _water_for_ground(inputs, rs, early, settings) if rs.classify_ground else None
             summary = rasters_from_tiles(inputs, out, rs, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
-                                         progress=sub_progress(progress, 0, 0.6), pool=pool)
+                                         progress=sub_progress(progress, 0, 0.6), pool=pool, water=water)
         if summary["crs_wkt"] is None:
             return summary
         crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
