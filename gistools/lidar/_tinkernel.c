@@ -681,6 +681,13 @@ void gt_progressive(const double *z, uint8_t *obj, double *work, int64_t rows, i
     }
 }
 
+/* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
+void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
+    for (int64_t i = 0; i < n; i++) {
+        if (z[i] < out[flat[i]]) out[flat[i]] = z[i];
+    }
+}
+
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_tinkernel",
                                     "Compiled Delaunay triangulation, TIN rasterisation and grid morphology (called through ctypes).", -1,
                                     NULL};

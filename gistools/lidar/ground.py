@@ -56,7 +56,10 @@ def min_surface(x, y, z, cell: float):
     row = row_top - 1 - np.floor(y / cell).astype(np.int64)
     flat = row * width + col
     zmin = np.full(width * height, np.inf)
-    np.minimum.at(zmin, flat, z)
+    if _CELL_MIN is not None:
+        _CELL_MIN(len(flat), np.ascontiguousarray(flat, np.int64), np.ascontiguousarray(z, np.float64), zmin)
+    else:
+        np.minimum.at(zmin, flat, z)
     zmin[np.isinf(zmin)] = np.nan
     return zmin.reshape(height, width), col0, row_top, flat
 
@@ -170,6 +173,23 @@ def _kernel_progressive():
 _PROGRESSIVE = _kernel_progressive()
 
 
+def _kernel_cell_min():
+    import ctypes
+
+    from .tin import _KERNEL
+
+    if _KERNEL is None or not hasattr(_KERNEL, "gt_cell_min"):
+        return None
+    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+    i64 = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
+    _KERNEL.gt_cell_min.argtypes = [ctypes.c_int64, i64, f64, f64]
+    _KERNEL.gt_cell_min.restype = None
+    return _KERNEL.gt_cell_min
+
+
+_CELL_MIN = _kernel_cell_min()
+
+
 def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:
     """``iterations`` grey dilations (``maximum``) or erosions by the 4-neighbour cross: the filter by a diamond of
     that radius. The compiled kernel when built (one pass a step), else numpy (the same values)."""
@@ -252,7 +272,7 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     if not candidates.any():
         return ground, np.full(len(x), np.nan)
     cx, cy, cz = x[candidates], y[candidates], z[candidates]
-    zimin, col0, row_top, _ = min_surface(cx, cy, cz, p.cell)
+    zimin, col0, row_top, cell_of = min_surface(cx, cy, cz, p.cell)
     zimin = fill_gaps(zimin)
     slope_z = p.slope * p.z_per_xy
     low = progressive_filter(-zimin, p.cell, 5.0 * p.z_per_xy, p.cell)
@@ -271,9 +291,9 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         # ZIpro is a surface of cell minima, below the mean ground by about two noise deviations: the
         # upper half of noisy ground returns falls outside a tight threshold. Measure again against
         # the mean of the ground points found (ZIfin, Pingel's final surface), inpainted the same way.
-        flat = (row_top - 1 - np.floor(y[ground] / p.cell).astype(np.int64)) * zimin.shape[1] + (
-            np.floor(x[ground] / p.cell).astype(np.int64) - col0)
-        total = np.bincount(flat, weights=z[ground], minlength=zimin.size)
+        on = ground[candidates]
+        flat = cell_of[on]
+        total = np.bincount(flat, weights=cz[on], minlength=zimin.size)
         count = np.bincount(flat, minlength=zimin.size)
         with np.errstate(invalid="ignore", divide="ignore"):
             zifin = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(zimin.shape)
