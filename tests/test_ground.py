@@ -285,3 +285,20 @@ def test_copc_output_is_read_back_by_bounds_with_the_classes_of_the_laz_output(t
         a, b = key(ref), key(every)
         assert np.array_equal(np.asarray(ref.classification)[a], np.asarray(every.classification)[b])
         assert np.allclose(np.asarray(ref.x)[a], np.asarray(every.x)[b])
+
+
+def test_a_damaged_neighbour_fails_alone_and_the_others_say_what_they_missed(tmp_path):
+    import shutil
+
+    tiles = tmp_path / "tiles"
+    shutil.copytree(SAMPLE, tiles)
+    good = (tiles / "35813.laz").read_bytes()
+    (tiles / "35813.laz").write_bytes(good[: int(len(good) * 0.6)])  # the header reads, the points do not
+    r = CliRunner().invoke(cli, ["ground", str(tiles), "--out", str(tmp_path / "out"), "-q"])
+    assert r.exit_code == 1 and "35813" in r.output
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    by = {t["name"]: t for t in report["tiles"]}
+    assert by["35813"]["status"] == "failed"
+    for name in ("35712", "35713", "35812"):
+        assert by[name]["status"] == "ok" and any("35813" in w for w in by[name]["warnings"])
+    assert not list((tmp_path / "out").glob(".gistools-scratch-*"))  # the strips' scratch folder is gone

@@ -9,6 +9,8 @@ the extra bytes and the VLRs as they were. A ``.vpc`` (virtual point cloud) inde
 from __future__ import annotations
 
 import json
+import shutil
+import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -18,7 +20,7 @@ import shapely
 
 from ..errors import GistoolsError, InputError
 from ..io.atomic import atomic_path
-from ..io.outdir import claim_output
+from ..io.outdir import SCRATCH_PREFIX, claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, points_in_box, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.tiles import find_tiles
@@ -166,9 +168,9 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
     parts = [{k: a[~withheld] for k, a in own.items()}]
     used = []
-    for nb in neighbours:
-        parts.append(points_in_box(read_tile_info(nb, override), box))
-        used.append(Path(nb).stem)
+    for kind, name, source in neighbours:
+        parts.append(_strip_in_box(source, box) if kind == "strip" else points_in_box(read_tile_info(source, override), box))
+        used.append(name)
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
     if water_wkb:  # returns on the water polygons are water, out of the ground filter
         inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
@@ -185,6 +187,30 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     counts = {int(c): int(k) for c, k in enumerate(np.bincount(after, minlength=256)) if k}
     return {"output": target, "points": int(len(after)), "changed": int(np.count_nonzero(after != before)),
             "points_by_class": counts, "neighbours": used, "bounds": list(info.bounds), "z_range": list(info.z_range)}
+
+
+_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification")
+
+
+def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
+    """Pass 1: the points of a tile within ``buffer`` of its edges (what its neighbours read), saved in the scratch
+    folder, so each tile is decoded twice in a run, not once per neighbour."""
+    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+    pts = points_in_box(info, (-np.inf, -np.inf, np.inf, np.inf))
+    w, s, e, n = info.bounds
+    inner = (w + buffer, s + buffer, e - buffer, n - buffer)
+    deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
+    target = Path(scratch) / f"{name}.npz"
+    np.savez(target, **{k: pts[k][~deep] for k in _FIELDS})
+    return {"strip": str(target), "inner": inner}
+
+
+def _strip_in_box(path: str, box) -> dict:
+    with np.load(path) as f:
+        pts = {k: f[k] for k in _FIELDS}
+    w, s, e, n = box
+    keep = (pts["x"] >= w) & (pts["x"] <= e) & (pts["y"] >= s) & (pts["y"] <= n)
+    return {k: v[keep] for k, v in pts.items()}
 
 
 def _wkt1(crs) -> str:
@@ -205,6 +231,7 @@ class _TileState:
     changed: int = 0
     points_by_class: dict | None = None
     neighbours: list | None = None
+    warnings: list | None = None
     seconds: float = 0.0
 
 
@@ -285,9 +312,50 @@ def _near(water, bounds, margin: float) -> list:
     return [shapely.to_wkb(g) for g in water if g.intersects(area)]
 
 
+@dataclass
+class _StripState:
+    name: str
+    status: str = "ok"
+    error: str | None = None
+    strip: str | None = None
+    inner: tuple | None = None
+
+
+def _sources(infos: dict, name: str, strips: dict, buffer: float) -> tuple[list, list]:
+    """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
+    w, s, e, n = infos[name].bounds
+    grown = (w - buffer, s - buffer, e + buffer, n + buffer)
+    sources, warnings = [], []
+    for path in _neighbours(infos, name, buffer):
+        nb = Path(path).stem
+        st = strips.get(nb)
+        if st is None or st.status != "ok":
+            warnings.append(f"neighbour {nb} could not be read ({st.error if st else 'no strip'}); "
+                            "the tile is classified without its points")
+            continue
+        iw, is_, ie, in_ = st.inner
+        overlaps_inner = iw < ie and is_ < in_ and grown[0] < ie and grown[2] > iw and grown[1] < in_ and grown[3] > is_
+        # overlapping tiles reach past a neighbour's edge strip: read that neighbour itself
+        sources.append(("tile", nb, path) if overlaps_inner else ("strip", nb, st.strip))
+    return sources, warnings
+
+
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
-    """Run the tile tasks (inline, on local processes or on Dask); a failed tile is marked, the others go on."""
+    """Pass 1: the edge strips of the tiles and their neighbours; pass 2: each tile with its neighbours' strips
+    (inline, on local processes or on Dask). A failed tile is marked, the others go on."""
+    if not todo:
+        return
+    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in _neighbours(infos, n, p.buffer))]))
+    strips = {n: _StripState(n) for n in need}
     done = [0]
+    total = len(need) + len(todo)
+
+    def tick(message):
+        done[0] += 1
+        report(progress, done[0] / max(total, 1), message)
+
+    def strip_done(name, value, seconds):
+        strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
 
     def on_done(name, value, seconds):
         st = states[name]
@@ -295,18 +363,26 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
             setattr(st, k, value[k])
         st.seconds = round(seconds, 3)
 
-    def tick(message):
-        done[0] += 1
-        report(progress, done[0] / max(len(todo), 1), message)
-
-    arglist = [(n, str(infos[n].path), _neighbours(infos, n, p.buffer), crs_text, p, str(targets[n]),
-                _near(water, infos[n].bounds, p.buffer)) for n in todo]
+    scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX + "ground-", dir=out))
     pool = make_pool(jobs, scheduler, len(todo))
     try:
-        run_each(_ground_tile_named, arglist, pool, states, todo, on_done, tick, "classified", out)
+        run_each(_strip_tile, [(n, str(infos[n].path), crs_text, p.buffer, str(scratch)) for n in need], pool, strips, need,
+                 strip_done, tick, "read", out)
+        for n in todo:
+            if strips[n].status == "failed":
+                states[n].status, states[n].error = "failed", strips[n].error
+        left = [n for n in todo if states[n].status != "failed"]
+        arglist = []
+        for n in left:
+            sources, warnings = _sources(infos, n, strips, p.buffer)
+            states[n].warnings = warnings
+            arglist.append((n, str(infos[n].path), sources, crs_text, p, str(targets[n]), _near(water, infos[n].bounds,
+                                                                                                   p.buffer)))
+        run_each(_ground_tile_named, arglist, pool, states, left, on_done, tick, "classified", out)
     finally:
         if pool is not None:
             pool.close()
+        shutil.rmtree(scratch, ignore_errors=True)
 
 
 def _ground_report(settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc, started) -> dict:
