@@ -746,3 +746,21 @@ def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(mon
         assert pool.submit(_blas_threads).result(timeout=120) in (0, 2)
     finally:
         pool.close()
+
+
+@pytest.mark.parametrize("how", ["script without a main guard", "standard input"])
+def test_jobs_2_works_from_a_plain_script_and_from_stdin(tmp_path, how):
+    """spawn would re-run such a script in every worker (or cannot re-read stdin): the workers are forked instead,
+    with a warning, and every tile is made."""
+    script = tmp_path / "plain.py"
+    script.write_text("from gistools.tasks.rasters import rasters_from_tiles\n"
+                      f"r = rasters_from_tiles({str(SAMPLE)!r}, {str(tmp_path / 'out')!r}, jobs=2)\n"
+                      "print('COUNTS', r['counts'])\n")
+    if how == "standard input":
+        proc = subprocess.run([sys.executable, "-"], stdin=script.open(), capture_output=True, text=True, cwd=tmp_path,
+                              timeout=300)
+    else:
+        proc = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "COUNTS {'ok': 4, 'failed': 0, 'skipped': 0}" in proc.stdout
+    assert "forked" in proc.stderr and "Traceback" not in proc.stderr

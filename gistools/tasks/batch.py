@@ -7,18 +7,23 @@ one-line message, and the other tiles go on.
 from __future__ import annotations
 
 import ctypes
+import logging
 import multiprocessing
 import os
+import re
 import shutil
 import signal
 import sys
 import threading
 import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from pathlib import Path
 
 from ..errors import Cancelled, GistoolsError, InputError
 from ..io.atomic import raise_output_error
 from ..progress import check_interrupt
+
+log = logging.getLogger(__name__)
 
 __all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "drive", "fail"]
 
@@ -130,16 +135,50 @@ def _worker_start(parent: int, main_thread: bool) -> None:
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True, name="gistools-parent-watch").start()
 
 
+_MAIN_GUARD = re.compile(r"""__name__\s*==\s*["']__main__["']""")
+
+
+def start_method() -> tuple[str | None, str | None]:
+    """How local workers start here: ("spawn" | "fork" | None for no workers, a warning or None).
+
+    spawn (the safe default) re-imports the main script in every worker: that is harmless under an
+    ``if __name__ == "__main__":`` guard, in a notebook or an interactive session, but a script without the
+    guard would run again in each worker, and a script read from standard input cannot be re-read. Then
+    the workers are forked (Linux), or the tiles run one at a time elsewhere; either way with a warning.
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    spec = getattr(main, "__spec__", None)
+    if spec is not None and getattr(spec, "origin", None):
+        path = spec.origin  # python -m module: the module is re-imported by name
+    if path is None:
+        return "spawn", None  # interactive, a notebook: nothing of __main__ is re-run
+    p = Path(path)
+    if p.is_file():
+        try:
+            if _MAIN_GUARD.search(p.read_text(errors="ignore")):
+                return "spawn", None
+        except OSError:
+            pass
+        reason = f"{p.name} has no 'if __name__ == \"__main__\":' guard"
+    else:
+        reason = "the script comes from standard input"
+    if sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods():
+        return "fork", f"{reason}: the worker processes are forked (put the call under the guard to spawn them)"
+    return None, f"{reason}: the tiles run one at a time (put the call under the guard to use several processes)"
+
+
 class ProcessPool:
-    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock).
+    """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock;
+    fork only where spawn cannot work: see start_method).
 
     Workers die with the parent (kill -9 included) and ignore Ctrl-C; closing the pool after an error or an
     interrupt stops them at once instead of waiting for their tiles."""
 
-    def __init__(self, jobs: int):
-        ctx = multiprocessing.get_context("spawn")
+    def __init__(self, jobs: int, method: str = "spawn"):
+        ctx = multiprocessing.get_context(method)
         python = python_executable()
-        if python != sys.executable:
+        if python != sys.executable and method == "spawn":
             ctx.set_executable(python)
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
@@ -241,7 +280,10 @@ def make_pool(jobs: int, scheduler: str | None, n_tasks: int):
     if scheduler:
         return DaskPool(scheduler, jobs)
     if jobs > 1 and n_tasks > 1:
-        return ProcessPool(jobs)
+        method, warning = start_method()
+        if warning:
+            log.warning("gistools: %s", warning)
+        return ProcessPool(jobs, method) if method else None
     return None
 
 
