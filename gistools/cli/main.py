@@ -71,7 +71,8 @@ class GistoolsGroup(click.Group):
 @click.version_option(__version__, prog_name="gistools")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose):
-    """Open tools for LiDAR shrub mapping, aquifer models and terrain models."""
+    """Open tools for LiDAR (ground and noise classes, DSM / DEM / nDSM, the shrub density chain), aquifer models,
+    runway earthworks and structure reconstruction."""
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
                         format="%(levelname)s %(name)s: %(message)s")
 

@@ -56,7 +56,7 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
         summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
                                      progress=progress)
     counts = summary["counts"]
-    cell = f"cell size {summary['cell_size']} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
+    cell = f"cell size {summary['cell_size']:.6g} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"{cell}report: {out}/report.json")
     for tile in summary["tiles"]:

@@ -69,7 +69,8 @@ _step_parameters = _options([
 @click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @_vector_options
 @click.option("--cell-size", default=_S.raster.cell_size, show_default=True, help="Cell size with its unit.")
-@click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_S.raster.dem_method, show_default=True)
+@click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_S.raster.dem_method, show_default=True,
+              help="tin: Delaunay of ground points at cell centres (fills gaps); max: the dissertation's Point To Raster MAXIMUM.")
 @click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
 @click.option("--dem-max-distance", default=_S.raster.dem_max_distance, show_default=True)
 @classify_ground_opt

@@ -32,7 +32,7 @@ def _triple(ctx, param, value):
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overwrite, quiet):
-    """Closed 3D mesh of a structure from SOURCE, ``ID X Y Z`` rows (text / CSV) or a LAS/LAZ file:
+    """Closed 3D mesh of a structure from SOURCE, "ID X Y Z" rows (text / CSV) or a LAS/LAZ file:
     levels by height, clusters by distance, floor plates ("sown") and outlines ("chain"), loops with
     holes, matched walls, and the watertight envelope (PLY, OBJ), with the loops as a GeoPackage.
 
