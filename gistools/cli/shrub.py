@@ -114,11 +114,21 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
     click.echo(f"{counts.get('ok', 0)} tiles ok, {counts.get('failed', 0)} failed; report: {out}/report.json")
     if "class_area" in report:
         click.echo("class area (" + unit + "): " + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+        click.echo(_breaks_line(report))
     for tile in report.get("tiles", []):
         if tile.get("status") == "failed":
             click.echo(f"  FAILED {tile['error']}", err=True)
     if counts.get("failed"):
         raise SystemExit(1)
+
+
+def _breaks_line(report: dict) -> str:
+    """The cover breaks the classes used, and how they were chosen (given, quantile or Jenks)."""
+    b1, b2 = report["class_breaks"]
+    how = {"breaks": "given", "quantile": "quantile, from the data", "jenks": "Jenks, from the data"}.get(
+        report.get("class_method", "breaks"), report.get("class_method"))
+    return (f"class breaks ({how}): none 0 < light <= {b1:.3f} < medium <= {b2:.3f} < heavy, on the cover fraction "
+            f"within {report['density_radius']:g} {report.get('horizontal_unit', 'CRS units')}")
 
 
 def _step_options(fn):
@@ -142,6 +152,7 @@ def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_
     if not report.get("rolled_back"):
         click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
                    + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
+        click.echo(_breaks_line(report))
     for tile in report.get("tiles", []):
         if tile.get("status") == "failed":
             click.echo(f"  FAILED {tile['error']}", err=True)

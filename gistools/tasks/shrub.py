@@ -336,7 +336,7 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
     _write_chain_outputs(out, good, mosaic, polygons, crs, summary, settings,
                          f"Shrub density - {_input_label(inputs) if inputs else out.name}" if make_map else None)
     report(progress, 1.0, "done")
-    shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started)
+    shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started, settings.classify)
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
     return shrub_report
@@ -437,7 +437,7 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
 
 
 def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepParams, breaks, mosaic: dict,
-                  started: float) -> dict:
+                  started: float, classify: str = "breaks") -> dict:
     """report.json of the chain: the rasters' report, the steps' parameters, areas by band and class, per tile."""
     unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     area_m2 = unit.metres ** 2
@@ -452,6 +452,7 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
         "density_radius": p.radius,
         "density_bands": list(p.density_bands),
         "class_breaks": list(breaks),
+        "class_method": classify,
         "band_area": totals_band,
         "band_area_from_returns": _returns_band_area([base[n] for n in good]),
         "class_area": totals_class,
