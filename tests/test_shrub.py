@@ -413,3 +413,17 @@ def test_breaks_from_the_data_are_the_same_per_tile_and_per_block_of_a_mosaic(sh
         b, _, _ = read_raster(step["classes"])
         assert np.array_equal(a, b)
     assert tuple(chain["class_breaks"]) != (0.3, 0.7)
+
+
+def test_a_step_rerun_records_what_it_used_and_keeps_the_earlier_steps_parameters(shrub_run, tmp_path):
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(shrub_run[0], out)
+    assert CliRunner().invoke(cli, ["density", str(out), "-q", "--radius", "50ft", "--no-map"]).exit_code == 0
+    first = json.loads((out / "report.json").read_text())
+    assert first["density_radius"] == pytest.approx(50.0)
+    assert CliRunner().invoke(cli, ["classify", str(out), "-q", "--classify", "quantile", "--no-map"]).exit_code == 0
+    second = json.loads((out / "report.json").read_text())
+    assert second["density_radius"] == pytest.approx(50.0) and second["class_method"] == "quantile"
+    assert second["band_thresholds"] == first["band_thresholds"]

@@ -337,6 +337,7 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
                          f"Shrub density - {_input_label(inputs) if inputs else out.name}" if make_map else None)
     report(progress, 1.0, "done")
     shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started, settings.classify)
+    shrub_report.update(_kept_parameters(summary, from_stage))
     with atomic_path(out / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
     return shrub_report
@@ -464,6 +465,20 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
         "mosaics": {k: str(v) for k, v in {**summary.get("mosaics", {}), **mosaic}.items() if v},
         "seconds": round(time.time() - started, 3),
     }
+
+
+# the report's parameters of each stage: a step rerun from a later stage keeps the earlier stages' as they were made
+_STAGE_PARAMETERS = {"bands": ("band_thresholds", "band_unit"), "density": ("density_radius", "density_bands")}
+
+
+def _kept_parameters(previous: dict, from_stage: str) -> dict:
+    """The recorded parameters of the stages a rerun from ``from_stage`` did not redo (``gistools classify`` after
+    ``gistools density --radius 50ft`` keeps 50 ft, not the default it was not asked for)."""
+    if from_stage == "rasters":
+        return {}
+    start = STAGES.index(from_stage)
+    return {k: previous[k] for stage, keys in _STAGE_PARAMETERS.items() if STAGES.index(stage) < start
+            for k in keys if k in previous}
 
 
 def _band_break_lengths(settings: ShrubSettings) -> tuple[str, str, str]:
