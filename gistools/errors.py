@@ -15,6 +15,8 @@ __all__ = [
     "OutputError",
     "OutputBusyError",
     "Cancelled",
+    "TilesFailed",
+    "raise_if_every_tile_failed",
 ]
 
 
@@ -66,3 +68,24 @@ class OutputBusyError(OutputError):
 
 class Cancelled(GistoolsError):
     """The user asked the work to stop (progress callback returned False)."""
+
+
+class TilesFailed(GistoolsError):
+    """Every tile of a batch failed: the library call raises this rather than return a report of nothing made.
+
+    ``report`` holds the run's report (also in the output folder's report.json), each tile with its error."""
+
+    def __init__(self, report: dict, what: str = "tile"):
+        self.report = report
+        tiles = report.get("tiles", [])
+        first = next((t.get("error") for t in tiles if t.get("status") == "failed"), None)
+        super().__init__(f"every {what} failed ({len(tiles)}); the first: {first}",
+                         hint="Each tile's error is in report.json")
+
+
+def raise_if_every_tile_failed(report: dict) -> dict:
+    """``report`` unchanged, or TilesFailed when it lists tiles and every one of them failed."""
+    tiles = report.get("tiles", [])
+    if tiles and all(t.get("status") == "failed" for t in tiles):
+        raise TilesFailed(report)
+    return report

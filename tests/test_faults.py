@@ -764,3 +764,18 @@ def test_jobs_2_works_from_a_plain_script_and_from_stdin(tmp_path, how):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "COUNTS {'ok': 4, 'failed': 0, 'skipped': 0}" in proc.stdout
     assert "forked" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_library_call_whose_every_tile_failed_raises_with_the_report(tmp_path):
+    from gistools.errors import TilesFailed
+    from gistools.tasks.rasters import rasters_from_tiles
+
+    bad = tmp_path / "tiles"
+    bad.mkdir()
+    (bad / "a.las").write_bytes(b"not a LAS file at all" * 10)
+    with pytest.raises(TilesFailed, match="every tile failed") as info:
+        rasters_from_tiles(bad, tmp_path / "out")
+    assert info.value.report["counts"]["failed"] == 1 and "a.las" in info.value.report["tiles"][0]["error"]
+    assert json.loads((tmp_path / "out" / "report.json").read_text())["counts"]["failed"] == 1
+    code, text = invoke(["rasters", bad, "--out", tmp_path / "out2", "-q"])  # the CLI prints it and exits 1
+    assert code == 1 and "FAILED" in text and "Traceback" not in text

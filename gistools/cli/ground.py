@@ -7,7 +7,7 @@ import click
 from ..lidar.ground import GROUND_METHODS
 from ..lidar.noise import NOISE_METHODS
 from ..tasks.ground import FORMATS, GroundSettings, ground_from_tiles
-from .options import crs_opt, jobs_opt, overwrite_opt, progress_bar
+from .options import batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
 
 _D = GroundSettings()  # the options' defaults are the library's
 
@@ -66,8 +66,8 @@ def ground(inputs, out, method, noise, cell, slope, window, threshold, scalar, c
                               csf_slope_smooth=csf_slope_smooth, ivf_res=ivf_res, ivf_n=ivf_n,
                               low_noise_depth=low_noise_depth, buffer=buffer, keep_classes=keep_classes, format=fmt, crs=crs)
     with progress_bar(quiet) as progress:
-        report = ground_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler, overwrite=overwrite,
-                                   progress=progress)
+        report = batch_report(lambda: ground_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                                                        overwrite=overwrite, progress=progress))
     counts = report["counts"]
     click.echo(f"{counts['ok']} tiles classified, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"virtual point cloud: {report['vpc']}; report: {out}/report.json")

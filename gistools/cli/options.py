@@ -63,6 +63,17 @@ def parse_classes(ctx, param, value):
     return classes
 
 
+def batch_report(call):
+    """The report of a batch call (``call()``); when every tile failed, the report the library's TilesFailed carries:
+    the command prints it, each tile's error, and exits 1."""
+    from ..errors import TilesFailed
+
+    try:
+        return call()
+    except TilesFailed as err:
+        return err.report
+
+
 def _ground_methods():
     from ..lidar.ground import GROUND_METHODS
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import chunk_opt, crs_opt, overwrite_opt, parse_classes
+from .options import batch_report, chunk_opt, crs_opt, overwrite_opt, parse_classes
 
 
 @click.command()
@@ -28,8 +28,8 @@ def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
     """
     from ..tasks.points import points_from_tiles
 
-    summary = points_from_tiles(inputs, out, classes=classes, returns=returns, fmt=fmt, crs=crs, overwrite=overwrite,
-                                chunk_size=chunk_size)
+    summary = batch_report(lambda: points_from_tiles(inputs, out, classes=classes, returns=returns, fmt=fmt, crs=crs,
+                                                     overwrite=overwrite, chunk_size=chunk_size))
     c = summary["counts"]
     click.echo(f"{c['ok']} tiles ok, {c['skipped']} skipped, {c['failed']} failed; "
                f"{sum(t['points'] for t in summary['tiles']):,} points written to {out}")

@@ -6,7 +6,7 @@ import click
 
 from ..lidar.gridding import DEM_METHODS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
-from .options import chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import batch_report, chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 _DEFAULTS = RasterSettings()  # the options' defaults are the library's
@@ -53,8 +53,8 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
                               classify_ground=classify_ground,
                               products=tuple(p.strip() for p in products.split(",") if p.strip()))
     with progress_bar(quiet) as progress:
-        summary = rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite, scheduler=scheduler,
-                                     progress=progress)
+        summary = batch_report(lambda: rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite,
+                                                          scheduler=scheduler, progress=progress))
     counts = summary["counts"]
     cell = f"cell size {summary['cell_size']:.6g} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
     click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "

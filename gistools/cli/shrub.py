@@ -9,7 +9,7 @@ from ..lidar.bands import PRESETS
 from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
-from .options import chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import batch_report, chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 
 def _floats(ctx, param, value):
@@ -105,10 +105,10 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,
     )
     with progress_bar(quiet) as progress:
-        report = shrub_from_tiles(inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies,
-                                  wetlands=wetlands, tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs,
-                                  scheduler=scheduler, overwrite=overwrite, make_map=not no_map, band_points=band_points,
-                                  progress=progress)
+        report = batch_report(lambda: shrub_from_tiles(
+            inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
+            tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
+            overwrite=overwrite, make_map=not no_map, band_points=band_points, progress=progress))
     counts = report.get("counts", {})
     unit = report.get("area_unit", "")
     click.echo(f"{counts.get('ok', 0)} tiles ok, {counts.get('failed', 0)} failed; report: {out}/report.json")

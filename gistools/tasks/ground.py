@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from ..errors import GistoolsError, InputError
+from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.atomic import atomic_path
 from ..io.outdir import SCRATCH_PREFIX, claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, points_in_box, read_all_points, read_tile_info,
@@ -252,7 +252,8 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     override = parse_crs_text(settings.crs) if settings.crs else None
     paths = find_tiles(inputs)
     with claim_output(out, "gistools ground"):
-        return _ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress, water)
+        return raise_if_every_tile_failed(_ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress,
+                                                     water))
 
 
 def _neighbours(infos: dict, name: str, buffer: float) -> list[str]:

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import GistoolsError, InputError, OutputError
+from ..errors import GistoolsError, InputError, OutputError, raise_if_every_tile_failed
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path
@@ -91,7 +91,8 @@ def points_from_tiles(inputs, out, *, classes=(1, 2), returns: str = "any", fmt:
     override = parse_crs_text(crs) if crs else None
     paths = find_tiles(inputs)
     with claim_output(out, "gistools points"):
-        return _points_in(paths, out, override, classes, returns, fmt, overwrite, chunk_size, progress)
+        return raise_if_every_tile_failed(_points_in(paths, out, override, classes, returns, fmt, overwrite, chunk_size,
+                                                     progress))
 
 
 def _points_in(paths, out: Path, override, classes, returns, fmt, overwrite, chunk_size, progress) -> dict:

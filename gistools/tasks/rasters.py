@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 from affine import Affine
 
-from ..errors import Cancelled, DataFileError, GistoolsError, InputError
+from ..errors import Cancelled, DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.atomic import raise_output_error
@@ -470,7 +470,8 @@ def rasters_from_tiles(
         if settings.classify_ground:
             paths, failed = _classified(paths, out, settings, jobs, overwrite, scheduler, progress, water)
             progress = sub_progress(progress, 0.3, 1.0)
-        return _rasters_in(paths, override, out, settings, started, jobs, overwrite, progress, scheduler, pool, failed)
+        return raise_if_every_tile_failed(_rasters_in(paths, override, out, settings, started, jobs, overwrite, progress,
+                                                      scheduler, pool, failed))
 
 
 CLASSIFIED = "classified"  # the folder of the tiles classified by --classify-ground

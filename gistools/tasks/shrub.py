@@ -28,7 +28,7 @@ import rasterio
 import shapely
 from shapely.geometry import box
 
-from ..errors import DataFileError, GistoolsError, InputError
+from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
 from ..io.outdir import Rollback, claim_output
@@ -276,7 +276,7 @@ def shrub_from_tiles(
                make_map=make_map, band_points=band_points, from_stage=from_stage, progress=progress)
     with claim_output(out, f"gistools {'shrub' if from_stage == 'rasters' else from_stage}"):
         if from_stage == "rasters":  # the chain: one bad tile never stops the batch, it is reported
-            return _shrub_in(inputs, out, settings, **run)
+            return raise_if_every_tile_failed(_shrub_in(inputs, out, settings, **run))
         # a step rerun that fails (a tile, an error, Ctrl-C) leaves the folder as it was
         folders = [f for stage in STAGES[STAGES.index(from_stage):] for f in STAGE_FOLDERS[stage]]
         with Rollback(out, folders, STEP_FILES) as saved:
