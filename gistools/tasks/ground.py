@@ -8,8 +8,11 @@ the extra bytes and the VLRs as they were. A ``.vpc`` (virtual point cloud) inde
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import shutil
+import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass
@@ -176,9 +179,10 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
         inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
         allp["classification"] = np.where(inside & np.isin(allp["classification"], RECLASSIFIED), WATER,
                                           allp["classification"]).astype(np.uint8)
-    new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
-                                    allp["classification"], method=p.method, smrf=p.smrf, csf=p.csf, noise=p.noise,
-                                    keep_classes=p.keep_classes)
+    with _quiet_stdout(p.method == "csf"):  # the CSF library prints its progress to the C stdout
+        new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"],
+                                        allp["number_of_returns"], allp["classification"], method=p.method, smrf=p.smrf,
+                                        csf=p.csf, noise=p.noise, keep_classes=p.keep_classes)
     before = own["classification"].copy()
     after = before.copy()
     after[~withheld] = new[: int(np.count_nonzero(~withheld))]
@@ -190,6 +194,23 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
 
 
 _FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification")
+
+
+@contextlib.contextmanager
+def _quiet_stdout(active: bool):
+    """The process's file descriptor 1 sent to /dev/null for the block (C libraries that print), when ``active``."""
+    if not active:
+        yield
+        return
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
