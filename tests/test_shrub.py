@@ -427,3 +427,12 @@ def test_a_step_rerun_records_what_it_used_and_keeps_the_earlier_steps_parameter
     second = json.loads((out / "report.json").read_text())
     assert second["density_radius"] == pytest.approx(50.0) and second["class_method"] == "quantile"
     assert second["band_thresholds"] == first["band_thresholds"]
+
+
+def test_the_nodata_share_is_given_per_cause(shrub_run):
+    report = shrub_run[1] if isinstance(shrub_run[1], dict) and "nodata_by_cause" in shrub_run[1] else \
+        json.loads((shrub_run[0] / "report.json").read_text())
+    causes = report["nodata_by_cause"]
+    assert set(causes) == {"no_first_return", "water", "no_ground_near"}
+    assert sum(causes.values()) == pytest.approx(report["nodata_share"], abs=1e-9)
+    assert causes["no_first_return"] > 0.05 and causes["water"] > 0  # the sample: 5 ft cells, a pond and a river

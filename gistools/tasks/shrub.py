@@ -45,7 +45,7 @@ from .batch import make_pool, run_each
 from .rasters import RasterSettings, rasters_from_tiles
 from .settings import ShrubSettings
 from .steps import band_summary, bands_from_ndsm, class_breaks, class_summary, classes_from_cover, clip_bands, \
-    density_from_vegetation
+    density_from_vegetation, nodata_causes
 
 __all__ = ["ShrubSettings", "shrub_from_tiles", "map_from_classes", "STAGES", "VEG_ROAD", "VEG_WATER"]
 
@@ -63,6 +63,7 @@ class _TileState:
     band_area: dict = field(default_factory=dict)
     class_area: dict = field(default_factory=dict)
     nodata_share: float = 0.0
+    nodata_by_cause: dict = field(default_factory=dict)
     wetland_vegetation_area: float = 0.0
 
 
@@ -121,8 +122,9 @@ def _clip_tile(name, bands_path, vec, p, out) -> dict:
     """Road and water polygons of one tile from the breaklines (S6-S7), vegetation = band - road - water,
     vegetation inside wetlands (S8-S9)."""
     done = _existing(out, name, ("veg", "wetveg"), p.overwrite["clip"])
+    causes = nodata_causes(*(Path(out) / product / f"{name}.tif" for product in ("dsm", "dem", "topclass")), block=0)
     if done:
-        return {"outputs": done, **band_summary(bands_path, done["wetveg"], block=0)}
+        return {"outputs": done, **band_summary(bands_path, done["wetveg"], block=0), "nodata_by_cause": causes}
     with rasterio.open(bands_path) as src:
         frames = _frames(box(*src.bounds), vec["footprints"])
     road = shapely.union_all([road_polygons(vec["roads"], f, snap=p.snap, max_width=p.max_road_width) for f in frames])
@@ -132,7 +134,7 @@ def _clip_tile(name, bands_path, vec, p, out) -> dict:
     paths = {product: Path(out) / product / f"{name}.tif" for product in ("veg", "wetveg")}
     result = clip_bands(bands_path, paths["veg"], wetland_out=paths["wetveg"], road_polygons=[road], water_polygons=[water],
                         wetlands=wetlands, block=0)
-    return {"outputs": {k: str(v) for k, v in paths.items()},
+    return {"outputs": {k: str(v) for k, v in paths.items()}, "nodata_by_cause": causes,
             **{k: result[k] for k in ("band_area", "nodata_share", "wetland_vegetation_area")}}
 
 
@@ -411,6 +413,7 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
         st = states[name]
         st.outputs.update(value["outputs"])
         st.band_area, st.nodata_share = value["band_area"], value["nodata_share"]
+        st.nodata_by_cause = value["nodata_by_cause"]
         st.wetland_vegetation_area = value["wetland_vegetation_area"]
 
     def classes_done(name, value, seconds):
@@ -459,6 +462,8 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
         "class_area": totals_class,
         "class_area_acres": {k: v * area_m2 / ACRE_M2 for k, v in totals_class.items()},
         "nodata_share": float(np.mean([states[n].nodata_share for n in good])) if good else None,
+        "nodata_by_cause": {k: float(np.mean([states[n].nodata_by_cause.get(k, 0.0) for n in good]))
+                            for k in ("no_first_return", "water", "no_ground_near")} if good else None,
         "tiles": [{**{k: v for k, v in base[n].items() if k not in states[n].__dict__}, **states[n].__dict__,
                    "outputs": {**base[n].get("outputs", {}), **states[n].outputs}} for n in states],
         "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "failed")},

@@ -43,7 +43,7 @@ from ..lidar.accumulate import GROUNDISH
 from .settings import DEFAULTS
 
 __all__ = ["ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands", "density_from_vegetation",
-           "classes_from_cover", "class_summary", "band_summary", "BLOCK"]
+           "classes_from_cover", "class_summary", "band_summary", "nodata_causes", "BLOCK"]
 
 
 def _z_unit(src, path, z_unit) -> LinearUnit:
@@ -297,6 +297,31 @@ def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=
                    "wetveg": (wetland_out, "uint8", VEG_NODATA, {"GISTOOLS_PRODUCT": "wetveg"})}
         paths = run_blockwise(src, outputs, compute, progress=progress, label="clip", overwrite=overwrite, block=block)
     return {**paths, **_band_stats_result(stats)}
+
+
+def nodata_causes(dsm, dem, top_class, *, block: int = BLOCK) -> dict:
+    """Why cells have no height band, as shares of all cells: ``no_first_return`` (no DSM value), ``water`` (no DEM
+    value under a water return, class 9, on top), ``no_ground_near`` (no DEM value otherwise: no ground point within
+    the DEM's maximum distance)."""
+    with contextlib.ExitStack() as stack:
+        s_dsm = stack.enter_context(open_raster(dsm, "DSM"))
+        s_dem = stack.enter_context(open_raster(dem, "DEM"))
+        s_top = stack.enter_context(open_raster(top_class, "top class"))
+        counts = {"no_first_return": 0, "water": 0, "no_ground_near": 0, "cells": 0}
+
+        def compute(win):
+            no_dsm = np.isnan(read_window(s_dsm, s_dsm, win))
+            no_dem = np.isnan(read_window(s_dem, s_dsm, win)) & ~no_dsm
+            water = read_window(s_top, s_dsm, win, fill=255) == 9
+            counts["no_first_return"] += int(no_dsm.sum())
+            counts["water"] += int((no_dem & water).sum())
+            counts["no_ground_near"] += int((no_dem & ~water).sum())
+            counts["cells"] += no_dsm.size
+            return {}
+
+        run_blockwise(s_dsm, {}, compute, block=block)
+    cells = max(counts.pop("cells"), 1)
+    return {k: v / cells for k, v in counts.items()}
 
 
 def band_summary(bands, wetveg=None, *, block: int = BLOCK) -> dict:
