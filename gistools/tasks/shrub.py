@@ -462,8 +462,7 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
         "class_area": totals_class,
         "class_area_acres": {k: v * area_m2 / ACRE_M2 for k, v in totals_class.items()},
         "nodata_share": float(np.mean([states[n].nodata_share for n in good])) if good else None,
-        "nodata_by_cause": {k: float(np.mean([states[n].nodata_by_cause.get(k, 0.0) for n in good]))
-                            for k in ("no_first_return", "water", "no_ground_near")} if good else None,
+        "nodata_by_cause": _mean_causes([states[n].nodata_by_cause for n in good]),
         "tiles": [{**{k: v for k, v in base[n].items() if k not in states[n].__dict__}, **states[n].__dict__,
                    "outputs": {**base[n].get("outputs", {}), **states[n].outputs}} for n in states],
         "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "failed")},
@@ -484,6 +483,13 @@ def _kept_parameters(previous: dict, from_stage: str) -> dict:
     start = STAGES.index(from_stage)
     return {k: previous[k] for stage, keys in _STAGE_PARAMETERS.items() if STAGES.index(stage) < start
             for k in keys if k in previous}
+
+
+def _mean_causes(per_tile: list) -> dict | None:
+    """The tiles' mean share of cells without a band, per cause (as nodata_share is their mean)."""
+    if not per_tile:
+        return None
+    return {k: float(np.mean([c.get(k, 0.0) for c in per_tile])) for k in ("no_first_return", "water", "no_ground_near")}
 
 
 def _band_break_lengths(settings: ShrubSettings) -> tuple[str, str, str]:
