@@ -14,7 +14,15 @@ MIRROR=$(awk '/^URIs:/{print $2; exit}' /etc/apt/sources.list.d/*.sources 2>/dev
 MIRROR=${MIRROR:-http://deb.debian.org/debian}
 SCRIPT=/usr/share/debootstrap/scripts/forky
 [ -e "$SCRIPT" ] || SCRIPT=/usr/share/debootstrap/scripts/sid  # Debian 12's debootstrap predates forky
+# only a folder this script made (its mark inside) or an empty one is (re)built: never a user's folder
+if [ -e "$DIR" ] && [ -n "$(ls -A "$DIR" 2>/dev/null)" ] && [ ! -f "$DIR/.gistools-qgis-chroot" ]; then
+  echo "qgis_chroot: $DIR exists and was not made by gistools; choose another folder (GISTOOLS_QGIS_CHROOT)" >&2
+  exit 1
+fi
+mountpoint -q "$DIR/proc" 2>/dev/null && umount "$DIR/proc"
 rm -rf "$DIR"
+mkdir -p "$DIR"
+touch "$DIR/.gistools-qgis-chroot"
 debootstrap --variant=minbase forky "$DIR" "$MIRROR" "$SCRIPT" >/dev/null
 mount -t proc proc "$DIR/proc"
 trap 'umount "$DIR/proc" 2>/dev/null || true' EXIT

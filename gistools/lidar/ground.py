@@ -18,6 +18,7 @@ the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
 
 from __future__ import annotations
 
+import ctypes
 import math
 from dataclasses import dataclass
 
@@ -122,72 +123,26 @@ def _box3_sum(a: np.ndarray) -> np.ndarray:
     return rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]
 
 
-def _kernel_cross():
-    """gistools' compiled cross filter (lidar/_tinkernel.c), or None where the kernel is not built."""
-    import ctypes
-
+def _kernel_function(name: str, *argtypes):
+    """A function of gistools' compiled kernel (lidar/_tinkernel.c) with its argument types, or None where the
+    kernel is not built (or predates it): the numpy code then runs, with the same values."""
     from .tin import _KERNEL
 
-    if _KERNEL is None or not hasattr(_KERNEL, "gt_cross_filter"):
+    if _KERNEL is None or not hasattr(_KERNEL, name):
         return None
-    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-    _KERNEL.gt_cross_filter.argtypes = [f64, f64, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_int32, ctypes.c_int32]
-    _KERNEL.gt_cross_filter.restype = None
-    return _KERNEL.gt_cross_filter
+    fn = getattr(_KERNEL, name)
+    fn.argtypes = list(argtypes)
+    fn.restype = ctypes.c_int64 if name == "gt_fill_rings" else None
+    return fn
 
 
-_CROSS = _kernel_cross()
-
-
-def _kernel_fill():
-    import ctypes
-
-    from .tin import _KERNEL
-
-    if _KERNEL is None or not hasattr(_KERNEL, "gt_fill_rings"):
-        return None
-    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-    _KERNEL.gt_fill_rings.argtypes = [f64, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_int32]
-    _KERNEL.gt_fill_rings.restype = ctypes.c_int64
-    return _KERNEL.gt_fill_rings
-
-
-_FILL = _kernel_fill()
-
-
-def _kernel_progressive():
-    import ctypes
-
-    from .tin import _KERNEL
-
-    if _KERNEL is None or not hasattr(_KERNEL, "gt_progressive"):
-        return None
-    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-    u8 = np.ctypeslib.ndpointer(np.uint8, flags="C_CONTIGUOUS")
-    _KERNEL.gt_progressive.argtypes = [f64, u8, f64, ctypes.c_int64, ctypes.c_int64, ctypes.c_double, ctypes.c_double,
-                                       ctypes.c_int32]
-    _KERNEL.gt_progressive.restype = None
-    return _KERNEL.gt_progressive
-
-
-_PROGRESSIVE = _kernel_progressive()
-
-
-def _kernel_cell_min():
-    import ctypes
-
-    from .tin import _KERNEL
-
-    if _KERNEL is None or not hasattr(_KERNEL, "gt_cell_min"):
-        return None
-    f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-    i64 = np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")
-    _KERNEL.gt_cell_min.argtypes = [ctypes.c_int64, i64, f64, f64]
-    _KERNEL.gt_cell_min.restype = None
-    return _KERNEL.gt_cell_min
-
-
-_CELL_MIN = _kernel_cell_min()
+_F64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+_I64, _U8 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.uint8))
+_N, _I32, _D = ctypes.c_int64, ctypes.c_int32, ctypes.c_double
+_CROSS = _kernel_function("gt_cross_filter", _F64, _F64, _F64, _N, _N, _I32, _I32)
+_FILL = _kernel_function("gt_fill_rings", _F64, _F64, _N, _N, _I32)
+_PROGRESSIVE = _kernel_function("gt_progressive", _F64, _U8, _F64, _N, _N, _D, _D, _I32)
+_CELL_MIN = _kernel_function("gt_cell_min", _N, _I64, _F64, _F64)
 
 
 def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:
