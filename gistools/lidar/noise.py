@@ -20,6 +20,9 @@ def _voxel_keys(ix, iy, iz) -> np.ndarray:
     return ((ix + off) << 42) | ((iy + off) << 21) | (iz + off)
 
 
+_DENSE_VOXELS = 16_000_000  # a count grid up to this many voxels (64 MB of int32); past it, the sorted-key search
+
+
 def isolated_points(x, y, z, *, res: float, n: int = 6) -> np.ndarray:
     """Isolated Voxel Filter (lidR ``ivf`` / lasR ``classify_with_ivf``): True for each point with at most ``n``
     other points in its 3 x 3 x 3 voxels of ``res`` (CRS units; lidR's default 5 m, n = 6)."""
@@ -28,9 +31,32 @@ def isolated_points(x, y, z, *, res: float, n: int = 6) -> np.ndarray:
         return np.zeros(0, bool)
     ix, iy, iz = (np.floor(a / res).astype(np.int64) for a in (x, y, z))
     for a in (ix, iy, iz):
-        a -= a.min() - 1  # voxel indices from 1: the 21-bit keys hold any tile with its buffer
+        a -= a.min() - 1  # voxel indices from 1: a free layer on each side for the 3 x 3 x 3 sums
+    shape = (int(ix.max()) + 2, int(iy.max()) + 2, int(iz.max()) + 2)
+    if shape[0] * shape[1] * shape[2] <= _DENSE_VOXELS:
+        return _isolated_dense(ix, iy, iz, shape) <= n
+    return _isolated_sparse(ix, iy, iz) <= n
+
+
+def _isolated_dense(ix, iy, iz, shape) -> np.ndarray:
+    """Other points in each point's 3 x 3 x 3 voxels, from a grid of counts summed along each axis in turn."""
+    flat = (ix * shape[1] + iy) * shape[2] + iz
+    grid = np.bincount(flat, minlength=shape[0] * shape[1] * shape[2]).astype(np.int32).reshape(shape)
+    for axis in range(3):
+        total = grid.copy()
+        lo = [slice(None)] * 3
+        hi = [slice(None)] * 3
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        total[tuple(hi)] += grid[tuple(lo)]
+        total[tuple(lo)] += grid[tuple(hi)]
+        grid = total
+    return grid.ravel()[flat] - 1
+
+
+def _isolated_sparse(ix, iy, iz) -> np.ndarray:
+    """The same counts over the occupied voxels only (sorted keys), for extents too large for a grid."""
     if max(ix.max(), iy.max(), iz.max()) >= (1 << 20) - 2:
-        raise ValueError(f"voxels of {res} span more than 2^20 along an axis: give a larger resolution")
+        raise ValueError("voxels span more than 2^20 along an axis: give a larger IVF resolution")
     keys = _voxel_keys(ix, iy, iz)
     uniq, inverse, counts = np.unique(keys, return_inverse=True, return_counts=True)
     vx, vy, vz = (uniq >> 42) - (1 << 20), ((uniq >> 21) & ((1 << 21) - 1)) - (1 << 20), (uniq & ((1 << 21) - 1)) - (1 << 20)
@@ -42,8 +68,7 @@ def isolated_points(x, y, z, *, res: float, n: int = 6) -> np.ndarray:
                 pos = np.minimum(np.searchsorted(uniq, k), len(uniq) - 1)
                 hit = uniq[pos] == k
                 around[hit] += counts[pos[hit]]
-    others = around[inverse.ravel()] - 1
-    return others <= n
+    return around[inverse.ravel()] - 1
 
 
 def statistical_outliers(x, y, z, *, k: int = 8, multiplier: float = 2.0) -> np.ndarray:
