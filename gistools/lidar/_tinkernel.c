@@ -657,28 +657,67 @@ int64_t gt_fill_rings(double *z, double *prev, int64_t rows, int64_t cols, int32
     return left;
 }
 
+/* `iterations` cross dilations (is_max) or erosions of rows [r0, r1) of `in` into the same rows of `out`, through a
+ * stripe of the rows around them held in `a` / `b` (each (r1 - r0 + 2 * iterations) * cols doubles), so that the
+ * passes run in cache. Each pass computes the rows the previous one left valid: at the grid's own edges every row,
+ * at the stripe's cut one row fewer on that side; after `iterations` passes rows [r0, r1) are exact. */
+static void cross_stripe(const double *in, double *out, double *a, double *b, int64_t rows, int64_t cols, int64_t r0,
+                         int64_t r1, int32_t is_max, int32_t iterations) {
+    int64_t lo = r0 - iterations < 0 ? 0 : r0 - iterations;
+    int64_t hi = r1 + iterations > rows ? rows : r1 + iterations;
+    memcpy(a, in + lo * cols, (size_t)((hi - lo) * cols) * sizeof(double));
+    double *src = a, *dst = b;
+    for (int32_t k = 1; k <= iterations; k++) {
+        int64_t from = lo == 0 ? 0 : lo + k, to = hi == rows ? rows : hi - k;
+        for (int64_t r = from; r < to; r++) {
+            const double *row = src + (r - lo) * cols;
+            cross_row(row, r > 0 ? row - cols : row, r < rows - 1 ? row + cols : row, dst + (r - lo) * cols, cols, is_max);
+        }
+        double *t = src;
+        src = dst;
+        dst = t;
+    }
+    memcpy(out + r0 * cols, src + (r0 - lo) * cols, (size_t)((r1 - r0) * cols) * sizeof(double));
+}
+
 /* The progressive morphological filter of SMRF (lidar/ground.py progressive_filter) in one call: for radius
  * 1 ... max_radius, the surface eroded by the diamond of that radius (one more cross erosion each step) and dilated
  * back `radius` times; obj[i] = 1 where the opened surface drops by more than slope_z * cell * radius from the
- * previous one. `work` holds 4 * rows * cols doubles. */
+ * previous one. The dilations run stripe by stripe (cross_stripe), the same values as whole-grid passes.
+ * `work` holds 4 * rows * cols doubles. */
 void gt_progressive(const double *z, uint8_t *obj, double *work, int64_t rows, int64_t cols, double cell, double slope_z,
                     int32_t max_radius) {
     int64_t n = rows * cols;
-    double *prev = work, *eros = work + n, *a = work + 2 * n, *b = work + 3 * n;
+    double *prev = work, *eros = work + n, *open = work + 2 * n, *tmp = work + 3 * n;
+    int64_t stripe = 128;
+    size_t buf = (size_t)((stripe + 2 * (int64_t)max_radius) * cols);
+    double *a = malloc(buf * sizeof(double)), *b = malloc(buf * sizeof(double));
+    if (!a || !b) { /* no memory for stripes: whole-grid passes */
+        free(a);
+        free(b);
+        a = NULL;
+    }
     memcpy(prev, z, (size_t)n * sizeof(double));
     memcpy(eros, z, (size_t)n * sizeof(double));
     for (int32_t radius = 1; radius <= max_radius; radius++) {
-        gt_cross_filter(eros, a, b, rows, cols, 0, 1); /* eros <- erode(eros): result in a */
-        memcpy(eros, a, (size_t)n * sizeof(double));
-        gt_cross_filter(eros, a, b, rows, cols, 1, radius); /* the opening, in a */
+        gt_cross_filter(eros, open, tmp, rows, cols, 0, 1); /* eros <- erode(eros) */
+        memcpy(eros, open, (size_t)n * sizeof(double));
+        if (a) {
+            for (int64_t r0 = 0; r0 < rows; r0 += stripe)
+                cross_stripe(eros, open, a, b, rows, cols, r0, r0 + stripe < rows ? r0 + stripe : rows, 1, radius);
+        } else {
+            gt_cross_filter(eros, open, tmp, rows, cols, 1, radius);
+        }
         double thr = slope_z * cell * radius;
         for (int64_t i = 0; i < n; i++) {
-            if (prev[i] - a[i] > thr) obj[i] = 1;
+            if (prev[i] - open[i] > thr) obj[i] = 1;
         }
         double *t = prev;
-        prev = a;
-        a = t;
+        prev = open;
+        open = t;
     }
+    free(a);
+    free(b);
 }
 
 /* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
