@@ -276,6 +276,9 @@ def test_copc_output_is_read_back_by_bounds_with_the_classes_of_the_laz_output(t
         s, n = np.percentile(y, [30, 70])
         with laspy.CopcReader.open(path) as reader:
             assert reader.header.point_format.id == 6 and str(reader.header.version) == "1.4"
+            # the CRS in a regular VLR (where QGIS looks), with the WKT bit set
+            assert any(v.record_id == 2112 for v in reader.header.vlrs) and reader.header.global_encoding.wkt
+            assert reader.header.parse_crs().to_epsg() == 2882
             every = reader.query()
             part = reader.query(laspy.copc.Bounds(np.array([w, s]), np.array([e, n])))
         inside = (x >= w) & (x <= e) & (y >= s) & (y <= n)

@@ -102,3 +102,75 @@ def write_copc(las, path, *, crs_wkt: str | None, max_node_points: int = 100_000
         writer.copc_config.las_header.max = copclib.Vector3(*map(float, maxs))
     finally:
         writer.Close()
+    if crs_wkt:
+        wkt_into_vlr(path)
+
+
+_WKT_USER, _WKT_RECORD = b"LASF_Projection", 2112
+_VLR_HEADER, _EVLR_HEADER = 54, 60
+
+
+def _records(data, start: int, count: int, header: int):
+    """(offset of each record's header, user id, record id, data offset, data length) of ``count`` (E)VLRs."""
+    import struct
+
+    out, at = [], start
+    for _ in range(count):
+        user = bytes(data[at + 2: at + 18]).rstrip(b"\0")
+        record = struct.unpack_from("<H", data, at + 18)[0]
+        length = struct.unpack_from("<Q" if header == _EVLR_HEADER else "<H", data, at + 20)[0]
+        out.append((at, user, record, at + header, length))
+        at += header + length
+    return out
+
+
+def wkt_into_vlr(path) -> None:
+    """Move the CRS of a COPC file from an extended VLR (where copclib writes it) into a regular VLR after the COPC
+    info and LAZ VLRs, where QGIS (``QgsLazInfo``), which reads regular VLRs only, finds it. The bytes after the
+    VLRs shift by the new record's size, so every absolute offset is moved with them: the point data and EVLR
+    starts in the header, the LAZ chunk table pointer, the COPC root hierarchy page and each hierarchy entry.
+    The WKT global-encoding bit is set. Not atomic: the caller writes to a partial name."""
+    import struct
+    from pathlib import Path
+
+    path = Path(path)
+    data = bytearray(path.read_bytes())
+    point_offset, vlr_count = struct.unpack_from("<II", data, 96)
+    evlr_start, evlr_count = struct.unpack_from("<QI", data, 235)
+    vlrs = _records(data, 375, vlr_count, _VLR_HEADER)
+    evlrs = _records(data, evlr_start, evlr_count, _EVLR_HEADER)
+    if any(u == _WKT_USER and r == _WKT_RECORD for _, u, r, _, _ in vlrs):
+        return
+    wkt = [e for e in evlrs if e[1] == _WKT_USER and e[2] == _WKT_RECORD]
+    if not wkt:
+        return
+    _, _, _, wkt_at, wkt_len = wkt[0]
+    payload = bytes(data[wkt_at: wkt_at + wkt_len])
+    if len(payload) > 65535:
+        return  # too long for a regular VLR: it stays an EVLR
+    delta = _VLR_HEADER + len(payload)
+    for _, user, record, at, length in vlrs:
+        if user == b"copc" and record == 1:  # COPC info: root_hier_offset after five doubles
+            struct.pack_into("<Q", data, at + 40, struct.unpack_from("<Q", data, at + 40)[0] + delta)
+    for _, user, record, at, length in evlrs:
+        if user == b"copc" and record == 1000:  # hierarchy pages: 32-byte entries, the offset at +16
+            for e in range(at, at + length, 32):
+                offset = struct.unpack_from("<Q", data, e + 16)[0]
+                if offset:  # an empty node has offset 0
+                    struct.pack_into("<Q", data, e + 16, offset + delta)
+    chunk_table = struct.unpack_from("<q", data, point_offset)[0]
+    if chunk_table > 0:
+        struct.pack_into("<q", data, point_offset, chunk_table + delta)
+    struct.pack_into("<II", data, 96, point_offset + delta, vlr_count + 1)
+    struct.pack_into("<Q", data, 235, evlr_start + delta)
+    struct.pack_into("<H", data, 6, struct.unpack_from("<H", data, 6)[0] | 0x10)
+    vlr = bytearray(_VLR_HEADER)
+    vlr[2:2 + len(_WKT_USER)] = _WKT_USER
+    struct.pack_into("<HH", vlr, 18, _WKT_RECORD, len(payload))
+    vlr[22:22 + 16] = b"OGC WKT (gistools)"[:16]
+    end = vlrs[-1][3] + vlrs[-1][4] if vlrs else 375  # after the last VLR (bytes a writer left before the points stay)
+    with open(path, "wb") as f:
+        f.write(data[:end])
+        f.write(vlr)
+        f.write(payload)
+        f.write(data[end:])
