@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 from scipy.spatial import ConvexHull, cKDTree
 
-from gistools.grid import snapped_grid
+from gistools.grid import cell_centres, snapped_grid
 from gistools.lidar import tin
 from gistools.lidar.tin import delaunay_triangles, tin_engine, tin_to_grid
 
 
 def test_an_unknown_engine_is_refused():
-    with pytest.raises(ValueError, match="not one of kernel, triangle"):
+    with pytest.raises(ValueError, match="not one of kernel, triangle, qhull"):
         tin_to_grid(np.arange(3.0), np.arange(3.0), np.arange(3.0), snapped_grid((0, 0, 3, 3), 1.0), engine="delaunator")
 
 
@@ -110,6 +110,28 @@ def test_kernel_grid_equals_the_triangle_engine(max_edge):
     assert np.array_equal(np.isnan(ours), np.isnan(theirs))
     assert np.nanmax(np.abs(ours - theirs)) < 1e-9
     assert np.isfinite(ours).sum() > 0.4 * ours.size
+
+
+@pytest.mark.parametrize("max_edge", [None, 9.0])
+def test_the_qhull_fallback_grid_equals_the_kernel_and_merges_repeats(max_edge):
+    # the fallback where neither the kernel nor Triangle (no build for Python 3.14) is there
+    rng = np.random.default_rng(6)
+    x = np.round(np.r_[rng.uniform(0, 300, 30000), rng.uniform(300, 600, 600)], 2)
+    y = np.round(np.r_[rng.uniform(0, 300, 30000), rng.uniform(0, 300, 600)], 2)
+    x, y = np.r_[x, x[:500]], np.r_[y, y[:500]]  # 500 repeated positions (overlapping flight lines)
+    z = np.sin(x / 17) + 0.01 * y
+    z[-500:] += 1.0  # the repeats' mean is their first's z + 0.5
+    g = snapped_grid((-10, -10, 610, 310), 2.0)
+    ours = tin_to_grid(x, y, z, g, max_edge=max_edge, engine="qhull")
+    reference = tin_to_grid(x, y, z, g, max_edge=max_edge, engine=tin_engine() if tin_engine() != "qhull" else "qhull")
+    assert np.array_equal(np.isnan(ours), np.isnan(reference))
+    assert np.nanmax(np.abs(ours - reference)) < 1e-9
+    flat = snapped_grid((0, 0, 300, 300), 2.0)  # on a plane, repeats or not, the TIN is the plane
+    zp = 3 + 0.02 * x - 0.01 * y
+    plane = tin_to_grid(x, y, zp, flat, engine="qhull")
+    cx, cy = cell_centres(flat)
+    assert np.isfinite(plane).sum() > 0.9 * plane.size
+    assert np.nanmax(np.abs(plane - (3 + 0.02 * cx[None, :] - 0.01 * cy[:, None]))) < 1e-9
 
 
 @pytestmark_kernel

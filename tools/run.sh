@@ -48,8 +48,13 @@ if [ ! -x "$VENV/bin/python" ]; then
   echo "gistools setup: creating $VENV"
   "$PY" -m venv --system-site-packages "$VENV"
 fi
+# Debian 12's system Python beside its QGIS 3.22 needs numpy 1 and affine 2 (tools/constraints-debian12.txt says why);
+# no other platform gets those pins
+if grep -q '^12' /etc/debian_version 2>/dev/null && [ "$PY" = /usr/bin/python3 ]; then
+  export PIP_CONSTRAINT="$ROOT/tools/constraints-debian12.txt"
+fi
 STAMP="$VENV/.gistools-installed"
-WANT=$( (cat pyproject.toml setup.py gistools/lidar/_tinkernel.c; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)  # a changed kernel is rebuilt
+WANT=$( (cat pyproject.toml setup.py gistools/lidar/_tinkernel.c tools/constraints-debian12.txt; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)  # a changed kernel is rebuilt
 pipq() {  # pip install, quiet on success, the whole log on failure
   local log; log=$(mktemp)
   if ! "$VENV/bin/python" -m pip install -q "$@" >"$log" 2>&1; then cat "$log" >&2; rm -f "$log"; return 1; fi
@@ -77,7 +82,7 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
     # pyproj 3.7 needs PROJ >= 9.2 (Debian 12 has 9.1); 3.6 must be compiled with Cython < 3.1 (pyproj issue #1451)
     PYPROJ="pyproj>=3.5"
     pkg-config --atleast-version=9.2 proj || PYPROJ="pyproj>=3.5,<3.7"
-    pipq "cython<3.1" setuptools wheel "numpy<2"
+    pipq "cython<3.1" setuptools wheel numpy
     PIP_NO_BINARY=pyproj pipq --no-cache-dir --no-build-isolation "$PYPROJ"
     export PIP_NO_BINARY=rasterio,pyogrio,shapely
   fi

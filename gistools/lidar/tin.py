@@ -4,11 +4,12 @@ Two engines give the same Delaunay triangulation (up to the choice between equal
 triangles of cocircular points): gistools' compiled kernel (``_tinkernel.c``: the sweep-hull
 algorithm of Delaunator with exact integer predicates, plus a rasteriser; 2.3x faster than
 Triangle and the numpy evaluation on a 2 M point tile, README "Performance"), built when the package
-is installed with a C compiler, and Shewchuk's Triangle (``triangle`` on PyPI) with a numpy
-evaluation. Every function takes ``engine`` ("kernel" or "triangle"); None is ``DEFAULT_ENGINE``:
-the kernel when it is built, unless the environment variable ``GISTOOLS_TIN=triangle`` was set
-when gistools was imported (read once, here). Either way the evaluation costs in proportion to
-the cells, not to points x cells.
+is installed with a C compiler; Shewchuk's Triangle (``triangle`` on PyPI, optional: it has no build for
+Python 3.14) with a numpy evaluation; and scipy's Qhull (always there) with the same numpy evaluation.
+Every function takes ``engine`` ("kernel", "triangle" or "qhull"); None is ``DEFAULT_ENGINE``: the
+kernel when it is built, else Triangle when installed, else Qhull, unless the environment variable
+``GISTOOLS_TIN`` names one (read once, when gistools is imported). Either way the evaluation costs in
+proportion to the cells, not to points x cells.
 """
 
 from __future__ import annotations
@@ -17,7 +18,11 @@ import ctypes
 import os
 
 import numpy as np
-import triangle as _triangle
+
+try:
+    import triangle as _triangle
+except ImportError:  # optional (no wheel or build for Python 3.14): scipy's Qhull then
+    _triangle = None
 
 from ..grid import Grid
 
@@ -45,19 +50,29 @@ _KERNEL = _load_kernel()
 _QUANTUM_STEPS = 2**30  # the kernel's integer coordinates span at most this many steps (its exact predicates allow 2^30)
 
 
-ENGINES = ("kernel", "triangle")
-DEFAULT_ENGINE = "kernel" if _KERNEL is not None and os.environ.get("GISTOOLS_TIN", "").lower() != "triangle" else "triangle"
+ENGINES = ("kernel", "triangle", "qhull")
+
+
+def _default_engine() -> str:
+    asked = os.environ.get("GISTOOLS_TIN", "").lower()
+    available = [e for e, ok in zip(ENGINES, (_KERNEL is not None, _triangle is not None, True)) if ok]
+    return asked if asked in available else available[0]
+
+
+DEFAULT_ENGINE = _default_engine()
 
 
 def tin_engine(engine: str | None = None) -> str:
     """The engine a TIN uses: ``engine`` checked ("kernel": gistools' compiled Delaunay, "triangle": Shewchuk's
-    Triangle), or ``DEFAULT_ENGINE`` when None."""
+    Triangle, "qhull": scipy's), or ``DEFAULT_ENGINE`` when None."""
     if engine is None:
         return DEFAULT_ENGINE
     if engine not in ENGINES:
         raise ValueError(f"TIN engine {engine!r} is not one of {', '.join(ENGINES)}")
     if engine == "kernel" and _KERNEL is None:
         raise RuntimeError("the compiled TIN kernel is not built (reinstall gistools with a C compiler)")
+    if engine == "triangle" and _triangle is None:
+        raise RuntimeError("the triangle package is not installed (pip install triangle), use engine='qhull'")
     return engine
 
 
@@ -68,7 +83,7 @@ def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray)
     """z with each repeated (x, y) given the mean z of its repeats, on the copy the TIN uses.
 
     A TIN cannot hold two heights at one position (overlapping flight lines give such
-    repeats). Triangle keeps the first of a repeated position and leaves the others out
+    repeats). Triangle and Qhull keep the first of a repeated position and leave the others out
     of every triangle, so the unreferenced vertices are exactly the repeats.
     """
     used = np.zeros(len(x), bool)
@@ -95,14 +110,28 @@ def delaunay_triangles(x: np.ndarray, y: np.ndarray, *, engine: str | None = Non
     """
     if len(x) < 3:
         return np.empty((0, 3), np.int32)
-    if tin_engine(engine) == "kernel":
+    engine = tin_engine(engine)
+    if engine == "kernel":
         return _kernel_triangles(np.asarray(x, np.float64), np.asarray(y, np.float64))
     pts = np.column_stack([x - x.mean(), y - y.mean()])
+    if engine == "qhull":
+        return _qhull_triangles(pts)
     try:
         result = _triangle.triangulate({"vertices": pts}, "QNBP")  # quiet; return triangles only
     except Exception:  # Triangle rejects degenerate (e.g. collinear) input
         return np.empty((0, 3), np.int32)
     return result.get("triangles", np.empty((0, 3), np.int32)).astype(np.int32, copy=False)
+
+
+def _qhull_triangles(pts: np.ndarray) -> np.ndarray:
+    """Delaunay triangles by scipy's Qhull ("Qbb Qc Qz Q12", its defaults for 2-D: repeats are left out as
+    coplanar points); none for degenerate input."""
+    from scipy.spatial import Delaunay, QhullError
+
+    try:
+        return Delaunay(pts).simplices.astype(np.int32, copy=False)
+    except (QhullError, ValueError):
+        return np.empty((0, 3), np.int32)
 
 
 def _lattice_step(x: np.ndarray, y: np.ndarray, x0: float, y0: float, extent: float) -> float | None:
@@ -175,12 +204,12 @@ def tin_to_grid_exact(x, y, z, grid: Grid, box, *, max_edge: float | None = None
     lies inside ``box``).
 
     Give all the points inside ``box`` (west, south, east, north, CRS units). Only the compiled kernel
-    finds exact cells: with the "triangle" engine none is marked.
+    finds exact cells: with the "triangle" or "qhull" engine none is marked.
     """
     out = np.full(grid.shape, np.nan)
     exact = np.zeros(grid.shape, np.uint8)
     if tin_engine(engine) != "kernel":
-        return tin_to_grid(x, y, z, grid, out, max_edge=max_edge, engine="triangle"), exact.view(bool)
+        return tin_to_grid(x, y, z, grid, out, max_edge=max_edge, engine=engine), exact.view(bool)
     tin_to_grid(x, y, z, grid, out, max_edge=max_edge, exact=exact, exact_box=box, engine="kernel")
     return out, exact.view(bool)
 
