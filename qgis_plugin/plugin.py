@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import importlib
 
-from qgis.core import Qgis, QgsApplication, QgsMessageLog
+from qgis.core import QgsApplication, QgsMessageLog
+from .compat import CRITICAL
 
 # what the provider needs in QGIS's Python: (module, what to install)
 REQUIREMENTS = (
@@ -17,7 +18,6 @@ REQUIREMENTS = (
     ("shapely", "shapely>=2"),
     ("geopandas", "geopandas"),
     ("pyogrio", "pyogrio"),
-    ("triangle", "triangle"),
 )
 
 
@@ -44,13 +44,77 @@ def missing_requirements() -> list[str]:
     return sorted(set(missing))
 
 
+_BOUND = {"rasterio", "pyogrio", "pyproj", "shapely"}  # linked to GDAL / PROJ / GEOS: built against QGIS's copies
+
+
 def missing_message(missing: list[str]) -> str:
-    return ("gistools: the Processing algorithms are not available because QGIS's Python cannot import "
-            + ", ".join(missing) + ". Install them into the Python QGIS runs: on Debian/Ubuntu "
-            "`/usr/bin/python3 -m pip install " + " ".join(f"'{m}'" for m in missing) + "` (or a venv made with "
-            "--system-site-packages on QGIS's PYTHONPATH); on Windows the OSGeo4W Shell, on macOS the QGIS bundle's "
-            "python3: `python3 -m pip install " + " ".join(f"'{m}'" for m in missing) + "`. Then restart QGIS. "
-            "The gistools README, section QGIS, has the details.")
+    pure = [m for m in missing if m.split(">")[0] not in _BOUND | {"numpy", "scipy", "geopandas", "gistools"}]
+    bound = [m for m in missing if m.split(">")[0] in _BOUND]
+    text = ("gistools: the Processing algorithms are not available because QGIS's Python cannot import "
+            + ", ".join(missing) + ". On Debian / Ubuntu, follow the README's route (section QGIS): "
+            "it builds rasterio, pyogrio, pyproj and shapely against the GDAL / PROJ / GEOS QGIS links (binary wheels "
+            "carry their own copies, which crash QGIS) with `pip install --user --break-system-packages` "
+            "(Debian's system pip is externally managed)")
+    if pure:
+        text += "; the pure-Python ones alone: `python3 -m pip install --user --break-system-packages " + " ".join(
+            f"'{m}'" for m in pure) + "`"
+    if bound:
+        text += ". Debian's own packages work too: `sudo apt-get install " + " ".join(
+            f"python3-{m.split('>')[0]}" for m in bound) + "`"
+    return text + (". On Windows (OSGeo4W Shell) or macOS (the QGIS bundle's python3) use QGIS's own builds of the "
+                   "GDAL / PROJ bound packages and pip for the rest (untested there). Then restart QGIS.")
+
+
+def _major_minor(version: str) -> tuple[int, ...]:
+    return tuple(int(p) for p in version.split("-")[0].split(".")[:2])
+
+
+def library_mismatches() -> list[str]:
+    """Where shapely / pyproj / rasterio / pyogrio use another GEOS / PROJ / GDAL than QGIS links: their own copy
+    from a binary wheel (seen in the process's mapped libraries, on Linux) or another version. Two copies of one
+    library in QGIS's process fail (GEOS: 'WKB output dimension must be 2 or 3') or crash QGIS on exit."""
+    from qgis.core import Qgis, QgsProjUtils
+
+    found = []
+    try:
+        import pyogrio
+        import pyproj
+        import rasterio
+        import shapely
+    except Exception:  # reported as missing instead
+        return found
+    qgis_geos = _major_minor(Qgis.geosVersion())
+    qgis_proj = (QgsProjUtils.projVersionMajor(),)
+    try:
+        from osgeo import gdal
+
+        qgis_gdal = _major_minor(gdal.__version__)
+    except Exception:
+        qgis_gdal = None
+    # QGIS reports the PROJ it was built with (runtime minors differ under one soname): PROJ is compared by major only
+    checks = [("shapely", "GEOS", shapely.geos_version_string, qgis_geos), ("pyproj", "PROJ", pyproj.proj_version_str, qgis_proj),
+              ("rasterio", "GDAL", rasterio.__gdal_version__, qgis_gdal),
+              ("pyogrio", "GDAL", pyogrio.__gdal_version_string__, qgis_gdal)]
+    for package, lib, version, want in checks:
+        if want is not None and _major_minor(version)[: 1 if lib == "PROJ" else 2] != tuple(want)[: 1 if lib == "PROJ" else 2]:
+            found.append(f"{package} uses {lib} {version}, QGIS {'.'.join(map(str, want))}.x")
+    try:
+        with open("/proc/self/maps") as f:
+            maps = f.read()
+    except OSError:  # not Linux
+        maps = ""
+    for package in sorted(_BOUND):
+        if f"/{package}.libs/" in maps:
+            found.append(f"{package} carries its own libraries ({package}.libs, a binary wheel)")
+    return found
+
+
+def mismatch_message(found: list[str]) -> str:
+    return ("gistools: the Processing algorithms are not available: " + "; ".join(found) + ". Rebuild them against "
+            "the libraries QGIS links, as the README's section QGIS shows (Debian: `PIP_NO_BINARY=rasterio,pyogrio,"
+            "shapely,pyproj pip install --user --break-system-packages --force-reinstall --no-deps rasterio pyogrio "
+            "shapely pyproj`, after the build packages it lists), or use Debian's python3-rasterio / python3-pyproj / "
+            "python3-shapely / python3-pyogrio. Then restart QGIS.")
 
 
 class GistoolsPlugin:
@@ -58,11 +122,16 @@ class GistoolsPlugin:
         self.iface = iface
         self.provider = None
         self.missing: list[str] = []
+        self.mismatches: list[str] = []
 
     def initProcessing(self):  # noqa: N802 (QGIS's name)
         self.missing = missing_requirements()
         if self.missing:
-            QgsMessageLog.logMessage(missing_message(self.missing), "gistools", Qgis.Critical)
+            QgsMessageLog.logMessage(missing_message(self.missing), "gistools", CRITICAL)
+            return
+        self.mismatches = library_mismatches()
+        if self.mismatches:
+            QgsMessageLog.logMessage(mismatch_message(self.mismatches), "gistools", CRITICAL)
             return
         from .provider import GistoolsProvider
 
@@ -71,8 +140,9 @@ class GistoolsPlugin:
 
     def initGui(self):  # noqa: N802
         self.initProcessing()
-        if self.missing and self.iface is not None:
-            self.iface.messageBar().pushMessage("gistools", missing_message(self.missing), level=Qgis.Critical, duration=0)
+        if self.iface is not None and (self.missing or self.mismatches):
+            text = missing_message(self.missing) if self.missing else mismatch_message(self.mismatches)
+            self.iface.messageBar().pushMessage("gistools", text, level=CRITICAL, duration=0)
 
     def unload(self):
         if self.provider is not None:

@@ -345,7 +345,32 @@ print("MESSAGE", missing_message(plugin.missing))
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
                          env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
     assert "MISSING ['laspy'] True True" in run.stdout, run.stdout + run.stderr
-    assert "pip install 'laspy'" in run.stdout
+    assert "pip install --user --break-system-packages 'laspy'" in run.stdout  # Debian's pip is externally managed
+
+
+def test_plugin_refuses_a_shapely_on_another_geos_than_qgis(plugin_zip, tmp_path):
+    # a binary shapely wheel brings its own GEOS: inside QGIS every tile failed ("WKB output dimension must be 2
+    # or 3") and QGIS aborted on exit. The load check compares the versions (and, on Linux, the mapped libraries).
+    profile = tmp_path / "profile"
+    plugin_dir = build_plugin.install(plugin_zip, profile)
+    script = f"""
+import sys
+import shapely
+shapely.geos_version_string = "3.1.0"  # as a wheel built on another GEOS would report
+sys.path.insert(0, {str(plugin_dir.parent)!r})
+from qgis.core import QgsApplication
+app = QgsApplication([], False); app.initQgis()
+import gistools_qgis
+from gistools_qgis.plugin import library_mismatches, mismatch_message
+plugin = gistools_qgis.classFactory(None)
+plugin.initProcessing()
+print("REFUSED", plugin.provider is None, QgsApplication.processingRegistry().providerById("gistools") is None)
+print("MESSAGE", mismatch_message(plugin.mismatches))
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120,
+                         env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    assert "REFUSED True True" in run.stdout, run.stdout + run.stderr
+    assert "shapely uses GEOS 3.1.0, QGIS" in run.stdout and "PIP_NO_BINARY=" in run.stdout
 
 
 def _qgis_process_env(profile: Path) -> dict:

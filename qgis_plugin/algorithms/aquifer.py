@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (
-    QgsProcessing,
     QgsProcessingOutputFile,
     QgsProcessingOutputString,
     QgsProcessingOutputVectorLayer,
@@ -19,6 +18,7 @@ from qgis.core import (
 )
 
 from .base import GistoolsAlgorithm, AQUIFER
+from ..compat import DOUBLE, FOLDER, VECTOR_POINT, VECTOR_POLYGON
 
 
 GROUP_AQUIFER = ("Aquifer", "aquifer")
@@ -32,12 +32,12 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points: id, z, layer fields)",
-                                                   [QgsProcessing.TypeVectorPoint]))
+                                                   [VECTOR_POINT]))
         self.add(QgsProcessingParameterString("LAYERS", "Layer names, top to bottom (comma-separated)",
                                               defaultValue="LS,AU,AD,AQ"))
         self.add(QgsProcessingParameterVectorLayer("WITHIN", "Volumes inside this polygon (default: common footprint)",
-                                                   [QgsProcessing.TypeVectorPolygon], optional=True))
-        self.add(QgsProcessingParameterVectorLayer("CLIP", "Cut the surfaces to this polygon", [QgsProcessing.TypeVectorPolygon],
+                                                   [VECTOR_POLYGON], optional=True))
+        self.add(QgsProcessingParameterVectorLayer("CLIP", "Cut the surfaces to this polygon", [VECTOR_POLYGON],
                                                    optional=True), advanced=True)
         self.add(QgsProcessingParameterBoolean("SWAP_XY", "Swap x and y", defaultValue=False), advanced=True)
         self.add_length("XY_TOL", "Duplicates: same position within", AQUIFER.xy_tol, advanced=True)
@@ -82,9 +82,9 @@ class AquiferQueryAlgorithm(GistoolsAlgorithm):
              "at a point: TIN (default, nothing outside the boundary), k-nearest mean or IDW.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add(QgsProcessingParameterFile("MODEL", "Aquifer model folder", behavior=QgsProcessingParameterFile.Folder))
-        self.add(QgsProcessingParameterNumber("X", "x (model CRS)", type=QgsProcessingParameterNumber.Double))
-        self.add(QgsProcessingParameterNumber("Y", "y (model CRS)", type=QgsProcessingParameterNumber.Double))
+        self.add(QgsProcessingParameterFile("MODEL", "Aquifer model folder", behavior=FOLDER))
+        self.add(QgsProcessingParameterNumber("X", "x (model CRS)", type=DOUBLE))
+        self.add(QgsProcessingParameterNumber("Y", "y (model CRS)", type=DOUBLE))
         self.add(QgsProcessingParameterEnum("METHOD", "Method", options=["tin", "knn", "idw"], defaultValue=0))
         self.add(QgsProcessingParameterNumber("K", "Neighbours (knn, idw)", defaultValue=10, minValue=1), advanced=True)
         self.addOutput(QgsProcessingOutputString("RESULT", "Heights and thickness (JSON)"))

@@ -12,12 +12,10 @@ import inspect
 from pathlib import Path
 
 from qgis.core import (
-    QgsProcessing,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
     QgsProcessingParameterCrs,
-    QgsProcessingParameterDefinition,
     QgsProcessingParameterFile,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
@@ -35,6 +33,7 @@ from gistools.tasks import ground as _ground_task
 from gistools.tasks.aquifer import AquiferSettings
 from gistools.tasks.runway import RunwaySettings
 from gistools.tasks.settings import ShrubSettings
+from ..compat import ADVANCED, FOLDER, POINT_CLOUD
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
 
@@ -126,15 +125,15 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     # --- parameter helpers
     def add(self, param, advanced: bool = False):
         if advanced:
-            param.setFlags(param.flags() | QgsProcessingParameterDefinition.FlagAdvanced)
+            param.setFlags(param.flags() | ADVANCED)
         self.addParameter(param)
         return param
 
     def add_tiles(self):
         self.add(QgsProcessingParameterFile("INPUT", "LAS/LAZ tiles (a folder, or one file)",
-                                            behavior=QgsProcessingParameterFile.Folder, optional=True))
+                                            behavior=FOLDER, optional=True))
         self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", "Or point cloud layers (LAS/LAZ files)",
-                                                      layerType=QgsProcessing.TypePointCloud, optional=True))
+                                                      layerType=POINT_CLOUD, optional=True))
 
     def tiles(self, parameters, context):
         """The tile folder and / or the files of the chosen point cloud layers, as gistools inputs."""

@@ -12,6 +12,7 @@ from qgis.core import (
 )
 
 from .base import GistoolsAlgorithm, GROUND, GROUND_METHODS, NOISE_METHODS, POINT_FORMATS
+from ..compat import DOUBLE
 
 
 class GroundAlgorithm(GistoolsAlgorithm):
@@ -30,7 +31,7 @@ class GroundAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterEnum("NOISE", "Noise filter", options=NOISE_METHODS,
                                             defaultValue=NOISE_METHODS.index(GROUND.noise)))
         self.add_length("CELL", "SMRF cell size", GROUND.cell, advanced=True)
-        self.add(QgsProcessingParameterNumber("SLOPE", "SMRF slope (rise over run)", type=QgsProcessingParameterNumber.Double,
+        self.add(QgsProcessingParameterNumber("SLOPE", "SMRF slope (rise over run)", type=DOUBLE,
                                               defaultValue=GROUND.slope, minValue=0.0), advanced=True)
         self.add_length("WINDOW", "SMRF largest window radius", GROUND.window, advanced=True)
         self.add_length("THRESHOLD", "SMRF elevation threshold", GROUND.threshold, advanced=True)

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (
-    QgsProcessing,
     QgsProcessingOutputFile,
     QgsProcessingOutputNumber,
     QgsProcessingOutputRasterLayer,
@@ -17,6 +16,7 @@ from qgis.core import (
 )
 
 from .base import GistoolsAlgorithm, RUNWAY
+from ..compat import DOUBLE, VECTOR_POINT
 
 
 GROUP_RUNWAY = ("Runway", "runway")
@@ -32,7 +32,7 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         from gistools.runway.icao import RUNWAY_TYPES, TEMPLATES, VALID_CODES
 
         self._codes, self._types, self._templates = list(VALID_CODES), list(RUNWAY_TYPES), list(TEMPLATES)
-        self.add(QgsProcessingParameterVectorLayer("INPUT", "Survey points (id, type, z)", [QgsProcessing.TypeVectorPoint]))
+        self.add(QgsProcessingParameterVectorLayer("INPUT", "Survey points (id, type, z)", [VECTOR_POINT]))
         self.add(QgsProcessingParameterEnum("CODE", "Aerodrome reference code", options=self._codes,
                                             defaultValue=self._codes.index(RUNWAY.code)))
         self.add(QgsProcessingParameterEnum("RUNWAY_TYPE", "Runway type", options=self._types,
@@ -40,14 +40,14 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterEnum("TEMPLATE", "Template", options=self._templates,
                                             defaultValue=self._templates.index(RUNWAY.template)))
         self.add(QgsProcessingParameterNumber("SPACING", "Station spacing, m (0: from the survey)",
-                                              type=QgsProcessingParameterNumber.Double, defaultValue=0.0, minValue=0.0))
-        self.add(QgsProcessingParameterNumber("SWELL", "Swell factor of cut", type=QgsProcessingParameterNumber.Double,
+                                              type=DOUBLE, defaultValue=0.0, minValue=0.0))
+        self.add(QgsProcessingParameterNumber("SWELL", "Swell factor of cut", type=DOUBLE,
                                               defaultValue=RUNWAY.f_cut, minValue=0.01), advanced=True)
         self.add(QgsProcessingParameterNumber("COMPACTION", "Compaction factor of fill",
-                                              type=QgsProcessingParameterNumber.Double, defaultValue=RUNWAY.f_fill, minValue=0.01),
+                                              type=DOUBLE, defaultValue=RUNWAY.f_fill, minValue=0.01),
                  advanced=True)
         self.add(QgsProcessingParameterNumber("FREE_HAUL", "Free-haul distance, m (0: none)",
-                                              type=QgsProcessingParameterNumber.Double, defaultValue=0.0, minValue=0.0),
+                                              type=DOUBLE, defaultValue=0.0, minValue=0.0),
                  advanced=True)
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputRasterLayer("DESIGN", "Design surface"))

@@ -5,7 +5,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (
-    QgsProcessing,
     QgsProcessingOutputFile,
     QgsProcessingOutputFolder,
     QgsProcessingOutputRasterLayer,
@@ -20,6 +19,7 @@ from qgis.core import (
 
 from .base import (GistoolsAlgorithm, GROUP_SHRUB, DEM_METHODS, PRESETS, CLASSIFY, BANDS, float_list, SHRUB,
                    RASTER, band_choices, text_list)
+from ..compat import VECTOR_LINE, VECTOR_POLYGON
 
 
 class ShrubChainAlgorithm(GistoolsAlgorithm):
@@ -29,8 +29,8 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
              "report.json, tile by tile (resumable, one bad tile is reported and the others go on).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        line = [QgsProcessing.TypeVectorLine]
-        poly = [QgsProcessing.TypeVectorPolygon]
+        line = [VECTOR_LINE]
+        poly = [VECTOR_POLYGON]
         self.add_tiles()
         self.add(QgsProcessingParameterVectorLayer("ROADS", "Road breaklines (edge of pavement)", line, optional=True))
         self.add(QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", line, optional=True))
@@ -60,7 +60,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputRasterLayer("CLASSES", "Shrub classes"))
         self.addOutput(QgsProcessingOutputRasterLayer("COVER", "Vegetation cover"))
-        self.addOutput(QgsProcessingOutputVectorLayer("POLYGONS", "Shrub class polygons", QgsProcessing.TypeVectorPolygon))
+        self.addOutput(QgsProcessingOutputVectorLayer("POLYGONS", "Shrub class polygons", VECTOR_POLYGON))
         self.addOutput(QgsProcessingOutputFile("MAP_PNG", "Shrub map (PNG)"))
         self.addOutput(QgsProcessingOutputFolder("FOLDER", "Output folder"))
 

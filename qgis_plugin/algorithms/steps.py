@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from qgis.core import (
-    QgsProcessing,
     QgsProcessingParameterBoolean,
     QgsProcessingParameterEnum,
     QgsProcessingParameterField,
@@ -16,6 +15,7 @@ from qgis.core import (
 
 from .base import (GistoolsAlgorithm, GROUP_LIDAR, GROUP_SHRUB, PRESETS, CLASSIFY, Z_UNITS, BANDS,
                    float_list, SHRUB, band_choices, text_list)
+from ..compat import VECTOR_LINE, VECTOR_POINT, VECTOR_POLYGON
 
 
 class NdsmAlgorithm(GistoolsAlgorithm):
@@ -54,7 +54,7 @@ class BandsAlgorithm(GistoolsAlgorithm):
                  advanced=True)
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Height bands"))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_POINTS", "Cell-centre points per band (Raster To Point)",
-                                                         type=QgsProcessing.TypeVectorPoint, optional=True,
+                                                         type=VECTOR_POINT, optional=True,
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
@@ -82,8 +82,8 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
              "(islands stay holes) and buffered single-line hydro features join the water polygons.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        line = [QgsProcessing.TypeVectorLine]
-        poly = [QgsProcessing.TypeVectorPolygon]
+        line = [VECTOR_LINE]
+        poly = [VECTOR_POLYGON]
         self.add(QgsProcessingParameterVectorLayer("ROADS", "Road breaklines (edge of pavement)", line, optional=True))
         self.add(QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", line, optional=True))
         self.add(QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", poly, optional=True))
@@ -96,8 +96,8 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
         self.add_length("SINGLE_LINE_WIDTH", "Width given to single-line hydro features", SHRUB.single_line_width, advanced=True)
         self.add(QgsProcessingParameterBoolean("REPROJECT", "Reproject layers in another CRS (else refuse)",
                                                defaultValue=False), advanced=True)
-        self.add(QgsProcessingParameterVectorDestination("OUTPUT_ROADS", "Road polygons", type=QgsProcessing.TypeVectorPolygon))
-        self.add(QgsProcessingParameterVectorDestination("OUTPUT_WATER", "Water polygons", type=QgsProcessing.TypeVectorPolygon))
+        self.add(QgsProcessingParameterVectorDestination("OUTPUT_ROADS", "Road polygons", type=VECTOR_POLYGON))
+        self.add(QgsProcessingParameterVectorDestination("OUTPUT_WATER", "Water polygons", type=VECTOR_POLYGON))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.steps import breakline_polygons
@@ -126,7 +126,7 @@ class ClipAlgorithm(GistoolsAlgorithm):
              "255 nodata. Vegetation inside wetland polygons is a second output.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        poly = [QgsProcessing.TypeVectorPolygon]
+        poly = [VECTOR_POLYGON]
         self.add(QgsProcessingParameterRasterLayer("BANDS", "Height bands"))
         self.add(QgsProcessingParameterVectorLayer("ROAD_POLYGONS", "Road polygons", poly, optional=True))
         self.add(QgsProcessingParameterVectorLayer("WATER_POLYGONS", "Water polygons", poly, optional=True))
@@ -191,7 +191,7 @@ class ClassifyAlgorithm(GistoolsAlgorithm):
                                               defaultValue=text_list(SHRUB.class_breaks)))
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Shrub classes"))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_POLYGONS", "Shrub class polygons",
-                                                         type=QgsProcessing.TypeVectorPolygon, optional=True,
+                                                         type=VECTOR_POLYGON, optional=True,
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):

@@ -15,6 +15,7 @@ from qgis.core import (
 )
 
 from .base import GistoolsAlgorithm
+from ..compat import DOUBLE
 
 
 class StructureAlgorithm(GistoolsAlgorithm):
@@ -28,7 +29,7 @@ class StructureAlgorithm(GistoolsAlgorithm):
         for name, text in (("HEIGHT_INTERVAL", "Height interval h, m (0: estimated)"),
                            ("DISTANCE", "Planimetric distance d, m (0: estimated)"),
                            ("TOLERANCE", "Tolerance t, m (0: 4 m)")):
-            self.add(QgsProcessingParameterNumber(name, text, type=QgsProcessingParameterNumber.Double, defaultValue=0.0,
+            self.add(QgsProcessingParameterNumber(name, text, type=DOUBLE, defaultValue=0.0,
                                                   minValue=0.0))
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputFile("MESH", "Mesh (PLY)"))
