@@ -262,6 +262,34 @@ def test_the_compiled_morphology_equals_the_numpy_one(monkeypatch):
     assert np.array_equal(G.fill_gaps(holes), compiled[1])
 
 
+@pytest.mark.parametrize("shape", [(7, 5), (129, 40), (257, 3), (1, 60)])
+def test_the_striped_dilations_equal_the_numpy_ones_at_stripe_edges(monkeypatch, shape):
+    from gistools.lidar import ground as G
+
+    if G._PROGRESSIVE is None:
+        pytest.skip("the compiled kernel is not built here")
+    a = np.random.default_rng(4).normal(0, 3, shape).cumsum(0)
+    compiled = G.progressive_filter(a, 1.0, 0.15, 40.0)
+    monkeypatch.setattr(G, "_PROGRESSIVE", None)
+    assert np.array_equal(G.progressive_filter(a, 1.0, 0.15, 40.0), compiled)
+
+
+def test_ivf_counts_from_the_voxel_grid_equal_the_sorted_key_search(monkeypatch):
+    # the dense count grid (tiles) and the sparse search (extents too large for a grid) count the same neighbours
+    from gistools.lidar import noise as N
+
+    rng = np.random.default_rng(8)
+    x, y, z = rng.uniform(0, 900, 60000), rng.uniform(0, 900, 60000), rng.normal(100, 8, 60000)
+    z[:40] -= 250  # multipath far below, and a few lone points far out
+    x[40:50] += 2000
+    for res in (1.0, 5.0, 15.0):
+        dense = N.isolated_points(x, y, z, res=res, n=6)
+        monkeypatch.setattr(N, "_DENSE_VOXELS", 0)
+        sparse = N.isolated_points(x, y, z, res=res, n=6)
+        monkeypatch.undo()
+        assert np.array_equal(dense, sparse) and dense[:50].all()
+
+
 def test_copc_output_is_read_back_by_bounds_with_the_classes_of_the_laz_output(tmp_path):
     pytest.importorskip("copclib")
     laz = ground_from_tiles(SAMPLE, tmp_path / "laz")
