@@ -7,19 +7,12 @@ from pathlib import Path
 import numpy as np
 import rasterio
 
+from .lidar.shrub import CLASS_STYLE
 from .units import LinearUnit
 
 __all__ = ["SHRUB_COLOURS", "shrub_map"]
 
-# The dissertation's legend (L4766): white no vegetation, green light, yellow medium, red heavy, gray roads, blue water.
-SHRUB_COLOURS = {
-    0: ("no vegetation", "#ffffff"),
-    1: ("light", "#2ca02c"),
-    2: ("medium", "#ffd700"),
-    3: ("heavy", "#d62728"),
-    4: ("road", "#808080"),
-    5: ("water", "#1f77b4"),
-}
+SHRUB_COLOURS = CLASS_STYLE  # the dissertation's legend (lidar/shrub.py)
 
 
 def _nice_length(target: float) -> float:

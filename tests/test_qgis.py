@@ -187,6 +187,12 @@ def test_dsm_dem_rasters_equal_the_library(qgis, reference, tmp_path):
     both = qgis.run("gistools:rasters", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "all")})
     for key, product in (("DSM", "dsm"), ("DEM", "dem"), ("NDSM", "ndsm"), ("TOP_CLASS", "topclass")):
         same_cells(both[key], reference / f"{product}.vrt")
+    from qgis.core import QgsRasterLayer
+
+    for key in ("DSM", "DEM", "NDSM"):  # the legend names the vertical unit (the CRS's US survey foot)
+        assert "ftUS" in QgsRasterLayer(str(both[key]), key).bandName(1), QgsRasterLayer(str(both[key]), key).bandName(1)
+    top = _palette(both["TOP_CLASS"])  # ASPRS class names and colours, not a grey stretch
+    assert top[1][:2] == (1, "unclassified") and top[2][:2] == (2, "ground") and top[9][:2] == (9, "water")
     # the nDSM step (a raster calculator) gives the cells the tile run wrote
     ndsm = qgis.run("gistools:ndsm", {"DSM": dsm["OUTPUT"], "DEM": dem["OUTPUT"], "OUTPUT": str(tmp_path / "ndsm.tif")})
     h = same_cells(ndsm["OUTPUT"], reference / "ndsm.vrt")
@@ -243,6 +249,23 @@ def test_band_clip_density_classify_steps_equal_the_chain(qgis, reference, tmp_p
         assert area == pytest.approx(report["class_area"][name]) and area == pytest.approx((classes == code).sum() * 25.0)
 
 
+# the dissertation's legend (L4766), written out here, not taken from the code under test
+_CLASS_PALETTE = [(0, "no vegetation", "#ffffff"), (1, "light", "#2ca02c"), (2, "medium", "#ffd700"), (3, "heavy", "#d62728"),
+                  (4, "road", "#808080"), (5, "water", "#1f77b4")]
+
+
+def _palette(path) -> list:
+    """(value, label, colour) of the renderer QGIS gives the raster when it loads it; [] unless paletted."""
+    from qgis.core import QgsRasterLayer
+
+    lyr = QgsRasterLayer(str(path), "classes")
+    assert lyr.isValid(), path
+    r = lyr.renderer()
+    if r.type() != "paletted":
+        return []
+    return [(int(c.value), c.label, c.color.name()) for c in r.classes()]
+
+
 def test_shrubchain_equals_the_cli(qgis, tmp_path):
     from click.testing import CliRunner
 
@@ -257,10 +280,17 @@ def test_shrubchain_equals_the_cli(qgis, tmp_path):
                                               "MAP": False, "OUTPUT_FOLDER": str(tmp_path / "q")})
     same_cells(result["CLASSES"], tmp_path / "cli" / "classes.vrt")
     same_cells(result["COVER"], tmp_path / "cli" / "cover.vrt")
+    assert _palette(result["CLASSES"]) == _CLASS_PALETTE  # the mosaic: the six classes only, named and coloured
     import geopandas as gpd
 
     a, b = gpd.read_file(result["POLYGONS"]), gpd.read_file(tmp_path / "cli" / "shrub_classes.gpkg")
     assert len(a) == len(b) > 0 and a.geometry.area.sum() == pytest.approx(b.geometry.area.sum())
+    from qgis.core import QgsVectorLayer
+
+    polygons = QgsVectorLayer(str(result["POLYGONS"]), "polygons", "ogr")  # QGIS draws them by class, as the map
+    r = polygons.renderer()
+    assert r.type() == "categorizedSymbol" and r.classAttribute() == "class_code"
+    assert [(int(c.value()), c.label(), c.symbol().color().name()) for c in r.categories()] == _CLASS_PALETTE[1:]
 
 
 def test_model_gives_the_class_raster_of_gistools_shrub(qgis, reference, tmp_path):
@@ -271,6 +301,7 @@ def test_model_gives_the_class_raster_of_gistools_shrub(qgis, reference, tmp_pat
         "clip:Vegetation in wetlands": "TEMPORARY_OUTPUT"}, feedback=Feedback())
     classes = same_cells(result["classify:Shrub classes"], reference / "classes.vrt")
     assert set(np.unique(classes)) >= {0, 1, 2, 3, 4, 5}
+    assert _palette(result["classify:Shrub classes"])[:6] == _CLASS_PALETTE  # a GeoTIFF's palette has 256 entries
     children = result["CHILD_RESULTS"]
     assert children["points_ground"]["POINTS"] > 0 and children["points_nonground"]["POINTS"] > 0
 

@@ -21,7 +21,8 @@ from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
 from ..progress import report
-from .raster import DEFLATE_LEVEL, atomic_path, crs_from_wkt, predictor_for, verify_raster
+from .raster import (DEFLATE_LEVEL, atomic_path, crs_from_wkt, predictor_for, set_colour_table, verify_raster,
+                     write_category_names)
 
 BLOCK = 2048  # cells a side of the windows a step reads at once (32 MB of float64)
 
@@ -117,13 +118,18 @@ def run_blockwise(base, outputs: dict, compute, *, progress=None, label: str = "
     wanted = {k: v for k, v in outputs.items() if v[0] is not None}
     with contextlib.ExitStack() as stack:
         dsts = {}
+        styled = {}
         for name, (path, dtype, nodata, tags) in wanted.items():
-            tags = tags or {}
+            tags = dict(tags or {})
+            categories = tags.pop("categories", None)  # {code: (name, colour)}: colour table and category names
             tmp = stack.enter_context(atomic_path(path, overwrite=overwrite, verify=verify_raster))
             dst = stack.enter_context(rasterio.open(tmp, "w", **_profile(base, dtype, nodata, tags.get("GISTOOLS_PRODUCT"))))
             dst.update_tags(**{k: str(v) for k, v in tags.items()})
             if tags.get("units"):
                 dst.units = (tags["units"],)
+            if categories:
+                set_colour_table(dst, categories)
+                styled[path] = categories
             dsts[name] = (dst, dtype, nodata)
         for i, win in enumerate(wins):
             if label:
@@ -137,6 +143,8 @@ def run_blockwise(base, outputs: dict, compute, *, progress=None, label: str = "
                     a = np.where(np.isnan(a), nodata, a)
                 dst.write(a.astype(dtype), 1, window=win)
         # the rasterio datasets close before the atomic renames (ExitStack unwinds in reverse)
+    for path, categories in styled.items():
+        write_category_names(path, categories)
     if label:
         report(progress, 1.0, f"{label}: done")
     return {name: Path(v[0]) for name, v in wanted.items()}

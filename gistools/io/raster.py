@@ -95,6 +95,32 @@ def predictor_for(dtype: str, product: str | None = None) -> int:
     return 3 if dtype.startswith("float") else 2
 
 
+def _rgba(hex_colour: str) -> tuple[int, int, int, int]:
+    h = hex_colour.lstrip("#")
+    return int(h[0:2], 16), int(h[2:4], 16), int(h[4:6], 16), 255
+
+
+def set_colour_table(dst, categories: dict) -> None:
+    """A palette on band 1 of an open (writable) dataset: ``categories`` {code: (name, "#rrggbb")}."""
+    dst.write_colormap(1, {int(c): _rgba(colour) for c, (_, colour) in categories.items()})
+
+
+def _category_names(categories: dict) -> list[str]:
+    return [categories.get(c, ("",))[0] for c in range(max(categories) + 1)]
+
+
+def write_category_names(path, categories: dict) -> Path:
+    """The band's category names in GDAL's sidecar ``<path>.aux.xml`` (GeoTIFF has no tag for them; GDAL, QGIS and
+    ArcGIS read it), written atomically. Returns the sidecar's path."""
+    path = Path(path)
+    side = path.with_name(path.name + ".aux.xml")
+    names = "".join(f"<Category>{html.escape(n)}</Category>" for n in _category_names(categories))
+    with atomic_path(side, overwrite=True) as tmp:
+        tmp.write_text(f'<PAMDataset>\n  <PAMRasterBand band="1">\n    <CategoryNames>{names}</CategoryNames>\n'
+                       "  </PAMRasterBand>\n</PAMDataset>\n")
+    return side
+
+
 def write_raster(
     path,
     array: np.ndarray,
@@ -106,8 +132,10 @@ def write_raster(
     tags: dict | None = None,
     description: str | None = None,
     units: str | None = None,
+    categories: dict | None = None,
 ) -> Path:
     """Write one band as a tiled, DEFLATE-compressed GeoTIFF, atomically. NaN becomes ``nodata``.
+    ``categories`` {code: (name, "#rrggbb")}: a class raster's colour table and category names.
 
     DEFLATE level 1, not GDAL's 6: 2.5x faster on a float DEM tile (32 ms, not 81) for files 2.5 % larger.
     The predictor follows the ``GISTOOLS_PRODUCT`` tag (predictor_for).
@@ -145,6 +173,10 @@ def write_raster(
                 dst.set_band_description(1, description)
             if units:
                 dst.units = (units,)
+            if categories:
+                set_colour_table(dst, categories)
+    if categories:
+        write_category_names(path, categories)
     return path
 
 
@@ -165,19 +197,20 @@ def read_raster(path) -> tuple[np.ndarray, Grid, float | None]:
     return data, grid, nodata
 
 
-def write_vrt(path, sources: list[Path], *, overwrite: bool = True) -> Path | None:
+def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: dict | None = None) -> Path | None:
     """A GDAL VRT mosaic of single-band GeoTIFFs on one lattice (written atomically).
 
-    Sources are referenced relative to the VRT. Returns None when ``sources`` is empty.
+    Sources are referenced relative to the VRT. Returns None when ``sources`` is empty. ``categories``
+    {code: (name, "#rrggbb")}: the mosaic's colour table (only these codes: a short legend) and category names.
     """
     path = Path(path)
     metas = []
-    units = None
+    units = description = None
     for src_path in sources:
         with rasterio.open(src_path) as src:
             metas.append((Path(src_path), src.transform, src.width, src.height, src.crs, src.nodata, src.dtypes[0]))
             if len(metas) == 1:
-                units = src.units[0]
+                units, description = src.units[0], src.descriptions[0]
     if not metas:
         return None
     cs = metas[0][1].a
@@ -197,8 +230,19 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True) -> Path | No
     ]
     if nodata is not None:
         lines.append(f"    <NoDataValue>{nodata!r}</NoDataValue>")
+    if description:
+        lines.append(f"    <Description>{html.escape(description)}</Description>")
     if units:
         lines.append(f"    <UnitType>{html.escape(units)}</UnitType>")
+    if categories:
+        lines.append("    <ColorInterp>Palette</ColorInterp>")
+        lines.append("    <CategoryNames>" + "".join(f"<Category>{html.escape(n)}</Category>"
+                                                  for n in _category_names(categories)) + "</CategoryNames>")
+        lines.append("    <ColorTable>")
+        for c in range(max(categories) + 1):
+            r, g, b, a = _rgba(categories[c][1]) if c in categories else (0, 0, 0, 0)
+            lines.append(f'      <Entry c1="{r}" c2="{g}" c3="{b}" c4="{a}"/>')
+        lines.append("    </ColorTable>")
     for src_path, tr, w, h, _, nd, _ in metas:
         xoff = int(round((tr.c - west) / cs))
         yoff = int(round((north - tr.f) / cs))

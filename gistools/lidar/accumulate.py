@@ -9,10 +9,20 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GROUNDISH", "NOISE_CLASSES", "TOPCLASS_NODATA", "is_groundish", "surface_classes", "max_into",
+__all__ = ["ASPRS_STYLE", "GROUNDISH", "NOISE_CLASSES", "TOPCLASS_NODATA", "is_groundish", "surface_classes", "max_into",
            "max_with_class", "merge_top_class", "finish_surface"]
 
 TOPCLASS_NODATA = 255
+# ASPRS classes (LAS 1.4 R15, table 17) with the colours point cloud viewers use: the top-class rasters' colour
+# table and category names
+ASPRS_STYLE = {
+    0: ("never classified", "#bdbdbd"), 1: ("unclassified", "#969696"), 2: ("ground", "#a6611a"),
+    3: ("low vegetation", "#c2e699"), 4: ("medium vegetation", "#78c679"), 5: ("high vegetation", "#238443"),
+    6: ("building", "#e31a1c"), 7: ("low noise", "#ff00ff"), 8: ("model key point", "#ffff00"),
+    9: ("water", "#1f78b4"), 10: ("rail", "#6a3d9a"), 11: ("road surface", "#525252"), 12: ("overlap", "#fdbf6f"),
+    13: ("wire guard", "#ff7f00"), 14: ("wire conductor", "#ff7f00"), 15: ("transmission tower", "#b15928"),
+    16: ("wire connector", "#ff7f00"), 17: ("bridge deck", "#8c6d31"), 18: ("high noise", "#ff00ff"),
+}
 GROUNDISH = (2, 9)  # ground and water: a cell topped by these is bare (band B0)
 NOISE_CLASSES = (7, 18)  # ASPRS low and high noise: never in a surface unless asked for
 is_groundish = np.zeros(256, bool)  # class code -> bare, one gather (np.isin sorts each call)

@@ -12,10 +12,20 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["CLASS_NAMES", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "sample_step", "lattice_sample",
+__all__ = ["CLASS_NAMES", "CLASS_STYLE", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "sample_step", "lattice_sample",
            "breaks_from_sample", "shrub_classes", "quantile_breaks", "jenks_breaks"]
 
 CLASS_NAMES = {0: "none", 1: "light", 2: "medium", 3: "heavy", 4: "road", 5: "water"}
+# The dissertation's legend (L4766): white no vegetation, green light, yellow medium, red heavy, gray roads, blue
+# water: the map's colours and the class rasters' colour table and category names
+CLASS_STYLE = {
+    0: ("no vegetation", "#ffffff"),
+    1: ("light", "#2ca02c"),
+    2: ("medium", "#ffd700"),
+    3: ("heavy", "#d62728"),
+    4: ("road", "#808080"),
+    5: ("water", "#1f77b4"),
+}
 CLASS_NODATA = 255
 DEFAULT_BREAKS = (0.30, 0.70)
 CLASS_METHODS = ("breaks", "quantile", "jenks")  # fixed cover breaks, or breaks from the data

@@ -33,7 +33,7 @@ from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
 from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
-from ..lidar.accumulate import (NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
+from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
                                max_with_class, merge_top_class, surface_classes)
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
@@ -423,10 +423,12 @@ def _write_tile_rasters(info, run: _Run, grid: Grid, arrays: dict) -> dict:
         path = Path(run.out) / product / f"{info.name}.tif"
         if product == "topclass":
             write_raster(path, arrays[product], grid, overwrite=True, nodata=TOPCLASS_NODATA, dtype="uint8",
-                         tags={**tags, "GISTOOLS_PRODUCT": product}, description="class of the highest first return")
+                         tags={**tags, "GISTOOLS_PRODUCT": product}, description="class of the highest first return",
+                         categories=ASPRS_STYLE)
         else:
             write_raster(path, arrays[product], grid, overwrite=True, units=run.z_unit,
-                         tags={**tags, "GISTOOLS_PRODUCT": product}, description=product.upper())
+                         tags={**tags, "GISTOOLS_PRODUCT": product},
+                         description=f"{product.upper()} height ({run.z_unit})")  # QGIS's legend shows the unit
         outputs[product] = str(path)
     return outputs
 
@@ -563,7 +565,7 @@ def _mosaics(out: Path, products, results) -> dict:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
         mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
         if mine:
-            vrts[product] = str(write_vrt(out / f"{product}.vrt", mine))
+            vrts[product] = str(write_vrt(out / f"{product}.vrt", mine, categories=ASPRS_STYLE if product == "topclass" else None))
     return vrts
 
 

@@ -36,7 +36,8 @@ from ..io.raster import atomic_path, raster_is_readable, write_vrt
 from ..io.vector import check_crs, check_field, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, band_thresholds
 from ..lidar.vegetation import VEG_ROAD, VEG_WATER
-from ..lidar.shrub import CLASS_NAMES, DEFAULT_BREAKS
+from ..io.styles import write_polygon_style
+from ..lidar.shrub import CLASS_NAMES, CLASS_STYLE, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
@@ -294,7 +295,7 @@ def shrub_from_tiles(
 # what each stage writes under --out (the step reruns put them back when they fail)
 STAGE_FOLDERS = {"rasters": (), "bands": ("bands", "band_points"), "clip": ("veg", "wetveg"),
                  "density": ("density", "cover"), "classes": ("classes",)}
-STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_map.png", "shrub_map.pdf", "bands.vrt", "veg.vrt",
+STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_classes.qml", "shrub_map.png", "shrub_map.pdf", "bands.vrt", "veg.vrt",
               "wetveg.vrt", "density.vrt", "cover.vrt", "classes.vrt")
 
 
@@ -349,7 +350,8 @@ def _write_chain_outputs(out: Path, good: list, mosaic: dict, polygons: list, cr
                          settings: ShrubSettings, map_title: str | None) -> None:
     """The mosaics of the last steps, the class polygons and (with a title) the map."""
     for product in ("density", "cover", "classes"):
-        mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+        mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good],
+                                    categories=CLASS_STYLE if product == "classes" else None)
     unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, unit.metres ** 2)
     if map_title and mosaic.get("classes"):
@@ -553,6 +555,7 @@ def _write_polygons(path, polygons, crs, tile_field, area_m2):
     gdf["area_acres"] = gdf["area"] * area_m2 / ACRE_M2
     gdf["area_ha"] = gdf["area"] * area_m2 / HECTARE_M2
     write_layer(gdf, path, "shrub_classes")
+    write_polygon_style(path, "class_code", {c: v for c, v in CLASS_STYLE.items() if c})  # QGIS draws it by class
 
 
 def _input_label(inputs) -> str:

@@ -27,11 +27,12 @@ from ..io.atomic import atomic_path
 from ..io.blocks import (BLOCK, PolygonMask, check_outputs_are_not_inputs, open_raster, raster_crs, read_window,
                          run_blockwise, same_grid, windows)
 from ..io.raster import NODATA
+from ..io.styles import write_polygon_style
 from ..io.vector import check_crs, check_field, read_layer, verify_gpkg, write_layer
 from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
 from ..lidar.density import halo_cells
 from ..lidar.gridding import ndsm_from
-from ..lidar.shrub import (CLASS_NAMES, CLASS_NODATA, breaks_from_sample, lattice_sample, sample_step,
+from ..lidar.shrub import (CLASS_NAMES, CLASS_NODATA, CLASS_STYLE, breaks_from_sample, lattice_sample, sample_step,
                             shrub_classes)
 from ..lidar.vegetation import VEG_NODATA, VEG_ROAD, VEG_WATER, vegetation, vegetation_cover
 from ..progress import ProgressCallback, report
@@ -438,7 +439,7 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
             return {"classes": codes}
 
         tags = {"GISTOOLS_PRODUCT": "classes", "GISTOOLS_CLASSES": json.dumps(CLASS_NAMES),
-                "GISTOOLS_CLASS_BREAKS": json.dumps(list(use))}
+                "GISTOOLS_CLASS_BREAKS": json.dumps(list(use)), "categories": CLASS_STYLE}
         paths = run_blockwise(src, {"classes": (out, "uint8", CLASS_NODATA, tags)}, compute, progress=progress,
                               label="classes", overwrite=overwrite, block=block)
         crs = raster_crs(src, cover)
@@ -452,6 +453,7 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
                                geometry=[g for _, g in polys], crs=crs)
         gdf["area"] = gdf.geometry.area
         result["polygons"] = write_layer(gdf, polygons_out, Path(polygons_out).stem, overwrite=overwrite)
+        write_polygon_style(polygons_out, "class_code", {c: v for c, v in CLASS_STYLE.items() if c})
     return result
 
 
