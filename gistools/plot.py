@@ -10,7 +10,7 @@ import rasterio
 from .lidar.shrub import CLASS_STYLE
 from .units import LinearUnit
 
-__all__ = ["SHRUB_COLOURS", "shrub_map"]
+__all__ = ["SHRUB_COLOURS", "map_parameters", "shrub_map"]
 
 SHRUB_COLOURS = CLASS_STYLE  # the dissertation's legend (lidar/shrub.py)
 
@@ -34,8 +34,35 @@ def new_figure(figsize):
     return fig
 
 
+def map_parameters(classes_path, cover_path, unit: LinearUnit) -> str:
+    """The map's caption of what made it: cell size, density radius (from the cover raster's tags) and the cover
+    breaks (from the class raster's tags), in the data's units."""
+    import json
+
+    with rasterio.open(classes_path) as src:
+        cell = src.transform.a
+        breaks = src.tags().get("GISTOOLS_CLASS_BREAKS")
+        if breaks is None and src.files[1:]:  # a VRT: its first tile has the tags
+            with rasterio.open(src.files[1]) as tile:
+                breaks = tile.tags().get("GISTOOLS_CLASS_BREAKS")
+    radius = None
+    if cover_path is not None and Path(cover_path).exists():
+        with rasterio.open(cover_path) as src:
+            radius = src.tags().get("GISTOOLS_RADIUS")
+            if radius is None and src.files[1:]:
+                with rasterio.open(src.files[1]) as tile:
+                    radius = tile.tags().get("GISTOOLS_RADIUS")
+    parts = [f"cell {cell:.4g} {unit.short}"]
+    if radius is not None:
+        parts.append(f"density radius {float(radius):.4g} {unit.short}")
+    if breaks:
+        b1, b2 = json.loads(breaks)
+        parts.append(f"cover: light <= {b1:.2f} < medium <= {b2:.2f} < heavy")
+    return "; ".join(parts)
+
+
 def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150,
-              probes=()) -> dict:
+              probes=(), parameters: str = "") -> dict:
     """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
 
     Returns {"paths": [png, pdf], "probes": [(col, row) pixel of the PNG for each (x, y) of ``probes``]};
@@ -66,13 +93,19 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     ax.set_ylabel(f"y ({unit.name})")
     ax.ticklabel_format(useOffset=False, style="plain")
     handles = [Patch(facecolor=c, edgecolor="black", label=n) for _, (n, c) in SHRUB_COLOURS.items()]
-    handles.append(Patch(facecolor=(0.85, 0.85, 0.85), edgecolor="black", label="no data"))
+    if (data == 255).any():  # the legend lists "no data" only where the map shows some
+        handles.append(Patch(facecolor=(0.85, 0.85, 0.85), edgecolor="black", label="no data"))
     ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="Shrub density")
     # scale bar (a round length about a fifth of the width), in map units
     length = _nice_length((east - west) / 5)
     x0, y0 = west + 0.05 * (east - west), south + 0.05 * (north - south)
-    ax.plot([x0, x0 + length], [y0, y0], color="black", linewidth=4, solid_capstyle="butt")
-    ax.text(x0 + length / 2, y0 + 0.02 * (north - south), f"{length:g} {unit.short}", ha="center", va="bottom")
+    from matplotlib import patheffects
+
+    halo = [patheffects.withStroke(linewidth=7, foreground="white")]  # reads over any class, hides none
+    ax.plot([x0, x0 + length], [y0, y0], color="black", linewidth=4, solid_capstyle="butt", zorder=4,
+            path_effects=[patheffects.Stroke(linewidth=7, foreground="white"), patheffects.Normal()])
+    ax.text(x0 + length / 2, y0 + 0.015 * (north - south), f"{length:g} {unit.short}", ha="center", va="bottom", zorder=4,
+            path_effects=halo)
     # north arrow (north-up rasters)
     ax.annotate("N", xy=(0.93, 0.93), xytext=(0.93, 0.83), xycoords="axes fraction", ha="center",
                 arrowprops=dict(facecolor="black", width=4, headwidth=12), fontsize=14, fontweight="bold")
@@ -83,8 +116,10 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
         crs_name = pyproj.CRS.from_wkt(crs.to_wkt()).name
     except Exception:
         pass
-    fig.text(0.01, 0.01, f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius.",
-             fontsize=8)
+    caption = f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius."
+    if parameters:  # a second line: what made the map
+        caption += f"\n{parameters}."
+    fig.text(0.01, 0.01, caption, fontsize=8, va="bottom")
     # a fixed frame, not tight_layout: with an equal-aspect image it clipped the legend (outside the axes, right)
     ax.set_position([0.1, 0.08, 0.7, 0.85])
     ax.set_anchor("W")

@@ -132,6 +132,16 @@ def test_map_colours_at_known_patches(shrub_run):
         assert np.abs(img[row, col] - want).max() < 0.05, (cover, img[row, col], want)
 
 
+def test_the_map_caption_states_what_made_it(shrub_run):
+    # the run's defaults as the README states them: 5 ft cells, 25 ft density radius, cover breaks 0.30 / 0.70
+    from gistools.plot import map_parameters
+    from gistools.units import LinearUnit
+
+    out, _ = shrub_run
+    text = map_parameters(out / "classes.vrt", out / "cover.vrt", LinearUnit("US survey foot", 1200 / 3937))
+    assert text == "cell 5 ftUS; density radius 25 ftUS; cover: light <= 0.30 < medium <= 0.70 < heavy"
+
+
 def test_class_polygons_are_valid_dissolved_and_exact():
     """Regions of one code meeting at a corner, a hole holding another code: one valid MultiPolygon per code,
     each with exactly its cells' area, the hole kept."""

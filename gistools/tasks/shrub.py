@@ -533,7 +533,7 @@ def _previous_run(out: Path) -> dict:
 
 def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None = None) -> dict:
     """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``."""
-    from ..plot import shrub_map
+    from ..plot import map_parameters, shrub_map
 
     out = Path(out)
     if not (out / "classes.vrt").exists():
@@ -542,7 +542,8 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
         summary = _previous_run(out)
         unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     with claim_output(out, "gistools map"):
-        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit)
+        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit,
+                         parameters=map_parameters(out / "classes.vrt", out / "cover.vrt", unit))
 
 
 def _write_polygons(path, polygons, crs, tile_field, area_m2):

@@ -372,7 +372,7 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
             density, cover = vegetation_cover(big, cs, r, tuple(density_bands), halo)
             return {"cover": cover, "density": density}
 
-        outputs = {"cover": (out, "float32", NODATA, {"GISTOOLS_PRODUCT": "cover"}),
+        outputs = {"cover": (out, "float32", NODATA, {"GISTOOLS_PRODUCT": "cover", "GISTOOLS_RADIUS": r}),
                    "density": (density_out, "float32", NODATA, {"GISTOOLS_PRODUCT": "density"})}
         paths = run_blockwise(base, outputs, compute, progress=progress, label="density", overwrite=overwrite, block=block)
     return {**paths, "radius": r}
