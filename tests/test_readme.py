@@ -7,6 +7,8 @@ import shutil
 import subprocess
 import sys
 
+import pytest
+
 from conftest import ROOT, SAMPLE
 
 
@@ -20,3 +22,54 @@ def test_the_readme_python_example_runs_as_a_script(tmp_path):
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert "{'ok': 4, 'failed': 0, 'skipped': 0}" in proc.stdout
     assert "Traceback" not in proc.stderr and "forked" not in proc.stderr  # the guard lets the workers spawn
+
+
+_COPY_SKIP = shutil.ignore_patterns(".venv", ".git", "out", "dist", "build", "__pycache__", "*.egg-info")
+# the one README command not run here: it is the test suite itself (.ci/run runs it)
+_NOT_HERE = ("bash tools/run.sh test",)
+
+
+def _bash_blocks(text: str) -> list[str]:
+    """The ```bash blocks, list-item indented ones dedented."""
+    import textwrap
+
+    return [textwrap.dedent(body) for _, body in re.findall(r"^( *)```bash\n(.*?)^\1```", text, re.S | re.M)]
+
+
+def test_every_readme_command_block_runs_as_printed(tmp_path):
+    """Each ```bash block of the README, in order, in a copy of this checkout (its .venv linked, so run.sh finds
+    it set up) to which `gistools examples .` added the example inputs; HOME is a fresh folder (the plugin
+    block installs into ~/.local/share/QGIS). A block that fails names itself and its output."""
+    import os
+
+    stamp = ROOT / ".venv" / ".gistools-installed"
+    inputs = b"".join((ROOT / f).read_bytes() for f in ("pyproject.toml", "setup.py", "gistools/lidar/_tinkernel.c",
+                                                         "tools/constraints-debian12.txt")) + b"wheels=0\n"
+    import hashlib
+
+    if not stamp.exists() or stamp.read_text().strip() != hashlib.sha256(inputs).hexdigest()[:16]:
+        pytest.fail("the .venv is not set up for this checkout: run `bash tools/run.sh test` (the README's command), "
+                    "so that the copy's run.sh does not reinstall gistools into it")
+    work = tmp_path / "checkout"
+    shutil.copytree(ROOT, work, ignore=_COPY_SKIP)
+    (work / ".venv").symlink_to(ROOT / ".venv")
+    home = tmp_path / "home"
+    home.mkdir()
+    venv_bin = ROOT / ".venv" / "bin"
+    shims = tmp_path / "shims"  # the README is written for a user with sudo; as root without it, sudo runs the command
+    shims.mkdir()
+    if os.geteuid() == 0 and not shutil.which("sudo"):
+        (shims / "sudo").write_text('#!/bin/sh\nexec "$@"\n')
+        (shims / "sudo").chmod(0o755)
+    env = {**os.environ, "HOME": str(home), "PATH": f"{venv_bin}:{shims}:{os.environ['PATH']}", "QT_QPA_PLATFORM": "offscreen"}
+    env.pop("PIP_CONSTRAINT", None)  # run.sh's: the blocks say which constraints they use
+    prep = subprocess.run(["gistools", "examples", "."], cwd=work, env=env, capture_output=True, text=True, timeout=600)
+    assert prep.returncode == 0, prep.stderr[-2000:]
+    blocks = _bash_blocks((ROOT / "README.md").read_text())
+    assert len(blocks) >= 9
+    for i, block in enumerate(blocks, 1):
+        lines = [ln for ln in block.splitlines() if not any(ln.strip().startswith(s) for s in _NOT_HERE)]
+        proc = subprocess.run(["bash", "-euo", "pipefail", "-c", "\n".join(lines)], cwd=work, env=env,
+                              capture_output=True, text=True, timeout=1800)
+        assert proc.returncode == 0, f"README bash block {i} failed:\n{block}\n{proc.stdout[-1500:]}\n{proc.stderr[-2500:]}"
+        assert "Traceback" not in proc.stderr, f"README bash block {i}:\n{proc.stderr[-2500:]}"

@@ -19,21 +19,18 @@ import sys
 from pathlib import Path
 
 import geopandas as gpd
+import laspy
 import numpy as np
 import pyproj
 import shapely
 from shapely.geometry import box
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from gistools.io.points import write_tile  # noqa: E402
-from gistools.synthetic import COVER, make_scene, scene_points, write_breaklines  # noqa: E402
+from gistools.synthetic import COVER  # noqa: E402
+from gistools.tasks.examples import write_sample_block  # noqa: E402
 
 CRS = pyproj.CRS.from_epsg(2882)
-TILE = 1000.0  # ftUS
-ORIGIN = (430000.0, 1810000.0)
-# Levy-like 5-digit tile numbers: row 357 / 358 (north to south), column 12 / 13.
-TILE_IDS = {(0, 0): 35712, (0, 1): 35713, (1, 0): 35812, (1, 1): 35813}
-LAZ_TILE = 35813
+LAZ_TILE = 35813  # the one LAZ tile (the block: gistools/tasks/examples.py write_sample_block)
 
 
 def main(argv=None):
@@ -45,21 +42,10 @@ def main(argv=None):
     if out.exists():
         shutil.rmtree(out)
     out.mkdir(parents=True)
-    scene = make_scene(ORIGIN, (2 * TILE, 2 * TILE), seed=args.seed)
-    pts = scene_points(scene, scene.bounds, spacing=4.0, seed=args.seed)
-    footprints = []
-    for (row, col), tid in TILE_IDS.items():
-        w = ORIGIN[0] + col * TILE
-        s = ORIGIN[1] + (1 - row) * TILE
-        m = (pts["x"] >= w) & (pts["x"] < w + TILE) & (pts["y"] >= s) & (pts["y"] < s + TILE)
-        tile = {k: v[m] for k, v in pts.items()}
-        suffix = ".laz" if tid == LAZ_TILE else ".las"
-        write_tile(out / f"{tid}{suffix}", tile, CRS, version="1.1", point_format=1, offsets=[w, s, 0.0],
-                   vertical_epsg=6360)  # NAVD88 height (ftUS), as FDEM deliveries
-        footprints.append({"TILE_ID": tid, "FILENAME": f"{tid}{suffix}", "geometry": box(w, s, w + TILE, s + TILE)})
-        print(f"{tid}{suffix}: {m.sum():,} points")
+    scene, footprints = write_sample_block(out, seed=args.seed, laz=(LAZ_TILE,))
+    for f in footprints:
+        print(f"{f['FILENAME']}: {laspy.read(out / f['FILENAME']).header.point_count:,} points")
     block = box(*scene.bounds)
-    write_breaklines(scene, footprints, out / "breaklines.gpkg", CRS)
     truth = out / "truth.gpkg"
     gpd.GeoDataFrame(
         {"cover": [p.cover for p in scene.shrubs], "band": [p.band for p in scene.shrubs],

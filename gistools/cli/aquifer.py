@@ -63,11 +63,12 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
                             overwrite=overwrite, progress=progress)
     for layer, info in rep["layers"].items():
         click.echo(f"{layer}: {info['points']} points ({info['flagged']} flagged), {info['triangles']} triangles, "
-                   f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f}")
+                   f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f} square "
+                   f"{rep['length_unit']}")
     for name, u in rep["units"].items():
         click.echo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / {u['volume_negative']:,.0f}) "
-                   f"{rep['volume_unit']}; thickness {u['thickness_min']:.2f} / {u['thickness_mean']:.2f} / "
-                   f"{u['thickness_max']:.2f}")
+                   f"{rep['volume_unit']}; thickness min / mean / max {u['thickness_min']:.2f} / {u['thickness_mean']:.2f} / "
+                   f"{u['thickness_max']:.2f} {rep['length_unit']}")
     click.echo(f"report: {out}/report.json")
 
 
