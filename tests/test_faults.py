@@ -211,7 +211,7 @@ def test_a_step_rerun_that_fails_prints_why_and_leaves_the_folder_as_it_was(shru
     (shrub_out / "ndsm" / "35712.tif").write_bytes(b"damaged")  # the bands step reads it; steps never redo rasters
     (shrub_out / "veg" / "35813.tif").write_bytes(b"damaged")  # the density step reads it, and the clip step rewrites it
     before = snapshot(shrub_out)
-    code, text = invoke([step, shrub_out, "-q", "--radius", "30ft"])
+    code, text = invoke([step, shrub_out, "-q", *{"bands": ["--bands", "text_literal"], "density": ["--radius", "30ft"]}[step]])
     assert code == 1 and "Traceback" not in text
     if step == "bands":
         assert "FAILED" in text and "35712" in text

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import geopandas as gpd
 import numpy as np
@@ -13,7 +14,7 @@ from click.testing import CliRunner
 
 from conftest import SAMPLE, SHARED_DATA
 from gistools.cli.main import cli
-from gistools.errors import CRSMismatchError
+from gistools.errors import CRSMismatchError, InputError
 from gistools.grid import cell_centres
 from gistools.io.points import write_tile
 from gistools.io.raster import read_raster
@@ -367,7 +368,7 @@ def test_steps_one_by_one(sample_tiles, tmp_path):
     assert wider["density_radius"] == 50.0 and wider["band_area"] == first["band_area"]
     assert wider["class_area"] != first["class_area"]
     assert (out / "bands" / f"{sample_tiles[0].stem}.tif").stat().st_mtime_ns == bands_before  # kept
-    r = CliRunner().invoke(cli, ["classify", str(out), "-q", "--classify", "jenks", "--radius", "50ft", "--no-map"])
+    r = CliRunner().invoke(cli, ["classify", str(out), "-q", "--classify", "jenks", "--no-map"])
     assert r.exit_code == 0, r.output
     jenks = json.loads((out / "report.json").read_text())
     assert jenks["class_breaks"] != [0.3, 0.7] and 0 < jenks["class_breaks"][0] < jenks["class_breaks"][1] <= 1
@@ -437,6 +438,49 @@ def test_a_step_rerun_records_what_it_used_and_keeps_the_earlier_steps_parameter
     second = json.loads((out / "report.json").read_text())
     assert second["density_radius"] == pytest.approx(50.0) and second["class_method"] == "quantile"
     assert second["band_thresholds"] == first["band_thresholds"]
+
+
+def test_each_command_keeps_its_record_and_a_step_rerun_redoes_the_later_steps_as_they_were_made(shrub_run, tmp_path):
+    """gistools bands reruns clip with the chain's breaklines (road and water areas unchanged) and density with its
+    radius; gistools rasters afterwards keeps the chain's class areas; report.json has one line per command."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(shrub_run[0], out)
+    chain = json.loads((out / "report.json").read_text())
+    assert chain["settings"]["roads"] == str(Path(VECTORS["roads"].rsplit(":", 1)[0]).resolve()) + ":ROADBREAKLINE"
+    r = CliRunner().invoke(cli, ["bands", str(out), "-q", "--noise-floor", "0.05m", "--bands", "text_literal", "--no-map"])
+    assert r.exit_code == 0, r.output
+    rerun = json.loads((out / "report.json").read_text())
+    assert rerun["tool"] == "gistools bands" and rerun["settings"]["noise_floor"] == "0.05m"
+    assert rerun["band_thresholds"] != chain["band_thresholds"] and rerun["settings"]["bands"] == "text_literal"
+    assert {k: rerun["class_area"][k] for k in ("road", "water")} == {k: chain["class_area"][k] for k in ("road", "water")}
+    assert rerun["density_radius"] == chain["density_radius"] and rerun["settings"]["radius"] == chain["settings"]["radius"]
+    r = CliRunner().invoke(cli, ["rasters", str(SAMPLE), "--out", str(out), "-q"])
+    assert r.exit_code == 0, r.output
+    after = json.loads((out / "report.json").read_text())
+    assert after["tool"] == "gistools rasters" and after["class_area"] == rerun["class_area"]
+    assert after["settings"] == rerun["settings"] and "steps_predate_rasters" not in after  # every tile kept
+    assert [run["tool"] for run in after["runs"]][-2:] == ["gistools bands", "gistools rasters"]
+    assert after["runs"][-2]["settings"]["noise_floor"] == "0.05m"
+
+
+@pytest.mark.parametrize("step, own, others", [
+    ("bands", ["--bands", "--band-breaks", "--noise-floor"], ["--roads", "--radius", "--breaks"]),
+    ("clip", ["--roads", "--hydro", "--max-road-width", "--snap"], ["--bands", "--radius", "--classify"]),
+    ("density", ["--radius", "--density-bands"], ["--roads", "--bands", "--breaks"]),
+    ("classify", ["--classify", "--breaks"], ["--roads", "--radius", "--noise-floor"]),
+])
+def test_each_step_help_shows_its_own_options(step, own, others):
+    text = CliRunner().invoke(cli, [step, "--help"]).output
+    assert all(o in text for o in own) and not any(o + " " in text for o in others), text
+
+
+def test_a_step_refuses_another_steps_setting(shrub_run):
+    from gistools.tasks.shrub import step_settings
+
+    with pytest.raises(InputError, match="radius: not a setting of the bands step"):
+        step_settings(shrub_run[0], "bands", radius="50ft")
 
 
 def test_the_nodata_share_is_given_per_cause(shrub_run):

@@ -131,24 +131,63 @@ def _breaks_line(report: dict) -> str:
             f"within {report['density_radius']:g} {report.get('horizontal_unit', 'CRS units')}")
 
 
-def _step_options(fn):
-    """Options of the steps after the rasters (the same words, defaults and help as gistools shrub)."""
-    fn = _options([_vector_options, _step_parameters,
-                   click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'."),
-                   jobs_opt, click.option("--quiet", "-q", is_flag=True, help="No progress bar.")])(fn)
-    return click.argument("out", type=click.Path(exists=True, file_okay=False))(fn)
+_RECORDED = "Default: as the earlier run (OUT/report.json)."
 
 
-def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, band_preset,
-              band_breaks, noise_floor, radius, density_bands, classify, class_breaks, max_road_width, snap, no_map,
-              scheduler, jobs, quiet):
-    settings = ShrubSettings(bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
-                             density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
-                             max_road_width=max_road_width, snap=snap, tile_field=tile_field)
+def _step_command(stage, *own):
+    """A one-step command: OUT, the options of its own step (each defaulting to what the earlier run recorded), the
+    map, the pool and progress options. The steps after it are redone with the settings they were made with."""
+    def wrap(fn):
+        fn = _options([*own, click.option("--no-map", is_flag=True, help="Skip the PNG / PDF map."),
+                       click.option("--scheduler", default=None, metavar="ADDRESS",
+                                    help="Dask scheduler (tcp://host:8786) or 'local' (for runs past one machine)."),
+                       jobs_opt, click.option("--quiet", "-q", is_flag=True, help="No progress bar.")])(fn)
+        return click.argument("out", type=click.Path(exists=True, file_okay=False))(fn)
+    return wrap
+
+
+_bands_own = [
+    click.option("--bands", "bands", type=click.Choice(list(PRESETS)), default=None,
+                 help="Height bands: exact 1 / 2 / 6 m, or the dissertation's printed 3.28 / 6.56 / 19.658 ft. " + _RECORDED),
+    click.option("--band-breaks", "band_breaks_m", callback=_floats, default=None,
+                 help="Three band limits in metres, e.g. 1,2,6. " + _RECORDED),
+    click.option("--noise-floor", default=None, help="Heights up to this are bare ground (B0), e.g. 0.1m. " + _RECORDED),
+]
+_clip_own = [
+    click.option("--roads", help="Edge-of-pavement lines (file.gpkg:LAYER or a shapefile). " + _RECORDED),
+    click.option("--hydro", help="Hydrographic breaklines: dual-line banks and single-line features. " + _RECORDED),
+    click.option("--waterbodies", help="Water body polygons (islands as holes). " + _RECORDED),
+    click.option("--wetlands", help="Wetland polygons: vegetation inside them is written apart (wetveg/). " + _RECORDED),
+    click.option("--tile-index", help="Tile footprints (FOOTPRINT) that split the breaklines. " + _RECORDED),
+    click.option("--tile-field", default=None, help="Tile-number field of --tile-index. " + _RECORDED),
+    click.option("--reproject-vectors", is_flag=True, default=None,
+                 help="Reproject vector layers to the points' CRS instead of refusing."),
+    click.option("--max-road-width", default=None, help="Wider faces between road lines are blocks, not road, e.g. 60ft. "
+                 + _RECORDED),
+    click.option("--snap", default=None, help="Breakline snapping tolerance, e.g. 0.2ft. " + _RECORDED),
+]
+_density_own = [
+    click.option("--radius", default=None, help="Density neighbourhood radius, e.g. 25ft. " + _RECORDED),
+    click.option("--density-bands", callback=parse_classes, default=None,
+                 help="Bands whose vegetation is counted, e.g. 1,2,3 (1 is the dissertation's choice). " + _RECORDED),
+]
+_classes_own = [
+    click.option("--classify", type=click.Choice(CLASS_METHODS), default=None,
+                 help="breaks: --breaks on cover; quantile / jenks: breaks from the data. " + _RECORDED),
+    click.option("--breaks", "class_breaks", callback=_floats, default=None,
+                 help="Cover fractions (0-1) between light / medium and medium / heavy, e.g. 0.3,0.7. " + _RECORDED),
+]
+
+
+def _run_step(stage, out, no_map, scheduler, jobs, quiet, **given):
+    """Rerun ``stage`` (and the steps after it) on ``out`` with the given options changed."""
+    from ..tasks.shrub import step_settings
+
+    changes = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items() if v is not None and v is not False}
+    settings, layers = step_settings(out, stage, **changes)
     with progress_bar(quiet) as progress:
-        report = shrub_from_tiles(None, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
-                                  tile_index=tile_index, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
-                                  make_map=not no_map, from_stage=stage, progress=progress)
+        report = batch_report(lambda: shrub_from_tiles(None, out, settings, **layers, jobs=jobs, scheduler=scheduler,
+                                                       make_map=not no_map, from_stage=stage, progress=progress))
     if not report.get("rolled_back"):
         click.echo(f"{stage} and the steps after it rerun on {out}; class area ({report['area_unit']}): "
                    + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
@@ -164,9 +203,10 @@ def _run_step(stage, out, roads, hydro, waterbodies, wetlands, tile_index, tile_
 
 
 @click.command()
-@_step_options
+@_step_command("bands", *_bands_own)
 def bands(**kw):
-    """Rerun the height bands (and the steps after them) on OUT, an output folder of gistools shrub.
+    """Rerun the height bands (and the steps after them, with their recorded settings) on OUT, an output folder of
+    gistools shrub.
 
     \b
     Example:
@@ -176,9 +216,9 @@ def bands(**kw):
 
 
 @click.command()
-@_step_options
+@_step_command("clip", *_clip_own)
 def clip(**kw):
-    """Rerun road / water clipping and vegetation selection (and the steps after) on OUT.
+    """Rerun road / water clipping and vegetation selection (and the steps after, with their recorded settings) on OUT.
 
     \b
     Example:
@@ -188,9 +228,9 @@ def clip(**kw):
 
 
 @click.command()
-@_step_options
+@_step_command("density", *_density_own)
 def density(**kw):
-    """Rerun the point density and cover (and the classes) on OUT.
+    """Rerun the point density and cover (and the classes, with their recorded settings) on OUT.
 
     \b
     Example:
@@ -200,7 +240,7 @@ def density(**kw):
 
 
 @click.command()
-@_step_options
+@_step_command("classes", *_classes_own)
 def classify(**kw):
     """Rerun the light / medium / heavy classes (polygons, map, report) on OUT.
 

@@ -15,7 +15,7 @@ from .points import crs_label
 
 log = logging.getLogger(__name__)
 
-__all__ = ["read_layer", "check_crs", "write_layer", "write_layers"]
+__all__ = ["absolute_spec", "read_layer", "check_crs", "write_layer", "write_layers"]
 
 
 def _split(spec) -> tuple[Path, str | None]:
@@ -24,6 +24,12 @@ def _split(spec) -> tuple[Path, str | None]:
         path, layer = text.rsplit(":", 1)
         return Path(path), layer
     return Path(text), None
+
+
+def absolute_spec(spec) -> str:
+    """``path`` or ``path:LAYER`` with the path made absolute (to record where a layer came from)."""
+    path, layer = _split(spec)
+    return str(path.resolve()) + (f":{layer}" if layer is not None else "")
 
 
 def read_layer(spec, kinds: tuple[str, ...] | None = None, what: str = "layer") -> gpd.GeoDataFrame:

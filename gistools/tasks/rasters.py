@@ -37,6 +37,7 @@ from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, fin
                                max_with_class, merge_top_class, surface_classes)
 from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
+from .record import write_folder_report
 from .batch import drive, fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
@@ -509,8 +510,7 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     summary = _summary(infos, run, settings, results, _mosaics(out, settings.products, results), scratch_peak, started)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(summary, indent=2))
+    write_folder_report(out, summary, partial=True)
     return summary
 
 

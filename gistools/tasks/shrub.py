@@ -32,7 +32,7 @@ from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_ti
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
 from ..io.outdir import Rollback, claim_output
-from ..io.raster import atomic_path, raster_is_readable, write_vrt
+from ..io.raster import raster_is_readable, write_vrt
 from ..io.vector import check_crs, check_field, read_layer, write_layer
 from ..lidar.bands import BAND_NAMES, band_thresholds
 from ..lidar.vegetation import VEG_ROAD, VEG_WATER
@@ -44,6 +44,7 @@ from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
 from .batch import make_pool, run_each
 from .rasters import RasterSettings, rasters_from_tiles
+from .record import write_folder_report
 from .settings import ShrubSettings
 from .steps import band_summary, bands_from_ndsm, class_breaks, class_summary, classes_from_cover, clip_bands, \
     density_from_vegetation, nodata_causes
@@ -336,13 +337,23 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         if pool is not None:
             pool.close()
     good = [n for n in names if states[n].status == "ok"]
-    _write_chain_outputs(out, good, mosaic, polygons, crs, summary, settings,
-                         f"Shrub density - {_input_label(inputs) if inputs else out.name}" if make_map else None)
+    title = f"Shrub density - {_input_label(inputs)}" if inputs else summary.get("map_title") or f"Shrub density - {out.name}"
+    _write_chain_outputs(out, good, mosaic, polygons, crs, summary, settings, title if make_map else None)
     report(progress, 1.0, "done")
     shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started, settings.classify)
-    shrub_report.update(_kept_parameters(summary, from_stage))
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(shrub_report, indent=2, default=str))
+    record = settings_record(settings, dict(zip(LAYERS, layers)), reproject_vectors)
+    return write_folder_report(out, _as_run_of(shrub_report, summary, from_stage, title, record))
+
+
+def _as_run_of(shrub_report: dict, previous: dict, from_stage: str, title: str, record: dict) -> dict:
+    """The chain's report as the record of the command that ran (the chain or a step rerun from ``from_stage``):
+    the stages it did not redo keep what the earlier run recorded."""
+    shrub_report.update(tool="gistools shrub" if from_stage == "rasters" else f"gistools {STEP_COMMANDS[from_stage]}",
+                        map_title=title, settings=record)
+    shrub_report.update(_kept_parameters(previous, from_stage))
+    _keep_earlier_settings(shrub_report["settings"], previous.get("settings"), from_stage)
+    if from_stage in ("rasters", "bands"):
+        shrub_report.pop("steps_predate_rasters", None)  # every step remade from the rasters
     return shrub_report
 
 
@@ -475,6 +486,42 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
 
 # the report's parameters of each stage: a step rerun from a later stage keeps the earlier stages' as they were made
 _STAGE_PARAMETERS = {"bands": ("band_thresholds", "band_unit"), "density": ("density_radius", "density_bands")}
+# the settings (as given: lengths with their units) and the layers of each stage, recorded in report.json["settings"]
+STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
+                  "clip": ("snap", "max_road_width", "max_hydro_width", "single_line_width", "tile_field", "roads", "hydro",
+                           "waterbodies", "wetlands", "tile_index", "reproject_vectors"),
+                  "density": ("radius", "density_bands"), "classes": ("classify", "class_breaks")}
+LAYERS = ("roads", "hydro", "waterbodies", "wetlands", "tile_index")
+STEP_COMMANDS = {"bands": "bands", "clip": "clip", "density": "density", "classes": "classify"}
+
+
+def settings_record(settings: ShrubSettings, layers: dict, reproject_vectors: bool) -> dict:
+    """The step settings and vector layers a run used, as given (lengths with units; layer files made absolute, so
+    that a step rerun from another folder finds them)."""
+    from ..io.vector import absolute_spec
+
+    record = {k: getattr(settings, k) for stage in STAGE_SETTINGS.values() for k in stage if hasattr(settings, k)}
+    record.update({k: absolute_spec(v) if v is not None else None for k, v in layers.items()})
+    record["reproject_vectors"] = bool(reproject_vectors)
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in record.items()}
+
+
+def step_settings(out, stage: str, **changes) -> tuple[ShrubSettings, dict]:
+    """(settings, layers) for rerunning ``stage`` on ``out``: what report.json records the earlier run used, with
+    ``changes`` (names of ShrubSettings fields, of the layers or ``reproject_vectors``) to the settings of ``stage``
+    only; the stages after it are redone with what they were made with. The one-step commands use this."""
+    if stage not in STEP_COMMANDS:
+        raise InputError(f"stage {stage!r} is not one of {', '.join(STEP_COMMANDS)}")
+    wrong = sorted(set(changes) - set(STAGE_SETTINGS[stage]))
+    if wrong:
+        raise InputError(f"{', '.join(wrong)}: not a setting of the {stage} step",
+                         hint=f"The {stage} step takes {', '.join(STAGE_SETTINGS[stage])}")
+    recorded = dict(_previous_run(Path(out)).get("settings") or {})
+    recorded.update(changes)
+    fields = {k: tuple(v) if isinstance(v, list) else v for k, v in recorded.items() if k in ShrubSettings.__dataclass_fields__}
+    layers = {k: recorded.get(k) for k in LAYERS}
+    layers["reproject_vectors"] = bool(recorded.get("reproject_vectors", False))
+    return ShrubSettings(**fields), layers
 
 
 def _kept_parameters(previous: dict, from_stage: str) -> dict:
@@ -485,6 +532,14 @@ def _kept_parameters(previous: dict, from_stage: str) -> dict:
     start = STAGES.index(from_stage)
     return {k: previous[k] for stage, keys in _STAGE_PARAMETERS.items() if STAGES.index(stage) < start
             for k in keys if k in previous}
+
+
+def _keep_earlier_settings(record: dict, previous: dict | None, from_stage: str) -> None:
+    """The settings of the stages a rerun from ``from_stage`` did not redo, as the earlier run recorded them."""
+    if from_stage == "rasters" or not previous:
+        return
+    for stage in STAGES[1:STAGES.index(from_stage)]:
+        record.update({k: previous[k] for k in STAGE_SETTINGS[stage] if k in previous})
 
 
 def _mean_causes(per_tile: list) -> dict | None:

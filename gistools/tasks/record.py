@@ -1,0 +1,59 @@
+"""report.json: the record of an output folder (what its products were made with) and of each command run on it.
+
+Every command that writes into a folder adds its line to ``runs`` (tool, when, seconds, counts, settings), so a
+rerun records what it used. A command that makes only part of a folder's products (``gistools rasters`` on a folder
+of the shrub chain) updates its own keys and keeps the others (class and band areas, the steps' settings).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from ..io.raster import atomic_path
+
+__all__ = ["run_record", "write_folder_report", "read_folder_report", "MAX_RUNS"]
+
+MAX_RUNS = 50  # the lines kept in report.json["runs"], newest last
+
+# the keys of the shrub chain's record that gistools rasters does not make (kept when it reruns on such a folder)
+CHAIN_KEYS = ("area_unit", "band_thresholds", "band_unit", "density_radius", "density_bands", "class_breaks", "class_method",
+              "band_area", "band_area_from_returns", "class_area", "class_area_acres", "nodata_share", "nodata_by_cause",
+              "settings", "map_title")
+
+
+def run_record(report: dict) -> dict:
+    """One command's line in report.json["runs"]: what ran, when, how long, with what, and how it went."""
+    return {"tool": report.get("tool"), "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "seconds": report.get("seconds"),
+            "counts": report.get("counts"), **({"settings": report["settings"]} if "settings" in report else {})}
+
+
+def read_folder_report(out) -> dict | None:
+    """The folder's report.json, or None where there is none (or it is not a JSON object)."""
+    path = Path(out) / "report.json"
+    try:
+        value = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return value if isinstance(value, dict) else None
+
+
+def write_folder_report(out, report: dict, *, partial: bool = False) -> dict:
+    """Write ``report`` as ``out/report.json`` (atomic), with the earlier runs' lines and this one's; returns what was
+    written. ``partial``: the command made only some of the folder's products (gistools rasters): the earlier
+    record's keys of the chain and its tiles' other fields are kept, where it is of the same CRS."""
+    previous = read_folder_report(out) or {}
+    merged = dict(report)
+    if partial and previous.get("crs_wkt") == report.get("crs_wkt") and "class_area" in previous:
+        merged = {**{k: previous[k] for k in CHAIN_KEYS if k in previous}, **report}
+        before = {t.get("name"): t for t in previous.get("tiles", []) if isinstance(t, dict)}
+        merged["tiles"] = [{**before.get(t["name"], {}), **t} for t in report.get("tiles", [])]
+        merged["mosaics"] = {**previous.get("mosaics", {}), **report.get("mosaics", {})}
+        if any(t.get("status") == "ok" for t in report.get("tiles", [])):
+            merged["steps_predate_rasters"] = True  # rasters remade: the bands ... classes are of the earlier ones
+    runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
+    merged["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(report)]
+    with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(merged, indent=2, default=str))
+    return merged
