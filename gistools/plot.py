@@ -23,6 +23,16 @@ def _nice_length(target: float) -> float:
     return float(10 * exp)
 
 
+def plain_axes(ax) -> None:
+    """Axis labels as plain numbers with thousands separators (no "1e6" offset: map coordinates are read whole)."""
+    from matplotlib.ticker import FuncFormatter, MaxNLocator
+
+    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(fmt)
+        axis.set_major_locator(MaxNLocator(4))  # room for seven-digit labels
+
+
 def new_figure(figsize):
     """A matplotlib Figure with its own Agg canvas: drawing and saving it leave pyplot and the process's backend
     alone (inside the QGIS desktop, ``matplotlib.use`` would switch QGIS's own)."""

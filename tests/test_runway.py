@@ -224,6 +224,10 @@ def test_cli_outputs_report_and_diagram_data(tmp_path):
     assert rep["net"] == pytest.approx(width * np.trapz(d, x), rel=2e-3)
     assert rep["balance_points"][0] == 0.0
     assert rep["totals"]["overhaul"] > 0 and rep["totals"]["haul_moment"] > 0
+    assert rep["units"]["overhaul"] == "m3 x m" and rep["free_haul"] == 150.0
+    assert f"overhaul beyond the free haul of 150 m: {rep['totals']['overhaul']:,.0f} m3 x m" in \
+        CliRunner().invoke(cli, ["runway", str(tmp_path / "survey.csv"), "--code", "4E", "--crs", "EPSG:3003", "--spacing",
+                                 "10m", "--out", str(tmp_path / "o2"), "--free-haul", "150m"]).output
     sections = __import__("pandas").read_csv(tmp_path / "o" / "sections.csv")
     assert len(sections) == rep["stations"] * (len(np.unique(sections["y0"])))
     assert sections.groupby("station")["cut"].sum().max() > 0

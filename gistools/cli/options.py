@@ -84,3 +84,18 @@ classify_ground_opt = click.option(
     "--classify-ground", type=click.Choice(_ground_methods()), default=None,
     help="For tiles without ground classes: classify ground and noise first (gistools ground, with its defaults) "
          "into OUT/classified/ and make the rasters from those.")
+
+
+def dem_options(defaults):
+    """--dem-method and --dem-max-distance, the same words in gistools rasters and gistools shrub."""
+    from ..lidar.gridding import DEM_METHODS
+
+    def apply(fn):
+        fn = click.option("--dem-max-distance", default=defaults.dem_max_distance, show_default=True,
+                          help="DEM cells farther than this from every ground point stay nodata (tin, idw).")(fn)
+        return click.option("--dem-method", type=click.Choice(DEM_METHODS), default=defaults.dem_method, show_default=True,
+                            help="tin: Delaunay of the ground points, at cell centres (fills gaps); max / min / mean: the "
+                                 "highest / lowest / mean ground point of each cell (max is the dissertation's Point To "
+                                 "Raster MAXIMUM; empty cells stay nodata); idw: inverse-distance weighted ground points "
+                                 "within --dem-max-distance.")(fn)
+    return apply

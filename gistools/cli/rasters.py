@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ..lidar.gridding import DEM_METHODS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
-from .options import batch_report, chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
+                      progress_bar)
 
 
 _DEFAULTS = RasterSettings()  # the options' defaults are the library's
@@ -16,12 +16,9 @@ _DEFAULTS = RasterSettings()  # the options' defaults are the library's
 @click.argument("inputs", nargs=-1, required=True)
 @click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @click.option("--cell-size", default=_DEFAULTS.cell_size, show_default=True, help="Cell size with its unit: 5ft, 1.5m, or a bare number in CRS units.")
-@click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_DEFAULTS.dem_method, show_default=True,
-              help="tin: Delaunay of ground points at cell centres (fills gaps); max: the dissertation's Point To Raster MAXIMUM (gaps stay nodata).")
 @click.option("--dsm-classes", callback=parse_classes, default=None,
               help="Classes in the DSM (first returns), e.g. 1,2 as in the dissertation. Default: all but noise (7, 18).")
-@click.option("--dem-max-distance", default=_DEFAULTS.dem_max_distance, show_default=True,
-              help="DEM cells farther than this from every ground point stay nodata (tin, idw).")
+@dem_options(_DEFAULTS)
 @click.option("--buffer", default=None, help="How far to read ground points from neighbouring tiles. Default: 2 x --dem-max-distance, at least 20 cells.")
 @click.option("--products", default=",".join(_DEFAULTS.products), show_default=True, help="Which rasters to write, comma-separated.")
 @classify_ground_opt

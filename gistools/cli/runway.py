@@ -67,6 +67,10 @@ def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, 
                f"{rep['spacing']:.2f} m over {rep['length']:.1f} m, bearing {rep['bearing']:.2f} deg")
     click.echo(f"cut {rep['cut']:,.1f} m3, fill {rep['fill']:,.1f} m3, net {rep['net']:,.1f} m3; balance points "
                + (", ".join(f"{b:.1f}" for b in rep["balance_points"]) or "none"))
+    t = rep.get("totals", {})
+    if "overhaul" in t:
+        click.echo(f"haul moment {t['haul_moment']:,.0f} m3 x m, mean haul distance {t['mean_haul_distance']:,.1f} m; "
+                   f"overhaul beyond the free haul of {free_haul:g} m: {t['overhaul']:,.0f} m3 x m")
     r = rep["removed"]
     click.echo(f"removed: {r['duplicates']} duplicates, {r['outliers']} outliers; {r['renumbered']} renumbered; "
                f"report: {out}/report.json")

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import click
 
-from ..lidar.gridding import DEM_METHODS
 from ..lidar.bands import PRESETS
 from ..lidar.shrub import CLASS_METHODS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
-from .options import batch_report, chunk_opt, classify_ground_opt, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
+                      progress_bar)
 
 
 def _floats(ctx, param, value):
@@ -69,10 +69,8 @@ _step_parameters = _options([
 @click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
 @_vector_options
 @click.option("--cell-size", default=_S.raster.cell_size, show_default=True, help="Cell size with its unit.")
-@click.option("--dem-method", type=click.Choice(DEM_METHODS), default=_S.raster.dem_method, show_default=True,
-              help="tin: Delaunay of ground points at cell centres (fills gaps); max: the dissertation's Point To Raster MAXIMUM.")
 @click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
-@click.option("--dem-max-distance", default=_S.raster.dem_max_distance, show_default=True)
+@dem_options(_S.raster)
 @classify_ground_opt
 @_step_parameters
 @click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")

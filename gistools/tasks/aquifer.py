@@ -247,9 +247,11 @@ def _layers_gpkg(model: Model) -> dict:
 
 def _figures(model: Model, out: Path) -> list[Path]:
     import matplotlib
+    from matplotlib.colors import TwoSlopeNorm
 
-    from ..plot import new_figure
+    from ..plot import new_figure, plain_axes
 
+    unit = horizontal_unit(model.crs).name if model.crs is not None else "CRS units"
     paths = []
     fig = new_figure((9, 7))
     ax = fig.add_subplot(projection="3d")
@@ -260,9 +262,10 @@ def _figures(model: Model, out: Path) -> list[Path]:
         if len(t) > 4000:  # a readable view (and a quick one): every n-th triangle
             t = t[:: int(np.ceil(len(t) / 4000))]
         ax.plot_trisurf(s.x, s.y, s.z, triangles=t, color=cmap(k), alpha=0.6, linewidth=0, label=layer)
-    ax.set_xlabel("x")
-    ax.set_ylabel("y")
-    ax.set_zlabel("z")
+    ax.set_xlabel(f"x ({unit})")
+    ax.set_ylabel(f"y ({unit})")
+    ax.set_zlabel(f"z ({unit})")
+    plain_axes(ax)
     ax.set_title("Aquifer surfaces: " + ", ".join(model.layers))
     target = out / "surfaces_3d.png"
     with atomic_path(target, overwrite=True) as tmp:
@@ -273,10 +276,19 @@ def _figures(model: Model, out: Path) -> list[Path]:
         fig = new_figure((7, 6))
         ax = fig.subplots()
         w, s_, e, n = grid.bounds
-        im = ax.imshow(grid_t, extent=(w, e, s_, n), origin="upper", cmap="YlGnBu")
-        fig.colorbar(im, ax=ax, label="thickness (CRS units)")
+        finite = grid_t[np.isfinite(grid_t)]
+        low, high = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+        if low < 0 < high:  # the layers cross: a diverging scale centred on zero (red: the lower surface on top)
+            im = ax.imshow(grid_t, extent=(w, e, s_, n), origin="upper", cmap="RdBu", norm=TwoSlopeNorm(0.0, low, high))
+        else:
+            im = ax.imshow(grid_t, extent=(w, e, s_, n), origin="upper", cmap="YlGnBu")
+        fig.colorbar(im, ax=ax, label=f"thickness ({unit}; below 0: the layers cross)" if low < 0 else f"thickness ({unit})")
+        ax.set_xlabel(f"x ({unit})")
+        ax.set_ylabel(f"y ({unit})")
+        plain_axes(ax)
         ax.set_title(f"Thickness of {name}")
         ax.set_aspect("equal")
+        fig.tight_layout()
         target = out / f"thickness_{name.replace('/', '_')}.png"
         with atomic_path(target, overwrite=True) as tmp:
             fig.savefig(tmp, dpi=110, format="png")
