@@ -20,6 +20,7 @@ from gistools.aquifer.volume import overlay_volume
 from gistools.aquifer.walls import unit_mesh
 from gistools.mesh import match_rings, mesh_volume
 from gistools.cli.main import cli
+from gistools.errors import InputError
 from gistools.tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query, load_model, query_model
 
 DESIGN = SHARED_DATA.parent / "design"
@@ -390,3 +391,21 @@ def test_clip_polygon_and_concave_outline_cut_the_surfaces(tmp_path):
     concave = aquifer_model(pts, LAYERS, tmp_path / "c", crs="EPSG:3003",
                             settings=AquiferSettings(figures=False, concave_ratio=0.3))
     assert all(concave["layers"][L]["boundary_area"] <= 9e8 + 1 for L in LAYERS)
+
+
+def test_contacts_with_other_column_names_read_through_the_chosen_fields(tmp_path):
+    """QGIS's field pickers and --fields: a table whose columns are named otherwise reads as the usual one."""
+    from gistools.io.contacts import read_contacts
+
+    points, _ = synthetic_aquifer(2012, planar=True, outliers=False)
+    points.to_csv(tmp_path / "usual.csv", index=False)
+    points.rename(columns={"z": "ELEV", "layer": "FORM", "id": "PID"}).to_csv(tmp_path / "other.csv", index=False)
+    layers = ["LS", "AU", "AD", "AQ"]
+    usual, _ = read_contacts(tmp_path / "usual.csv", layers, crs="EPSG:3003")
+    other, _ = read_contacts(tmp_path / "other.csv", layers, crs="EPSG:3003", fields={"z": "ELEV", "layer": "FORM", "id": "PID"})
+    assert np.array_equal(usual[["id", "x", "y", "z"]].to_numpy(), other[["id", "x", "y", "z"]].to_numpy())
+    with pytest.raises(InputError, match="the z field 'HEIGHT' is not a column"):
+        read_contacts(tmp_path / "other.csv", layers, crs="EPSG:3003", fields={"z": "HEIGHT", "layer": "FORM"})
+    r = CliRunner().invoke(cli, ["aquifer", "model", str(tmp_path / "other.csv"), "--layers", ",".join(layers), "--crs",
+                                 "EPSG:3003", "--fields", "z=ELEV,layer=FORM,id=PID", "--no-figures", "--out", str(tmp_path / "m")])
+    assert r.exit_code == 0, r.output

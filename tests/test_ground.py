@@ -257,9 +257,40 @@ def test_the_compiled_morphology_equals_the_numpy_one(monkeypatch):
     holes[100:150, 100:180] = np.nan
     compiled = G.progressive_filter(a, 1.0, 0.15, 18.0), G.fill_gaps(holes)
     monkeypatch.setattr(G, "_PROGRESSIVE", None)
+    monkeypatch.setattr(G, "_FILL_FRONT", None)  # the ring kernel over the whole grid, then numpy
+    assert np.array_equal(G.fill_gaps(holes), compiled[1], equal_nan=True)
     monkeypatch.setattr(G, "_FILL", None)
     assert np.array_equal(G.progressive_filter(a, 1.0, 0.15, 18.0), compiled[0])
     assert np.array_equal(G.fill_gaps(holes), compiled[1])
+    for rings in (1, 3):  # the front kernel stops after the same rings
+        monkeypatch.undo()
+        few = G.fill_gaps(holes, rings)
+        monkeypatch.setattr(G, "_FILL_FRONT", None)
+        monkeypatch.setattr(G, "_FILL", None)
+        assert np.array_equal(G.fill_gaps(holes, rings), few)
+
+
+@pytest.mark.parametrize("shape", [(300, 400), (1, 50), (40, 1), (2, 2)])
+def test_the_compiled_point_steps_of_smrf_equal_the_numpy_ones(monkeypatch, shape):
+    """Sampling the surfaces at the points, the slope threshold and ZIfin's cell means: the kernel's values are the
+    numpy code's, to the bit (the same operations in the same order), on grids of one row or column too."""
+    from gistools.lidar import ground as G
+
+    if G._BILINEAR is None:
+        pytest.skip("the compiled kernel is not built here")
+    rng = np.random.default_rng(5)
+    n = 20 * shape[0] * shape[1]
+    x, y = rng.uniform(0, shape[1], n) + 1000.0, rng.uniform(0, shape[0], n) + 5000.0
+    z = np.sin(x / 7.0) * 3 + y * 0.05 + rng.normal(0, 0.1, n) + rng.uniform(0, 4, n) * (rng.uniform(size=n) < 0.3)
+    cand = rng.uniform(size=n) < 0.8
+    p = G.SmrfParams(cell=1.0, slope=0.15, window=18.0, threshold=0.5, scalar=1.25)
+    compiled = G.smrf_ground(x, y, z, cand, p)
+    for name in ("_BILINEAR", "_SLOPE_THRESHOLD", "_CELL_MEAN"):
+        monkeypatch.setattr(G, name, None)
+    if min(shape) > 1:  # numpy.gradient needs two cells along each axis; the kernel takes a flat surface there
+        numpy = G.smrf_ground(x, y, z, cand, p)
+        assert np.array_equal(numpy[0], compiled[0]) and np.array_equal(numpy[1], compiled[1])
+    assert compiled[0][cand].mean() > 0.5
 
 
 @pytest.mark.parametrize("shape", [(7, 5), (129, 40), (257, 3), (1, 60)])

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from gistools.errors import GistoolsError
 from gistools.cli.main import cli
 from gistools.runway.earthworks import (balance_points, brueckner, compensate, dissertation_strip_areas, heron, heron_kahan,
                                         section_areas, station_volumes, strip_areas)
@@ -299,3 +300,16 @@ def test_spacing_in_feet_gives_what_metres_give(tmp_path):
     assert reports[0]["spacing"] == pytest.approx(9.144, abs=1e-12)
     for key in ("spacing", "stations", "cut", "fill", "net"):
         assert reports[0][key] == pytest.approx(reports[1][key], rel=1e-12), key
+
+
+def test_a_survey_with_other_column_names_reads_through_the_chosen_fields(tmp_path):
+    from gistools.io.survey import read_survey
+
+    points, _ = synthetic_runway(8)
+    points.to_csv(tmp_path / "usual.csv", index=False)
+    points.rename(columns={"type": "KIND", "z": "ELEV"}).to_csv(tmp_path / "other.csv", index=False)
+    usual, _ = read_survey(tmp_path / "usual.csv")
+    other, _ = read_survey(tmp_path / "other.csv", {"type": "KIND", "z": "ELEV"})
+    assert usual.equals(other)
+    with pytest.raises(GistoolsError, match="the type field 'CODE' is not a column"):
+        read_survey(tmp_path / "other.csv", {"type": "CODE"})

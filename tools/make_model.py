@@ -52,7 +52,7 @@ def build():
 
     inputs = [
         (QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=QgsProcessingParameterFile.Folder), 0),
-        (QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [QgsProcessing.TypeVectorLine]), 1),
+        (QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [QgsProcessing.TypeVectorLine], optional=True), 1),
         (QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [QgsProcessing.TypeVectorLine],
                                            optional=True), 2),
         (QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [QgsProcessing.TypeVectorPolygon],
@@ -69,6 +69,7 @@ def build():
         component = QgsProcessingModelParameter(definition.name())
         component.setPosition(QPointF(120, 60 + 70 * row))
         model.addModelParameter(definition, component)
+    model.setParameterOrder([d.name() for d, _ in inputs])  # the form in the chain's order (else alphabetical)
 
     def child(cid, alg, description, x, y, sources, outputs=None):
         c = QgsProcessingModelChildAlgorithm(alg)

@@ -7,7 +7,7 @@ import json
 import click
 
 from ..tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query
-from .options import overwrite_opt, progress_bar
+from .options import fields_opt, overwrite_opt, progress_bar
 
 
 @click.group()
@@ -37,10 +37,11 @@ def aquifer():
 @click.option("--matching", type=click.Choice(["3d", "2d"]), default="3d", show_default=True)
 @click.option("--mesh", "mesh_format", type=click.Choice(["ply", "obj"]), default="ply", show_default=True)
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures.")
+@fields_opt("id,x,y,z,layer,borehole_id", "z=ELEV,layer=FORMATION")
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol, k, abs_thr, c, f_nn, order_tol,
-          n_per_edge, densify, cell_size, matching, mesh_format, no_figures, overwrite, quiet):
+          n_per_edge, densify, cell_size, matching, mesh_format, no_figures, fields, overwrite, quiet):
     """Cleaned TIN surfaces, boundaries, walls, closed unit meshes, thickness and volumes.
 
     INPUTS is one table (CSV or point layer: id, x, y, z, layer[, borehole_id]) or one file per
@@ -60,7 +61,7 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
     source = list(inputs) if any("=" in i for i in inputs) else inputs[0]
     with progress_bar(quiet) as progress:
         rep = aquifer_model(source, names, out, crs=crs, swap_xy=swap_xy, settings=settings, within=within, clip=clip,
-                            overwrite=overwrite, progress=progress)
+                            overwrite=overwrite, progress=progress, fields=fields)
     for layer, info in rep["layers"].items():
         click.echo(f"{layer}: {info['points']} points ({info['flagged']} flagged), {info['triangles']} triangles, "
                    f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f} square "

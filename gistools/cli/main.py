@@ -99,6 +99,9 @@ for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub
 
 
 def main():  # console_scripts entry point
+    from ..tasks.batch import keep_freed_memory
+
+    keep_freed_memory()  # tile after tile in this process: reuse the freed arrays (tasks/batch.py)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _on_sigint)
     try:

@@ -99,3 +99,19 @@ def dem_options(defaults):
                                  "Raster MAXIMUM; empty cells stay nodata); idw: inverse-distance weighted ground points "
                                  "within --dem-max-distance.")(fn)
     return apply
+
+
+def fields_opt(names: str, example: str):
+    """--fields: the columns of some fields where a table does not name them as usual (QGIS's field pickers)."""
+    def parse(ctx, param, value):
+        if not value:
+            return None
+        pairs = [p.split("=", 1) for p in value.split(",") if p.strip()]
+        if any(len(p) != 2 or not p[1].strip() for p in pairs):
+            raise click.BadParameter(f"{value!r}: write field=column pairs, e.g. {example}")
+        wrong = sorted({k.strip() for k, _ in pairs} - set(names.split(",")))
+        if wrong:
+            raise click.BadParameter(f"{', '.join(wrong)}: the fields are {names}")
+        return {k.strip(): v.strip() for k, v in pairs}
+    return click.option("--fields", callback=parse, default=None,
+                        help=f"Columns of the fields ({names}) where the table names them otherwise, e.g. {example}.")

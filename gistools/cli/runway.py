@@ -8,7 +8,7 @@ from ..errors import GistoolsError
 from ..runway.icao import RUNWAY_TYPES, TEMPLATES
 from ..runway.survey import SurveyChecks
 from ..tasks.runway import RunwaySettings, runway_earthworks
-from .options import overwrite_opt, progress_bar
+from .options import fields_opt, overwrite_opt, progress_bar
 
 
 def _metres(ctx, param, value):
@@ -45,10 +45,11 @@ def _metres(ctx, param, value):
 @click.option("--min-offset", callback=_metres, default="0.1", show_default=True,
               help="Lights closer to the axis are never anomalies, however high their robust z-score.")
 @click.option("--z-max", default=3.5, show_default=True, help="Robust z-score limit of the checks.")
+@fields_opt("id,type,x,y,z", "type=KIND,z=ELEV")
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, profile_window, f_cut, f_fill, free_haul,
-           area_method, max_offset, min_offset, z_max, overwrite, quiet):
+           area_method, max_offset, min_offset, z_max, fields, overwrite, quiet):
     """Cut and fill of a runway: SURVEY (id, type, x, y, z; type 1 = centre-line light, 2 = other) and the
     aerodrome reference code to a design model, cross sections, area diagram and Brueckner curve.
 
@@ -61,8 +62,7 @@ def runway(survey, code, runway_type, template_kind, spacing, out, crs, origin, 
                               profile_window=profile_window, f_cut=f_cut, f_fill=f_fill, free_haul=free_haul,
                               area_method=area_method, checks=SurveyChecks(z_max=z_max, max_offset=max_offset, min_offset=min_offset))
     with progress_bar(quiet) as progress:
-        rep = runway_earthworks(survey, out, settings, crs=crs, overwrite=overwrite,
-                                progress=progress)
+        rep = runway_earthworks(survey, out, settings, crs=crs, overwrite=overwrite, progress=progress, fields=fields)
     click.echo(f"{rep['code']} {rep['runway_type']} ({rep['template']} template): {rep['stations']} stations every "
                f"{rep['spacing']:.2f} m over {rep['length']:.1f} m, bearing {rep['bearing']:.2f} deg")
     click.echo(f"cut {rep['cut']:,.1f} m3, fill {rep['fill']:,.1f} m3, net {rep['net']:,.1f} m3; balance points "

@@ -20,7 +20,7 @@ from ..errors import DataFileError, InputError
 from .points import parse_crs_text
 from .text import read_id_xyz
 
-__all__ = ["read_contacts", "ALIASES"]
+__all__ = ["read_contacts", "ALIASES", "chosen_columns"]
 
 # accepted column names (lower case) for each field
 ALIASES = {
@@ -39,6 +39,20 @@ def _find(columns, field):
         if name in low:
             return low[name]
     return None
+
+
+def chosen_columns(found: dict, columns, fields: dict | None, path) -> dict:
+    """``found`` ({field: column} by the usual names) with the columns the user chose for some fields (``fields``,
+    e.g. {"z": "ELEV"}: QGIS's field pickers, --z-field); a chosen column that is not in the table is refused."""
+    out = dict(found)
+    for name, column in (fields or {}).items():
+        if column in (None, ""):
+            continue
+        if column not in list(columns):
+            raise InputError(f"the {name} field {column!r} is not a column (columns: {', '.join(map(str, columns))})",
+                             path=path, hint=f"Choose the column that holds the {name}")
+        out[name] = column
+    return out
 
 
 def _numbers(values, path, field, lines) -> np.ndarray:
@@ -90,11 +104,11 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
     return df, np.arange(len(df)) + 1
 
 
-def _from_frame(df, lines, path, swap_xy) -> pd.DataFrame:
+def _from_frame(df, lines, path, swap_xy, fields=None) -> pd.DataFrame:
     if len(df) == 0:
         raise InputError("the table holds no contacts (a header only, or empty)", path=path,
                          hint="One row per contact: id, x, y, z, layer")
-    cols = {f: _find(df.columns, f) for f in ALIASES}
+    cols = chosen_columns({f: _find(df.columns, f) for f in ALIASES}, df.columns, fields, path)
     missing = [f for f in ("x", "y", "z", "layer") if cols[f] is None]
     if missing:
         raise InputError(f"no {', '.join(missing)} column (columns: {', '.join(map(str, df.columns))})", path=path,
@@ -137,7 +151,7 @@ def _per_layer_files(source, swap_xy) -> list[pd.DataFrame]:
     return frames
 
 
-def _one_table(source, swap_xy) -> tuple[pd.DataFrame, object]:
+def _one_table(source, swap_xy, fields=None) -> tuple[pd.DataFrame, object]:
     src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
     path = Path(src)
     if not path.exists() and ":" in src:
@@ -145,7 +159,7 @@ def _one_table(source, swap_xy) -> tuple[pd.DataFrame, object]:
     if not path.exists():
         raise DataFileError("file not found", path=path, hint="Check the path")
     df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
-    out = _from_frame(df, lines, path, swap_xy)
+    out = _from_frame(df, lines, path, swap_xy, fields)
     out["source"] = str(path)
     return out, df.attrs.get("crs")
 
@@ -178,11 +192,12 @@ def _contacts_crs(crs, found_crs, where) -> pyproj.CRS:
     return out_crs
 
 
-def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points: int = 3):
+def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points: int = 3, fields: dict | None = None):
     """(points, crs): points has id, x, y, z, layer (in ``layers`` order, top to bottom), borehole_id?, source, line.
 
     ``source``: a table path (CSV, GeoPackage layer, shapefile) or a dict / list ``LAYER=path`` of
-    per-layer files. ``crs``: EPSG code or WKT, required unless the layer carries one.
+    per-layer files. ``crs``: EPSG code or WKT, required unless the layer carries one. ``fields``: the columns of
+    some fields where they are not named as usual (``{"z": "ELEV", "layer": "FORMATION"}``; tables only).
     """
     layers = [str(lay).strip() for lay in layers]
     if len(layers) < 2 or len(set(layers)) != len(layers):
@@ -191,7 +206,7 @@ def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points
     if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
         frames = _per_layer_files(source, swap_xy)
     else:
-        table, found_crs = _one_table(source, swap_xy)
+        table, found_crs = _one_table(source, swap_xy, fields)
         frames = [table]
     pts = pd.concat(frames, ignore_index=True)
     _check_layers(pts, layers, min_points)

@@ -41,10 +41,13 @@ def _raw_table(text: str) -> tuple[pd.DataFrame, np.ndarray, object]:
     return df, np.arange(len(df)) + 1, gdf.crs
 
 
-def _columns(df: pd.DataFrame, text: str) -> dict:
-    """{field: column name} for id (optional), type, x, y, z."""
+def _columns(df: pd.DataFrame, text: str, fields: dict | None = None) -> dict:
+    """{field: column name} for id (optional), type, x, y, z: the chosen ``fields``, else by the usual names."""
+    from .contacts import chosen_columns
+
     cols = {str(c).lower().strip(): c for c in df.columns}
     found = {k: next(cols[n] for n in names if n in cols) for k, names in _ALIASES.items() if any(n in cols for n in names)}
+    found = chosen_columns(found, df.columns, fields, text)
     missing = [k for k in ("type", "x", "y", "z") if k not in found]
     if missing:
         raise InputError(f"no {', '.join(missing)} column (columns: {', '.join(map(str, df.columns))})", path=text,
@@ -64,11 +67,12 @@ def _check_types(out: pd.DataFrame, lines, text: str) -> None:
         raise InputError("fewer than 3 ground points (type 2)", path=text, hint="The ground survey is the type 2 points")
 
 
-def read_survey(path) -> tuple[pd.DataFrame, object]:
-    """(points id, type, x, y, z, line; crs or None) from a CSV or a point layer (``file.gpkg:LAYER``)."""
+def read_survey(path, fields: dict | None = None) -> tuple[pd.DataFrame, object]:
+    """(points id, type, x, y, z, line; crs or None) from a CSV or a point layer (``file.gpkg:LAYER``); ``fields``: the
+    columns of some fields where they are not named as usual (``{"type": "KIND", "z": "ELEV"}``)."""
     text = str(path)
     df, lines, crs = _raw_table(text)
-    found = _columns(df, text)
+    found = _columns(df, text, fields)
     out = pd.DataFrame({"line": lines})
     for k in ("type", "x", "y", "z") + (("id",) if "id" in found else ()):
         v = pd.to_numeric(df[found[k]], errors="coerce").to_numpy(np.float64)

@@ -720,6 +720,143 @@ void gt_progressive(const double *z, uint8_t *obj, double *work, int64_t rows, i
     free(b);
 }
 
+/* fill_gaps' rings by their fronts: the same values as gt_fill_rings (each ring: every NaN cell with a filled
+ * 8-neighbour takes the mean of its filled neighbours as the grid was before the ring, summed NW, N, NE, W, E, SW, S,
+ * SE), but each ring after the first visits only the cells next to the last one. `cap`: the grid's empty cells;
+ * `work` holds 2 * cap int64, `vals` cap doubles, `mark` rows * cols bytes (caller-owned). Returns the cells still
+ * empty (-1 when rings <= 0). */
+static int64_t front_neighbours(const double *z, const uint8_t *mark, int64_t rows, int64_t cols, int64_t i, int64_t *out,
+                                int want_empty) {
+    int64_t r = i / cols, c = i % cols, k = 0;
+    for (int dr = -1; dr <= 1; dr++) {
+        int64_t rr = r + dr;
+        if (rr < 0 || rr >= rows) continue;
+        for (int dc = -1; dc <= 1; dc++) {
+            int64_t cc = c + dc;
+            if ((dr == 0 && dc == 0) || cc < 0 || cc >= cols) continue;
+            int64_t j = rr * cols + cc;
+            if (want_empty ? (isnan(z[j]) && !mark[j]) : !isnan(z[j])) out[k++] = j;
+        }
+    }
+    return k;
+}
+
+static inline int cell_mean8(const double *z, int64_t rows, int64_t cols, int64_t r, int64_t c, double *mean) {
+    double sum = 0.0;
+    int cnt = 0;
+    for (int dr = -1; dr <= 1; dr++) {
+        int64_t rr = r + dr;
+        if (rr < 0 || rr >= rows) continue;
+        for (int dc = -1; dc <= 1; dc++) {
+            int64_t cc = c + dc;
+            if ((dr == 0 && dc == 0) || cc < 0 || cc >= cols) continue;
+            double v = z[rr * cols + cc];
+            if (!isnan(v)) {
+                sum += v;
+                cnt++;
+            }
+        }
+    }
+    if (cnt) *mean = sum / cnt;
+    return cnt;
+}
+
+int64_t gt_fill_front(double *z, int64_t rows, int64_t cols, int32_t rings, int64_t cap, int64_t *work, uint8_t *mark,
+                      double *vals) {
+    int64_t n = rows * cols, nfront = 0, left = 0, nb[8];
+    int64_t *front = work, *next = work + cap;
+    if (rings <= 0) return -1;
+    memset(mark, 0, (size_t)n);
+    /* the first ring over the whole grid (most empty cells of a sparse lattice are in it) */
+    for (int64_t r = 0; r < rows; r++) {
+        for (int64_t c = 0; c < cols; c++) {
+            int64_t i = r * cols + c;
+            if (!isnan(z[i])) continue;
+            left++;
+            if (cell_mean8(z, rows, cols, r, c, &vals[nfront])) {
+                front[nfront++] = i;
+                mark[i] = 1;
+            }
+        }
+    }
+    for (int32_t ring = 0; nfront > 0; ring++) {
+        for (int64_t f = 0; f < nfront; f++) z[front[f]] = vals[f];
+        left -= nfront;
+        if (ring + 1 >= rings) break;
+        int64_t nnext = 0;
+        for (int64_t f = 0; f < nfront; f++) { /* the next front: empty neighbours of the cells just filled */
+            int64_t k = front_neighbours(z, mark, rows, cols, front[f], nb, 1);
+            for (int64_t j = 0; j < k; j++) {
+                mark[nb[j]] = 1;
+                next[nnext++] = nb[j];
+            }
+        }
+        for (int64_t f = 0; f < nnext; f++) /* their means, from the grid before this ring */
+            cell_mean8(z, rows, cols, next[f] / cols, next[f] % cols, &vals[f]);
+        int64_t *t = front;
+        front = next;
+        next = t;
+        nfront = nnext;
+    }
+    return left;
+}
+
+/* Bilinear values of a rows x cols surface (cell centres at col + 0.5, row + 0.5) at n points given in CRS units:
+ * u = x / cell - col0, v = row_top - y / cell, clamped to the centres (lidar/ground.py _bilinear_at / _bilinear: the
+ * same operations in the same order, so the same values). */
+void gt_bilinear(const double *surf, int64_t rows, int64_t cols, int64_t n, const double *x, const double *y,
+                 double cell, int64_t col0, int64_t row_top, double *out) {
+    int64_t cmax = cols - 2 > 0 ? cols - 2 : 0, rmax = rows - 2 > 0 ? rows - 2 : 0;
+    int64_t dc = cols > 1 ? 1 : 0, dr = rows > 1 ? cols : 0;
+    for (int64_t k = 0; k < n; k++) {
+        double fu = x[k] / cell - (double)col0 - 0.5, fv = ((double)row_top - y[k] / cell) - 0.5;
+        fu = fu > 0 ? fu : 0;
+        fu = fu < (double)(cols - 1) ? fu : (double)(cols - 1);
+        fv = fv > 0 ? fv : 0;
+        fv = fv < (double)(rows - 1) ? fv : (double)(rows - 1);
+        int64_t c0 = (int64_t)fu, r0 = (int64_t)fv;
+        c0 = c0 < cmax ? c0 : cmax;
+        r0 = r0 < rmax ? r0 : rmax;
+        double tu = fu - (double)c0, tv = fv - (double)r0;
+        int64_t i = r0 * cols + c0;
+        double top = surf[i] * (1 - tu) + surf[i + dc] * tu;
+        double bottom = surf[i + dr] * (1 - tu) + surf[i + dr + dc] * tu;
+        out[k] = top * (1 - tv) + bottom * tv;
+    }
+}
+
+/* SMRF's per-cell threshold: threshold + scalar * |gradient| / z_per_xy, the gradient as numpy.gradient gives it
+ * (central differences inside, one-sided at the edges, spacing `cell`; 0 along an axis of one cell). */
+void gt_slope_threshold(const double *z, int64_t rows, int64_t cols, double cell, double z_per_xy, double threshold,
+                        double scalar, double *out) {
+    for (int64_t r = 0; r < rows; r++) {
+        for (int64_t c = 0; c < cols; c++) {
+            int64_t i = r * cols + c;
+            double gx = 0.0, gy = 0.0;
+            if (cols > 1)
+                gx = c == 0 ? (z[i + 1] - z[i]) / cell
+                     : c == cols - 1 ? (z[i] - z[i - 1]) / cell : (z[i + 1] - z[i - 1]) / (2. * cell);
+            if (rows > 1)
+                gy = r == 0 ? (z[i + cols] - z[i]) / cell
+                     : r == rows - 1 ? (z[i] - z[i - cols]) / cell : (z[i + cols] - z[i - cols]) / (2. * cell);
+            out[i] = threshold + scalar * (hypot(gx, gy) / z_per_xy);
+        }
+    }
+}
+
+/* Mean z of the points with on[k] per cell (NaN where none), summed in point order as numpy.bincount does. */
+void gt_cell_mean(int64_t n, const int64_t *flat, const double *z, const uint8_t *on, int64_t ncells, double *sum,
+                  int64_t *count, double *out) {
+    memset(sum, 0, (size_t)ncells * sizeof(double));
+    memset(count, 0, (size_t)ncells * sizeof(int64_t));
+    for (int64_t k = 0; k < n; k++) {
+        if (!on[k]) continue;
+        sum[flat[k]] += z[k];
+        count[flat[k]]++;
+    }
+    for (int64_t i = 0; i < ncells; i++) out[i] = count[i] > 0 ? sum[i] / (double)count[i] : NAN;
+}
+
 /* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
 void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
     for (int64_t i = 0; i < n; i++) {

@@ -73,7 +73,11 @@ def fill_gaps(surface: np.ndarray, rings: int = FILL_RINGS) -> np.ndarray:
     empty = np.isnan(z)
     if not empty.any() or empty.all():
         return z
-    if _FILL is not None:
+    if _FILL_FRONT is not None:  # ring by ring over each ring's front only
+        cap = int(np.count_nonzero(empty))
+        _FILL_FRONT(z, z.shape[0], z.shape[1], int(rings), cap, np.empty(2 * cap, np.int64), np.empty(z.size, np.uint8),
+                    np.empty(cap))
+    elif _FILL is not None:
         _FILL(z, np.empty_like(z), z.shape[0], z.shape[1], int(rings))
     else:
         z = _fill_rings_numpy(z, rings)
@@ -132,7 +136,7 @@ def _kernel_function(name: str, *argtypes):
         return None
     fn = getattr(_KERNEL, name)
     fn.argtypes = list(argtypes)
-    fn.restype = ctypes.c_int64 if name == "gt_fill_rings" else None
+    fn.restype = ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None
     return fn
 
 
@@ -143,6 +147,10 @@ _CROSS = _kernel_function("gt_cross_filter", _F64, _F64, _F64, _N, _N, _I32, _I3
 _FILL = _kernel_function("gt_fill_rings", _F64, _F64, _N, _N, _I32)
 _PROGRESSIVE = _kernel_function("gt_progressive", _F64, _U8, _F64, _N, _N, _D, _D, _I32)
 _CELL_MIN = _kernel_function("gt_cell_min", _N, _I64, _F64, _F64)
+_FILL_FRONT = _kernel_function("gt_fill_front", _F64, _N, _N, _I32, _N, _I64, _U8, _F64)
+_BILINEAR = _kernel_function("gt_bilinear", _F64, _N, _N, _N, _F64, _F64, _D, _N, _N, _F64)
+_SLOPE_THRESHOLD = _kernel_function("gt_slope_threshold", _F64, _N, _N, _D, _D, _D, _D, _F64)
+_CELL_MEAN = _kernel_function("gt_cell_mean", _N, _I64, _F64, _U8, _N, _F64, _I64, _F64)
 
 
 def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:
@@ -219,6 +227,48 @@ def _bilinear(surface: np.ndarray, at) -> np.ndarray:
     return top * (1 - tv) + bottom * tv
 
 
+class _Points:
+    """Surfaces of one lattice (col0, row_top, cell) sampled at the points: the compiled kernel when built, else
+    numpy (the same operations in the same order)."""
+
+    def __init__(self, x, y, cell: float, col0: int, row_top: int, shape):
+        self.x, self.y, self.cell, self.col0, self.row_top, self.shape = x, y, cell, col0, row_top, shape
+        self.at = None if _BILINEAR is not None else _bilinear_at(shape, x / cell - col0, row_top - y / cell)
+
+    def sample(self, surface: np.ndarray) -> np.ndarray:
+        if self.at is not None:
+            return _bilinear(surface, self.at)
+        out = np.empty(len(self.x))
+        _BILINEAR(np.ascontiguousarray(surface, np.float64), self.shape[0], self.shape[1], len(self.x), self.x, self.y,
+                  float(self.cell), int(self.col0), int(self.row_top), out)
+        return out
+
+
+def slope_threshold(zipro: np.ndarray, p: "SmrfParams") -> np.ndarray:
+    """Per-cell SMRF threshold (vertical units): threshold + scalar x the surface's slope (true rise over run)."""
+    if _SLOPE_THRESHOLD is not None:
+        out = np.empty_like(zipro)
+        _SLOPE_THRESHOLD(np.ascontiguousarray(zipro, np.float64), zipro.shape[0], zipro.shape[1], float(p.cell),
+                         float(p.z_per_xy), float(p.threshold), float(p.scalar), out)
+        return out
+    gy, gx = np.gradient(zipro, p.cell)
+    grade = np.hypot(gx, gy) / p.z_per_xy  # true rise over run
+    return p.threshold + p.scalar * grade
+
+
+def cell_mean(flat: np.ndarray, z: np.ndarray, on: np.ndarray, size: int) -> np.ndarray:
+    """Mean z of the points ``on`` in each of ``size`` cells (flat index per point), NaN where none."""
+    if _CELL_MEAN is not None:
+        out = np.empty(size)
+        _CELL_MEAN(len(flat), np.ascontiguousarray(flat, np.int64), np.ascontiguousarray(z, np.float64),
+                   np.ascontiguousarray(on, np.uint8), size, np.empty(size), np.empty(size, np.int64), out)
+        return out
+    total = np.bincount(flat[on], weights=z[on], minlength=size)
+    count = np.bincount(flat[on], minlength=size)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(count > 0, total / np.maximum(count, 1), np.nan)
+
+
 def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndarray, np.ndarray]:
     """(ground, provisional DEM at each point): ``ground`` True for the ``candidates`` (e.g. last and only returns,
     not noise) within the threshold of ZIpro; the DEM (vertical units) for every point, for noise rules."""
@@ -235,25 +285,17 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     zipro = zimin.copy()
     zipro[obj | low] = np.nan
     zipro = fill_gaps(zipro)
-    gy, gx = np.gradient(zipro, p.cell)
-    grade = np.hypot(gx, gy) / p.z_per_xy  # true rise over run
-    thresh = p.threshold + p.scalar * grade
-    at = _bilinear_at(zipro.shape, x / p.cell - col0, row_top - y / p.cell)
-    dem = _bilinear(zipro, at)
-    cell_thresh = _bilinear(thresh, at)
+    thresh = slope_threshold(zipro, p)
+    at = _Points(x, y, p.cell, col0, row_top, zipro.shape)
+    dem = at.sample(zipro)
+    cell_thresh = at.sample(thresh)
     ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
     if p.refine and ground.any():
         # ZIpro is a surface of cell minima, below the mean ground by about two noise deviations: the
         # upper half of noisy ground returns falls outside a tight threshold. Measure again against
         # the mean of the ground points found (ZIfin, Pingel's final surface), inpainted the same way.
-        on = ground[candidates]
-        flat = cell_of[on]
-        total = np.bincount(flat, weights=cz[on], minlength=zimin.size)
-        count = np.bincount(flat, minlength=zimin.size)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            zifin = np.where(count > 0, total / np.maximum(count, 1), np.nan).reshape(zimin.shape)
-        zifin = fill_gaps(zifin)
-        dem = _bilinear(zifin, at)
+        zifin = fill_gaps(cell_mean(cell_of, cz, ground[candidates], zimin.size).reshape(zimin.shape))
+        dem = at.sample(zifin)
         ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
     return ground, dem
 

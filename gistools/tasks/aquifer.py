@@ -128,11 +128,11 @@ def _surfaces(points, layers, clip_polygon, concave_ratio) -> dict:
 
 
 def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSettings | None = None, clip=None,
-                progress: ProgressCallback | None = None) -> Model:
+                progress: ProgressCallback | None = None, fields: dict | None = None) -> Model:
     """Read, clean and triangulate (S0-S5); the in-memory model the outputs and queries use."""
     s = settings or AquiferSettings()
     s.validate()
-    points, crs_obj = read_contacts(source, layers, crs=crs, swap_xy=swap_xy)
+    points, crs_obj = read_contacts(source, layers, crs=crs, swap_xy=swap_xy, fields=fields)
     unit = horizontal_unit(crs_obj)
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
     osets = OutlierSettings(xy_tol=length(s.xy_tol, "xy tolerance"), k=int(s.k), abs_thr=length(s.abs_thr, "outlier threshold"),
@@ -297,7 +297,8 @@ def _figures(model: Model, out: Path) -> list[Path]:
 
 
 def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, settings: AquiferSettings | None = None,
-                  within=None, clip=None, overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+                  within=None, clip=None, overwrite: bool = False, progress: ProgressCallback | None = None,
+                  fields: dict | None = None) -> dict:
     """The whole aquifer model; writes under ``out`` and returns the report (also ``out/report.json``).
 
     ``source``: a contacts table (CSV / GeoPackage layer / shapefile) or per-layer files ``LAYER=path``.
@@ -311,7 +312,8 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     out = Path(out)
     if (out / "report.json").exists() and not overwrite:
         raise OutputExistsError("an aquifer model is already there", path=out, hint="Pass --overwrite, or choose another --out")
-    model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress)
+    model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress,
+                        fields=fields)
     compute_units(model, s, within=within, progress=progress)
     report(progress, 0.85, "writing")
     with claim_output(out, "gistools aquifer model"):

@@ -245,7 +245,7 @@ def _design_raster(ew: Earthworks, crs, cell: float):
 
 
 def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, crs=None, overwrite: bool = False,
-                      progress: ProgressCallback | None = None) -> dict:
+                      progress: ProgressCallback | None = None, fields: dict | None = None) -> dict:
     """The whole pipeline on a survey file; writes under ``out`` and returns the report (``out/report.json``)."""
     started = time.time()
     st = settings or RunwaySettings()
@@ -253,7 +253,7 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     if (out / "report.json").exists() and not overwrite:
         raise OutputExistsError("a runway run is already there", path=out, hint="Pass --overwrite, or choose another --out")
     make_template(st.code, st.runway_type, st.template)  # refuse an unknown code before reading anything
-    points, file_crs = read_survey(source)
+    points, file_crs = read_survey(source, fields)
     if crs is not None:
         crs_obj = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
     elif file_crs is not None:

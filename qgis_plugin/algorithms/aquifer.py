@@ -17,22 +17,27 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import GistoolsAlgorithm, AQUIFER
+from .base import labels, GistoolsAlgorithm, AQUIFER
 from ..compat import DOUBLE, FOLDER, VECTOR_POINT, VECTOR_POLYGON
 
 
 GROUP_AQUIFER = ("Aquifer", "aquifer")
 
 
+CONTACT_FIELDS = {"ID_FIELD": ("Contact id field", "id"), "Z_FIELD": ("Height field (z; empty: the point's z)", "z"),
+                  "LAYER_FIELD": ("Layer name field", "layer")}
+
+
 class AquiferModelAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "aquifer", "Aquifer model from layer contacts", GROUP_AQUIFER
+    _name, _display, _group = "aquifer", "Aquifer model", GROUP_AQUIFER
     _help = ("Borehole layer contacts (points with x, y, z and a layer field) to a 3D aquifer model (gistools aquifer "
              "model): outliers flagged with their rule, one TIN per layer, boundaries, matched walls, a closed mesh "
              "per unit, thickness rasters and exact volumes (report.json). Layers are named top to bottom.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points: id, z, layer fields)",
+        self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points with a layer name field)",
                                                    [VECTOR_POINT]))
+        self.add_fields("INPUT", CONTACT_FIELDS)
         self.add(QgsProcessingParameterString("LAYERS", "Layer names, top to bottom (comma-separated)",
                                               defaultValue="LS,AU,AD,AQ"))
         self.add(QgsProcessingParameterVectorLayer("WITHIN", "Volumes inside this polygon (default: common footprint)",
@@ -42,7 +47,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterBoolean("SWAP_XY", "Swap x and y", defaultValue=False), advanced=True)
         self.add_length("XY_TOL", "Duplicates: same position within", AQUIFER.xy_tol, advanced=True)
         self.add_length("ABS_THR", "Outliers: smallest residual threshold", AQUIFER.abs_thr, advanced=True)
-        self.add(QgsProcessingParameterEnum("MESH", "Mesh format", options=["ply", "obj"],
+        self.add(QgsProcessingParameterEnum("MESH", "Mesh format", options=labels(["ply", "obj"]),
                                             defaultValue=["ply", "obj"].index(AQUIFER.mesh_format)), advanced=True)
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputVectorLayer("GPKG", "Aquifer GeoPackage"))
@@ -64,7 +69,8 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         rep = aquifer_model(source, layers, out, crs=crs, swap_xy=self.parameterAsBool(parameters, "SWAP_XY", context),
                             settings=settings, within=self.layer_spec(parameters, "WITHIN", context, feedback),
                             clip=self.layer_spec(parameters, "CLIP", context, feedback), overwrite=True,
-                            progress=self.progress(feedback))
+                            progress=self.progress(feedback),
+                            fields=self.chosen_fields(parameters, context, "INPUT", CONTACT_FIELDS))
         for name, u in rep["units"].items():
             feedback.pushInfo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / "
                               f"{u['volume_negative']:,.0f}) {rep['volume_unit']}; thickness {u['thickness_min']:.2f} / "
@@ -77,7 +83,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
 
 class AquiferQueryAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "aquiferquery", "Aquifer heights and thickness at a point", GROUP_AQUIFER
+    _name, _display, _group = "aquiferquery", "Aquifer at a point", GROUP_AQUIFER
     _help = ("Height of every surface and thickness of every unit of a model (the output folder of 'Aquifer model') "
              "at a point: TIN (default, nothing outside the boundary), k-nearest mean or IDW.")
 
@@ -85,7 +91,7 @@ class AquiferQueryAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterFile("MODEL", "Aquifer model folder", behavior=FOLDER))
         self.add(QgsProcessingParameterNumber("X", "x (model CRS)", type=DOUBLE))
         self.add(QgsProcessingParameterNumber("Y", "y (model CRS)", type=DOUBLE))
-        self.add(QgsProcessingParameterEnum("METHOD", "Method", options=["tin", "knn", "idw"], defaultValue=0))
+        self.add(QgsProcessingParameterEnum("METHOD", "Method", options=labels(["tin", "knn", "idw"], tin="TIN of each surface (nothing outside its boundary)", knn="Mean of the k nearest contacts", idw="Inverse-distance weighted contacts"), defaultValue=0))
         self.add(QgsProcessingParameterNumber("K", "Neighbours (knn, idw)", defaultValue=10, minValue=1), advanced=True)
         self.addOutput(QgsProcessingOutputString("RESULT", "Heights and thickness (JSON)"))
 

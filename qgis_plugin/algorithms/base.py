@@ -16,6 +16,7 @@ from qgis.core import (
     QgsProcessingContext,
     QgsProcessingException,
     QgsProcessingParameterCrs,
+    QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterMultipleLayers,
     QgsProcessingParameterNumber,
@@ -37,7 +38,23 @@ from ..compat import ADVANCED, FOLDER, POINT_CLOUD
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
 
+TILE_FOLDER_LABEL = "Folder of LAS/LAZ tiles"
+TILE_FILES_LABEL = "Or LAS/LAZ files or point cloud layers"
+NO_TILES = f"No tiles: choose a '{TILE_FOLDER_LABEL}', or files in '{TILE_FILES_LABEL}' (the ... button, then Add File(s))"
+
+
+def _homepage() -> str:
+    for line in (HERE / "metadata.txt").read_text().splitlines():
+        if line.startswith("homepage="):
+            return line.split("=", 1)[1].strip()
+    return ""
+
+
+HOMEPAGE = _homepage()
+
 GROUP_LIDAR = ("LiDAR", "lidar")
+README_SECTIONS = {"lidar": "command-line", "shrub": "the-shrub-chain", "aquifer": "aquifer-model", "runway": "runway-earthworks",
+                   "structure": "structure-reconstruction"}
 GROUP_SHRUB = ("Shrub chain", "shrub")
 
 # choices are the library's own (the provider loads only once gistools imports)
@@ -58,6 +75,32 @@ RASTER = SHRUB.raster
 AQUIFER = AquiferSettings()
 RUNWAY = RunwaySettings()
 POINTS = {k: v.default for k, v in inspect.signature(_points.points_from_tiles).parameters.items()}
+
+
+# what the dialogs show for the library's choices (the enum index is the library's order, so values do not change)
+LABELS = {
+    "exact": "Exact metres: 1 / 2 / 6 m", "text_literal": "As printed in the dissertation: 3.28 / 6.56 / 19.658 ft",
+    "breaks": "The cover breaks below", "quantile": "Quantiles of the cover (ignores the breaks below)",
+    "jenks": "Jenks natural breaks of the cover (ignores the breaks below)",
+    "tin": "TIN of the ground points (fills gaps)", "max": "Highest ground point of each cell (the dissertation's)",
+    "min": "Lowest ground point of each cell", "mean": "Mean of the ground points of each cell",
+    "idw": "Inverse-distance weighted ground points",
+    "smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Cloth Simulation Filter)",
+    "ivf": "Isolated points in voxels (IVF)", "sor": "Statistical outliers (SOR)", "none": "None",
+    "laz": "LAZ (compressed LAS)", "las": "LAS", "copc": "COPC (cloud-optimised LAZ)",
+    "first": "First returns", "last": "Last returns", "any": "Every return",
+    "precision": "Precision approach", "non_precision": "Non-precision approach", "non_instrument": "Non-instrument",
+    "icao": "ICAO Annex 14 strip", "dissertation": "The dissertation's section", "ply": "PLY", "obj": "OBJ (Wavefront)",
+    "gpkg": "GeoPackage", "parquet": "GeoParquet",
+}
+BREAKS_LABEL = "Cover breaks light / medium, medium / heavy (fractions 0-1, e.g. 0.3,0.7)"
+CLASS_METHOD_LABEL = "How the class breaks are chosen"
+PRESET_LABEL = "Height band limits"
+
+
+def labels(values, **override) -> list[str]:
+    """The dialog's words for the library's choices ``values``, in their order."""
+    return [override.get(v, LABELS.get(v, v)) for v in values]
 
 
 def band_choices(bands) -> list[int]:
@@ -100,6 +143,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     _display = ""
     _group = GROUP_LIDAR
     _help = ""
+    _readme_section = ""  # default: the section of the algorithm's group (README_SECTIONS)
 
     def name(self):
         return self._name
@@ -114,7 +158,21 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return self._group[1]
 
     def shortHelpString(self):  # noqa: N802
-        return self._help
+        """The algorithm's text, then each parameter with its help and each output, as QGIS's own algorithms list them."""
+        lines = [self._help, "", "<b>Parameters</b>"]
+        for p in self.parameterDefinitions():
+            if p.isDestination():
+                continue
+            tip = p.help() if hasattr(p, "help") and p.help() else ""
+            lines.append(f"<i>{p.description()}</i>" + (f": {tip}" if tip else ""))
+        lines.append("")
+        lines.append("<b>Outputs</b>")
+        lines.extend(f"<i>{o.description()}</i>" for o in self.outputDefinitions())
+        return "<br>".join(lines)
+
+    def helpUrl(self):  # noqa: N802
+        """The README section of the algorithm (the project's homepage in metadata.txt)."""
+        return f"{HOMEPAGE}#{self._readme_section or README_SECTIONS.get(self._group[1], 'qgis')}"
 
     def icon(self):
         return QIcon(str(HERE / "icon.svg"))
@@ -123,17 +181,26 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return type(self)()
 
     # --- parameter helpers
-    def add(self, param, advanced: bool = False):
+    def add(self, param, advanced: bool = False, help: str | None = None):  # noqa: A002 - QGIS's word
         if advanced:
             param.setFlags(param.flags() | ADVANCED)
+        if help and hasattr(param, "setHelp"):
+            param.setHelp(help)
         self.addParameter(param)
         return param
 
     def add_tiles(self):
-        self.add(QgsProcessingParameterFile("INPUT", "LAS/LAZ tiles (a folder, or one file)",
-                                            behavior=FOLDER, optional=True))
-        self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", "Or point cloud layers (LAS/LAZ files)",
-                                                      layerType=POINT_CLOUD, optional=True))
+        """The tiles: a folder, and / or LAS/LAZ files (the layer list's file button) or point cloud layers. QGIS has
+        no "one of two is required": checkParameterValues refuses a run with neither, naming both by their labels."""
+        self.add(QgsProcessingParameterFile("INPUT", TILE_FOLDER_LABEL, behavior=FOLDER, optional=True))
+        self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_FILES_LABEL, layerType=POINT_CLOUD,
+                                                      optional=True))
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        if self.parameterDefinition("POINT_CLOUDS") is not None and not parameters.get("INPUT") \
+                and not parameters.get("POINT_CLOUDS"):
+            return False, NO_TILES
+        return super().checkParameterValues(parameters, context)
 
     def tiles(self, parameters, context):
         """The tile folder and / or the files of the chosen point cloud layers, as gistools inputs."""
@@ -145,8 +212,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             for layer in self.parameterAsLayerList(parameters, "POINT_CLOUDS", context):
                 inputs.append(layer.source().split("|")[0])
         if not inputs:
-            raise QgsProcessingException("no tiles: give a folder of LAS/LAZ tiles (INPUT) or point cloud layers "
-                                         "(POINT_CLOUDS)")
+            raise QgsProcessingException(NO_TILES)
         return inputs
 
     def add_crs(self):
@@ -162,6 +228,24 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     def add_length(self, name, description, default, optional=False, advanced=False):
         self.add(QgsProcessingParameterString(name, f"{description} (with unit: m, ft, ftUS)", defaultValue=default,
                                               optional=optional), advanced=advanced)
+
+    def add_fields(self, layer: str, fields: dict):
+        """Field pickers on ``layer`` ({NAME: (label, usual column)}), as QGIS's own algorithms offer them; left
+        empty (or naming a column the layer lacks), gistools finds the column by its usual names."""
+        for name, (label, usual) in fields.items():
+            self.add(QgsProcessingParameterField(name, label, defaultValue=usual, parentLayerParameterName=layer,
+                                                 optional=True), advanced=True)
+
+    def chosen_fields(self, parameters, context, layer: str, fields: dict) -> dict | None:
+        """{gistools field: column} of the pickers whose column the layer has."""
+        vl = self.parameterAsVectorLayer(parameters, layer, context)
+        names = set(vl.fields().names()) if vl is not None else set()
+        chosen = {}
+        for name, (_label, usual) in fields.items():
+            column = self.parameterAsString(parameters, name, context)
+            if column and column in names:
+                chosen[name.removesuffix("_FIELD").lower()] = column
+        return chosen or None
 
     # --- parameter readers
     def text(self, parameters, name, context):
@@ -238,7 +322,16 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             feedback.reportError("gistools: cancelled; no partial output was written")
             raise QgsProcessingException("cancelled by the user; no partial output was written") from None
         except GistoolsError as err:
-            raise QgsProcessingException(str(err)) from None
+            raise QgsProcessingException(self.labelled(str(err))) from None
+
+    def labelled(self, message: str) -> str:
+        """A library message with its command-line option names (--cell-size) as this dialog's labels."""
+        import re
+
+        for p in sorted(self.parameterDefinitions(), key=lambda d: -len(d.name())):
+            option = "--" + p.name().lower().replace("_", "-")
+            message = re.sub(re.escape(option) + r"(?![\w-])", f"'{p.description()}'", message)
+        return message
 
     def run_gistools(self, parameters, context, feedback):  # pragma: no cover - every algorithm overrides it
         raise NotImplementedError(f"{type(self).__name__} declares no gistools call")

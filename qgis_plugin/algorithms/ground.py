@@ -11,12 +11,13 @@ from qgis.core import (
     QgsProcessingParameterNumber,
 )
 
-from .base import GistoolsAlgorithm, GROUND, GROUND_METHODS, NOISE_METHODS, POINT_FORMATS
+from .base import labels, GistoolsAlgorithm, GROUND, GROUND_METHODS, NOISE_METHODS, POINT_FORMATS
 from ..compat import DOUBLE
 
 
 class GroundAlgorithm(GistoolsAlgorithm):
     _name, _display = "ground", "Classify ground and noise"
+    _readme_section = "ground-and-noise"
     _help = ("Ground (2) and noise (7 low, 18 high) classes of LAS/LAZ tiles (gistools ground): noise first (isolated "
              "voxels or a statistical rule, and points far below the ground surface), then ground by the Simple "
              "Morphological Filter (SMRF) or the Cloth Simulation Filter (CSF). Only the classification changes; every "
@@ -26,9 +27,9 @@ class GroundAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
-        self.add(QgsProcessingParameterEnum("METHOD", "Ground filter", options=GROUND_METHODS,
+        self.add(QgsProcessingParameterEnum("METHOD", "Ground filter", options=labels(GROUND_METHODS),
                                             defaultValue=GROUND_METHODS.index(GROUND.method)))
-        self.add(QgsProcessingParameterEnum("NOISE", "Noise filter", options=NOISE_METHODS,
+        self.add(QgsProcessingParameterEnum("NOISE", "Noise filter", options=labels(NOISE_METHODS),
                                             defaultValue=NOISE_METHODS.index(GROUND.noise)))
         self.add_length("CELL", "SMRF cell size", GROUND.cell, advanced=True)
         self.add(QgsProcessingParameterNumber("SLOPE", "SMRF slope (rise over run)", type=DOUBLE,
@@ -43,7 +44,7 @@ class GroundAlgorithm(GistoolsAlgorithm):
                                               defaultValue=GROUND.ivf_n, minValue=0), advanced=True)
         self.add(QgsProcessingParameterBoolean("KEEP_CLASSES", "Points no longer ground or noise keep their class (else 1)",
                                                defaultValue=GROUND.keep_classes), advanced=True)
-        self.add(QgsProcessingParameterEnum("FORMAT", "Output format", options=POINT_FORMATS,
+        self.add(QgsProcessingParameterEnum("FORMAT", "Output format", options=labels(POINT_FORMATS),
                                             defaultValue=POINT_FORMATS.index(GROUND.format)), advanced=True)
         self.add_crs()
         self.add_parallel()

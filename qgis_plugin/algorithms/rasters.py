@@ -9,7 +9,7 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from .base import GistoolsAlgorithm, DEM_METHODS, int_list, RASTER
+from .base import labels, GistoolsAlgorithm, DEM_METHODS, int_list, RASTER
 
 
 class _RastersBase(GistoolsAlgorithm):
@@ -25,7 +25,7 @@ class _RastersBase(GistoolsAlgorithm):
             self.add(QgsProcessingParameterString("DSM_CLASSES", "Classes in the DSM (empty = all but noise 7, 18)",
                                                   optional=True), advanced=True)
         if "dem" in self.products:
-            self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=DEM_METHODS,
+            self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=labels(DEM_METHODS),
                                                 defaultValue=DEM_METHODS.index(RASTER.dem_method)))
             self.add_length("DEM_MAX_DISTANCE", "DEM: leave cells farther than this from ground points empty", RASTER.dem_max_distance,
                             advanced=True)
@@ -80,7 +80,7 @@ class DemAlgorithm(_RastersBase):
 
 
 class RastersAlgorithm(_RastersBase):
-    _name, _display = "rasters", "DSM, DEM and nDSM of a tile folder"
+    _name, _display = "rasters", "DSM, DEM and nDSM"
     _help = "DSM, DEM and nDSM (= DSM - DEM) of every tile, each tile decoded once (gistools rasters)."
     products = ("dsm", "dem", "ndsm", "topclass")
     outputs = {"dsm": ("DSM", "DSM"), "dem": ("DEM", "DEM"), "ndsm": ("NDSM", "nDSM"),

@@ -17,13 +17,13 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import (GistoolsAlgorithm, GROUP_SHRUB, DEM_METHODS, PRESETS, CLASSIFY, BANDS, float_list, SHRUB,
-                   RASTER, band_choices, text_list)
+from .base import (labels, PRESET_LABEL, CLASS_METHOD_LABEL, BREAKS_LABEL, GistoolsAlgorithm, GROUP_SHRUB,
+                   DEM_METHODS, PRESETS, CLASSIFY, BANDS, float_list, SHRUB, RASTER, band_choices, text_list)
 from ..compat import VECTOR_LINE, VECTOR_POLYGON
 
 
 class ShrubChainAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "shrubchain", "Shrub density map (whole chain)", GROUP_SHRUB
+    _name, _display, _group = "shrubchain", "Shrub map (whole chain)", GROUP_SHRUB
     _help = ("The whole shrub chain on a tile folder (gistools shrub): DSM / DEM / nDSM, height bands, road and water "
              "clipping, vegetation density, light / medium / heavy classes, class polygons, a printable map and "
              "report.json, tile by tile (resumable, one bad tile is reported and the others go on).")
@@ -40,15 +40,15 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterField("TILE_FIELD", "Tile number field", defaultValue=SHRUB.tile_field,
                                              parentLayerParameterName="TILE_INDEX", optional=True))
         self.add_length("CELL_SIZE", "Cell size", RASTER.cell_size)
-        self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=DEM_METHODS,
+        self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=labels(DEM_METHODS),
                                             defaultValue=DEM_METHODS.index(RASTER.dem_method)), advanced=True)
-        self.add(QgsProcessingParameterEnum("PRESET", "Band limits", options=PRESETS, defaultValue=PRESETS.index(SHRUB.bands)))
+        self.add(QgsProcessingParameterEnum("PRESET", PRESET_LABEL, options=labels(PRESETS), defaultValue=PRESETS.index(SHRUB.bands)))
         self.add_length("NOISE_FLOOR", "Heights up to this are bare ground", SHRUB.noise_floor, advanced=True)
         self.add_length("RADIUS", "Density radius", SHRUB.radius)
         self.add(QgsProcessingParameterEnum("DENSITY_BANDS", "Bands whose vegetation counts", options=BANDS,
                                             allowMultiple=True, defaultValue=band_choices(SHRUB.density_bands)))
-        self.add(QgsProcessingParameterEnum("METHOD", "Class breaks", options=CLASSIFY, defaultValue=CLASSIFY.index(SHRUB.classify)))
-        self.add(QgsProcessingParameterString("BREAKS", "Cover breaks light/medium, medium/heavy", 
+        self.add(QgsProcessingParameterEnum("METHOD", CLASS_METHOD_LABEL, options=labels(CLASSIFY), defaultValue=CLASSIFY.index(SHRUB.classify)))
+        self.add(QgsProcessingParameterString("BREAKS", BREAKS_LABEL, 
                                               defaultValue=text_list(SHRUB.class_breaks)))
         self.add_length("MAX_ROAD_WIDTH", "Widest road face", SHRUB.max_road_width, advanced=True)
         self.add_length("SNAP", "Breakline snapping tolerance", SHRUB.snap, advanced=True)

@@ -13,8 +13,8 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import (GistoolsAlgorithm, GROUP_LIDAR, GROUP_SHRUB, PRESETS, CLASSIFY, Z_UNITS, BANDS,
-                   float_list, SHRUB, band_choices, text_list)
+from .base import (labels, PRESET_LABEL, CLASS_METHOD_LABEL, BREAKS_LABEL, GistoolsAlgorithm, GROUP_LIDAR,
+                   GROUP_SHRUB, PRESETS, CLASSIFY, Z_UNITS, BANDS, float_list, SHRUB, band_choices, text_list)
 from ..compat import VECTOR_LINE, VECTOR_POINT, VECTOR_POLYGON
 
 
@@ -37,7 +37,7 @@ class NdsmAlgorithm(GistoolsAlgorithm):
 
 
 class BandsAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "bands", "Height bands", GROUP_SHRUB
+    _name, _display, _group = "bands", "Step 1: height bands", GROUP_SHRUB
     _help = ("Height bands of an nDSM: 0 = B0 ground (h <= noise floor, or topped by a ground / water return), "
              "1 = B1 0-1 m, 2 = B2 1-2 m, 3 = B3 2-6 m, 4 = above, 255 = nodata. Thresholds are in metres and converted "
              "to the nDSM's vertical unit (6 m = 19.685 ftUS); 'text_literal' uses the dissertation's printed feet.")
@@ -46,7 +46,7 @@ class BandsAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterRasterLayer("NDSM", "nDSM"))
         self.add(QgsProcessingParameterRasterLayer("TOP_CLASS", "Class of the highest first return (from the DSM step)",
                                                    optional=True))
-        self.add(QgsProcessingParameterEnum("PRESET", "Band limits", options=PRESETS, defaultValue=PRESETS.index(SHRUB.bands)))
+        self.add(QgsProcessingParameterEnum("PRESET", PRESET_LABEL, options=labels(PRESETS), defaultValue=PRESETS.index(SHRUB.bands)))
         self.add(QgsProcessingParameterString("BREAKS", "Or three band limits in metres (e.g. 1,2,6)", optional=True),
                  advanced=True)
         self.add_length("NOISE_FLOOR", "Heights up to this are bare ground", SHRUB.noise_floor)
@@ -75,7 +75,7 @@ class BandsAlgorithm(GistoolsAlgorithm):
 
 
 class BreaklinesAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "breaklines", "Breaklines to road and water polygons", GROUP_SHRUB
+    _name, _display, _group = "breaklines", "Step 2: road and water polygons", GROUP_SHRUB
     _help = ("The dissertation's Split (by the tile index) and Feature To Polygon: edge-of-pavement lines and "
              "hydrographic breaklines are split by each tile footprint, noded with a snapping tolerance and "
              "polygonised; faces wider than the maximum width are blocks between roads, not road. Water bodies "
@@ -120,7 +120,7 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
 
 
 class ClipAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "clip", "Clip roads and water, select wetland vegetation", GROUP_SHRUB
+    _name, _display, _group = "clip", "Step 3: clip roads and water", GROUP_SHRUB
     _help = ("Vegetation = height band minus road minus water, by cell centre (the dissertation's Clip and Select By "
              "Location on Raster To Point output). Codes: 0 none, 1-3 band of a vegetation cell, 4 road, 5 water, "
              "255 nodata. Vegetation inside wetland polygons is a second output.")
@@ -151,7 +151,7 @@ class ClipAlgorithm(GistoolsAlgorithm):
 
 
 class DensityAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "density", "Vegetation density and cover", GROUP_SHRUB
+    _name, _display, _group = "density", "Step 4: vegetation density", GROUP_SHRUB
     _help = ("Point density of vegetation cells (each stands for one Raster To Point point) over a circle: cover = "
              "share of the cell centres within the radius that are vegetation (0-1); density = points per CRS area "
              "unit. Blocks read a halo of the radius, so block and tile edges do not show.")
@@ -179,15 +179,15 @@ class DensityAlgorithm(GistoolsAlgorithm):
 
 
 class ClassifyAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "classify", "Shrub density classes", GROUP_SHRUB
+    _name, _display, _group = "classify", "Step 5: shrub classes", GROUP_SHRUB
     _help = ("Light / medium / heavy shrub classes from cover: 0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water, "
              "255 nodata. 'breaks' uses the given cover breaks (default 0.3, 0.7), 'quantile' and 'jenks' compute them.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("COVER", "Cover (from the density step)"))
         self.add(QgsProcessingParameterRasterLayer("VEGETATION", "Vegetation (marks road and water)", optional=True))
-        self.add(QgsProcessingParameterEnum("METHOD", "Class breaks", options=CLASSIFY, defaultValue=CLASSIFY.index(SHRUB.classify)))
-        self.add(QgsProcessingParameterString("BREAKS", "Cover breaks light/medium, medium/heavy", 
+        self.add(QgsProcessingParameterEnum("METHOD", CLASS_METHOD_LABEL, options=labels(CLASSIFY), defaultValue=CLASSIFY.index(SHRUB.classify)))
+        self.add(QgsProcessingParameterString("BREAKS", BREAKS_LABEL, 
                                               defaultValue=text_list(SHRUB.class_breaks)))
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Shrub classes"))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_POLYGONS", "Shrub class polygons",

@@ -19,7 +19,7 @@ from ..compat import DOUBLE
 
 
 class StructureAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "structure", "Structure reconstruction (closed 3D mesh)", ("Structure", "structure")
+    _name, _display, _group = "structure", "Structure mesh (closed 3D)", ("Structure", "structure")
     _help = ("A building's point cloud (ID X Y Z text, or LAS/LAZ) of floor outlines and floor plates to levels, "
              "clusters, loops with holes, matched walls and a watertight, consistently wound mesh (PLY, OBJ), with the "
              "loops as 3D lines (gistools structure). Parameters are estimated from the data unless given.")

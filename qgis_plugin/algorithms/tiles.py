@@ -11,7 +11,7 @@ from qgis.core import (
     QgsProcessingParameterString,
 )
 
-from .base import GistoolsAlgorithm, RETURNS, int_list, POINTS, text_list
+from .base import labels, GistoolsAlgorithm, RETURNS, int_list, POINTS, text_list
 
 
 class InfoAlgorithm(GistoolsAlgorithm):
@@ -47,7 +47,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
 
 
 class PointsAlgorithm(GistoolsAlgorithm):
-    _name, _display = "points", "LAS to points (ground / non-ground)"
+    _name, _display = "points", "LAS to points (by class)"
     _help = ("The dissertation's LAS To Multipoint: per tile, a point layer (GeoPackage, or GeoParquet) with x, y, z, "
              "class, return number and intensity of the chosen classes and returns, streamed in chunks. "
              "Non-ground: classes 1,2 first returns; ground: class 2, any return.")
@@ -56,8 +56,8 @@ class PointsAlgorithm(GistoolsAlgorithm):
         self.add_tiles()
         self.add(QgsProcessingParameterString("CLASSES", "ASPRS classes (comma-separated; empty = all)", defaultValue=text_list(POINTS["classes"]),
                                               optional=True))
-        self.add(QgsProcessingParameterEnum("RETURNS", "Returns", options=RETURNS, defaultValue=RETURNS.index(POINTS["returns"])))
-        self.add(QgsProcessingParameterEnum("FORMAT", "Format", options=["gpkg", "parquet"], defaultValue=0), advanced=True)
+        self.add(QgsProcessingParameterEnum("RETURNS", "Returns", options=labels(RETURNS), defaultValue=RETURNS.index(POINTS["returns"])))
+        self.add(QgsProcessingParameterEnum("FORMAT", "Format", options=labels(["gpkg", "parquet"]), defaultValue=0), advanced=True)
         self.add_crs()
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Point layers folder"))
         self.addOutput(QgsProcessingOutputNumber("POINTS", "Points written"))
