@@ -28,10 +28,23 @@ def _ring(w, s, e, n) -> list:
     return [[w, s], [e, s], [e, n], [w, n], [w, s]]
 
 
-def _item(vpc_dir: Path, path: Path, bounds, z_range, count: int, crs: pyproj.CRS) -> dict:
+class _CrsFacts:
+    """What each item needs of a CRS, worked out once per CRS (a transformer takes tens of milliseconds to make)."""
+
+    def __init__(self):
+        self._known = {}
+
+    def __call__(self, crs: pyproj.CRS):
+        key = crs.to_wkt()
+        if key not in self._known:
+            horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+            self._known[key] = (pyproj.Transformer.from_crs(horizontal, "EPSG:4326", always_xy=True), key, crs.to_epsg())
+        return self._known[key]
+
+
+def _item(vpc_dir: Path, path: Path, bounds, z_range, count: int, crs: pyproj.CRS, facts: _CrsFacts) -> dict:
     w, s, e, n = (float(v) for v in bounds)
-    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
-    to_wgs84 = pyproj.Transformer.from_crs(horizontal, "EPSG:4326", always_xy=True)
+    to_wgs84, wkt, epsg = facts(crs)
     lon0, lat0, lon1, lat1 = to_wgs84.transform_bounds(w, s, e, n, densify_pts=21)
     props = {
         "datetime": "0001-01-01T00:00:00Z",
@@ -41,9 +54,8 @@ def _item(vpc_dir: Path, path: Path, bounds, z_range, count: int, crs: pyproj.CR
         "pc:schemas": [],
         "proj:bbox": [w, s, float(z_range[0]), e, n, float(z_range[1])],
         "proj:geometry": {"type": "Polygon", "coordinates": [_ring(w, s, e, n)]},
-        "proj:wkt2": crs.to_wkt(),
+        "proj:wkt2": wkt,
     }
-    epsg = crs.to_epsg()
     if epsg is not None:
         props["proj:epsg"] = epsg
     return {
@@ -62,7 +74,8 @@ def _item(vpc_dir: Path, path: Path, bounds, z_range, count: int, crs: pyproj.CR
 def write_vpc(path, tiles, *, overwrite: bool = True) -> Path:
     """Write the VPC of ``tiles`` [(file, (west, south, east, north), (zmin, zmax), point count, CRS)], atomically."""
     path = Path(path)
-    items = [_item(path.parent.resolve(), Path(f).resolve(), b, zr, c, crs) for f, b, zr, c, crs in tiles]
+    facts = _CrsFacts()
+    items = [_item(path.parent.resolve(), Path(f).resolve(), b, zr, c, crs, facts) for f, b, zr, c, crs in tiles]
     doc = {"type": "FeatureCollection", "features": items}
     with atomic_path(path, overwrite=overwrite) as tmp:
         tmp.write_text(json.dumps(doc, indent=1))

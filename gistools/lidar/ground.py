@@ -252,7 +252,7 @@ def slope_threshold(zipro: np.ndarray, p: "SmrfParams") -> np.ndarray:
                          float(p.z_per_xy), float(p.threshold), float(p.scalar), out)
         return out
     gy, gx = np.gradient(zipro, p.cell)
-    grade = np.hypot(gx, gy) / p.z_per_xy  # true rise over run
+    grade = np.sqrt(gx * gx + gy * gy) / p.z_per_xy  # true rise over run (as the kernel computes it)
     return p.threshold + p.scalar * grade
 
 
