@@ -147,6 +147,31 @@ def test_provider_lists_every_algorithm(qgis):
     assert children["classify"].parameterSources()["COVER"][0].outputChildId() == "density"
 
 
+def test_the_toolbox_reads_as_an_analyst_expects(qgis):
+    """Names that fit the dock, the shrub steps in their order, a Help link, parameters and outputs listed, the
+    library's choices in words, the model's form in the chain's order with the road breaklines optional."""
+    from qgis.core import QgsApplication
+
+    provider = QgsApplication.processingRegistry().providerById("gistools")
+    algs = {a.name(): a for a in provider.algorithms()}
+    assert max(len(a.displayName()) for a in algs.values()) <= 32
+    steps = sorted(a.displayName() for a in algs.values() if a.groupId() == "shrub")
+    assert steps[0] == "Shrub map (whole chain)" and [d.split(":")[0] for d in steps[1:]] == [f"Step {i}" for i in range(1, 6)]
+    for a in algs.values():
+        assert a.helpUrl().startswith("https://") and "#" in a.helpUrl(), a.name()
+        if a.name() != "shrub_density":  # the model's help is its own text
+            assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
+    bands = algs["bands"].parameterDefinition("PRESET").options()
+    assert bands == ["Exact metres: 1 / 2 / 6 m", "As printed in the dissertation: 3.28 / 6.56 / 19.658 ft"]
+    assert "fractions 0-1" in algs["classify"].parameterDefinition("BREAKS").description()
+    assert algs["aquifer"].parameterDefinition("Z_FIELD").parentLayerParameterName() == "INPUT"
+    assert algs["runway"].parameterDefinition("TYPE_FIELD").defaultValue() == "type"
+    model = QgsApplication.processingRegistry().algorithmById("gistools:shrub_density")
+    inputs = [p.name() for p in model.parameterDefinitions() if not p.isDestination()]
+    assert inputs == ["TILES", "ROADS", "HYDRO", "WATERBODIES", "WETLANDS", "TILE_INDEX", "TILE_FIELD", "CELL_SIZE", "RADIUS"]
+    assert model.parameterDefinition("ROADS").flags() & model.parameterDefinition("HYDRO").flags()  # both optional
+
+
 def test_info_counts_every_point(qgis, sample_tiles):
     import laspy
 
@@ -458,8 +483,9 @@ def test_point_cloud_layers_as_input(qgis, reference, sample_tiles, tmp_path):
         same_cells(result["OUTPUT"], reference / "dsm.vrt")
     finally:
         QgsProject.instance().removeMapLayers([lyr.id() for lyr in layers])
-    with pytest.raises(QgsProcessingException, match="no tiles"):
+    with pytest.raises(QgsProcessingException) as err:  # refused before the run, naming both inputs by their labels
         qgis.run("gistools:dsm", {"OUTPUT_FOLDER": str(tmp_path / "none")})
+    assert "No tiles" in str(err.value) and "'Folder of LAS/LAZ tiles'" in str(err.value) and "POINT_CLOUDS" not in str(err.value)
 
 
 def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
@@ -489,7 +515,7 @@ def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
     with pytest.raises(QgsProcessingException) as err:  # a layer name not in the contacts: the library's one line
         qgis.run("gistools:aquifer", {"INPUT": f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "LAYERS": "LS,AU,AD",
                                       "OUTPUT_FOLDER": str(tmp_path / "bad")})
-    assert "layer 'AQ' is not in --layers" in str(err.value)
+    assert "layer 'AQ' is not in 'Layer names, top to bottom (comma-separated)'" in str(err.value)  # the dialog's label
 
 
 def test_runway_algorithm_equals_the_library(qgis, tmp_path):
@@ -536,7 +562,8 @@ def test_bad_options_are_refused_before_any_output(qgis, reference, tmp_path):
                                    "OUTPUT": str(tmp_path / "cover.tif")}, "density radius '-5ft'"),
              ("gistools:classify", {"COVER": str(reference / "cover.vrt"), "METHOD": 0, "BREAKS": "0.7,0.3",
                                     "OUTPUT": str(tmp_path / "classes.tif")}, "increasing"),
-             ("gistools:dsm", {"INPUT": str(SAMPLE), "CELL_SIZE": "0", "OUTPUT_FOLDER": str(tmp_path / "d")}, "--cell-size")]
+             ("gistools:dsm", {"INPUT": str(SAMPLE), "CELL_SIZE": "0", "OUTPUT_FOLDER": str(tmp_path / "d")},
+              "'Cell size (with unit: m, ft, ftUS)'")]  # the dialog's label, not the command line's --cell-size
     for alg, params, needle in cases:
         with pytest.raises(QgsProcessingException) as err:
             qgis.run(alg, params)
@@ -564,7 +591,8 @@ def test_the_dem_methods_are_the_librarys_and_max_runs(qgis, tmp_path):
     from gistools.lidar.gridding import DEM_METHODS
 
     alg = QgsApplication.processingRegistry().algorithmById("gistools:dem")
-    assert alg.parameterDefinition("DEM_METHOD").options() == list(DEM_METHODS)
+    options = alg.parameterDefinition("DEM_METHOD").options()  # the library's methods in its order, in words
+    assert len(options) == len(DEM_METHODS) and "Highest ground point" in options[DEM_METHODS.index("max")]
     dem = qgis.run("gistools:dem", {"INPUT": str(SAMPLE), "DEM_METHOD": DEM_METHODS.index("max"),
                                     "OUTPUT_FOLDER": str(tmp_path / "q")})
     rasters_from_tiles([SAMPLE], tmp_path / "lib", RasterSettings(dem_method="max", products=("dem",)))

@@ -48,7 +48,7 @@ def build():
 
     R = D.raster  # the values the model passes are the library's defaults, as the algorithms' own
     model = QgsProcessingModelAlgorithm("shrub_density", "Models")
-    model.setHelpContent({"ALG_DESC": HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1"})
+    model.setHelpContent({"ALG_DESC": HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1", "HELP_URL": help_url()})
 
     inputs = [
         (QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=QgsProcessingParameterFile.Folder), 0),
@@ -125,6 +125,14 @@ def build():
     # the model outputs become destination parameters of the model (as the Model Designer does on save)
     model.updateDestinationParameters()
     return model
+
+
+def help_url() -> str:
+    """The README's QGIS section on the project's homepage (qgis_plugin/metadata.txt), as the algorithms' Help."""
+    for line in (ROOT / "qgis_plugin" / "metadata.txt").read_text().splitlines():
+        if line.startswith("homepage="):
+            return line.split("=", 1)[1].strip() + "#qgis"
+    return ""
 
 
 def load_plugin():
