@@ -164,6 +164,10 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
     bands = algs["bands"].parameterDefinition("PRESET").options()
     assert bands == ["Exact metres: 1 / 2 / 6 m", "As printed in the dissertation: 3.28 / 6.56 / 19.658 ft"]
     assert "fractions 0-1" in algs["classify"].parameterDefinition("BREAKS").description()
+    radius = algs["shrubchain"].parameterDefinition("RADIUS")
+    if hasattr(radius, "help"):  # a tooltip per parameter, with the unit rules
+        assert "Radius of the circle" in radius.help() and "CRS's own foot" in radius.help()
+        assert "Radius of the circle" in algs["shrubchain"].shortHelpString()
     assert algs["aquifer"].parameterDefinition("Z_FIELD").parentLayerParameterName() == "INPUT"
     assert algs["runway"].parameterDefinition("TYPE_FIELD").defaultValue() == "type"
     model = QgsApplication.processingRegistry().algorithmById("gistools:shrub_density")

@@ -463,6 +463,21 @@ def test_each_command_keeps_its_record_and_a_step_rerun_redoes_the_later_steps_a
     assert after["settings"] == rerun["settings"] and "steps_predate_rasters" not in after  # every tile kept
     assert [run["tool"] for run in after["runs"]][-2:] == ["gistools bands", "gistools rasters"]
     assert after["runs"][-2]["settings"]["noise_floor"] == "0.05m"
+    assert after["map_title"] == chain["map_title"] and chain["map_title"].startswith("Shrub density - ")
+
+
+def test_the_map_keeps_the_chains_title(shrub_run, tmp_path, monkeypatch):
+    import shutil
+
+    import gistools.plot as plot
+    from gistools.tasks.shrub import map_from_classes
+
+    out = tmp_path / "out"
+    shutil.copytree(shrub_run[0], out)
+    seen = {}
+    monkeypatch.setattr(plot, "shrub_map", lambda *a, **kw: seen.update(kw) or {"paths": []})
+    map_from_classes(out)
+    assert seen["title"] == json.loads((out / "report.json").read_text())["map_title"] != f"Shrub density - {out.name}"
 
 
 @pytest.mark.parametrize("step, own, others", [

@@ -251,7 +251,7 @@ def classify(**kw):
 
 @click.command(name="map")
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
-@click.option("--title", default=None, help="Map title (default: names the folder).")
+@click.option("--title", default=None, help="Map title (default: the title the chain gave it, from OUT/report.json).")
 def map_(out, title):
     """Draw the printable shrub map (PNG and PDF) of OUT/classes.vrt.
 

@@ -593,11 +593,12 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
     out = Path(out)
     if not (out / "classes.vrt").exists():
         raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")
+    summary = _previous_run(out) if unit is None or title is None else {}
     if unit is None:
-        summary = _previous_run(out)
         unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    title = title or summary.get("map_title") or f"Shrub density - {out.name}"  # the chain's title, kept across reruns
     with claim_output(out, "gistools map"):
-        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title or f"Shrub density - {out.name}", unit=unit,
+        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title, unit=unit,
                          parameters=map_parameters(out / "classes.vrt", out / "cover.vrt", unit))
 
 

@@ -93,9 +93,34 @@ LABELS = {
     "icao": "ICAO Annex 14 strip", "dissertation": "The dissertation's section", "ply": "PLY", "obj": "OBJ (Wavefront)",
     "gpkg": "GeoPackage", "parquet": "GeoParquet",
 }
+LENGTH_HELP = ("A length with its unit, the same rules in every gistools algorithm and on the command line: m; ft is the "
+               "CRS's own foot on a CRS in feet (international or US survey), else the international foot; ftUS is the "
+               "US survey foot; a bare number is in the CRS's unit.")
+# each parameter's help (the dialog's tooltips and the help panel), by name where a name means one thing everywhere
+HELP_BY_NAME = {
+    "CELL_SIZE": "Side of the raster cells; the cells snap to multiples of it, so tiles line up.",
+    "RADIUS": "Radius of the circle around each vegetation cell whose vegetated share is the cover (25 ft in the "
+              "dissertation).",
+    "NOISE_FLOOR": "Heights above ground up to this are bare ground (band B0), not low vegetation.",
+    "MAX_ROAD_WIDTH": "A face between road breaklines wider than this is a block between roads, not road.",
+    "SNAP": "Breakline ends closer than this are joined (the dissertation's 0.2 ft cluster tolerance).",
+    "DEM_MAX_DISTANCE": "DEM cells farther than this from every ground point stay nodata.",
+    "DENSITY_BANDS": "The height bands whose vegetation counts toward the cover (the dissertation counted B1 only).",
+    "JOBS": "Tiles processed at once, each in its own process.",
+    "SCHEDULER": "For runs past one machine: the address of a Dask scheduler (tcp://host:8786), or 'local'.",
+    "CRS": "The tiles' CRS where their headers carry none (or a wrong one); it replaces the headers' CRS.",
+}
 BREAKS_LABEL = "Cover breaks light / medium, medium / heavy (fractions 0-1, e.g. 0.3,0.7)"
 CLASS_METHOD_LABEL = "How the class breaks are chosen"
 PRESET_LABEL = "Height band limits"
+HELP_BY_LABEL = {
+    BREAKS_LABEL: "Cover fractions (0-1) between light and medium and between medium and heavy shrub. Used only when "
+                  "the class breaks are 'the cover breaks below'.",
+    CLASS_METHOD_LABEL: "The cover breaks below, or breaks found in the data: quantiles (equal areas) or Jenks natural "
+                        "breaks (both ignore the breaks below).",
+    PRESET_LABEL: "The limits of the height bands B1 (low shrub), B2 (medium) and B3 (tall): exact metres, or the "
+                  "values printed in the dissertation.",
+}
 
 
 def labels(values, **override) -> list[str]:
@@ -184,6 +209,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     def add(self, param, advanced: bool = False, help: str | None = None):  # noqa: A002 - QGIS's word
         if advanced:
             param.setFlags(param.flags() | ADVANCED)
+        help = help or HELP_BY_LABEL.get(param.description()) or HELP_BY_NAME.get(param.name())  # noqa: A001
         if help and hasattr(param, "setHelp"):
             param.setHelp(help)
         self.addParameter(param)
@@ -225,9 +251,11 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         self.add(QgsProcessingParameterString("SCHEDULER", "Dask scheduler address (tcp://host:8786), or 'local'",
                                               optional=True), advanced=True)
 
-    def add_length(self, name, description, default, optional=False, advanced=False):
+    def add_length(self, name, description, default, optional=False, advanced=False, help=None):  # noqa: A002
+        help = help or HELP_BY_NAME.get(name)  # noqa: A001
         self.add(QgsProcessingParameterString(name, f"{description} (with unit: m, ft, ftUS)", defaultValue=default,
-                                              optional=optional), advanced=advanced)
+                                              optional=optional), advanced=advanced,
+                 help=(help + " " if help else "") + LENGTH_HELP)
 
     def add_fields(self, layer: str, fields: dict):
         """Field pickers on ``layer`` ({NAME: (label, usual column)}), as QGIS's own algorithms offer them; left
