@@ -21,7 +21,8 @@ from gistools.aquifer.walls import unit_mesh
 from gistools.mesh import match_rings, mesh_volume
 from gistools.cli.main import cli
 from gistools.errors import InputError
-from gistools.tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query, load_model, query_model
+from gistools.tasks.aquifer import (AquiferSettings, aquifer_model, aquifer_query, build_model, compute_units, load_model,
+                                    query_model)
 
 DESIGN = SHARED_DATA.parent / "design"
 LAYERS = ["LS", "AU", "AD", "AQ"]
@@ -214,8 +215,8 @@ def test_model_outputs_meshes_and_report(tmp_path):
         assert set(u) >= {"volume", "volume_positive", "volume_negative", "thickness_min", "thickness_mean", "thickness_max"}
         mesh = trimesh.load(rep["outputs"]["meshes"][name], process=False)
         assert mesh.is_watertight and mesh.is_winding_consistent
-        if u["volume_negative"] == 0:  # surfaces do not cross: the closed solid holds the overlay volume
-            assert abs(mesh.volume) == pytest.approx(u["volume"], rel=1e-9)
+        if u["crossing_volume"] == 0:  # surfaces do not cross: the closed solid of the two TINs holds their overlay
+            assert abs(mesh.volume) == pytest.approx(u["volume_raw"], rel=1e-9)
         with rasterio.open(rep["outputs"]["thickness"][name]) as src:
             t = src.read(1, masked=True)
             cell_area = abs(src.transform.a * src.transform.e)
@@ -409,3 +410,31 @@ def test_contacts_with_other_column_names_read_through_the_chosen_fields(tmp_pat
     r = CliRunner().invoke(cli, ["aquifer", "model", str(tmp_path / "other.csv"), "--layers", ",".join(layers), "--crs",
                                  "EPSG:3003", "--fields", "z=ELEV,layer=FORM,id=PID", "--no-figures", "--out", str(tmp_path / "m")])
     assert r.exit_code == 0, r.output
+
+
+def test_a_unit_that_pinches_out_has_no_negative_thickness_and_its_analytic_volume(tmp_path):
+    """AU/AD of the synthetic aquifer thins to 0 at v = 15 km (T = max(0, 12 - 0.8 v) m) and its base has fewer boreholes
+    than its top: the two TINs cross (the raw order reports -7.7 m). The stratigraphic order (the isopach of the
+    boreholes) keeps thickness >= 0 and the analytic volume, 30 km x the integral of T over v = 2.7e9 m3, within 1 %;
+    the other two units (linear and quadratic thickness) against their analytic volumes too."""
+    points, _ = synthetic_aquifer(2012)
+    points.to_csv(tmp_path / "contacts.csv", index=False)
+    points = tmp_path / "contacts.csv"
+    layers = ["LS", "AU", "AD", "AQ"]
+    analytic = {"LS/AU": 9e8 * 37.5, "AU/AD": 30e3 * 1e3 * (12 * 15 - 0.4 * 15 ** 2), "AD/AQ": 9e8 * (50 + 0.05 * 75)}
+    model = build_model(points, layers, crs="EPSG:3003")
+    compute_units(model, AquiferSettings())
+    for name, volume in analytic.items():
+        u = model.units[name]
+        assert u["thickness_method"] == "isopach" and u["volume"]["volume"] == pytest.approx(volume, rel=0.01), name
+        assert u["thickness_min"] >= 0 and np.nanmin(u["thickness"][0]) >= 0
+    assert model.units["AU/AD"]["crossing_area"] > 1e8 and model.units["AU/AD"]["crossing_volume"] > 1e7  # reported
+    raw = build_model(points, layers, crs="EPSG:3003", settings=AquiferSettings(order="raw"))
+    compute_units(raw, AquiferSettings(order="raw"))
+    assert raw.units["AU/AD"]["thickness_min"] < -5 and raw.units["AU/AD"]["volume"]["volume_negative"] < 0
+    grid_t, grid = raw.units["AU/AD"]["thickness"]
+    r, c = np.unravel_index(np.nanargmin(grid_t), grid_t.shape)  # where the raw TINs cross the most
+    x, y = grid.transform * (c + 0.5, r + 0.5)
+    assert query_model(raw, x, y)["thickness"]["AU/AD"] < -5
+    ordered = query_model(model, x, y)
+    assert ordered["thickness"]["AU/AD"] == 0 and ordered["heights"]["AD"]["z_raw"] > ordered["heights"]["AD"]["z"]

@@ -15,7 +15,7 @@ import shapely.affinity
 
 from .surface import Surface, height_at
 
-__all__ = ["thickness_at", "overlay_volume", "common_footprint", "planes"]
+__all__ = ["tin_integral", "thickness_at", "overlay_volume", "common_footprint", "planes"]
 
 
 def thickness_at(upper: Surface, lower: Surface, qx, qy, method: str = "tin", *, clip_negative: bool = False, **kw):
@@ -168,6 +168,15 @@ def _fan(poly: np.ndarray, k: np.ndarray):
     if not tris:
         return np.zeros((0, 3, 2)), np.zeros(0, np.int64)
     return np.concatenate(tris), np.concatenate(owner)
+
+
+def tin_integral(surface: Surface, within, *, origin=None) -> tuple[float, float]:
+    """(exact integral of the TIN's z over ``within`` where the TIN is, the area of that part), CRS units."""
+    origin = surface.centre if origin is None else origin
+    w = shapely.affinity.translate(within, -origin[0], -origin[1])
+    shapely.prepare(w)
+    total, area, _, _ = _integral(surface, w, origin)
+    return total, area
 
 
 def overlay_volume(upper: Surface, lower: Surface, within=None, *, origin=None) -> dict:

@@ -37,11 +37,14 @@ def aquifer():
 @click.option("--matching", type=click.Choice(["3d", "2d"]), default="3d", show_default=True)
 @click.option("--mesh", "mesh_format", type=click.Choice(["ply", "obj"]), default="ply", show_default=True)
 @click.option("--no-figures", is_flag=True, help="Skip the PNG figures.")
+@click.option("--order", type=click.Choice(["stratigraphic", "raw"]), default="stratigraphic", show_default=True,
+              help="stratigraphic: a lower surface is never above the one above it (a unit that pinches out has thickness 0, "
+                   "not negative); raw: the TINs as they are. The crossing's area and volume are reported either way.")
 @fields_opt("id,x,y,z,layer,borehole_id", "z=ELEV,layer=FORMATION")
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol, k, abs_thr, c, f_nn, order_tol,
-          n_per_edge, densify, cell_size, matching, mesh_format, no_figures, fields, overwrite, quiet):
+          n_per_edge, densify, cell_size, matching, mesh_format, no_figures, order, fields, overwrite, quiet):
     """Cleaned TIN surfaces, boundaries, walls, closed unit meshes, thickness and volumes.
 
     INPUTS is one table (CSV or point layer: id, x, y, z, layer[, borehole_id]) or one file per
@@ -57,7 +60,7 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
     settings = AquiferSettings(xy_tol=xy_tol, k=k, abs_thr=abs_thr, c=c, f_nn=f_nn, order_tol=order_tol,
                                concave_ratio=concave_ratio, n_per_edge=n_per_edge, densify=densify, cell_size=cell_size,
                                matching=matching,
-                               mesh_format=mesh_format, figures=not no_figures)
+                               mesh_format=mesh_format, figures=not no_figures, order=order)
     source = list(inputs) if any("=" in i for i in inputs) else inputs[0]
     with progress_bar(quiet) as progress:
         rep = aquifer_model(source, names, out, crs=crs, swap_xy=swap_xy, settings=settings, within=within, clip=clip,
@@ -70,6 +73,12 @@ def model(inputs, layers, out, crs, swap_xy, within, clip, concave_ratio, xy_tol
         click.echo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / {u['volume_negative']:,.0f}) "
                    f"{rep['volume_unit']}; thickness min / mean / max {u['thickness_min']:.2f} / {u['thickness_mean']:.2f} / "
                    f"{u['thickness_max']:.2f} {rep['length_unit']}")
+        if u["crossing_area"] > 0 or u["crossing_volume"] > 0:
+            click.echo(f"  the {u['lower']} surface is above {u['upper']} on {u['crossing_area']:,.0f} square "
+                       f"{rep['length_unit']} ({u['crossing_volume']:,.0f} {rep['volume_unit']}): "
+                       + {"isopach": "the unit's thickness is its boreholes' (isopach), never below 0 (--order stratigraphic)",
+                          "clipped": "thickness 0 there (--order stratigraphic)",
+                          "raw": "counted negative (--order raw)"}[u["thickness_method"]])
     click.echo(f"report: {out}/report.json")
 
 

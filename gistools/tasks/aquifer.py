@@ -21,12 +21,13 @@ import shapely
 from ..io.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
-from ..aquifer.volume import common_footprint, overlay_volume
+from ..aquifer.isopach import isopach
+from ..aquifer.volume import common_footprint, overlay_volume, tin_integral
 from ..aquifer.walls import unit_mesh
 from ..io.meshes import write_obj, write_ply
 from ..mesh import is_closed, match_rings
 from ..errors import InputError, OutputExistsError
-from ..grid import evaluate_on_grid, snapped_grid
+from ..grid import cell_centres, evaluate_on_grid, snapped_grid
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path, write_raster
 from ..validation import check_count, check_length, check_number
@@ -35,6 +36,9 @@ from ..progress import ProgressCallback, report
 from ..units import horizontal_unit, length_to_crs_units
 
 __all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "query_model", "unit_name"]
+
+
+ORDERS = ("stratigraphic", "raw")
 
 
 @dataclass(frozen=True)
@@ -47,7 +51,10 @@ class AquiferSettings:
     counts). cell_size: thickness rasters (None: about 500 cells across). matching: "3d" or "2d".
     mesh_format: "ply" or "obj". figures: draw the PNG figures (needs matplotlib). densify: also write
     the densified points (``densified_<layer>.csv``, the dissertation's NewPoints files); their count
-    is always in the report.
+    is always in the report. order: "stratigraphic" (a lower surface is never above the one above it: where the
+    two TINs cross, as where a unit pinches out and its base has fewer boreholes than its top, the unit's
+    thickness is 0, not negative; volumes, thickness rasters and queries follow) or "raw" (the TINs as they are).
+    The crossing's area and volume are reported either way, as a quality figure.
     """
 
     xy_tol: str | float = "0.5m"
@@ -63,6 +70,7 @@ class AquiferSettings:
     mesh_format: str = "ply"
     figures: bool = True
     densify: bool = False
+    order: str = "stratigraphic"
 
     def validate(self) -> None:
         """Every option checked before anything is read or written."""
@@ -81,6 +89,8 @@ class AquiferSettings:
             raise InputError(f"--matching {self.matching!r} is not 3d or 2d")
         if self.mesh_format not in ("ply", "obj"):
             raise InputError(f"mesh format {self.mesh_format!r} is not ply or obj")
+        if self.order not in ORDERS:
+            raise InputError(f"--order {self.order!r} is not one of {', '.join(ORDERS)}", hint="Use --order stratigraphic")
 
 
 def unit_name(upper: str, lower: str) -> str:
@@ -98,6 +108,7 @@ class Model:
     surfaces: dict
     units: dict = field(default_factory=dict)
     links: pd.DataFrame | None = None
+    order: str = "stratigraphic"
 
 
 def _nice(step: float) -> float:
@@ -148,7 +159,7 @@ def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSet
     ov = order_violations(kept, surfaces, layers, osets.order_tol)
     if len(ov):
         flags = pd.concat([flags, ov], ignore_index=True)
-    return Model(list(layers), crs_obj, kept, flags, surfaces)
+    return Model(list(layers), crs_obj, kept, flags, surfaces, order=s.order)
 
 
 def _links(model: Model, metric: str) -> pd.DataFrame:
@@ -201,12 +212,48 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         extent = max(footprint.bounds[2] - footprint.bounds[0], footprint.bounds[3] - footprint.bounds[1])
         cell = length_to_crs_units(s.cell_size, unit_len, name="cell size") if s.cell_size else _nice(extent / 500)
         grid_t, grid = _thickness_grid(U, L, footprint, cell, model.crs)
-        model.units[unit_name(up, lo)] = {
-            "upper": up, "lower": lo, "volume": vol, "thickness_min": vol["thickness_min"], "thickness_max": vol["thickness_max"],
-            "thickness_mean": vol["volume"] / vol["area"] if vol["area"] > 0 else float("nan"),
-            "mesh": (verts, faces), "thickness": (grid_t, grid), "footprint": footprint, "region": region,
-            "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles),  # outer wall (+ hole walls)
-        }
+        unit = {"upper": up, "lower": lo, "mesh": (verts, faces), "footprint": footprint, "region": region,
+                "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles)}  # outer wall (+ hole walls)
+        figures = ordered_unit(vol, grid_t, grid, s.order)
+        if s.order == "stratigraphic":
+            iso = isopach(model.points, up, lo, length_to_crs_units(s.xy_tol, unit_len, name="xy tolerance"))
+            if iso is not None:
+                figures.update(_isopach_figures(iso, vol, region, grid, origin))
+        model.units[unit_name(up, lo)] = {**unit, **figures}
+
+
+def ordered_unit(vol: dict, grid_t: np.ndarray, grid, order: str) -> dict:
+    """A unit's volume, thickness figures and raster under ``order`` (AquiferSettings), with the crossing of its two
+    TINs (where the lower one is above: area from the thickness raster's cells, volume exact) as quality figures."""
+    crossing = np.isfinite(grid_t) & (grid_t < 0)
+    quality = {"crossing_area": float(np.count_nonzero(crossing) * grid.cell_size ** 2),
+               "crossing_volume": float(-vol["volume_negative"]), "volume_raw": float(vol["volume"])}
+    if order == "raw":
+        return {"volume": vol, "thickness_min": vol["thickness_min"], "thickness_max": vol["thickness_max"],
+                "thickness_mean": vol["volume"] / vol["area"] if vol["area"] > 0 else float("nan"),
+                "thickness": (grid_t, grid), "thickness_method": "raw", **quality}
+    positive = vol["volume_positive"]  # the exact integral of max(upper - lower, 0)
+    ordered = {**vol, "volume": positive, "volume_negative": 0.0}
+    return {"volume": ordered, "thickness_min": max(vol["thickness_min"], 0.0), "thickness_max": max(vol["thickness_max"], 0.0),
+            "thickness_mean": positive / vol["area"] if vol["area"] > 0 else float("nan"),
+            "thickness": (np.where(crossing, 0.0, grid_t), grid), "thickness_method": "clipped", **quality}
+
+
+def _isopach_figures(iso, vol: dict, region, grid, origin) -> dict:
+    """A unit's volume, thickness figures and raster from its isopach, where the isopach covers the unit's region
+    (to 0.1 %); else nothing (the clipped overlay stands)."""
+    total, covered = tin_integral(iso, region, origin=origin)
+    if vol["area"] <= 0 or covered < 0.999 * vol["area"]:
+        return {}
+    X, Y = np.meshgrid(*cell_centres(grid))
+    t, inside = height_at(iso, X.ravel(), Y.ravel())
+    raster = np.where(inside, t, np.nan).reshape(X.shape)
+    inside_w = shapely.contains_xy(region, iso.x, iso.y)
+    values = np.concatenate([iso.z[inside_w], raster[np.isfinite(raster)]])
+    return {"volume": {**vol, "volume": total, "volume_positive": total, "volume_negative": 0.0},
+            "thickness_min": float(values.min()) if values.size else float("nan"),
+            "thickness_max": float(values.max()) if values.size else float("nan"),
+            "thickness_mean": total / vol["area"], "thickness": (raster, grid), "thickness_method": "isopach"}
 
 
 def _layers_gpkg(model: Model) -> dict:
@@ -383,6 +430,9 @@ def _write_model(model, s: "AquiferSettings", out: Path, started: float, progres
             "volume": v["volume"], "volume_positive": v["volume_positive"], "volume_negative": v["volume_negative"],
             "area": v["area"], "thickness_min": u["thickness_min"], "thickness_mean": u["thickness_mean"],
             "thickness_max": u["thickness_max"], "wall_triangles": int(u["wall_triangles"]),
+            "upper": u["upper"], "lower": u["lower"], "order": s.order, "thickness_method": u["thickness_method"],
+            "crossing_area": u["crossing_area"], "crossing_volume": u["crossing_volume"],
+            "volume_raw": u["volume_raw"],
             "mesh_faces": int(len(u["mesh"][1])),
             "mesh_closed": is_closed(u["mesh"][1]),
         }
@@ -409,7 +459,8 @@ def load_model(out) -> Model:
     if st.get("clip"):
         clip = shapely.union_all(read_layer(st["clip"]).geometry.to_numpy())
     surfaces = _surfaces(pd.DataFrame(pts.drop(columns="geometry")), layers, clip, st.get("concave_ratio"))
-    return Model(layers, pyproj.CRS.from_wkt(rep["crs_wkt"]), pts, pd.DataFrame(), surfaces)
+    return Model(layers, pyproj.CRS.from_wkt(rep["crs_wkt"]), pts, pd.DataFrame(), surfaces,
+                 order=st.get("order", "raw"))  # models written before the order was applied are raw
 
 
 def aquifer_query(out, x, y, method: str = "tin", *, k: int = 10) -> dict:
@@ -424,10 +475,14 @@ def query_model(model: Model, x, y, method: str = "tin", *, k: int = 10) -> dict
     check_count(k, "--k", example="10")
     check_number(x, "--x", example="1517365")
     check_number(y, "--y", example="5031638")
-    heights = {}
+    heights, above = {}, None
     for layer in model.layers:
         z, inside = height_at(model.surfaces[layer], [x], [y], method, k=k)
-        heights[layer] = {"z": None if not np.isfinite(z[0]) else float(z[0]), "inside": bool(inside[0])}
+        h = {"z": None if not np.isfinite(z[0]) else float(z[0]), "inside": bool(inside[0])}
+        if model.order == "stratigraphic" and h["z"] is not None and above is not None and h["z"] > above:
+            h.update(z=above, z_raw=h["z"])  # a surface is never above the one above it
+        above = h["z"] if h["z"] is not None else above
+        heights[layer] = h
     thick = {}
     for up, lo in zip(model.layers[:-1], model.layers[1:]):
         a, b = heights[up]["z"], heights[lo]["z"]

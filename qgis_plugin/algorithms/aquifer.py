@@ -47,6 +47,10 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterBoolean("SWAP_XY", "Swap x and y", defaultValue=False), advanced=True)
         self.add_length("XY_TOL", "Duplicates: same position within", AQUIFER.xy_tol, advanced=True)
         self.add_length("ABS_THR", "Outliers: smallest residual threshold", AQUIFER.abs_thr, advanced=True)
+        self.add(QgsProcessingParameterEnum("ORDER", "Where the TINs of a unit's top and base cross",
+                                            options=["Stratigraphic: thickness from the boreholes (isopach), never below 0",
+                                                     "Raw: the two TINs as they are (thickness can go negative)"],
+                                            defaultValue=["stratigraphic", "raw"].index(AQUIFER.order)), advanced=True)
         self.add(QgsProcessingParameterEnum("MESH", "Mesh format", options=labels(["ply", "obj"]),
                                             defaultValue=["ply", "obj"].index(AQUIFER.mesh_format)), advanced=True)
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
@@ -63,7 +67,8 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         layers = [x.strip() for x in self.parameterAsString(parameters, "LAYERS", context).split(",") if x.strip()]
         settings = AquiferSettings(xy_tol=self.text(parameters, "XY_TOL", context),
                                    abs_thr=self.text(parameters, "ABS_THR", context),
-                                   mesh_format=["ply", "obj"][self.parameterAsEnum(parameters, "MESH", context)])
+                                   mesh_format=["ply", "obj"][self.parameterAsEnum(parameters, "MESH", context)],
+                                   order=["stratigraphic", "raw"][self.parameterAsEnum(parameters, "ORDER", context)])
         source = self.layer_spec(parameters, "INPUT", context, feedback)
         crs = self.layer_crs(parameters, "INPUT", context)
         rep = aquifer_model(source, layers, out, crs=crs, swap_xy=self.parameterAsBool(parameters, "SWAP_XY", context),
