@@ -64,28 +64,6 @@ def timed(fn, args):
     return value, time.perf_counter() - t
 
 
-_MEMORY_KEPT = False
-
-
-def keep_freed_memory() -> None:
-    """Make glibc keep freed memory in this process for reuse (Linux; once per process).
-
-    Each tile allocates and frees the same few hundred MB (points, TIN arrays); by default glibc
-    hands blocks this big back to the OS and the next tile pays the page faults again (about
-    12 % of a TIN's time). Called in worker processes only, whose memory is the run's anyway.
-    """
-    global _MEMORY_KEPT
-    if _MEMORY_KEPT or not sys.platform.startswith("linux"):
-        return
-    _MEMORY_KEPT = True
-    try:
-        libc = ctypes.CDLL(None)
-        libc.mallopt(-3, 1 << 30)  # M_MMAP_THRESHOLD: blocks up to 1 GiB come from the heap
-        libc.mallopt(-1, (1 << 31) - 1)  # M_TRIM_THRESHOLD: the heap is not trimmed
-    except (OSError, AttributeError):  # not glibc
-        pass
-
-
 def worker_timed(fn, args):
     """timed() in a worker process (local pool or Dask worker), with keep_freed_memory()."""
     keep_freed_memory()
@@ -118,18 +96,25 @@ def _watch_parent(parent: int) -> None:
             os._exit(1)
 
 
+_MEMORY_KEPT = False
+
+
 def keep_freed_memory() -> bool:
     """Where the C library is glibc: large arrays a tile frees stay in the process's heap for the next tile, instead
     of going back to the system and being faulted in (and zeroed) again page by page: a third of the time of
-    ``gistools ground`` on the benchmark block was that system time. For processes that do tile after tile (the
-    command line, the pool's workers); the memory high-water mark then stays with the process until it ends."""
-    if not sys.platform.startswith("linux"):
-        return False
+    ``gistools ground`` on the benchmark block was that system time (and about 12 % of a TIN's). For processes that
+    do tile after tile (the command line, the pool's and Dask's workers); the memory high-water mark then stays
+    with the process until it ends. No large block is mmap'ed (M_MMAP_MAX 0: glibc refuses an M_MMAP_THRESHOLD
+    above 32 MiB, smaller than a county tile's grids) and the heap is not trimmed. Once per process."""
+    global _MEMORY_KEPT
+    if _MEMORY_KEPT or not sys.platform.startswith("linux"):
+        return _MEMORY_KEPT
+    _MEMORY_KEPT = True
     try:
         libc = ctypes.CDLL("libc.so.6")
         m_trim_threshold, m_mmap_max = -1, -4  # malloc.h
         return bool(libc.mallopt(m_mmap_max, 0)) and bool(libc.mallopt(m_trim_threshold, 2**31 - 1))
-    except (OSError, AttributeError):
+    except (OSError, AttributeError):  # not glibc
         return False
 
 
