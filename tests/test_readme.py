@@ -73,3 +73,16 @@ def test_every_readme_command_block_runs_as_printed(tmp_path):
                               capture_output=True, text=True, timeout=1800)
         assert proc.returncode == 0, f"README bash block {i} failed:\n{block}\n{proc.stdout[-1500:]}\n{proc.stderr[-2500:]}"
         assert "Traceback" not in proc.stderr, f"README bash block {i}:\n{proc.stderr[-2500:]}"
+    # the model example as printed: every output where it was given, with the CLI's road and water classes (the
+    # cell-by-cell equality with gistools shrub is tests/test_qgis.py's) and its class polygons
+    import geopandas as gpd
+    import numpy as np
+    import rasterio
+
+    model = work / "out" / "qgis_model"
+    assert sorted(p.name for p in model.iterdir() if not p.name.endswith((".aux.xml", ".qml"))) == [
+        "classes.tif", "cover.tif", "shrub_classes.gpkg", "wetveg.tif"]
+    with rasterio.open(model / "classes.tif") as src:
+        codes = set(np.unique(src.read(1)).tolist())
+    assert {0, 1, 2, 3, 4, 5} <= codes
+    assert len(gpd.read_file(model / "shrub_classes.gpkg")) > 0
