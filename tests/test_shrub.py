@@ -505,3 +505,19 @@ def test_the_nodata_share_is_given_per_cause(shrub_run):
     assert set(causes) == {"no_first_return", "water", "no_ground_near"}
     assert sum(causes.values()) == pytest.approx(report["nodata_share"], abs=1e-9)
     assert causes["no_first_return"] > 0.05 and causes["water"] > 0  # the sample: 5 ft cells, a pond and a river
+
+
+def test_a_users_own_qml_beside_the_class_polygons_is_kept(shrub_run, tmp_path):
+    """Nothing lost: a style the user saved as shrub_classes.qml survives a rerun; gistools' own is rewritten."""
+    import shutil
+
+    out = tmp_path / "out"
+    shutil.copytree(shrub_run[0], out)
+    qml = out / "shrub_classes.qml"
+    assert "gistools style" in qml.read_text()
+    qml.write_text("<!DOCTYPE qgis><qgis><!-- my colours --></qgis>\n")
+    assert CliRunner().invoke(cli, ["classify", str(out), "-q", "--no-map"]).exit_code == 0
+    assert qml.read_text() == "<!DOCTYPE qgis><qgis><!-- my colours --></qgis>\n"
+    qml.unlink()
+    assert CliRunner().invoke(cli, ["classify", str(out), "-q", "--no-map"]).exit_code == 0
+    assert "gistools style" in qml.read_text()

@@ -14,7 +14,6 @@ Deterministic: the same seed writes the same points.
 from __future__ import annotations
 
 import argparse
-import shutil
 import sys
 from pathlib import Path
 
@@ -27,10 +26,11 @@ from shapely.geometry import box
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gistools.synthetic import COVER  # noqa: E402
-from gistools.tasks.examples import write_sample_block  # noqa: E402
+from gistools.tasks.examples import SAMPLE_TILE_IDS, write_sample_block  # noqa: E402
 
 CRS = pyproj.CRS.from_epsg(2882)
 LAZ_TILE = 35813  # the one LAZ tile (the block: gistools/tasks/examples.py write_sample_block)
+TILES = tuple(SAMPLE_TILE_IDS.values())
 
 
 def main(argv=None):
@@ -39,9 +39,15 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=35712)
     args = ap.parse_args(argv)
     out = Path(args.out)
+    mine = {f"{t}.{'laz' if t == LAZ_TILE else 'las'}" for t in TILES} | {"breaklines.gpkg", "truth.gpkg", "README.md"}
     if out.exists():
-        shutil.rmtree(out)
-    out.mkdir(parents=True)
+        others = sorted(p.name for p in out.iterdir() if p.name not in mine and not p.name.endswith(".aux.xml"))
+        if others:  # never delete what this tool did not write
+            sys.exit(f"make_sample_tiles: {out} holds files this tool did not write ({', '.join(others[:5])}); "
+                     "choose another --out or move them")
+        for name in mine:
+            (out / name).unlink(missing_ok=True)
+    out.mkdir(parents=True, exist_ok=True)
     scene, footprints = write_sample_block(out, seed=args.seed, laz=(LAZ_TILE,))
     for f in footprints:
         print(f"{f['FILENAME']}: {laspy.read(out / f['FILENAME']).header.point_count:,} points")

@@ -20,6 +20,7 @@ import rasterio
 from ..errors import DataFileError
 from ..grid import Grid
 from .atomic import atomic_path, check_nonempty, raise_output_error, unreadable_output
+from .styles import rgba
 
 __all__ = ["write_raster", "read_raster", "write_vrt", "atomic_path", "crs_from_wkt", "NODATA", "verify_raster",
            "raster_is_readable"]
@@ -95,14 +96,9 @@ def predictor_for(dtype: str, product: str | None = None) -> int:
     return 3 if dtype.startswith("float") else 2
 
 
-def _rgba(hex_colour: str) -> tuple[int, int, int, int]:
-    h = hex_colour.lstrip("#")
-    return int(h[0:2], 16), int(h[2:4], 16), int(h[4:6], 16), 255
-
-
 def set_colour_table(dst, categories: dict) -> None:
     """A palette on band 1 of an open (writable) dataset: ``categories`` {code: (name, "#rrggbb")}."""
-    dst.write_colormap(1, {int(c): _rgba(colour) for c, (_, colour) in categories.items()})
+    dst.write_colormap(1, {int(c): rgba(colour) for c, (_, colour) in categories.items()})
 
 
 def _category_names(categories: dict) -> list[str]:
@@ -240,7 +236,7 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: 
                                                   for n in _category_names(categories)) + "</CategoryNames>")
         lines.append("    <ColorTable>")
         for c in range(max(categories) + 1):
-            r, g, b, a = _rgba(categories[c][1]) if c in categories else (0, 0, 0, 0)
+            r, g, b, a = rgba(categories[c][1]) if c in categories else (0, 0, 0, 0)
             lines.append(f'      <Entry c1="{r}" c2="{g}" c3="{b}" c4="{a}"/>')
         lines.append("    </ColorTable>")
     for src_path, tr, w, h, _, nd, _ in metas:
