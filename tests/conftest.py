@@ -125,3 +125,39 @@ def tin_oracle(grid, paths, max_distance):
     for a in (interior, decided):
         a[:3, :] = a[-3:, :] = a[:, :3] = a[:, -3:] = False
     return ref, interior, nodata, decided
+
+
+def reference_tin_heights(x, y, z, gx, gy, gz):
+    """Heights above a scipy (Qhull) TIN of the ground points (gx, gy, gz), and, per point, whether its triangle is
+    one of two equally valid Delaunay choices (its circumcircle passes through a neighbouring triangle's far vertex,
+    to 1e-9 relative: points on a survey's lattice make such ties, and any two TINs may split those quads either
+    way). An independent reference for heights above ground: NaN outside the ground's hull."""
+    from scipy.spatial import Delaunay
+
+    x0, y0 = float(np.min(gx)), float(np.min(gy))
+    pts = np.column_stack([np.asarray(gx, float) - x0, np.asarray(gy, float) - y0])
+    tri = Delaunay(pts)
+    q = np.column_stack([np.asarray(x, float) - x0, np.asarray(y, float) - y0])
+    s = tri.find_simplex(q)
+    inside = s >= 0
+    h = np.full(len(q), np.nan)
+    t = tri.transform[s[inside]]
+    b = np.einsum("ijk,ik->ij", t[:, :2], q[inside] - t[:, 2])
+    w = np.column_stack([b, 1 - b.sum(axis=1)])
+    gz = np.asarray(gz, float)
+    h[inside] = np.asarray(z, float)[inside] - np.einsum("ij,ij->i", w, gz[tri.simplices[s[inside]]])
+    tied = np.zeros(len(q), bool)
+    verts = pts[tri.simplices]  # (ntri, 3, 2)
+    tie_tri = np.zeros(len(tri.simplices), bool)
+    for k in range(3):
+        nb = tri.neighbors[:, k]
+        has = nb >= 0
+        own = tri.simplices[has]  # neighbour k is opposite vertex k: the far vertex is the one it does not share
+        far = tri.simplices[nb[has]].sum(axis=1) - (own.sum(axis=1) - own[:, k])
+        a, bb, c = (verts[has, m] - pts[far] for m in range(3))
+        det = ((a ** 2).sum(1) * (bb[:, 0] * c[:, 1] - bb[:, 1] * c[:, 0]) - (bb ** 2).sum(1) * (a[:, 0] * c[:, 1] - a[:, 1] * c[:, 0])
+               + (c ** 2).sum(1) * (a[:, 0] * bb[:, 1] - a[:, 1] * bb[:, 0]))
+        scale = np.maximum.reduce([(a ** 2).sum(1), (bb ** 2).sum(1), (c ** 2).sum(1)]) ** 2
+        tie_tri[np.flatnonzero(has)[np.abs(det) <= 1e-9 * scale]] = True
+    tied[inside] = tie_tri[s[inside]]
+    return h, tied

@@ -37,7 +37,7 @@ import build_plugin  # noqa: E402
 B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
-ALGORITHMS = {"info", "points", "ground", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
+ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
               "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -631,3 +631,37 @@ def test_ground_in_processing_equals_the_library(qgis, tmp_path):
         a = laspy.read(t["output"]).classification
         b = laspy.read(tmp_path / "q" / Path(t["output"]).name).classification
         assert np.array_equal(np.asarray(a), np.asarray(b)), t["name"]
+
+
+def test_normalize_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:normalize writes the heights and classes the library writes, and loads its VPC."""
+    import laspy
+
+    from gistools.tasks.normalize import NormalizeSettings, normalize_from_tiles
+
+    lib = normalize_from_tiles(SAMPLE, tmp_path / "lib", NormalizeSettings(classify_vegetation=True),
+                               roads=spec("ROADBREAKLINE"), waterbodies=spec("WATERBODY"))
+    res = qgis.run("gistools:normalize", {"INPUT": str(SAMPLE), "CLASSIFY_VEGETATION": True,
+                                          "ROADS": layer("ROADBREAKLINE"), "WATERBODIES": layer("WATERBODY"),
+                                          "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert Path(res["VPC"]).is_file()
+    for t in lib["tiles"]:
+        a, b = laspy.read(t["output"]), laspy.read(tmp_path / "q" / Path(t["output"]).name)
+        assert np.array_equal(np.asarray(a.HeightAboveGround), np.asarray(b.HeightAboveGround)), t["name"]
+        assert np.array_equal(np.asarray(a.classification), np.asarray(b.classification)), t["name"]
+
+
+def test_metrics_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:metrics: the checklist and the free names together, the same cells as the library's."""
+    from gistools.tasks.metrics import MetricsSettings, metrics_from_tiles
+
+    names = ("count", "z_p95", "cover_above2m", "hag_above1m")
+    lib = metrics_from_tiles(SAMPLE, tmp_path / "lib", MetricsSettings(cell_size="10m", metrics=names))
+    alg = qgis.run("gistools:metrics", {"INPUT": str(SAMPLE), "CELL_SIZE": "10m", "METRICS": [0, 11, 15],
+                                        "MORE_METRICS": "hag_above1m", "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert alg["METRICS_FOLDER"] == str(tmp_path / "q")
+    for name in names:
+        for t in lib["tiles"]:
+            same_cells(t["outputs"][name], tmp_path / "q" / name / f"{t['name']}.tif")
+    with pytest.raises(QgsProcessingException, match="z_p101"):
+        qgis.run("gistools:metrics", {"INPUT": str(SAMPLE), "MORE_METRICS": "z_p101", "OUTPUT_FOLDER": str(tmp_path / "bad")})

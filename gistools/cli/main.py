@@ -79,6 +79,8 @@ def cli(verbose):
 
 from . import ground as _ground  # noqa: E402
 from . import info as _info  # noqa: E402
+from . import metrics as _metrics  # noqa: E402
+from . import normalize as _normalize  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
 from . import points as _points  # noqa: E402
 from . import shrub as _shrub  # noqa: E402
@@ -90,6 +92,8 @@ from . import examples as _examples  # noqa: E402
 cli.add_command(_info.info)
 cli.add_command(_ground.ground)
 cli.add_command(_rasters.rasters)
+cli.add_command(_normalize.normalize)
+cli.add_command(_metrics.metrics)
 cli.add_command(_aquifer.aquifer)
 cli.add_command(_runway.runway)
 cli.add_command(_structure.structure)

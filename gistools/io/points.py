@@ -418,22 +418,28 @@ def read_all_points(path):
                             hint="Check the file (a truncated copy?), or leave it out") from None
 
 
-def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE) -> dict:
-    """x, y, z, return_number, number_of_returns, classification of a tile's points inside ``box`` (west, south,
-    east, north; CRS units), withheld ones left out: a neighbour's buffer strip. COPC files are queried by
-    bounds (only the nodes that reach the box are decoded); others are streamed in chunks."""
+POINT_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification")
+
+
+def _empty_points(fields) -> dict:
+    return {k: np.zeros(0, np.uint16 if k == "intensity" else np.float64) for k in fields}
+
+
+def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, fields=POINT_FIELDS) -> dict:
+    """``fields`` (x, y, z, return_number, number_of_returns, classification; "intensity" too when asked) of a tile's
+    points inside ``box`` (west, south, east, north; CRS units), withheld ones left out: a neighbour's buffer strip.
+    COPC files are queried by bounds (only the nodes that reach the box are decoded); others are streamed in chunks."""
     w, s, e, n = box
     parts = []
     if _is_copc(info.path):
-        parts = [_copc_box(info.path, box)]
+        parts = [_copc_box(info.path, box, fields)]
     else:
-        for chunk in iter_chunks(info, chunk_size):
+        for chunk in iter_chunks(info, chunk_size, intensity="intensity" in fields):
             keep = (chunk.x >= w) & (chunk.x <= e) & (chunk.y >= s) & (chunk.y <= n) & ~chunk.withheld
             if keep.any():
-                parts.append({k: getattr(chunk, k)[keep] for k in ("x", "y", "z", "return_number", "number_of_returns",
-                                                                    "classification")})
+                parts.append({k: getattr(chunk, k)[keep] for k in fields})
     if not parts:
-        return {k: np.zeros(0) for k in ("x", "y", "z", "return_number", "number_of_returns", "classification")}
+        return _empty_points(fields)
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 
@@ -445,24 +451,22 @@ def _is_copc(path) -> bool:
         return False
 
 
-def _copc_box(path, box) -> dict:
+def _copc_box(path, box, fields=POINT_FIELDS) -> dict:
     w, s, e, n = box
     try:
         with laspy.CopcReader.open(path) as reader:
             lo, hi = reader.header.mins, reader.header.maxs  # a query box beyond the file overflows laspy's int32 keys
             qw, qs, qe, qn = max(w, lo[0]), max(s, lo[1]), min(e, hi[0]), min(n, hi[1])
             if qw > qe or qs > qn:
-                return {k: np.zeros(0) for k in ("x", "y", "z", "return_number", "number_of_returns", "classification")}
+                return _empty_points(fields)
             pts = reader.query(laspy.copc.Bounds(np.array([qw, qs]), np.array([qe, qn])))
     except Exception as err:
         raise DataFileError(f"cannot query the COPC file ({type(err).__name__}: {err})", path=path,
                             hint="Check the file, or convert it to LAZ") from None
     x, y = np.asarray(pts.x, np.float64), np.asarray(pts.y, np.float64)
     keep = (x >= w) & (x <= e) & (y >= s) & (y <= n) & ~np.asarray(pts.withheld, bool)
-    return {"x": x[keep], "y": y[keep], "z": np.asarray(pts.z, np.float64)[keep],
-            "return_number": np.asarray(pts.return_number, np.uint8)[keep],
-            "number_of_returns": np.asarray(pts.number_of_returns, np.uint8)[keep],
-            "classification": np.asarray(pts.classification, np.uint8)[keep]}
+    types = {**_DTYPES, "intensity": np.uint16}
+    return {k: np.asarray(getattr(pts, k), types[k])[keep] for k in fields}
 
 
 def write_all_points(las, path, *, overwrite: bool = False, copc_wkt: str | None = None) -> Path:

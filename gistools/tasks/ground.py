@@ -11,9 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import shutil
 import sys
-import tempfile
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -21,19 +19,19 @@ from pathlib import Path
 import numpy as np
 import shapely
 
-from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
+from ..errors import InputError, raise_if_every_tile_failed
 from ..io.atomic import atomic_path
-from ..io.outdir import SCRATCH_PREFIX, claim_output
-from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, points_in_box, read_all_points, read_tile_info,
+from ..io.outdir import claim_output
+from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.tiles import find_tiles
 from ..io.vpc import write_vpc
 from ..lidar.ground import GROUND_METHODS, RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
 from ..lidar.noise import NOISE_METHODS
-from ..progress import ProgressCallback, report
+from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_count, check_length, check_number, check_scheduler
-from .batch import make_pool, run_each
+from .buffered import buffered_passes, points_around, read_headers
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
@@ -169,11 +167,8 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     withheld = np.asarray(las.withheld, bool) if "withheld" in las.point_format.dimension_names else np.zeros(len(own["x"]), bool)
     w, s, e, n = info.bounds
     box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
-    parts = [{k: a[~withheld] for k, a in own.items()}]
-    used = []
-    for kind, name, source in neighbours:
-        parts.append(_strip_in_box(source, box) if kind == "strip" else points_in_box(read_tile_info(source, override), box))
-        used.append(name)
+    parts = [{k: a[~withheld] for k, a in own.items()}, *points_around(neighbours, box, crs_text)]
+    used = [name for _kind, name, _source in neighbours]
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
     if water_wkb:  # returns on the water polygons are water, out of the ground filter
         inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
@@ -193,9 +188,6 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
             "points_by_class": counts, "neighbours": used, "bounds": list(info.bounds), "z_range": list(info.z_range)}
 
 
-_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification")
-
-
 @contextlib.contextmanager
 def _quiet_stdout(active: bool):
     """The process's file descriptor 1 sent to /dev/null for the block (C libraries that print), when ``active``."""
@@ -211,27 +203,6 @@ def _quiet_stdout(active: bool):
     finally:
         os.dup2(saved, 1)
         os.close(saved)
-
-
-def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
-    """Pass 1: the points of a tile within ``buffer`` of its edges (what its neighbours read), saved in the scratch
-    folder, so each tile is decoded twice in a run, not once per neighbour."""
-    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    pts = points_in_box(info, (-np.inf, -np.inf, np.inf, np.inf))
-    w, s, e, n = info.bounds
-    inner = (w + buffer, s + buffer, e - buffer, n - buffer)
-    deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
-    target = Path(scratch) / f"{name}.npz"
-    np.savez(target, **{k: pts[k][~deep] for k in _FIELDS})
-    return {"strip": str(target), "inner": inner}
-
-
-def _strip_in_box(path: str, box) -> dict:
-    with np.load(path) as f:
-        pts = {k: f[k] for k in _FIELDS}
-    w, s, e, n = box
-    keep = (pts["x"] >= w) & (pts["x"] <= e) & (pts["y"] >= s) & (pts["y"] <= n)
-    return {k: v[keep] for k, v in pts.items()}
 
 
 def _wkt1(crs) -> str:
@@ -277,35 +248,10 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
                                                      water))
 
 
-def _neighbours(infos: dict, name: str, buffer: float) -> list[str]:
-    w, s, e, n = infos[name].bounds
-    hits = []
-    for other, info in infos.items():
-        ow, os_, oe, on = info.bounds
-        if other != name and ow <= e + buffer and oe >= w - buffer and os_ <= n + buffer and on >= s - buffer:
-            hits.append(str(info.path))
-    return hits
-
-
-def _read_headers(paths, out: Path, settings: GroundSettings, override) -> tuple[dict, dict]:
-    """(a state per tile, the header of each tile that reads); a tile whose output would be itself fails."""
-    states, infos = {}, {}
-    for p in paths:
-        st = states[p.stem] = _TileState(p.stem, str(p))
-        if Path(p).resolve().parent == out.resolve() and _output_name(p, settings.format) == p.name:
-            st.status, st.error = "failed", f"{p}: the output would overwrite this input; choose another --out"
-            continue
-        try:
-            infos[p.stem] = read_tile_info(p, override)
-        except GistoolsError as err:
-            st.status, st.error = "failed", str(err)
-    return states, infos
-
-
 def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress,
                water=None) -> dict:
     started = time.time()
-    states, infos = _read_headers(paths, out, settings, override)
+    states, infos = read_headers(paths, override, _TileState, lambda q: _output_name(q, settings.format), out)
     crs = common_crs(list(infos.values())) if infos else None
     p = _params(settings, next(iter(infos.values()))) if infos else None
     targets = {name: out / _output_name(info.path, settings.format) for name, info in infos.items()}
@@ -334,50 +280,11 @@ def _near(water, bounds, margin: float) -> list:
     return [shapely.to_wkb(g) for g in water if g.intersects(area)]
 
 
-@dataclass
-class _StripState:
-    name: str
-    status: str = "ok"
-    error: str | None = None
-    strip: str | None = None
-    inner: tuple | None = None
-
-
-def _sources(infos: dict, name: str, strips: dict, buffer: float) -> tuple[list, list]:
-    """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
-    w, s, e, n = infos[name].bounds
-    grown = (w - buffer, s - buffer, e + buffer, n + buffer)
-    sources, warnings = [], []
-    for path in _neighbours(infos, name, buffer):
-        nb = Path(path).stem
-        st = strips.get(nb)
-        if st is None or st.status != "ok":
-            warnings.append(f"neighbour {nb} could not be read ({st.error if st else 'no strip'}); "
-                            "the tile is classified without its points")
-            continue
-        iw, is_, ie, in_ = st.inner
-        overlaps_inner = iw < ie and is_ < in_ and grown[0] < ie and grown[2] > iw and grown[1] < in_ and grown[3] > is_
-        # overlapping tiles reach past a neighbour's edge strip: read that neighbour itself
-        sources.append(("tile", nb, path) if overlaps_inner else ("strip", nb, st.strip))
-    return sources, warnings
-
-
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
-    """Pass 1: the edge strips of the tiles and their neighbours; pass 2: each tile with its neighbours' strips
-    (inline, on local processes or on Dask). A failed tile is marked, the others go on."""
-    if not todo:
-        return
-    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in _neighbours(infos, n, p.buffer))]))
-    strips = {n: _StripState(n) for n in need}
-    done = [0]
-    total = len(need) + len(todo)
+    """Each tile with its neighbours' edge strips (tasks.buffered), inline, on local processes or on Dask."""
 
-    def tick(message):
-        done[0] += 1
-        report(progress, done[0] / max(total, 1), message)
-
-    def strip_done(name, value, seconds):
-        strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
+    def args(n, sources):
+        return (str(infos[n].path), sources, crs_text, p, str(targets[n]), _near(water, infos[n].bounds, p.buffer))
 
     def on_done(name, value, seconds):
         st = states[name]
@@ -385,26 +292,9 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
             setattr(st, k, value[k])
         st.seconds = round(seconds, 3)
 
-    scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX + "ground-", dir=out))
-    pool = make_pool(jobs, scheduler, len(todo))
-    try:
-        run_each(_strip_tile, [(n, str(infos[n].path), crs_text, p.buffer, str(scratch)) for n in need], pool, strips, need,
-                 strip_done, tick, "read", out)
-        for n in todo:
-            if strips[n].status == "failed":
-                states[n].status, states[n].error = "failed", strips[n].error
-        left = [n for n in todo if states[n].status != "failed"]
-        arglist = []
-        for n in left:
-            sources, warnings = _sources(infos, n, strips, p.buffer)
-            states[n].warnings = warnings
-            arglist.append((n, str(infos[n].path), sources, crs_text, p, str(targets[n]), _near(water, infos[n].bounds,
-                                                                                                   p.buffer)))
-        run_each(_ground_tile_named, arglist, pool, states, left, on_done, tick, "classified", out)
-    finally:
-        if pool is not None:
-            pool.close()
-        shutil.rmtree(scratch, ignore_errors=True)
+    buffered_passes(todo, infos, states, buffer=p.buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
+                    progress=progress, tile_fn=_ground_tile, tile_args=args, on_done=on_done, verb="classified",
+                    tag="ground")
 
 
 def _ground_report(settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc, started) -> dict:
@@ -421,7 +311,3 @@ def _ground_report(settings: GroundSettings, p: _Params | None, infos: dict, sta
         "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
         "seconds": round(time.time() - started, 3),
     }
-
-
-def _ground_tile_named(name, *args):
-    return _ground_tile(*args)

@@ -1,0 +1,208 @@
+"""Per-cell statistics of points (cell metrics, lasR ``rasterize(res, "z_p95")`` / lidR ``pixel_metrics``).
+
+Names as lasR's metric engine spells them: ``<attribute>_<metric>``, attribute ``z`` (elevation), ``i``
+(intensity) or ``hag`` (height above ground), metric ``count``, ``min``, ``max``, ``mean``, ``median``, ``sum``,
+``sd``, ``cv``, ``pNN`` (percentile, 0-100) or ``aboveX`` (the share of points above X, 0-1). Besides:
+``count`` and ``density`` (points per square metre), ``cover_aboveX`` (the share of first returns more than X
+above the ground), ``fhd`` and ``vci`` (foliage height diversity and vertical complexity index of the heights
+above ground, 1 m layers) and ``fuel_A_B`` (ladder fuel: the share of the returns at most B above the ground that
+are more than A above it). Definitions (the same as lasR's code where lasR has the metric): percentiles by linear
+interpolation between order statistics (R's type 7, numpy's default); sd is the sample standard deviation (n - 1;
+nodata for one point); cv = sd / mean (nodata where the mean is 0); aboveX is strictly above.
+
+Pure functions over numpy arrays; thresholds arrive in the points' units (the task converts "2m" / "6ft").
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["MetricSpec", "parse_metric", "cell_metrics", "ATTRIBUTES", "STATISTICS", "needs_heights", "LAYER_HEIGHT_M"]
+
+ATTRIBUTES = ("z", "i", "hag")
+STATISTICS = ("count", "min", "max", "mean", "median", "sum", "sd", "cv")
+LAYER_HEIGHT_M = 1.0  # fhd / vci layers (metres)
+_NUMBER = r"(\d+(?:\.\d+)?)"
+_LENGTH = r"(\d+(?:\.\d+)?)([a-zA-Z]*)"
+
+
+@dataclass(frozen=True)
+class MetricSpec:
+    """One metric: its name, attribute (z, i, hag or None), statistic, and its thresholds as written (number,
+    unit text: "" is the data's unit)."""
+
+    name: str
+    attribute: str | None
+    statistic: str
+    numbers: tuple = ()
+
+    @property
+    def on_heights(self) -> bool:
+        return self.attribute == "hag" or self.statistic in ("cover", "fhd", "vci", "fuel")
+
+
+def _bad(name: str, why: str) -> InputError:
+    return InputError(f"metric {name!r}: {why}", hint="e.g. --metrics count,z_max,z_p95,hag_above2m,cover_above2m,"
+                                                      "fuel_1_3m (README \"Cell metrics\" lists them)")
+
+
+def parse_metric(name: str) -> MetricSpec:
+    """A MetricSpec from a name; InputError naming the metric when it is not one (or a percentile is outside 0-100)."""
+    text = name.strip()
+    if text in ("count", "density", "fhd", "vci"):
+        return MetricSpec(text, None, text)
+    if m := re.fullmatch(r"cover_above" + _LENGTH, text):
+        return MetricSpec(text, None, "cover", ((float(m[1]), m[2]),))
+    if m := re.fullmatch(r"fuel_" + _NUMBER + "_" + _LENGTH, text):
+        low, high = float(m[1]), float(m[2])
+        if not low < high:
+            raise _bad(text, f"the stratum {low:g} to {high:g} is empty (give the lower height first)")
+        return MetricSpec(text, None, "fuel", ((low, m[3]), (high, m[3])))
+    attribute, _, stat = text.partition("_")
+    if attribute not in ATTRIBUTES or not stat:
+        raise _bad(text, f"not a metric name (attributes are {', '.join(ATTRIBUTES)}: z_max, i_mean, hag_p95, ...)")
+    if stat in STATISTICS:
+        return MetricSpec(text, attribute, stat)
+    if m := re.fullmatch(r"p" + r"(-?\d+(?:\.\d+)?)", stat):
+        p = float(m[1])
+        if not 0 <= p <= 100:
+            raise _bad(text, f"percentile {p:g} is outside 0-100")
+        return MetricSpec(text, attribute, "percentile", ((p, ""),))
+    if m := re.fullmatch(r"above" + r"(-?\d+(?:\.\d+)?)([a-zA-Z]*)", stat):
+        if attribute == "i" and m[2]:
+            raise _bad(text, "intensity thresholds have no unit")
+        return MetricSpec(text, attribute, "above", ((float(m[1]), m[2]),))
+    raise _bad(text, f"{stat!r} is not one of {', '.join(STATISTICS)}, pNN or aboveX")
+
+
+def needs_heights(specs) -> bool:
+    """True when a metric needs heights above ground."""
+    return any(s.on_heights for s in specs)
+
+
+class _Sorted:
+    """An attribute's values sorted within each cell (for medians and percentiles), computed once."""
+
+    def __init__(self, cell, values, count):
+        order = np.lexsort((values, cell))
+        self.values = values[order]
+        self.start = np.concatenate([[0], np.cumsum(count)[:-1]])
+        self.count = count
+
+    def percentile(self, p: float) -> np.ndarray:
+        k = self.count
+        ok = k > 0
+        rank = p / 100.0 * (k[ok] - 1)
+        lo = np.floor(rank).astype(np.int64)
+        hi = np.ceil(rank).astype(np.int64)
+        s = self.start[ok]
+        a, b = self.values[s + lo], self.values[s + hi]
+        out = np.full(len(k), np.nan)
+        out[ok] = a + (b - a) * (rank - lo)
+        return out
+
+
+def _statistic(stat: str, cell, v, count, n, sorted_) -> np.ndarray:
+    ok = count > 0
+    out = np.full(n, np.nan)
+    if stat == "count":
+        out[ok] = count[ok]
+    elif stat == "sum":
+        out[ok] = np.bincount(cell, weights=v, minlength=n)[ok]
+    elif stat in ("mean", "sd", "cv"):
+        mean = np.bincount(cell, weights=v, minlength=n)[ok] / count[ok]
+        if stat == "mean":
+            out[ok] = mean
+        else:
+            m = np.full(n, np.nan)
+            m[ok] = mean
+            ss = np.bincount(cell, weights=(v - m[cell]) ** 2, minlength=n)
+            two = count > 1
+            sd = np.full(n, np.nan)
+            sd[two] = np.sqrt(ss[two] / (count[two] - 1))
+            if stat == "sd":
+                out = sd
+            else:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    out = np.where(two & (m != 0), sd / m, np.nan)
+    elif stat in ("min", "max"):
+        acc = np.full(n, np.inf if stat == "min" else -np.inf)
+        (np.minimum if stat == "min" else np.maximum).at(acc, cell, v)
+        out[ok] = acc[ok]
+    elif stat == "median":
+        out = sorted_().percentile(50.0)
+    return out
+
+
+def _share(cell, hit, base, n) -> np.ndarray:
+    """Per cell: (points of ``base`` with ``hit``) / (points of ``base``); NaN where the cell has none of ``base``."""
+    den = np.bincount(cell[base], minlength=n)
+    num = np.bincount(cell[base & hit], minlength=n)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(den > 0, num / np.maximum(den, 1), np.nan)
+
+
+def _layer_entropy(cell, h, count, n, layer: float) -> tuple[np.ndarray, np.ndarray]:
+    """(Shannon entropy -sum p ln p of the points' shares in ``layer``-thick layers from the ground, the number of
+    layers from 0 to the cell's highest point) per cell; heights below 0 count in the first layer."""
+    layer_of = np.floor(np.maximum(h, 0) / layer).astype(np.int64)
+    top = np.zeros(n, np.int64)
+    np.maximum.at(top, cell, layer_of)
+    key = cell * (int(layer_of.max(initial=0)) + 1) + layer_of
+    keys, per = np.unique(key, return_counts=True)
+    kcell = keys // (int(layer_of.max(initial=0)) + 1)
+    p = per / count[kcell]
+    entropy = np.bincount(kcell, weights=-p * np.log(p), minlength=n)
+    return entropy, top + 1
+
+
+def cell_metrics(cell, n: int, specs, *, z=None, intensity=None, hag=None, first=None, thresholds=None,
+                 cell_area_m2: float = 1.0, layer: float = 1.0) -> dict:
+    """{metric name: float64 array of ``n`` cells, NaN where a cell has no point} for the points in cells ``cell``
+    (flat indices 0..n-1). ``z``, ``intensity``, ``hag``: per point (those the metrics need); ``first``: True for
+    first returns (cover). ``thresholds``: {metric name: numbers in the data's unit}, default the specs' numbers.
+    ``layer``: fhd / vci layer thickness in the heights' unit."""
+    cell = np.asarray(cell, np.int64)
+    count = np.bincount(cell, minlength=n)
+    values = {"z": z, "i": None if intensity is None else np.asarray(intensity, np.float64), "hag": hag}
+    cache: dict = {}
+    out = {}
+    entropy = None
+    for spec in specs:
+        nums = (thresholds or {}).get(spec.name, [v for v, _ in spec.numbers])
+        if spec.statistic in ("count", "density"):
+            r = np.where(count > 0, count.astype(np.float64), np.nan)
+            out[spec.name] = r if spec.statistic == "count" else r / cell_area_m2
+        elif spec.statistic == "cover":
+            out[spec.name] = _share(cell, hag > nums[0], np.asarray(first, bool), n)
+        elif spec.statistic == "fuel":
+            out[spec.name] = _share(cell, hag > nums[0], hag <= nums[1], n)
+        elif spec.statistic in ("fhd", "vci"):
+            if entropy is None:
+                entropy = _layer_entropy(cell, hag, count, n, layer)
+            h, layers = entropy
+            with np.errstate(divide="ignore", invalid="ignore"):
+                r = h if spec.statistic == "fhd" else np.where(layers > 1, h / np.log(layers), np.nan)
+            out[spec.name] = np.where(count > 0, r, np.nan)
+        else:
+            v = values[spec.attribute]
+            if spec.statistic == "above":
+                out[spec.name] = np.where(count > 0, np.bincount(cell[v > nums[0]], minlength=n) / np.maximum(count, 1),
+                                          np.nan)
+            elif spec.statistic == "percentile":
+                out[spec.name] = _sorted(cache, spec.attribute, cell, v, count).percentile(nums[0])
+            else:
+                out[spec.name] = _statistic(spec.statistic, cell, v, count, n,
+                                            lambda a=spec.attribute, v=v: _sorted(cache, a, cell, v, count))
+    return out
+
+
+def _sorted(cache: dict, attribute: str, cell, v, count) -> _Sorted:
+    if attribute not in cache:
+        cache[attribute] = _Sorted(cell, v, count)
+    return cache[attribute]

@@ -1,0 +1,163 @@
+"""Tiles that see their neighbours' points: two passes over a folder of tiles, shared by ``gistools ground``,
+``gistools normalize`` and ``gistools metrics``.
+
+Pass 1 decodes each tile once and keeps the points within ``buffer`` of its edges (what its neighbours need)
+in a scratch folder; pass 2 runs a function on each tile with its own points and its neighbours' strips, so a
+tiled run gives what a run on the merged tiles gives. Tiles run inline, on local processes or on Dask; one
+bad tile is reported and the others go on.
+"""
+
+from __future__ import annotations
+
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..io.outdir import SCRATCH_PREFIX
+from ..io.points import parse_crs_text, points_in_box, read_tile_info
+from ..progress import report
+from .batch import make_pool, run_each
+
+__all__ = ["STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers"]
+
+STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
+EVERYWHERE = (-np.inf, -np.inf, np.inf, np.inf)
+
+
+def read_headers(paths, override, make_state, output_name=None, out: Path | None = None) -> tuple[dict, dict]:
+    """({name: make_state(name, path)}, {name: TileInfo} of the headers that read); a tile that does not read, or
+    whose output (``out / output_name(path)``) would be the input itself, is marked failed."""
+    from ..errors import GistoolsError
+
+    states, infos = {}, {}
+    for p in paths:
+        st = states[p.stem] = make_state(p.stem, str(p))
+        if output_name is not None and Path(p).resolve().parent == Path(out).resolve() and output_name(p) == p.name:
+            st.status, st.error = "failed", f"{p}: the output would overwrite this input; choose another --out"
+            continue
+        try:
+            infos[p.stem] = read_tile_info(p, override)
+        except GistoolsError as err:
+            st.status, st.error = "failed", str(err)
+    return states, infos
+
+
+def tile_neighbours(infos: dict, name: str, buffer: float) -> list[str]:
+    """Paths of the tiles of ``infos`` (name -> TileInfo) whose bounds come within ``buffer`` of tile ``name``."""
+    w, s, e, n = infos[name].bounds
+    hits = []
+    for other, info in infos.items():
+        ow, os_, oe, on = info.bounds
+        if other != name and ow <= e + buffer and oe >= w - buffer and os_ <= n + buffer and on >= s - buffer:
+            hits.append(str(info.path))
+    return hits
+
+
+def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
+    """Pass 1: the points of a tile within ``buffer`` of its edges, saved in the scratch folder (so each tile is
+    decoded twice in a run, not once per neighbour)."""
+    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+    pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    w, s, e, n = info.bounds
+    inner = (w + buffer, s + buffer, e - buffer, n - buffer)
+    deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
+    target = Path(scratch) / f"{name}.npz"
+    np.savez(target, **{k: pts[k][~deep] for k in STRIP_FIELDS})
+    return {"strip": str(target), "inner": inner}
+
+
+def _strip_in_box(path: str, box) -> dict:
+    with np.load(path) as f:
+        pts = {k: f[k] for k in STRIP_FIELDS}
+    w, s, e, n = box
+    keep = (pts["x"] >= w) & (pts["x"] <= e) & (pts["y"] >= s) & (pts["y"] <= n)
+    return {k: v[keep] for k, v in pts.items()}
+
+
+def points_around(sources: list, box, crs_text=None) -> list[dict]:
+    """The neighbours' points inside ``box`` (west, south, east, north), one dict of STRIP_FIELDS per source given
+    to the tile function by buffered_passes (withheld points left out)."""
+    override = parse_crs_text(crs_text) if crs_text else None
+    parts = []
+    for kind, _name, source in sources:
+        if kind == "strip":
+            parts.append(_strip_in_box(source, box))
+        else:
+            parts.append(points_in_box(read_tile_info(source, override), box, fields=STRIP_FIELDS))
+    return parts
+
+
+@dataclass
+class _StripState:
+    name: str
+    status: str = "ok"
+    error: str | None = None
+    strip: str | None = None
+    inner: tuple | None = None
+
+
+def _sources(infos: dict, name: str, strips: dict, buffer: float) -> tuple[list, list]:
+    """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
+    w, s, e, n = infos[name].bounds
+    grown = (w - buffer, s - buffer, e + buffer, n + buffer)
+    sources, warnings = [], []
+    for path in tile_neighbours(infos, name, buffer):
+        nb = Path(path).stem
+        st = strips.get(nb)
+        if st is None or st.status != "ok":
+            warnings.append(f"neighbour {nb} could not be read ({st.error if st else 'no strip'}); "
+                            "the tile is done without its points")
+            continue
+        iw, is_, ie, in_ = st.inner
+        overlaps_inner = iw < ie and is_ < in_ and grown[0] < ie and grown[2] > iw and grown[1] < in_ and grown[3] > is_
+        # overlapping tiles reach past a neighbour's edge strip: read that neighbour itself
+        sources.append(("tile", nb, path) if overlaps_inner else ("strip", nb, st.strip))
+    return sources, warnings
+
+
+def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs: int,
+                    scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str) -> None:
+    """Pass 1 (the edge strips of the tiles of ``todo`` and of their neighbours), then pass 2: ``tile_fn(name,
+    *tile_args(name, sources))`` per tile, ``sources`` being what ``points_around`` reads. ``states``: name ->
+    an object with ``status`` / ``error`` / ``warnings`` (failures are marked there); ``on_done(name, value,
+    seconds)`` takes each result. A failed write to ``out`` stops the run; a failed tile does not."""
+    if not todo:
+        return
+    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in tile_neighbours(infos, n, buffer))]))
+    strips = {n: _StripState(n) for n in need}
+    done = [0]
+    total = len(need) + len(todo)
+
+    def tick(message):
+        done[0] += 1
+        report(progress, done[0] / max(total, 1), message)
+
+    def strip_done(name, value, seconds):
+        strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
+
+    scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
+    pool = make_pool(jobs, scheduler, len(todo))
+    try:
+        run_each(_strip_tile, [(n, str(infos[n].path), crs_text, buffer, str(scratch)) for n in need], pool, strips, need,
+                 strip_done, tick, "read", out)
+        for n in todo:
+            if strips[n].status == "failed":
+                states[n].status, states[n].error = "failed", strips[n].error
+        left = [n for n in todo if states[n].status != "failed"]
+        arglist = []
+        for n in left:
+            sources, warnings = _sources(infos, n, strips, buffer)
+            states[n].warnings = warnings
+            arglist.append((n, tile_fn, *tile_args(n, sources)))
+        run_each(_named, arglist, pool, states, left, on_done, tick, verb, out)
+    finally:
+        if pool is not None:
+            pool.close()
+        shutil.rmtree(scratch, ignore_errors=True)
+
+
+def _named(name, fn, *args):
+    return fn(*args)

@@ -1,0 +1,265 @@
+"""Cell metrics of LAS/LAZ tiles (``gistools metrics``, ``gistools:metrics``): one GeoTIFF per metric per tile on
+the snapped lattice of ``gistools rasters``, a VRT per metric, report.json.
+
+Each tile is read with its neighbours' points (tasks.buffered): the cells on a shared edge get every point that
+falls in them, and heights above ground come from the TIN of the ground points of the tile and its neighbours
+within the buffer, so a tiled run equals a run on the merged tiles. Definitions: ``lidar.metrics``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
+from ..grid import cell_index, snapped_grid
+from ..io.atomic import atomic_path
+from ..io.outdir import claim_output
+from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
+from ..io.raster import crs_from_wkt, write_raster, write_vrt
+from ..io.tiles import find_tiles
+from ..lidar.accumulate import NOISE_CLASSES
+from ..lidar.metrics import LAYER_HEIGHT_M, MetricSpec, cell_metrics, needs_heights, parse_metric
+from ..lidar.normalize import height_above_ground
+from ..progress import ProgressCallback
+from ..units import length_to_crs_units
+from ..validation import check_count, check_grid_size, check_length, check_scheduler
+from .buffered import EVERYWHERE, STRIP_FIELDS, buffered_passes, points_around, read_headers
+
+__all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
+
+RETURNS = ("all", "first", "last")
+DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p95")
+GROUND_CLASSES = (2, 9)  # the TIN of heights above ground: ground and water, as lidR's normalize_height
+
+
+@dataclass(frozen=True)
+class MetricsSettings:
+    """Parameters of ``gistools metrics``. ``metrics``: names (lidar.metrics); ``normalized``: every z_* metric is
+    computed on heights above ground instead and named hag_*. ``classes``: the ASPRS classes whose points count
+    (None: all but noise 7, 18); ``returns``: all, first or last. ``buffer``: how far the neighbours' ground points
+    are read for heights above ground (default 30 m, lidR's chunk buffer). Lengths take a unit or are in the
+    tiles' CRS units; a threshold in a metric's name ("hag_above2m", "cover_above6ft") likewise, a bare number
+    being in the tiles' vertical unit."""
+
+    cell_size: str | float = "5m"
+    metrics: tuple[str, ...] = DEFAULT_METRICS
+    normalized: bool = False
+    classes: tuple[int, ...] | None = None
+    returns: str = "all"
+    buffer: str | float = "30m"
+    crs: str | None = None
+
+    def specs(self) -> list[MetricSpec]:
+        """The metrics asked for, hag_* in place of z_* when ``normalized`` (each name once)."""
+        names = [f"hag_{m[2:]}" if self.normalized and m.startswith("z_") else m for m in self.metrics]
+        return [parse_metric(m) for m in dict.fromkeys(names)]
+
+    def validate(self) -> None:
+        if not self.metrics:
+            raise InputError("no metric given", hint="e.g. --metrics count,z_max,z_p95")
+        self.specs()
+        check_length(self.cell_size, "--cell-size", example="5m")
+        check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
+        if self.returns not in RETURNS:
+            raise InputError(f"--returns {self.returns!r} is not one of {', '.join(RETURNS)}", hint="Use --returns all")
+        if self.classes is not None and (not self.classes or any(not 0 <= int(c) <= 255 for c in self.classes)):
+            raise InputError(f"--classes {self.classes}: class codes are integers 0-255", hint="e.g. --classes 1,2,3,4,5")
+        for spec in self.specs():
+            for value, unit in spec.numbers:
+                if unit:
+                    check_length(f"{value}{unit}", f"metric {spec.name}", allow_equal=True, example="2m")
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One run's settings in the tiles' units (picklable)."""
+
+    cell_size: float
+    specs: tuple
+    thresholds: dict
+    layer: float
+    classes: tuple | None
+    returns: str
+    buffer: float
+    out: str
+    crs_wkt: str
+    z_unit: str
+    cell_area_m2: float
+
+
+def _run(settings: MetricsSettings, info, crs, out: Path) -> _Run:
+    xy, z = info.unit, info.z_unit
+    specs = settings.specs()
+    thresholds = {}
+    for spec in specs:
+        if spec.attribute == "i" or spec.statistic == "percentile":
+            thresholds[spec.name] = [v for v, _ in spec.numbers]
+        else:
+            thresholds[spec.name] = [length_to_crs_units(f"{v}{u}" if u else v, z, name=spec.name) for v, u in spec.numbers]
+    cell = length_to_crs_units(settings.cell_size, xy, name="cell size")
+    return _Run(cell, tuple(specs), thresholds, LAYER_HEIGHT_M / z.metres, None if settings.classes is None else
+                tuple(int(c) for c in settings.classes), settings.returns, length_to_crs_units(settings.buffer, xy, name="buffer"),
+                str(out), crs.to_wkt(), z.short, (cell * xy.metres) ** 2)
+
+
+def _selected(pts: dict, run: _Run) -> np.ndarray:
+    cls = pts["classification"]
+    keep = ~np.isin(cls, NOISE_CLASSES) if run.classes is None else np.isin(cls, run.classes)
+    if run.returns == "first":
+        keep &= pts["return_number"] <= 1
+    elif run.returns == "last":
+        keep &= pts["return_number"] >= pts["number_of_returns"]
+    return keep
+
+
+def tile_metrics(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict]:
+    """(metric name -> 2-D float array on ``grid``, counts) from a tile's points and its neighbours' (dicts of
+    STRIP_FIELDS arrays, withheld points left out)."""
+    allp = {k: np.concatenate([own[k], *(p[k] for p in neighbours)]) for k in STRIP_FIELDS}
+    flat = cell_index(grid, allp["x"], allp["y"])
+    use = (flat >= 0) & _selected(allp, run)
+    hag, inside = None, None
+    if needs_heights(run.specs):
+        g = np.isin(allp["classification"], GROUND_CLASSES)
+        hag, inside = height_above_ground(allp["x"][use], allp["y"][use], allp["z"][use], allp["x"][g], allp["y"][g],
+                                          allp["z"][g])
+    values = cell_metrics(flat[use], grid.width * grid.height, run.specs, z=allp["z"][use],
+                          intensity=allp["intensity"][use], hag=hag, first=allp["return_number"][use] <= 1,
+                          thresholds=run.thresholds, cell_area_m2=run.cell_area_m2, layer=run.layer)
+    counts = {"points_used": int(np.count_nonzero(use)),
+              "cells_with_points": int(np.count_nonzero(np.bincount(flat[use], minlength=grid.width * grid.height))),
+              "heights_outside_tin": None if inside is None else int(np.count_nonzero(~inside))}
+    return {k: v.reshape(grid.shape) for k, v in values.items()}, counts
+
+
+def _metrics_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
+    """One tile's metric rasters."""
+    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+    grid = snapped_grid(info.bounds, run.cell_size, crs_from_wkt(run.crs_wkt))
+    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    w, s, e, n = grid.bounds
+    b = run.buffer if needs_heights(run.specs) else 0.0
+    arrays, counts = tile_metrics(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
+    outputs = {}
+    for spec in run.specs:
+        target = Path(run.out) / spec.name / f"{info.name}.tif"
+        write_raster(target, arrays[spec.name], grid, overwrite=True, tags={"GISTOOLS_PRODUCT": spec.name,
+                     "GISTOOLS_Z_UNIT": run.z_unit}, description=_description(spec, run.z_unit))
+        outputs[spec.name] = str(target)
+    return {"outputs": outputs, "points": int(len(own["x"])), "neighbours": [nb for _k, nb, _s in sources], **counts}
+
+
+def _description(spec: MetricSpec, z_unit: str) -> str:
+    if spec.statistic == "density":
+        return "points per square metre"
+    if spec.statistic in ("count", "above", "cover", "fuel", "fhd", "vci") or spec.attribute == "i" or spec.statistic == "cv":
+        return spec.name
+    return f"{spec.name} ({z_unit})"
+
+
+@dataclass
+class _TileState:
+    name: str
+    path: str
+    status: str = "ok"
+    error: str | None = None
+    outputs: dict = field(default_factory=dict)
+    points: int = 0
+    points_used: int = 0
+    cells_with_points: int = 0
+    heights_outside_tin: int | None = None
+    neighbours: list | None = None
+    warnings: list | None = None
+    seconds: float = 0.0
+
+
+def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int = 1,
+                       scheduler: str | None = None, overwrite: bool = False,
+                       progress: ProgressCallback | None = None) -> dict:
+    """Cell metrics of the tiles of ``inputs`` (files, folders, globs, a .vpc): ``out/<metric>/<tile>.tif``,
+    ``out/<metric>.vrt`` and ``out/report.json``; returns the report. Cells without points are nodata. A tile
+    whose every metric exists is kept unless ``overwrite``; one bad tile is reported and the others go on."""
+    settings = settings or MetricsSettings()
+    settings.validate()
+    check_scheduler(scheduler)
+    check_count(jobs, "--jobs", example="2")
+    out = Path(out)
+    override = parse_crs_text(settings.crs) if settings.crs else None
+    paths = find_tiles(inputs)
+    with claim_output(out, "gistools metrics"):
+        return raise_if_every_tile_failed(_metrics_in(paths, out, settings, override, jobs, scheduler, overwrite,
+                                                      progress))
+
+
+def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, scheduler, overwrite, progress) -> dict:
+    started = time.time()
+    states, infos = read_headers(paths, override, _TileState)
+    run = None
+    if infos:
+        run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
+        todo = _todo(infos, states, run, out, overwrite)
+
+        def on_done(name, value, seconds):
+            st = states[name]
+            for k in ("outputs", "points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours"):
+                setattr(st, k, value[k])
+            st.seconds = round(seconds, 3)
+
+        buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size), crs_text=settings.crs, out=out,
+                        jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_metrics_tile,
+                        tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,
+                        verb="done", tag="metrics")
+    result = _report(settings, run, infos, states, _mosaics(out, run, states), started)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(result, indent=2, default=str))
+    return result
+
+
+def _todo(infos: dict, states: dict, run: _Run, out: Path, overwrite: bool) -> list[str]:
+    """The tiles to do: not those whose grid is too big (failed), nor those whose every metric exists (kept)."""
+    todo = []
+    for name, info in infos.items():
+        try:
+            check_grid_size(info.bounds, run.cell_size, str(info.path), unit=info.unit.short)
+        except GistoolsError as err:
+            states[name].status, states[name].error = "failed", str(err)
+            continue
+        targets = {s.name: out / s.name / f"{name}.tif" for s in run.specs}
+        if not overwrite and all(t.exists() for t in targets.values()):
+            states[name].status, states[name].outputs = "skipped", {k: str(v) for k, v in targets.items()}
+        else:
+            todo.append(name)
+    return todo
+
+
+def _mosaics(out: Path, run: _Run | None, states: dict) -> dict:
+    """A VRT per metric over the tiles that are ok or kept."""
+    mosaics = {}
+    for spec in run.specs if run is not None else ():
+        tifs = [Path(st.outputs[spec.name]) for st in states.values()
+                if st.status in ("ok", "skipped") and spec.name in st.outputs]
+        if tifs:
+            mosaics[spec.name] = str(write_vrt(out / f"{spec.name}.vrt", sorted(tifs)))
+    return mosaics
+
+
+def _report(settings: MetricsSettings, run: _Run | None, infos: dict, states: dict, mosaics: dict, started) -> dict:
+    first = next(iter(infos.values()), None)
+    return {
+        "tool": "gistools metrics",
+        "crs": crs_label(first.crs) if first else None,
+        "settings": asdict(settings),
+        "metrics": [s.name for s in run.specs] if run else [],
+        "units": None if run is None else {"cell_size": run.cell_size, "buffer": run.buffer, "thresholds": run.thresholds,
+                                           "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
+                                           "layer_height": run.layer},
+        "mosaics": mosaics,
+        "tiles": [asdict(st) for st in states.values()],
+        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
+        "seconds": round(time.time() - started, 3),
+    }

@@ -1,0 +1,169 @@
+"""gistools metrics against per-cell statistics computed here with pandas / numpy on the merged points (the
+sample's four tiles read as one, the shared real files), and heights above ground from a scipy TIN of all the
+ground: tiled == untiled, each metric's definition, nodata where a cell has no point."""
+
+from __future__ import annotations
+
+import laspy
+import numpy as np
+import pandas as pd
+import pytest
+import rasterio
+from click.testing import CliRunner
+
+from conftest import SAMPLE, need_shared, reference_tin_heights
+from gistools.cli.main import cli
+from gistools.errors import InputError
+from gistools.tasks.metrics import MetricsSettings, metrics_from_tiles
+
+FT = 1200 / 3937  # the sample's US survey foot, in metres
+
+
+def merged(paths) -> pd.DataFrame:
+    """Every point of the tiles, one table (withheld points left out, as every peer does)."""
+    parts = []
+    for p in paths:
+        las = laspy.read(p)
+        parts.append(pd.DataFrame({"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z),
+                                   "i": np.asarray(las.intensity, float), "c": np.asarray(las.classification),
+                                   "r": np.asarray(las.return_number), "n": np.asarray(las.number_of_returns),
+                                   "w": np.asarray(las.withheld, bool)}))
+    df = pd.concat(parts, ignore_index=True)
+    return df[~df.w]
+
+
+def with_heights(df: pd.DataFrame) -> pd.DataFrame:
+    """Height above a scipy TIN of every ground (2) and water (9) point of the block (``tied``: in a triangle that
+    another valid Delaunay choice splits otherwise)."""
+    g = df[df.c.isin([2, 9])].drop_duplicates(["x", "y"])
+    h, tied = reference_tin_heights(df.x, df.y, df.z, g.x, g.y, g.z)
+    df = df.assign(h=h, tied=tied | np.isnan(h))  # outside the hull gistools extrapolates (as lidR), scipy does not
+    assert df.h.notna().mean() > 0.99
+    return df
+
+
+def raster_at(path, df, cs):
+    """The raster's value at each cell of the table's key (col, row of the global lattice), NaN for nodata."""
+    with rasterio.open(path) as src:
+        a = src.read(1, masked=True).filled(np.nan).astype(float)
+        col0, top = round(src.transform.c / cs), round(src.transform.f / cs)
+    col, row = df.index.get_level_values(0) - col0, top - 1 - df.index.get_level_values(1)
+    return a[row, col], a
+
+
+def keyed(df, cs):
+    return df.assign(kx=np.floor(df.x / cs).astype(int), ky=np.floor(df.y / cs).astype(int)).groupby(["kx", "ky"])
+
+
+def entropy(h, layer):
+    if np.isnan(h).any():
+        return np.nan, 1
+    k = np.floor(np.maximum(h, 0) / layer).astype(int)
+    p = np.bincount(k)[np.bincount(k) > 0] / len(k)
+    return -(p * np.log(p)).sum(), k.max() + 1
+
+
+def reference(df, cs, unit_m):
+    """Each metric per cell, by pandas' group statistics (quantile: linear interpolation, std: n - 1)."""
+    grp = keyed(df, cs)
+    two, one, half = 2 / unit_m, 1 / unit_m, 100.0
+    first = keyed(df[df.r <= 1], cs)
+    ref = pd.DataFrame({
+        "count": grp.size().astype(float), "z_min": grp.z.min(), "z_max": grp.z.max(), "z_mean": grp.z.mean(),
+        "z_median": grp.z.median(), "z_sd": grp.z.std(), "z_p95": grp.z.quantile(0.95), "z_p10": grp.z.quantile(0.10),
+        "i_mean": grp.i.mean(), "i_p50": grp.i.quantile(0.5),
+        "z_above100": grp.z.apply(lambda v: (v > half).mean()),
+        "hag_p95": grp.h.quantile(0.95), "hag_max": grp.h.max(),
+        "hag_above2m": grp.h.apply(lambda v: (v > two).mean()),
+        "cover_above2m": first.h.apply(lambda v: (v > two).mean()),
+        "fuel_1_3m": grp.h.apply(lambda v: ((v > one) & (v <= 3 * one)).sum() / (v <= 3 * one).sum()
+                                 if (v <= 3 * one).any() else np.nan),
+        "fhd": grp.h.apply(lambda v: entropy(v.to_numpy(), one)[0]),
+        "vci": grp.h.apply(lambda v: (lambda e, n: e / np.log(n) if n > 1 else np.nan)(*entropy(v.to_numpy(), one))),
+    })
+    ref["z_cv"] = ref.z_sd / ref.z_mean
+    ref["tied"] = grp.tied.any()
+    ref["density"] = ref["count"] / (cs * unit_m) ** 2
+    return ref
+
+
+NAMES = ("count", "density", "z_min", "z_max", "z_mean", "z_median", "z_sd", "z_cv", "z_p95", "z_p10", "i_mean", "i_p50",
+         "z_above100", "hag_p95", "hag_max", "hag_above2m", "cover_above2m", "fuel_1_3m", "fhd", "vci")
+
+
+def check(out, report, df, cs, unit_m, names=NAMES, unsure=0.002):
+    ref = reference(df, cs, unit_m)
+    tied = ref.tied.to_numpy()
+    assert tied.mean() < unsure  # cells with a point in a tied triangle: heights there may differ by the TIN's choice
+    for name in names:
+        got, grid = raster_at(out / f"{name}.vrt", ref, cs)
+        want = ref[name].to_numpy()
+        if name.startswith(("hag", "cover", "fuel", "fhd", "vci")):
+            got, want = got[~tied], want[~tied]
+        scale = np.nanmax(np.abs(want)) if np.isfinite(want).any() else 1.0
+        np.testing.assert_allclose(got, want, rtol=2e-6, atol=2e-6 * scale, equal_nan=True, err_msg=name)
+        # no value in a cell without points (nor where the metric has none), a value where it has one
+        have, expect = np.isfinite(grid).sum(), np.isfinite(ref[name].to_numpy()).sum()
+        assert expect <= have <= expect + (tied.sum() if len(got) < len(tied) else 0), name
+    return ref
+
+
+def test_metrics_of_the_sample_equal_pandas_on_the_merged_tiles(tmp_path, sample_tiles):
+    """Four tiles with their neighbours' points == one table of every point, for every metric, edges included."""
+    out = tmp_path / "m"
+    report = metrics_from_tiles(SAMPLE, out, MetricsSettings(cell_size="7ft", metrics=NAMES))
+    assert report["counts"] == {"ok": 4, "skipped": 0, "failed": 0}
+    cs = report["units"]["cell_size"]
+    assert cs == pytest.approx(7.0)  # ft on a US survey foot CRS is its own foot
+    df = with_heights(merged(sample_tiles))
+    ref = check(out, report, df, cs, FT)
+    assert len(ref) > 10_000
+    # 7 ft cells straddle the tile edges: those cells hold points of two tiles, and the two tiles' rasters agree
+    edges = sorted({laspy.open(p).header.maxs[0] for p in sample_tiles})[:-1]
+    straddling = [kx for kx in ref.index.get_level_values(0) if kx * cs < edges[0] < (kx + 1) * cs]
+    assert straddling
+
+
+def test_metrics_on_the_real_files(tmp_path, real_tile):
+    """Megaplot (metres, forest) and Autzen (international feet, suburbs): the same definitions hold."""
+    out = tmp_path / "m"
+    report = metrics_from_tiles(real_tile, out, MetricsSettings(cell_size="5m", metrics=NAMES))
+    assert report["counts"]["ok"] == 1
+    unit_m = 1.0 if "megaplot" in str(real_tile).lower() else 0.3048
+    check(out, report, with_heights(merged([real_tile])), report["units"]["cell_size"], unit_m, unsure=0.05)
+
+
+def test_filters_returns_and_normalized_names(tmp_path, sample_tiles):
+    """--classes, --returns first and --normalized (z_max -> hag_max) select what pandas selects."""
+    out = tmp_path / "m"
+    report = metrics_from_tiles(SAMPLE, out, MetricsSettings(cell_size="20ft", metrics=("count", "z_max"), normalized=True,
+                                                             classes=(1,), returns="first"))
+    assert report["metrics"] == ["count", "hag_max"]
+    df = with_heights(merged(sample_tiles))
+    df = df[(df.c == 1) & (df.r <= 1)]
+    check(out, report, df, report["units"]["cell_size"], FT, names=("count", "hag_max"))
+
+
+@pytest.mark.parametrize("name, words", [("z_p101", "percentile 101 is outside 0-100"), ("z_foo", "'foo' is not one of"),
+                                         ("q_mean", "not a metric name"), ("fuel_3_1m", "is empty"),
+                                         ("cover_above2parsecs", "parsecs")])
+def test_bad_metric_names_are_one_line_naming_the_metric(tmp_path, name, words):
+    with pytest.raises(InputError, match=words) as err:
+        metrics_from_tiles(SAMPLE, tmp_path / "m", MetricsSettings(metrics=("count", name)))
+    assert name in str(err.value) and "\n" not in str(err.value)
+    assert not (tmp_path / "m").exists()  # refused before any output
+    run = CliRunner().invoke(cli, ["metrics", str(SAMPLE), "--out", str(tmp_path / "c"), "--metrics", f"count,{name}"])
+    assert run.exit_code == 1 and "Traceback" not in run.output and name in run.output
+    assert len(run.output.strip().splitlines()) == 1
+
+
+def test_metrics_rerun_keeps_tiles_and_overwrite_redoes_them(tmp_path):
+    out = tmp_path / "m"
+    metrics_from_tiles(SAMPLE, out, MetricsSettings(metrics=("count",)))
+    again = metrics_from_tiles(SAMPLE, out, MetricsSettings(metrics=("count",)))
+    assert again["counts"] == {"ok": 0, "skipped": 4, "failed": 0} and (out / "count.vrt").is_file()
+    assert metrics_from_tiles(SAMPLE, out, MetricsSettings(metrics=("count",)), overwrite=True)["counts"]["ok"] == 4
+
+
+def test_shared_data_present_for_metrics():
+    need_shared()
