@@ -37,7 +37,7 @@ import build_plugin  # noqa: E402
 B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
-ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
+ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
               "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -665,3 +665,16 @@ def test_metrics_in_processing_equals_the_library(qgis, tmp_path):
             same_cells(t["outputs"][name], tmp_path / "q" / name / f"{t['name']}.tif")
     with pytest.raises(QgsProcessingException, match="z_p101"):
         qgis.run("gistools:metrics", {"INPUT": str(SAMPLE), "MORE_METRICS": "z_p101", "OUTPUT_FOLDER": str(tmp_path / "bad")})
+
+
+def test_chm_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:chm (p2r and pit-free) gives the library's cells and its pit count, and loads the CHM."""
+    from gistools.tasks.chm import ChmSettings, chm_from_tiles
+
+    for index, method in enumerate(("p2r", "pitfree")):
+        lib = chm_from_tiles(SAMPLE, tmp_path / f"lib{index}", ChmSettings(cell_size="5ft", method=method))
+        res = qgis.run("gistools:chm", {"INPUT": str(SAMPLE), "METHOD": ["p2r", "pitfree", "tin"].index(method),
+                                        "CELL_SIZE": "5ft", "OUTPUT_FOLDER": str(tmp_path / f"q{index}")})
+        assert res["PITS"] == lib["pits"]
+        for t in lib["tiles"]:
+            same_cells(t["output"], tmp_path / f"q{index}" / "chm" / f"{t['name']}.tif")

@@ -78,6 +78,7 @@ def cli(verbose):
 
 
 from . import ground as _ground  # noqa: E402
+from . import chm as _chm  # noqa: E402
 from . import info as _info  # noqa: E402
 from . import metrics as _metrics  # noqa: E402
 from . import normalize as _normalize  # noqa: E402
@@ -94,6 +95,7 @@ cli.add_command(_ground.ground)
 cli.add_command(_rasters.rasters)
 cli.add_command(_normalize.normalize)
 cli.add_command(_metrics.metrics)
+cli.add_command(_chm.chm)
 cli.add_command(_aquifer.aquifer)
 cli.add_command(_runway.runway)
 cli.add_command(_structure.structure)

@@ -4,7 +4,7 @@ defaults read from the library), makes one gistools call and returns the output 
 base       the shared plumbing (GistoolsAlgorithm) and the library's choices and defaults
 tiles      info, points                    rasters    dsm, dem, rasters
 ground     ground (ground and noise classes)
-heights    normalize, metrics (heights above ground, cell metrics)
+heights    normalize, metrics, chm (heights above ground, cell metrics, canopy height)
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.tasks.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
@@ -14,7 +14,7 @@ A new algorithm goes in its group's module and into ALGORITHMS below.
 
 from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
 from .ground import GroundAlgorithm
-from .heights import MetricsAlgorithm, NormalizeAlgorithm
+from .heights import ChmAlgorithm, MetricsAlgorithm, NormalizeAlgorithm
 from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
 from .runway import RunwayAlgorithm
 from .shrub import ShrubChainAlgorithm
@@ -22,6 +22,6 @@ from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipA
 from .structure import StructureAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
 
-ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
+ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm)

@@ -1,10 +1,12 @@
-"""Heights above ground and what is made of them: gistools normalize and gistools metrics."""
+"""Heights above ground and what is made of them: gistools normalize, gistools metrics and gistools chm."""
 
 from __future__ import annotations
 
 from qgis.core import (
     QgsProcessingOutputFile,
     QgsProcessingOutputFolder,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputRasterLayer,
     QgsProcessingParameterBoolean,
     QgsProcessingParameterEnum,
     QgsProcessingParameterFolderDestination,
@@ -12,6 +14,7 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
+from gistools.tasks import chm as _chm
 from gistools.tasks import metrics as _metrics
 from gistools.tasks import normalize as _normalize
 
@@ -20,6 +23,10 @@ from ..compat import VECTOR_LINE, VECTOR_POLYGON
 
 NORMALIZE = _normalize.NormalizeSettings()
 METRICS = _metrics.MetricsSettings()
+CHM = _chm.ChmSettings()
+CHM_METHODS = list(_chm.CHM_METHODS)
+CHM_LABELS = {"p2r": "Highest first return per cell (p2r)", "pitfree": "Pit-free (Khosravipour et al. 2014)",
+              "tin": "TIN of the first returns"}
 METRIC_RETURNS = list(_metrics.RETURNS)
 # the metrics offered as a checklist (any other name goes in "More metrics")
 COMMON_METRICS = ["count", "density", "z_min", "z_max", "z_mean", "z_median", "z_sd", "z_cv", "z_p25", "z_p50", "z_p75",
@@ -136,3 +143,53 @@ class MetricsAlgorithm(GistoolsAlgorithm):
         for name, vrt in result["mosaics"].items():
             self.load_on_completion(context, vrt, name, name)
         return {"OUTPUT_FOLDER": out, "METRICS_FOLDER": out}
+
+
+class ChmAlgorithm(GistoolsAlgorithm):
+    _name, _display = "chm", "Canopy height model (CHM)"
+    _readme_section = "canopy-height-models"
+    _help = ("Canopy height model of LAS/LAZ tiles (gistools chm; lidR rasterize_canopy): the first returns' heights "
+             "above the TIN of the ground, gridded as the highest return per cell (p2r), a TIN of the returns, or "
+             "pit-free (Khosravipour et al. 2014: TINs of the returns above a series of height thresholds, long "
+             "triangles dropped, stacked by their maximum, so returns deep in a crown leave no pit). Neighbouring "
+             "tiles' points are read, so tiles equal one merged run. Writes chm/<tile>.tif and chm.vrt (loaded); "
+             "the log gives the pits left (cells more than 1 m below all 8 neighbours).")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add_tiles()
+        self.add(QgsProcessingParameterEnum("METHOD", "Method", options=[CHM_LABELS[m] for m in CHM_METHODS],
+                                            defaultValue=CHM_METHODS.index(CHM.method)))
+        self.add_length("CELL_SIZE", "Cell size", CHM.cell_size)
+        self.add(QgsProcessingParameterString("THRESHOLDS", "Pit-free height thresholds (comma-separated, with unit)",
+                                              defaultValue=",".join(CHM.thresholds)), advanced=True)
+        self.add_length("THRESHOLD_STEP", "Pit-free: a threshold every (0: only those given)", CHM.threshold_step,
+                        advanced=True)
+        self.add(QgsProcessingParameterString("MAX_EDGE", "Pit-free longest triangle edge: first layer, upper layers "
+                                              "(0: no limit)", defaultValue=",".join(CHM.max_edge)), advanced=True)
+        self.add_length("TIN_MAX_EDGE", "TIN longest triangle edge (0: no limit)", CHM.tin_max_edge, advanced=True)
+        self.add_length("BUFFER", "Neighbours' points read within", CHM.buffer, advanced=True)
+        self.add_crs()
+        self.add_parallel()
+        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (chm/ and chm.vrt)"))
+        self.addOutput(QgsProcessingOutputRasterLayer("CHM", "Canopy height model"))
+        self.addOutput(QgsProcessingOutputNumber("PITS", "Pits left (cells more than 1 m below all 8 neighbours)"))
+
+    def run_gistools(self, parameters, context, feedback):
+        out = self.output_folder(parameters, context)
+
+        def lengths(name):
+            return tuple(v.strip() for v in (self.text(parameters, name, context) or "").split(",") if v.strip())
+
+        settings = _chm.ChmSettings(
+            cell_size=self.text(parameters, "CELL_SIZE", context),
+            method=CHM_METHODS[self.parameterAsEnum(parameters, "METHOD", context)], thresholds=lengths("THRESHOLDS"),
+            threshold_step=self.text(parameters, "THRESHOLD_STEP", context), max_edge=lengths("MAX_EDGE"),
+            tin_max_edge=self.text(parameters, "TIN_MAX_EDGE", context), buffer=self.text(parameters, "BUFFER", context),
+            crs=self.crs_text(parameters, context))
+        result = _chm.chm_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+                                     jobs=self.parameterAsInt(parameters, "JOBS", context),
+                                     scheduler=self.text(parameters, "SCHEDULER", context), progress=self.progress(feedback))
+        self.report_tiles(result, feedback)
+        feedback.pushInfo(f"{result['pits']:,} pits left")
+        self.load_on_completion(context, result["mosaic"], "Canopy height model", "CHM")
+        return {"OUTPUT_FOLDER": out, "CHM": result["mosaic"], "PITS": result["pits"]}
