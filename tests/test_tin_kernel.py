@@ -158,3 +158,25 @@ def test_dem_from_a_thin_halo_equals_the_tin_of_all_points(max_distance, halo):
     full = dem_from_ground_points(x, y, z, g2, method="tin", max_distance=max_distance)
     fast = tin_dem_with_halo(x, y, z, g2, halo=halo, max_distance=max_distance)
     assert np.array_equal(np.isnan(full), np.isnan(fast)) and np.nanmax(np.abs(full - fast)) < 1e-9
+
+
+def test_tin_at_points_equals_scipy_and_takes_the_lowest_of_repeats():
+    """The kernel's point location (gt_tin_at) against scipy's LinearNDInterpolator on generic points; a query at a
+    repeated position gets the lowest z there, searched for or given as a vertex."""
+    from scipy.interpolate import LinearNDInterpolator
+
+    from gistools.lidar.tin import tin_at_points
+
+    rng = np.random.default_rng(3)
+    x, y = rng.uniform(0, 500, 20_000) + 4e5, rng.uniform(0, 500, 20_000) + 1.8e6
+    z = np.sin(x / 30) * 5 + y / 100
+    qx, qy = rng.uniform(-10, 510, 50_000) + 4e5, rng.uniform(-10, 510, 50_000) + 1.8e6
+    want = LinearNDInterpolator(np.column_stack([x - 4e5, y - 1.8e6]), z)(qx - 4e5, qy - 1.8e6)
+    got = tin_at_points(x, y, z, qx, qy)
+    assert np.array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, atol=1e-7, equal_nan=True)
+    # a repeated point with a lower z: the surface takes it, for a query there and for the vertex given
+    x2, y2, z2 = np.append(x, x[5]), np.append(y, y[5]), np.append(z, z[5] - 3)
+    vertex = np.array([5, -1])
+    got = tin_at_points(x2, y2, z2, np.array([x[5], x[5]]), np.array([y[5], y[5]]), vertex=vertex)
+    assert got == pytest.approx([z[5] - 3, z[5] - 3])

@@ -953,6 +953,118 @@ void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
     }
 }
 
+/* the bucket columns c0..c1 and rows r0..r1 a triangle's bounding box spans */
+static void tri_buckets(const int32_t *v, const double *vx, const double *vy, double x0, double y0, double b, int64_t nbx,
+                        int64_t nby, int64_t *c0, int64_t *c1, int64_t *r0, int64_t *r1) {
+    double tx0 = fmin(fmin(vx[v[0]], vx[v[1]]), vx[v[2]]), tx1 = fmax(fmax(vx[v[0]], vx[v[1]]), vx[v[2]]);
+    double ty0 = fmin(fmin(vy[v[0]], vy[v[1]]), vy[v[2]]), ty1 = fmax(fmax(vy[v[0]], vy[v[1]]), vy[v[2]]);
+    *c0 = (int64_t)((tx0 - x0) / b);
+    *c1 = (int64_t)((tx1 - x0) / b);
+    *r0 = (int64_t)((ty0 - y0) / b);
+    *r1 = (int64_t)((ty1 - y0) / b);
+    if (*c1 >= nbx) *c1 = nbx - 1;
+    if (*r1 >= nby) *r1 = nby - 1;
+}
+
+/* the bucket of a query point, nb (the last) when it lies outside the extent */
+static inline int64_t query_bucket(double px, double py, double x0, double y0, double x1, double y1, double b, int64_t nbx,
+                                   int64_t nby) {
+    if (!(px >= x0 && px <= x1 && py >= y0 && py <= y1)) return nbx * nby;
+    int64_t c = (int64_t)((px - x0) / b), r = (int64_t)((py - y0) / b);
+    return (r < nby ? r : nby - 1) * nbx + (c < nbx ? c : nbx - 1);
+}
+
+/* Linear interpolation of a TIN (triangles ``tri``, vertex coordinates vx, vy in local units, heights vz) at nq query
+ * points (qx, qy): out[i] = the value of the triangle holding the point, NaN outside every triangle. Triangles are
+ * put into buckets of a grid over the vertices' extent (about two triangles' width a bucket, by their bounding
+ * boxes; each entry holds the triangle's three vertices), the queries are taken bucket by bucket (a counting sort,
+ * so a bucket's triangles stay in cache), and a query takes the triangle of its bucket it is most inside (on an
+ * edge, either neighbour gives the same value). Returns 0, or -1 when memory runs out. */
+int64_t gt_tin_at(int64_t ntri, const int32_t *tri, const double *vx, const double *vy, const double *vz, int64_t nv,
+                  int64_t nq, const double *qx, const double *qy, double *out) {
+    for (int64_t i = 0; i < nq; i++) out[i] = NAN;
+    if (ntri == 0 || nv == 0 || nq == 0) return 0;
+    double x0 = vx[0], y0 = vy[0], x1 = vx[0], y1 = vy[0];
+    for (int64_t i = 1; i < nv; i++) {
+        if (vx[i] < x0) x0 = vx[i];
+        if (vx[i] > x1) x1 = vx[i];
+        if (vy[i] < y0) y0 = vy[i];
+        if (vy[i] > y1) y1 = vy[i];
+    }
+    double area = (x1 - x0) * (y1 - y0);
+    double b = sqrt((area > 0 ? area : 1.0) / (double)ntri) * 2.0;
+    if (!(b > 0)) b = 1.0;
+    int64_t nbx = (int64_t)((x1 - x0) / b) + 1, nby = (int64_t)((y1 - y0) / b) + 1;
+    while (nbx * nby > 4 * ntri + 16) {
+        b *= 1.5;
+        nbx = (int64_t)((x1 - x0) / b) + 1;
+        nby = (int64_t)((y1 - y0) / b) + 1;
+    }
+    int64_t nb = nbx * nby;
+    int64_t *start = calloc((size_t)(nb + 1), sizeof(int64_t));
+    int64_t *qstart = calloc((size_t)(nb + 2), sizeof(int64_t));
+    int64_t *fill = malloc((size_t)(nb + 1) * sizeof(int64_t));
+    int64_t *qorder = malloc((size_t)nq * sizeof(int64_t));
+    if (!start || !qstart || !fill || !qorder) goto oom;
+    /* the triangles' buckets (by bounding box): count, then fill with vertex triplets */
+    for (int64_t t = 0; t < ntri; t++) {
+        int64_t c0, c1, r0, r1;
+        tri_buckets(tri + 3 * t, vx, vy, x0, y0, b, nbx, nby, &c0, &c1, &r0, &r1);
+        for (int64_t r = r0; r <= r1; r++)
+            for (int64_t c = c0; c <= c1; c++) start[r * nbx + c + 1]++;
+    }
+    for (int64_t k = 0; k < nb; k++) start[k + 1] += start[k];
+    int32_t *list = malloc((size_t)(start[nb] > 0 ? start[nb] : 1) * 3 * sizeof(int32_t));
+    if (!list) goto oom;
+    memcpy(fill, start, (size_t)nb * sizeof(int64_t));
+    for (int64_t t = 0; t < ntri; t++) {
+        int64_t c0, c1, r0, r1;
+        tri_buckets(tri + 3 * t, vx, vy, x0, y0, b, nbx, nby, &c0, &c1, &r0, &r1);
+        for (int64_t r = r0; r <= r1; r++)
+            for (int64_t c = c0; c <= c1; c++) memcpy(list + 3 * fill[r * nbx + c]++, tri + 3 * t, 3 * sizeof(int32_t));
+    }
+    /* the queries by bucket (those outside the extent in a last bucket, left NaN) */
+    for (int64_t i = 0; i < nq; i++) qstart[query_bucket(qx[i], qy[i], x0, y0, x1, y1, b, nbx, nby) + 1]++;
+    for (int64_t k = 0; k <= nb; k++) qstart[k + 1] += qstart[k];
+    memcpy(fill, qstart, (size_t)(nb + 1) * sizeof(int64_t));
+    for (int64_t i = 0; i < nq; i++) qorder[fill[query_bucket(qx[i], qy[i], x0, y0, x1, y1, b, nbx, nby)]++] = i;
+    for (int64_t k = 0; k < nb; k++) {
+        for (int64_t a = qstart[k]; a < qstart[k + 1]; a++) {
+            int64_t i = qorder[a];
+            double px = qx[i], py = qy[i];
+            double best = -1e-9, value = NAN;
+            for (int64_t j = start[k]; j < start[k + 1]; j++) {
+                const int32_t *v = list + 3 * j;
+                double ax = vx[v[0]], ay = vy[v[0]], bx = vx[v[1]], by = vy[v[1]], cx = vx[v[2]], cy = vy[v[2]];
+                double d = (by - cy) * (ax - cx) + (cx - bx) * (ay - cy);
+                if (d == 0) continue;
+                double l1 = ((by - cy) * (px - cx) + (cx - bx) * (py - cy)) / d;
+                double l2 = ((cy - ay) * (px - cx) + (ax - cx) * (py - cy)) / d;
+                double l3 = 1.0 - l1 - l2;
+                double m = fmin(fmin(l1, l2), l3);
+                if (m > best) {
+                    best = m;
+                    value = l1 * vz[v[0]] + l2 * vz[v[1]] + l3 * vz[v[2]];
+                    if (m >= 0) break;
+                }
+            }
+            out[i] = value;
+        }
+    }
+    free(list);
+    free(start);
+    free(qstart);
+    free(fill);
+    free(qorder);
+    return 0;
+oom:
+    free(start);
+    free(qstart);
+    free(fill);
+    free(qorder);
+    return -1;
+}
+
 static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_tinkernel",
                                     "Compiled Delaunay triangulation, TIN rasterisation and grid morphology (called through ctypes).", -1,
                                     NULL};

@@ -7,7 +7,9 @@ Pure functions over numpy arrays; heights stay in the points' vertical unit.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import Delaunay, QhullError, cKDTree
+from scipy.spatial import cKDTree
+
+from .tin import tin_at_points, tin_engine
 
 __all__ = ["ground_height_at", "height_above_ground", "vegetation_classes", "LOW_VEGETATION", "MEDIUM_VEGETATION",
            "HIGH_VEGETATION", "ROAD_SURFACE", "WATER", "UNCLASSIFIED"]
@@ -17,43 +19,26 @@ LOW_VEGETATION, MEDIUM_VEGETATION, HIGH_VEGETATION = 3, 4, 5
 ROAD_SURFACE, WATER = 11, 9
 
 
-def _unique_xy(gx, gy, gz):
-    """Ground points with repeated (x, y) merged to their lowest z (a TIN needs distinct vertices)."""
-    order = np.lexsort((gz, gy, gx))
-    gx, gy, gz = gx[order], gy[order], gz[order]
-    first = np.ones(len(gx), bool)
-    first[1:] = (gx[1:] != gx[:-1]) | (gy[1:] != gy[:-1])
-    return gx[first], gy[first], gz[first]
-
-
-def ground_height_at(gx, gy, gz, x, y, *, k: int = 10, power: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+def ground_height_at(gx, gy, gz, x, y, *, vertex=None, k: int = 10, power: float = 2.0,
+                     engine: str | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(ground elevation at each (x, y), True where it came from the TIN).
 
-    Inside the ground points' convex hull: linear interpolation on their Delaunay triangulation. Outside it (the
-    edge of a block, a lake wider than the buffer): inverse-distance weighting of the ``k`` nearest ground points
-    (lidR ``tin()`` does the same with its ``knnidw``, k = 10, p = 2). NaN when there is no ground point."""
+    Inside the ground points' convex hull: linear interpolation on their Delaunay triangulation (repeated positions
+    at their lowest z). Outside it (the edge of a block, a lake wider than the buffer): inverse-distance weighting
+    of the ``k`` nearest ground points (lidR ``tin()`` does the same with its ``knnidw``, k = 10, p = 2). NaN when
+    there is no ground point. ``vertex``: for each (x, y), the index of the ground point at that position, or -1
+    (the TIN's value at its own vertex is that vertex's z, so those points are not searched for). ``engine``: the
+    TIN's (lidar.tin)."""
     x = np.asarray(x, np.float64)
     y = np.asarray(y, np.float64)
+    gx, gy, gz = (np.asarray(a, np.float64) for a in (gx, gy, gz))
     ground = np.full(len(x), np.nan)
     inside = np.zeros(len(x), bool)
-    gx, gy, gz = _unique_xy(*(np.asarray(a, np.float64) for a in (gx, gy, gz)))
     if len(gx) == 0 or len(x) == 0:
         return ground, inside
-    if len(gx) >= 3:
-        x0, y0 = gx.min(), gy.min()  # local coordinates: Qhull's predicates lose digits on state-plane values
-        try:
-            tri = Delaunay(np.column_stack([gx - x0, gy - y0]))
-        except QhullError:  # every ground point on a line
-            tri = None
-        if tri is not None:
-            q = np.column_stack([x - x0, y - y0])
-            simplex = tri.find_simplex(q)
-            inside = simplex >= 0
-            s = simplex[inside]
-            t = tri.transform[s]
-            b = np.einsum("ijk,ik->ij", t[:, :2], q[inside] - t[:, 2])
-            w = np.column_stack([b, 1 - b.sum(axis=1)])
-            ground[inside] = np.einsum("ij,ij->i", w, gz[tri.simplices[s]])
+    # with the kernel, a query at a TIN vertex takes the vertex's z (its repeats' lowest) without a search
+    ground = tin_at_points(gx, gy, gz, x, y, vertex=vertex if tin_engine(engine) == "kernel" else None, engine=engine)
+    inside = np.isfinite(ground)
     rest = ~inside
     if rest.any():
         kk = min(k, len(gx))

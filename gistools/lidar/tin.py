@@ -26,7 +26,7 @@ except ImportError:  # optional (no wheel or build for Python 3.14): scipy's Qhu
 
 from ..grid import Grid
 
-__all__ = ["delaunay_triangles", "merge_repeats", "tin_to_grid", "tin_to_grid_exact", "tin_engine", "ENGINES", "DEFAULT_ENGINE"]
+__all__ = ["delaunay_triangles", "merge_repeats", "tin_at_points", "tin_to_grid", "tin_to_grid_exact", "tin_engine", "ENGINES", "DEFAULT_ENGINE"]
 
 
 def _load_kernel():
@@ -43,6 +43,8 @@ def _load_kernel():
     lib.gt_tin_grid.argtypes = [ctypes.c_int64, i64, i64, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
                                 ctypes.POINTER(ctypes.c_int64), ctypes.c_void_p, ctypes.c_void_p]
     lib.gt_tin_grid.restype = ctypes.c_int64
+    lib.gt_tin_at.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int64, ctypes.c_int64, f64, f64, f64]
+    lib.gt_tin_at.restype = ctypes.c_int64
     return lib
 
 
@@ -79,8 +81,9 @@ def tin_engine(engine: str | None = None) -> str:
 _BATCH = 1_000_000  # triangles per evaluation batch (bounds temporary memory)
 
 
-def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray) -> np.ndarray:
-    """z with each repeated (x, y) given the mean z of its repeats, on the copy the TIN uses.
+def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray, how: str = "mean") -> np.ndarray:
+    """z with each repeated (x, y) given the mean z (``how="min"``: the lowest) of its repeats, on the copy the TIN
+    uses.
 
     A TIN cannot hold two heights at one position (overlapping flight lines give such
     repeats). Triangle and Qhull keep the first of a repeated position and leave the others out
@@ -96,9 +99,13 @@ def merge_repeats(x: np.ndarray, y: np.ndarray, z: np.ndarray, tris: np.ndarray)
     new = np.ones(len(order), bool)
     new[1:] = (xs[1:] != xs[:-1]) | (ys[1:] != ys[:-1])
     group = np.cumsum(new) - 1
-    zmean = np.bincount(group, weights=z[order]) / np.bincount(group)
+    if how == "min":
+        merged = np.full(group[-1] + 1, np.inf)
+        np.minimum.at(merged, group, z[order])
+    else:
+        merged = np.bincount(group, weights=z[order]) / np.bincount(group)
     z = z.copy()
-    z[order] = zmean[group]
+    z[order] = merged[group]
     return z
 
 
@@ -184,17 +191,64 @@ def _integer_coordinates(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.n
     return _to_integers(x, 0.0, scale)[0], _to_integers(y, 0.0, scale)[0]
 
 
-def _kernel_triangles(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Delaunay triangles from the compiled kernel (see _integer_coordinates); repeats are in none."""
+def _kernel_triangles(x: np.ndarray, y: np.ndarray, count_repeats: bool = False):
+    """Delaunay triangles from the compiled kernel (see _integer_coordinates); repeats are in none. With
+    ``count_repeats``: (triangles, how many points repeat another's position)."""
     coords = _integer_coordinates(x, y)
     if coords is None:
-        return np.empty((0, 3), np.int32)
+        none = np.empty((0, 3), np.int32)
+        return (none, 0) if count_repeats else none
     tris = np.empty(6 * len(x), np.int32)
     repeats = ctypes.c_int64(0)
     m = _KERNEL.gt_delaunay(len(x), coords[0], coords[1], tris, ctypes.byref(repeats))
     if m < 0:
         raise MemoryError(f"not enough memory to triangulate {len(x)} points")
-    return tris[: 3 * m].reshape(-1, 3)
+    tris = tris[: 3 * m].reshape(-1, 3)
+    return (tris, int(repeats.value)) if count_repeats else tris
+
+
+def tin_at_points(x, y, z, qx, qy, *, vertex=None, engine: str | None = None) -> np.ndarray:
+    """Linear TIN interpolation of the points (x, y, z) at the points (qx, qy); NaN outside the TIN. Repeated
+    (x, y) take their lowest z (a surface under the points, as a ground TIN must be). ``vertex``: per query, the
+    index of the TIN point at its position, or -1: such a query takes that vertex's z without a search.
+
+    With the compiled kernel: its Delaunay triangles and a bucket search (about 0.6 µs a query on a 2-core VM);
+    otherwise scipy's Qhull and ``find_simplex`` (20 to 50 times slower on millions of points)."""
+    x, y, z, qx, qy = (np.ascontiguousarray(a, np.float64) for a in (x, y, z, qx, qy))
+    out = np.full(len(qx), np.nan)
+    if len(x) < 3 or len(qx) == 0:
+        return out
+    x0, y0 = float(x.min()), float(y.min())  # local coordinates keep the digits of state-plane values
+    if tin_engine(engine) == "kernel":
+        tris, repeats = _kernel_triangles(x, y, count_repeats=True)
+        if repeats:
+            z = merge_repeats(x, y, z, tris, how="min")
+        tris = np.ascontiguousarray(tris, np.int32)
+        ask = np.ones(len(qx), bool) if vertex is None else np.asarray(vertex) < 0
+        if not ask.all():
+            out[~ask] = z[np.asarray(vertex)[~ask]]
+        part = np.full(int(np.count_nonzero(ask)), np.nan)
+        if _KERNEL.gt_tin_at(len(tris), tris, x - x0, y - y0, z, len(x), len(part), np.ascontiguousarray(qx[ask] - x0),
+                             np.ascontiguousarray(qy[ask] - y0), part) < 0:
+            raise MemoryError(f"not enough memory to locate {len(qx)} points in a TIN of {len(x)}")
+        out[ask] = part
+        return out
+    from scipy.spatial import Delaunay, QhullError
+
+    order = np.lexsort((z, y, x))  # Qhull keeps the first of repeated points: the lowest
+    x, y, z = x[order], y[order], z[order]
+    try:
+        tri = Delaunay(np.column_stack([x - x0, y - y0]))
+    except (QhullError, ValueError):  # every point on a line
+        return out
+    q = np.column_stack([qx - x0, qy - y0])
+    simplex = tri.find_simplex(q)
+    inside = simplex >= 0
+    t = tri.transform[simplex[inside]]
+    b = np.einsum("ijk,ik->ij", t[:, :2], q[inside] - t[:, 2])
+    w = np.column_stack([b, 1 - b.sum(axis=1)])
+    out[inside] = np.einsum("ij,ij->i", w, z[tri.simplices[simplex[inside]]])
+    return out
 
 
 def tin_to_grid_exact(x, y, z, grid: Grid, box, *, max_edge: float | None = None,

@@ -114,7 +114,9 @@ def _normalize_tile(path: str, sources: list, crs_text, p: _Params, target: str,
     if len(ground[0]) == 0:
         raise DataFileError("no ground (class 2 or 9) points in the tile or within the buffer of its neighbours",
                             path=path, hint="Classify ground first (gistools ground), or give a larger --buffer")
-    hag, inside = height_above_ground(x, y, z, *ground)
+    vertex = np.full(len(x), -1, np.int64)
+    vertex[g] = np.arange(int(np.count_nonzero(g)))  # the tile's own ground points come first in the TIN's points
+    hag, inside = height_above_ground(x, y, z, *ground, vertex=vertex)
     before = cls.copy()
     if p.classify:
         road = shapely.contains_xy(shapely.from_wkb(road_wkb), x, y) if road_wkb else None
