@@ -126,6 +126,25 @@ def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
     """)
 
 
+def heights_run(kind, folder, out, jobs, **settings) -> dict:
+    """gistools normalize (LAS out) or gistools metrics on the block."""
+    if kind == "normalize":
+        call = (f"from gistools.tasks.normalize import NormalizeSettings as S, normalize_from_tiles as run\n"
+                f"        settings = S(format='las', **{settings!r})")
+    else:
+        call = (f"from gistools.tasks.metrics import MetricsSettings as S, metrics_from_tiles as run\n"
+                f"        settings = S(cell_size='5ft', **{settings!r})")
+    return run_child(f"""
+        import shutil
+        {call}
+        shutil.rmtree({str(out)!r}, ignore_errors=True)
+        t = time.perf_counter()
+        s = run([{str(folder)!r}], {str(out)!r}, settings, jobs={jobs})
+        assert s["counts"]["failed"] == 0, s
+        _done(dict(seconds=time.perf_counter() - t))
+    """)
+
+
 def whitebox_run(files, out: Path, cell: float, max_edge: float) -> dict:
     """WhiteboxTools: block maximum (DSM) + TIN gridding of ground, two tiles at a time (two processes)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -157,6 +176,7 @@ def main(argv=None):
     ap.add_argument("--big-tile", type=float, default=20e6, help="points in the single big tile (RSS check)")
     ap.add_argument("--workdir", default="/tmp/gistools-bench")
     ap.add_argument("--skip-whitebox", action="store_true")
+    ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")
     args = ap.parse_args(argv)
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
@@ -179,6 +199,13 @@ def main(argv=None):
         print(f"{name:<44} {r['seconds']:8.2f} s  {npts / r['seconds'] / 1e6:7.2f} M pts/s  peak RSS/worker {rss:7.0f} MB", flush=True)
 
     show("laspy decode, LAS", decode(las))
+    hag_metrics = ("count", "z_max", "z_p95", "hag_p95", "cover_above2m", "fuel_1_3m", "fhd")
+    show("gistools normalize (HAG dimension), LAS, --jobs 2", heights_run("normalize", work / "las", work / "out_hag", 2))
+    show("gistools metrics, default 7, LAS, --jobs 2", heights_run("metrics", work / "las", work / "out_m", 2))
+    show("gistools metrics, 7 with heights, LAS, --jobs 2", heights_run("metrics", work / "las", work / "out_m", 2,
+                                                                         metrics=hag_metrics))
+    if args.only_heights:
+        return
     show("laspy decode, LAZ", decode(laz))
     show("gistools DSM only, LAZ, --jobs 1", gistools_run(work / "laz", work / "out", 1, ("dsm",)))
     show("gistools DSM+DEM+nDSM, LAS, --jobs 1", gistools_run(work / "las", work / "out", 1))

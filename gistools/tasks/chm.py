@@ -112,7 +112,10 @@ def tile_chm(own: dict, neighbours: list, grid, run: _Run) -> np.ndarray:
         raise DataFileError("no ground (class 2 or 9) points in the tile or its buffer, so no heights above ground",
                             hint="Classify ground first (gistools ground)")
     x, y = allp["x"][first], allp["y"][first]
-    h, _inside = height_above_ground(x, y, allp["z"][first], allp["x"][g], allp["y"][g], allp["z"][g])
+    vertex = np.full(len(g), -1, np.int64)
+    vertex[g] = np.arange(int(np.count_nonzero(g)))  # a ground point is a vertex of the TIN: no search for it
+    h, _inside = height_above_ground(x, y, allp["z"][first], allp["x"][g], allp["y"][g], allp["z"][g],
+                                     vertex=vertex[first])
     if run.method == "p2r":
         return chm_p2r(x, y, h, grid)
     if run.method == "tin":

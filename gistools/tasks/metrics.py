@@ -126,8 +126,10 @@ def tile_metrics(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, di
     hag, inside = None, None
     if needs_heights(run.specs):
         g = np.isin(allp["classification"], GROUND_CLASSES)
+        vertex = np.full(len(g), -1, np.int64)
+        vertex[g] = np.arange(int(np.count_nonzero(g)))  # a ground point is a vertex of the TIN: no search for it
         hag, inside = height_above_ground(allp["x"][use], allp["y"][use], allp["z"][use], allp["x"][g], allp["y"][g],
-                                          allp["z"][g])
+                                          allp["z"][g], vertex=vertex[use])
     values = cell_metrics(flat[use], grid.width * grid.height, run.specs, z=allp["z"][use],
                           intensity=allp["intensity"][use], hag=hag, first=allp["return_number"][use] <= 1,
                           thresholds=run.thresholds, cell_area_m2=run.cell_area_m2, layer=run.layer)
