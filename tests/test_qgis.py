@@ -678,3 +678,17 @@ def test_chm_in_processing_equals_the_library(qgis, tmp_path):
         assert res["PITS"] == lib["pits"]
         for t in lib["tiles"]:
             same_cells(t["output"], tmp_path / f"q{index}" / "chm" / f"{t['name']}.tif")
+
+
+def test_dem_hydro_flattened_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:rasters with the water polygons and a void fill: the library's DEM, cell for cell."""
+    from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+
+    lib = rasters_from_tiles(SAMPLE, tmp_path / "lib", RasterSettings(hydro_flatten=spec("WATERBODY"), dem_fill="tin",
+                                                                      products=("dsm", "dem", "ndsm", "topclass")))
+    res = qgis.run("gistools:rasters", {"INPUT": str(SAMPLE), "HYDRO_FLATTEN": layer("WATERBODY"), "DEM_FILL": 1,
+                                        "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert res["DEM"]
+    for t in lib["tiles"]:
+        for product in ("dem", "ndsm"):
+            same_cells(t["outputs"][product], tmp_path / "q" / product / f"{t['name']}.tif")

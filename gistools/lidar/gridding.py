@@ -23,6 +23,8 @@ __all__ = [
     "dem_from_ground_points",
     "tin_dem_with_halo",
     "ndsm_from",
+    "fill_voids",
+    "DEM_FILLS",
     "within_distance",
 ]
 
@@ -265,6 +267,28 @@ def _open_box(box, extent) -> list[float]:
     big = 1e300
     return [w if extent[0] < w else -big, s if extent[1] < s else -big, e if extent[2] > e else big,
             n if extent[3] > n else big]
+
+
+DEM_FILLS = ("none", "tin", "idw")
+
+
+def fill_voids(dem: np.ndarray, grid: Grid, x, y, z, *, method: str, keep: np.ndarray | None = None,
+               engine: str | None = None) -> int:
+    """In place: the DEM's empty cells (except those of ``keep``, e.g. water) from the ground points (x, y, z):
+    ``tin``, a TIN of them with no edge limit (cells outside their hull stay empty), or ``idw``, the 8 nearest by
+    inverse distance squared; returns how many cells were filled."""
+    void = np.isnan(dem)
+    if keep is not None:
+        void &= ~keep
+    if method == "none" or not void.any() or len(x) < 3:
+        return 0
+    if method == "tin":
+        filled = tin_to_grid(x, y, z, grid, engine=engine)
+    else:
+        filled = _idw(grid, x, y, z, np.inf)
+    take = void & np.isfinite(filled)
+    dem[take] = filled[take]
+    return int(np.count_nonzero(take))
 
 
 def ndsm_from(dsm: np.ndarray, dem: np.ndarray) -> np.ndarray:

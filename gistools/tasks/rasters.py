@@ -35,12 +35,13 @@ from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
                                max_with_class, merge_top_class, surface_classes)
-from ..lidar.gridding import DEM_METHODS, dem_from_ground_points, ndsm_from, tin_dem_with_halo
+from ..lidar.gridding import DEM_FILLS, DEM_METHODS, dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
 from .batch import drive, fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
+from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
 from .schedule import TwoPassSchedule
 from ..units import length_to_crs_units
@@ -70,7 +71,11 @@ class RasterSettings:
     cells). return_band_breaks: heights
     (with units) h0 <= h1 < h2 < h3; when given, each tile's first returns are counted by
     height above the DEM in bands (h <= h0, h0-h1, h1-h2, h2-h3, > h3; ground and water
-    returns in the first): band areas that do not depend on the cell grid.
+    returns in the first): band areas that do not depend on the cell grid. hydro_flatten: a layer of water
+    polygons (file.gpkg:LAYER); the DEM cells inside each take its lowest ground elevation within shore_width
+    outside its edge (default 2 cells), filled where they had none (tasks.hydro). dem_fill: none, tin or idw: the
+    DEM's voids (cells farther than dem_max_distance from ground, under big buildings) filled from the buffered
+    ground points, water cells left (lidar.gridding.fill_voids); counted per tile.
     """
 
     cell_size: str | float = "5ft"
@@ -84,6 +89,9 @@ class RasterSettings:
     tin_block_points: int = 5_000_000
     return_band_breaks: tuple | None = None
     classify_ground: str | None = None
+    hydro_flatten: str | None = None
+    shore_width: str | float | None = None
+    dem_fill: str = "none"
 
     def validate(self) -> None:
         bad = [p for p in self.products if p not in PRODUCTS]
@@ -107,6 +115,15 @@ class RasterSettings:
             if self.classify_ground not in GROUND_METHODS:
                 raise InputError(f"--classify-ground {self.classify_ground!r} is not one of {', '.join(GROUND_METHODS)}",
                                  hint="Use --classify-ground smrf")
+        if self.dem_fill not in DEM_FILLS:
+            raise InputError(f"--dem-fill {self.dem_fill!r} is not one of {', '.join(DEM_FILLS)}", hint="Use --dem-fill tin")
+        if self.shore_width is not None:
+            check_length(self.shore_width, "--shore-width", example="10ft")
+        if self.hydro_flatten is not None and "dem" not in self.products:
+            raise InputError("--hydro-flatten flattens the DEM: add dem to --products", hint="e.g. --products dsm,dem,ndsm")
+        if self.hydro_flatten is not None and "ndsm" in self.products and "dsm" not in self.products:
+            raise InputError("--hydro-flatten redoes the nDSM from the DSM: add dsm to --products, or leave ndsm out",
+                             hint="e.g. --products dsm,dem,ndsm")
         if self.return_band_breaks is not None:
             values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
             if len(values) < 2:
@@ -127,6 +144,8 @@ class TileResult:
     points_outside_header_bounds: int = 0
     outputs: dict = field(default_factory=dict)
     first_return_bands: list | None = None
+    shore_minima: dict = field(default_factory=dict)  # water body -> lowest ground point of its shore (hydro_flatten)
+    dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
     warnings: list = field(default_factory=list)
     neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
     seconds: float = 0.0
@@ -149,6 +168,10 @@ class _Run:
     products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 5_000_000
     return_breaks: tuple[float, ...] | None = None
+    water: tuple = ()  # water bodies to flatten the DEM in (tasks.hydro.water_bodies)
+    shore_width: float = 0.0
+    water_key: str | None = None  # the layer and shore width, in the tile reports' settings
+    dem_fill: str = "none"
 
 
 def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
@@ -177,6 +200,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     sides = {k: Extent() for k in ("ground", *HALO_SIDES)}
     out_box = Extent()
     scale_offset = None
+    shore = ShoreMinima(run.water, info.bounds, run.shore_width) if run.water and need_dem else None
     with contextlib.ExitStack() as files:
         ground_out = files.enter_context(open(ground_file(run.scratch, info.name), "wb"))
         halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
@@ -217,6 +241,8 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
                 scale_offset = ([float(v) for v in chunk.raw.scales], [float(v) for v in chunk.raw.offsets])
                 _write_ground(chunk, ground, info.bounds, run.buffer, ground_out, halo_out, sides)
+                if shore is not None:
+                    shore.add(chunk.x, chunk.y, lambda m, c=chunk: scaled(c, "z", m), ground)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     warnings = _outside_bounds(info, outside, done, out_box)
@@ -237,6 +263,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_by_class": {int(c): int(v) for c, v in enumerate(by_class) if v},
         "points_by_return": {int(r): int(v) for r, v in enumerate(by_return) if v},
         "points_outside_header_bounds": outside,
+        "shore_minima": shore.result() if shore is not None else {},
         "warnings": warnings,
     }
 
@@ -341,7 +368,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     arrays = {"dsm": dsm, "topclass": top_class}
     return_bands = None
     if run.products != ("dsm",):
-        dem = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
+        dem, filled = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
         if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
             warnings.append(_no_ground(info, dem, own_water))
         arrays["dem"] = dem
@@ -354,8 +381,11 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
                 "cell_area": grid.cell_size ** 2,
                 "breaks": list(run.return_breaks),
             }
+    else:
+        filled = 0
     outputs = _write_tile_rasters(info, run, grid, arrays)
-    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used)}
+    return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used),
+            "dem_filled_cells": filled}
 
 
 def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, ground_count, water_count):
@@ -380,14 +410,16 @@ def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, g
     return used, warnings
 
 
-def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> np.ndarray:
-    """The DEM of a tile from its ground points and its neighbours' within the buffer, in strips of rows."""
+def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> tuple[np.ndarray, int]:
+    """(the DEM of a tile from its ground points and its neighbours' within the buffer, in strips of rows; the voids
+    filled by run.dem_fill)."""
     b = run.buffer
     gw, gs, ge, gn = grid.bounds
     # a neighbour's halo strips hold its points within the buffer of its edges; its other points can lie
     # within the buffer of this tile only when the two tiles overlap (overlapping deliveries): read it whole
     deep = {o.name: o.bounds[0] < ge and o.bounds[2] > gw and o.bounds[1] < gn and o.bounds[3] > gs for o in neighbours}
     dem = np.full(grid.shape, np.nan)
+    filled = 0
     for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
         strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
         w, s, e, n = strip.bounds
@@ -401,8 +433,10 @@ def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> n
         else:
             dem[r0:r1] = dem_from_ground_points(x, y, z, strip, method=run.dem_method,
                                                 max_distance=run.max_distance, water=water[r0:r1])
+        part = dem[r0:r1]
+        filled += fill_voids(part, strip, x, y, z, method=run.dem_fill, keep=water[r0:r1])
         del x, y, z
-    return dem
+    return dem, filled
 
 
 def _no_ground(info, dem, own_water: int) -> str:
@@ -498,7 +532,7 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
     for name, error in (failed or {}).items():
         results[name] = TileResult(name=name, path=name, status="failed", error=error)
     infos = _readable_tiles(paths, override, results)
-    run = None
+    run, flattened = None, None
     scratch_peak = 0
     if infos:
         crs = common_crs(infos)
@@ -507,9 +541,12 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
             run = _run_parameters(infos[0], crs, settings, out, scratch)
             infos = _griddable(infos, run, results, settings)
             scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
+            flattened = flatten_dem_tiles(results, run.water, run) if run.water else None
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     summary = _summary(infos, run, settings, results, _mosaics(out, settings.products, results), scratch_peak, started)
+    if run is not None and run.water:
+        summary["hydro_flatten"] = {"layer": settings.hydro_flatten, "shore_width": run.shore_width, **flattened}
     write_folder_report(out, summary, partial=True)
     return summary
 
@@ -532,16 +569,30 @@ def _run_parameters(first: TileInfo, crs, settings: RasterSettings, out: Path, s
     max_distance = length_to_crs_units(settings.dem_max_distance, unit, name="DEM max distance")
     buffer = (length_to_crs_units(settings.buffer, unit, name="buffer") if settings.buffer is not None
               else max(2 * max_distance, 20 * cell_size))
+    water, shore, water_key = _water(settings, crs, unit, cell_size)
     return _Run(
+        water=water, shore_width=shore, water_key=water_key,
         cell_size=cell_size, dem_method=settings.dem_method,
         dsm_classes=tuple(settings.dsm_classes) if settings.dsm_classes is not None else None,
         max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
         out=str(out), crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
         products=tuple(p for p in PRODUCTS if p in settings.products),
-        tin_block_points=settings.tin_block_points,
+        tin_block_points=settings.tin_block_points, dem_fill=settings.dem_fill,
         return_breaks=None if settings.return_band_breaks is None else tuple(
             length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
     )
+
+
+def _water(settings: RasterSettings, crs, unit, cell_size: float) -> tuple:
+    """(water bodies, shore width in CRS units, the key recorded in tile reports) of --hydro-flatten, or empty."""
+    if settings.hydro_flatten is None:
+        return (), 0.0, None
+    from ..io.vector import absolute_spec, check_crs, read_layer
+
+    layer = check_crs(read_layer(settings.hydro_flatten, ("polygon",), "--hydro-flatten"), crs, str(settings.hydro_flatten))
+    shore = (length_to_crs_units(settings.shore_width, unit, name="shore width") if settings.shore_width is not None
+             else 2 * cell_size)
+    return water_bodies(list(layer.geometry), shore), shore, f"{absolute_spec(settings.hydro_flatten)} {shore:.6g}"
 
 
 def _griddable(infos: list[TileInfo], run: _Run, results, settings: RasterSettings) -> list[TileInfo]:
@@ -676,6 +727,7 @@ def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
     r.points, r.points_by_class = value["points"], value["points_by_class"]
     r.points_by_return = value["points_by_return"]
     r.points_outside_header_bounds = value["points_outside_header_bounds"]
+    r.shore_minima = value.get("shore_minima", {})
     r.warnings = list(value.get("warnings", []))
     for w in r.warnings:
         log.warning("%s", w)
@@ -685,6 +737,7 @@ def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
 def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
     r.outputs = value["outputs"]
     r.first_return_bands = value["first_return_bands"]
+    r.dem_filled_cells = value.get("dem_filled_cells", 0)
     r.neighbours = value["neighbours"]
     new = list(value.get("warnings", []))
     r.warnings = r.warnings + new

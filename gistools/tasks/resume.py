@@ -26,7 +26,7 @@ __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "warnings", "neighbours", "seconds")
+                "first_return_bands", "shore_minima", "dem_filled_cells", "warnings", "neighbours", "seconds")
 
 
 def tile_report_file(out: Path, name: str) -> Path:
@@ -35,9 +35,14 @@ def tile_report_file(out: Path, name: str) -> Path:
 
 def run_settings(run) -> dict:
     """The settings a tile's rasters depend on (of the rasters' run parameters ``run``), as in its tile report."""
-    return {"cell_size": run.cell_size, "dem_method": run.dem_method, "dem_max_distance": run.max_distance,
-            "buffer": run.buffer, "dsm_classes": None if run.dsm_classes is None else list(run.dsm_classes),
-            "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
+    settings = {"cell_size": run.cell_size, "dem_method": run.dem_method, "dem_max_distance": run.max_distance,
+                "buffer": run.buffer, "dsm_classes": None if run.dsm_classes is None else list(run.dsm_classes),
+                "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
+    if getattr(run, "dem_fill", "none") != "none":
+        settings["dem_fill"] = run.dem_fill
+    if getattr(run, "water_key", None):  # the shore minima of pass 1 depend on the water layer
+        settings["hydro_flatten"] = run.water_key
+    return settings
 
 
 def write_tile_report(out: Path, result, settings: dict) -> None:
@@ -56,7 +61,8 @@ def read_tile_report(out: Path, name: str) -> dict | None:
 
 
 SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
-                  "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS"}
+                  "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS",
+                  "hydro_flatten": "--hydro-flatten layer and shore width", "dem_fill": "--dem-fill"}
 
 
 def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:

@@ -7,9 +7,15 @@ from qgis.core import (
     QgsProcessingParameterEnum,
     QgsProcessingParameterFolderDestination,
     QgsProcessingParameterString,
+    QgsProcessingParameterVectorLayer,
 )
 
+from gistools.lidar.gridding import DEM_FILLS
+
 from .base import labels, GistoolsAlgorithm, DEM_METHODS, int_list, RASTER
+from ..compat import VECTOR_POLYGON
+
+DEM_FILL_LABELS = {"none": "Leave them empty", "tin": "A TIN across them", "idw": "Inverse distance (8 nearest ground points)"}
 
 
 class _RastersBase(GistoolsAlgorithm):
@@ -29,6 +35,17 @@ class _RastersBase(GistoolsAlgorithm):
                                                 defaultValue=DEM_METHODS.index(RASTER.dem_method)))
             self.add_length("DEM_MAX_DISTANCE", "DEM: leave cells farther than this from ground points empty", RASTER.dem_max_distance,
                             advanced=True)
+            self.add(QgsProcessingParameterEnum("DEM_FILL", "DEM voids (farther than that from ground, not water)",
+                                                options=[DEM_FILL_LABELS[m] for m in DEM_FILLS],
+                                                defaultValue=list(DEM_FILLS).index(RASTER.dem_fill)), advanced=True,
+                     help="Cells farther than the distance above from every ground point (under big buildings): left "
+                          "empty, filled by a TIN of the ground around them, or by inverse distance. Counted per tile.")
+            self.add(QgsProcessingParameterVectorLayer("HYDRO_FLATTEN", "Hydro-flatten in these water polygons",
+                                                       [VECTOR_POLYGON], optional=True),
+                     help="Water body polygons (e.g. WATERBODY): the DEM cells inside each take its lowest ground "
+                          "elevation along the shore, filled where empty (USGS 3DEP hydro-flattening).")
+            self.add_length("SHORE_WIDTH", "Hydro-flatten: shore band outside the polygons (empty: 2 cells)", None,
+                            optional=True, advanced=True)
         self.add_crs()
         self.add_parallel()
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (one GeoTIFF per tile + VRT)"))
@@ -47,6 +64,9 @@ class _RastersBase(GistoolsAlgorithm):
         if "dem" in self.products:
             kwargs["dem_method"] = DEM_METHODS[self.parameterAsEnum(parameters, "DEM_METHOD", context)]
             kwargs["dem_max_distance"] = self.text(parameters, "DEM_MAX_DISTANCE", context)
+            kwargs["dem_fill"] = DEM_FILLS[self.parameterAsEnum(parameters, "DEM_FILL", context)]
+            kwargs["hydro_flatten"] = self.layer_spec(parameters, "HYDRO_FLATTEN", context, feedback)
+            kwargs["shore_width"] = self.text(parameters, "SHORE_WIDTH", context)
         settings = RasterSettings(**kwargs)
         result = rasters_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
                                     jobs=self.parameterAsInt(parameters, "JOBS", context),
