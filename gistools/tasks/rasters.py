@@ -115,6 +115,15 @@ class RasterSettings:
             if self.classify_ground not in GROUND_METHODS:
                 raise InputError(f"--classify-ground {self.classify_ground!r} is not one of {', '.join(GROUND_METHODS)}",
                                  hint="Use --classify-ground smrf")
+        self._check_dem_options()
+        if self.return_band_breaks is not None:
+            values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
+            if len(values) < 2:
+                raise InputError(f"return band breaks {self.return_band_breaks}: give at least two heights")
+
+
+    def _check_dem_options(self) -> None:
+        """--dem-fill, --hydro-flatten and --shore-width."""
         if self.dem_fill not in DEM_FILLS:
             raise InputError(f"--dem-fill {self.dem_fill!r} is not one of {', '.join(DEM_FILLS)}", hint="Use --dem-fill tin")
         if self.shore_width is not None:
@@ -124,10 +133,6 @@ class RasterSettings:
         if self.hydro_flatten is not None and "ndsm" in self.products and "dsm" not in self.products:
             raise InputError("--hydro-flatten redoes the nDSM from the DSM: add dsm to --products, or leave ndsm out",
                              hint="e.g. --products dsm,dem,ndsm")
-        if self.return_band_breaks is not None:
-            values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
-            if len(values) < 2:
-                raise InputError(f"return band breaks {self.return_band_breaks}: give at least two heights")
 
 
 @dataclass
