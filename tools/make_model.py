@@ -42,6 +42,7 @@ def build():
     from qgis.PyQt.QtCore import QPointF
 
     from gistools.lidar.bands import PRESETS
+    from gistools.lidar.dsmfill import DSM_FILLS
     from gistools.lidar.gridding import DEM_METHODS
     from gistools.lidar.shrub import CLASS_METHODS
     from gistools.tasks.settings import DEFAULTS as D
@@ -96,7 +97,7 @@ def build():
     child("points_nonground", "gistools:points", "LAS to non-ground points (classes 1, 2, first returns)", 420, 110,
           {"INPUT": P("TILES"), "CLASSES": V("1,2"), "RETURNS": V(0), "FORMAT": V(0)})
     child("dsm", "gistools:dsm", "DSM (max of first returns)", 420, 200,
-          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "JOBS": V(1)})
+          {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "DSM_FILL": V(list(DSM_FILLS).index(R.dsm_fill)), "JOBS": V(1)})
     child("dem", "gistools:dem", "DEM (ground TIN)", 420, 280,
           {"INPUT": P("TILES"), "CELL_SIZE": P("CELL_SIZE"), "DEM_METHOD": V(list(DEM_METHODS).index(R.dem_method)),
            "DEM_MAX_DISTANCE": V(R.dem_max_distance),

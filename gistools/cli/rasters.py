@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..lidar.dsmfill import DSM_FILLS
 from ..lidar.gridding import DEM_FILLS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
 from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
@@ -29,6 +30,11 @@ _DEFAULTS = RasterSettings()  # the options' defaults are the library's
 @click.option("--dem-fill", type=click.Choice(DEM_FILLS), default=_DEFAULTS.dem_fill, show_default=True,
               help="DEM voids (cells farther than --dem-max-distance from ground, e.g. under big buildings): tin (a TIN "
                    "across them), idw (the 8 nearest ground points) or none; water cells stay empty.")
+@click.option("--dsm-fill", type=click.Choice(DSM_FILLS), default=_DEFAULTS.dsm_fill, show_default=True,
+              help="DSM cells without a first return: tin (a TIN of the cells' highest returns across holes up to 3 "
+                   "cells; never above them), subcircle (each return also on a circle of --subcircle, lidR's "
+                   "p2r(subcircle)) or none.")
+@click.option("--subcircle", default=None, help="--dsm-fill subcircle: the circle's radius. Default: half a cell.")
 @click.option("--shore-width", default=None, help="--hydro-flatten: how far outside a water polygon its shore's ground "
               "points are taken. Default: 2 cells.")
 @crs_opt
@@ -40,7 +46,7 @@ _DEFAULTS = RasterSettings()  # the options' defaults are the library's
                    "LocalCluster of --jobs workers. Workers must see the tiles and --out at the same paths.")
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, classify_ground,
-            dem_fill, hydro_flatten, shore_width, crs, jobs, chunk_size, overwrite, scheduler, quiet):
+            dem_fill, dsm_fill, subcircle, hydro_flatten, shore_width, crs, jobs, chunk_size, overwrite, scheduler, quiet):
     """DSM, DEM and nDSM GeoTIFFs for every tile of INPUTS (files, folders or globs).
 
     Writes OUT/dsm/<tile>.tif, OUT/dem/<tile>.tif, OUT/ndsm/<tile>.tif, VRT mosaics
@@ -58,7 +64,8 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
     """
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
-                              classify_ground=classify_ground, dem_fill=dem_fill, hydro_flatten=hydro_flatten, shore_width=shore_width,
+                              classify_ground=classify_ground, dem_fill=dem_fill, dsm_fill=dsm_fill,
+                              subcircle=subcircle, hydro_flatten=hydro_flatten, shore_width=shore_width,
                               products=tuple(p.strip() for p in products.split(",") if p.strip()))
     with progress_bar(quiet) as progress:
         summary = batch_report(lambda: rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite,

@@ -6,6 +6,7 @@ import click
 
 from ..lidar.bands import PRESETS
 from ..lidar.shrub import CLASS_METHODS
+from ..lidar.dsmfill import DSM_FILLS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
 from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
@@ -71,6 +72,10 @@ _step_parameters = _options([
 @click.option("--cell-size", default=_S.raster.cell_size, show_default=True, help="Cell size with its unit.")
 @click.option("--dsm-classes", callback=parse_classes, default=None, help="Classes in the DSM, e.g. 1,2. Default: all but 7, 18.")
 @dem_options(_S.raster)
+@click.option("--dsm-fill", type=click.Choice(DSM_FILLS), default=_S.raster.dsm_fill, show_default=True,
+              help="DSM cells without a first return: nearest (the nearest return's height, up to 3 cells), tin (a TIN "
+                   "of the cells' highest returns across holes up to 3 cells), subcircle (lidR's p2r(subcircle), half "
+                   "a cell) or none (the dissertation's; filling raises the cover of sparse data: README).")
 @classify_ground_opt
 @_step_parameters
 @click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")
@@ -81,6 +86,7 @@ _step_parameters = _options([
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size, dem_method,
+          dsm_fill,
           dsm_classes, dem_max_distance, classify_ground, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
           max_road_width, snap, no_map, band_points, scheduler, crs, jobs, chunk_size, overwrite, quiet):
     """Shrub density map of LAS/LAZ tiles: DSM/DEM/nDSM, height bands, road and water clipping,
@@ -97,7 +103,7 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
     settings = ShrubSettings(
         raster=RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, crs=crs, chunk_size=chunk_size,
-                              classify_ground=classify_ground),
+                              classify_ground=classify_ground, dsm_fill=dsm_fill),
         bands=band_preset, band_breaks_m=band_breaks, noise_floor=noise_floor, radius=radius,
         density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,

@@ -35,12 +35,14 @@ from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
                                max_with_class, merge_top_class, surface_classes)
+from ..lidar.dsmfill import DSM_FILLS
 from ..lidar.gridding import DEM_FILLS, DEM_METHODS, dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
 from .batch import drive, fail, make_pool, timed, worker_timed
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
+from .dsmfill import DsmFillScan, fill_tile_dsm
 from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
 from .schedule import TwoPassSchedule
@@ -75,7 +77,9 @@ class RasterSettings:
     polygons (file.gpkg:LAYER); the DEM cells inside each take its lowest ground elevation within shore_width
     outside its edge (default 2 cells), filled where they had none (tasks.hydro). dem_fill: none, tin or idw: the
     DEM's voids (cells farther than dem_max_distance from ground, under big buildings) filled from the buffered
-    ground points, water cells left (lidar.gridding.fill_voids); counted per tile.
+    ground points, water cells left (lidar.gridding.fill_voids); counted per tile. dsm_fill: none, tin (the DSM's
+    empty cells from a TIN of the cells' highest returns, edges up to 3 cells) or subcircle (every first return also
+    at 8 points of a circle of radius subcircle, default half a cell: lidR's p2r(subcircle)); counted per tile.
     """
 
     cell_size: str | float = "5ft"
@@ -92,6 +96,8 @@ class RasterSettings:
     hydro_flatten: str | None = None
     shore_width: str | float | None = None
     dem_fill: str = "none"
+    dsm_fill: str = "none"
+    subcircle: str | float | None = None
 
     def validate(self) -> None:
         bad = [p for p in self.products if p not in PRODUCTS]
@@ -123,7 +129,11 @@ class RasterSettings:
 
 
     def _check_dem_options(self) -> None:
-        """--dem-fill, --hydro-flatten and --shore-width."""
+        """--dem-fill, --dsm-fill, --subcircle, --hydro-flatten and --shore-width."""
+        if self.dsm_fill not in DSM_FILLS:
+            raise InputError(f"--dsm-fill {self.dsm_fill!r} is not one of {', '.join(DSM_FILLS)}", hint="Use --dsm-fill tin")
+        if self.subcircle is not None:
+            check_length(self.subcircle, "--subcircle", example="0.2m")
         if self.dem_fill not in DEM_FILLS:
             raise InputError(f"--dem-fill {self.dem_fill!r} is not one of {', '.join(DEM_FILLS)}", hint="Use --dem-fill tin")
         if self.shore_width is not None:
@@ -151,6 +161,7 @@ class TileResult:
     first_return_bands: list | None = None
     shore_minima: dict = field(default_factory=dict)  # water body -> lowest ground point of its shore (hydro_flatten)
     dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
+    dsm_filled_cells: int = 0  # DSM pinholes filled (dsm_fill)
     warnings: list = field(default_factory=list)
     neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
     seconds: float = 0.0
@@ -177,6 +188,8 @@ class _Run:
     shore_width: float = 0.0
     water_key: str | None = None  # the layer and shore width, in the tile reports' settings
     dem_fill: str = "none"
+    dsm_fill: str = "none"
+    subcircle: float = 0.0
 
 
 def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
@@ -206,6 +219,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     out_box = Extent()
     scale_offset = None
     shore = ShoreMinima(run.water, info.bounds, run.shore_width) if run.water and need_dem else None
+    fill = DsmFillScan(run, info, grid) if run.dsm_fill != "none" else None
     with contextlib.ExitStack() as files:
         ground_out = files.enter_context(open(ground_file(run.scratch, info.name), "wb"))
         halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
@@ -236,10 +250,13 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 rec["cell"] = cell[other]
                 rec["z"] = scaled(chunk, "z", other)
                 rec.tofile(first_out)
+            surface_z = scaled(chunk, "z", surface)
             if track_top:
-                max_with_class(flat_dsm, top_class, cell[surface], scaled(chunk, "z", surface), cls[surface])
+                max_with_class(flat_dsm, top_class, cell[surface], surface_z, cls[surface])
             else:
-                max_into(flat_dsm, cell[surface], scaled(chunk, "z", surface))
+                max_into(flat_dsm, cell[surface], surface_z)
+            if fill is not None:
+                fill.add(chunk.x[surface], chunk.y[surface], surface_z, cell[surface])
             if need_dem:
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
@@ -262,6 +279,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         bare_first=bare_first.reshape(grid.shape).astype(np.int32),
         ground_count=ground_count.reshape(grid.shape).astype(np.int32),
         water_count=water_count.reshape(grid.shape).astype(np.int32),
+        **(fill.grids() if fill is not None else {}),
     )
     return {
         "points": int(by_class.sum()),
@@ -370,6 +388,9 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     ground_count, water_count = (load_grid(own, k).astype(np.int64) for k in ("ground_count", "water_count"))
     own_ground, own_water = int(ground_count.sum()), int(water_count.sum())
     used, warnings = _merge_neighbours(info, neighbours, run, grid, dsm, top_class, ground_count, water_count)
+    dsm_filled = 0
+    if run.dsm_fill != "none":
+        dsm, dsm_filled = fill_tile_dsm(info, neighbours, run, grid, dsm, lambda i: _tile_grid(i, run))
     arrays = {"dsm": dsm, "topclass": top_class}
     return_bands = None
     if run.products != ("dsm",):
@@ -390,7 +411,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         filled = 0
     outputs = _write_tile_rasters(info, run, grid, arrays)
     return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used),
-            "dem_filled_cells": filled}
+            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled}
 
 
 def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, ground_count, water_count):
@@ -582,7 +603,9 @@ def _run_parameters(first: TileInfo, crs, settings: RasterSettings, out: Path, s
         max_distance=max_distance, buffer=buffer, chunk_size=settings.chunk_size, scratch=str(scratch),
         out=str(out), crs_wkt=crs.to_wkt(), z_unit=z_unit.short,
         products=tuple(p for p in PRODUCTS if p in settings.products),
-        tin_block_points=settings.tin_block_points, dem_fill=settings.dem_fill,
+        tin_block_points=settings.tin_block_points, dem_fill=settings.dem_fill, dsm_fill=settings.dsm_fill,
+        subcircle=(length_to_crs_units(settings.subcircle, unit, name="subcircle") if settings.subcircle is not None
+                   else cell_size / 2),
         return_breaks=None if settings.return_band_breaks is None else tuple(
             length_to_crs_units(b, z_unit, name="band break") for b in settings.return_band_breaks),
     )
@@ -743,6 +766,7 @@ def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
     r.outputs = value["outputs"]
     r.first_return_bands = value["first_return_bands"]
     r.dem_filled_cells = value.get("dem_filled_cells", 0)
+    r.dsm_filled_cells = value.get("dsm_filled_cells", 0)
     r.neighbours = value["neighbours"]
     new = list(value.get("warnings", []))
     r.warnings = r.warnings + new

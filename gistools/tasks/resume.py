@@ -26,7 +26,8 @@ __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "shore_minima", "dem_filled_cells", "warnings", "neighbours", "seconds")
+                "first_return_bands", "shore_minima", "dem_filled_cells", "dsm_filled_cells",
+               "warnings", "neighbours", "seconds")
 
 
 def tile_report_file(out: Path, name: str) -> Path:
@@ -40,6 +41,8 @@ def run_settings(run) -> dict:
                 "z_unit": run.z_unit, "crs_wkt": run.crs_wkt}
     if getattr(run, "dem_fill", "none") != "none":
         settings["dem_fill"] = run.dem_fill
+    if getattr(run, "dsm_fill", "none") != "none":
+        settings["dsm_fill"] = f"subcircle {run.subcircle:.6g}" if run.dsm_fill == "subcircle" else run.dsm_fill
     if getattr(run, "water_key", None):  # the shore minima of pass 1 depend on the water layer
         settings["hydro_flatten"] = run.water_key
     return settings
@@ -62,7 +65,7 @@ def read_tile_report(out: Path, name: str) -> dict | None:
 
 SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
                   "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS",
-                  "hydro_flatten": "--hydro-flatten layer and shore width", "dem_fill": "--dem-fill"}
+                  "hydro_flatten": "--hydro-flatten layer and shore width", "dem_fill": "--dem-fill", "dsm_fill": "--dsm-fill"}
 
 
 def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:

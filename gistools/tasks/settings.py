@@ -27,7 +27,8 @@ class ShrubSettings:
     max_hydro_width: faces wider than this are blocks between lines, not road / river.
     single_line_width: width given to single-line hydro features. radius: density circle.
     density_bands: the bands whose vegetation counts (default B1-B3; the dissertation used B1).
-    classify: "breaks" (class_breaks on cover), "quantile" or "jenks".
+    classify: "breaks" (class_breaks on cover), "quantile" or "jenks". raster: the rasters' settings (the DSM's
+    pinholes are left by default: filling them raises the cover of sparse data, README "The shrub chain").
     """
 
     raster: RasterSettings = field(default_factory=RasterSettings)

@@ -10,11 +10,16 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
+from gistools.lidar.dsmfill import DSM_FILLS
+from gistools.tasks.rasters import RasterSettings
 from gistools.lidar.gridding import DEM_FILLS
 
 from .base import labels, GistoolsAlgorithm, DEM_METHODS, int_list, RASTER
 from ..compat import VECTOR_POLYGON
 
+RASTERS = RasterSettings()  # gistools rasters' defaults (the chain's, RASTER, fill the DSM)
+DSM_FILL_LABELS = {"none": "Leave them empty", "nearest": "The nearest return's height (up to 3 cells)", "tin": "A TIN of the highest returns around them (holes up to 3 cells)",
+                   "subcircle": "Each return on a circle of half a cell (lidR p2r(subcircle))"}
 DEM_FILL_LABELS = {"none": "Leave them empty", "tin": "A TIN across them", "idw": "Inverse distance (8 nearest ground points)"}
 
 
@@ -30,6 +35,12 @@ class _RastersBase(GistoolsAlgorithm):
         if "dsm" in self.products:
             self.add(QgsProcessingParameterString("DSM_CLASSES", "Classes in the DSM (empty = all but noise 7, 18)",
                                                   optional=True), advanced=True)
+            self.add(QgsProcessingParameterEnum("DSM_FILL", "DSM cells without a first return",
+                                                options=[DSM_FILL_LABELS[m] for m in DSM_FILLS],
+                                                defaultValue=list(DSM_FILLS).index(RASTERS.dsm_fill)), advanced=True,
+                     help="Pinholes of the DSM (cells no first return hit): left empty, filled by a TIN of the highest "
+                          "returns around them (never above them), by the nearest return's height, or by spreading each "
+                          "return on a circle of half a cell.")
         if "dem" in self.products:
             self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=labels(DEM_METHODS),
                                                 defaultValue=DEM_METHODS.index(RASTER.dem_method)))
@@ -37,7 +48,7 @@ class _RastersBase(GistoolsAlgorithm):
                             advanced=True)
             self.add(QgsProcessingParameterEnum("DEM_FILL", "DEM voids (farther than that from ground, not water)",
                                                 options=[DEM_FILL_LABELS[m] for m in DEM_FILLS],
-                                                defaultValue=list(DEM_FILLS).index(RASTER.dem_fill)), advanced=True,
+                                                defaultValue=list(DEM_FILLS).index(RASTERS.dem_fill)), advanced=True,
                      help="Cells farther than the distance above from every ground point (under big buildings): left "
                           "empty, filled by a TIN of the ground around them, or by inverse distance. Counted per tile.")
             self.add(QgsProcessingParameterVectorLayer("HYDRO_FLATTEN", "Hydro-flatten in these water polygons",
@@ -61,6 +72,7 @@ class _RastersBase(GistoolsAlgorithm):
                   "products": self.products}
         if "dsm" in self.products:
             kwargs["dsm_classes"] = int_list(self.parameterAsString(parameters, "DSM_CLASSES", context), "DSM classes")
+            kwargs["dsm_fill"] = DSM_FILLS[self.parameterAsEnum(parameters, "DSM_FILL", context)]
         if "dem" in self.products:
             kwargs["dem_method"] = DEM_METHODS[self.parameterAsEnum(parameters, "DEM_METHOD", context)]
             kwargs["dem_max_distance"] = self.text(parameters, "DEM_MAX_DISTANCE", context)

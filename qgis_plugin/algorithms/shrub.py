@@ -19,6 +19,7 @@ from qgis.core import (
 
 from .base import (labels, PRESET_LABEL, CLASS_METHOD_LABEL, BREAKS_LABEL, GistoolsAlgorithm, GROUP_SHRUB,
                    DEM_METHODS, PRESETS, CLASSIFY, BANDS, float_list, SHRUB, RASTER, band_choices, text_list)
+from .rasters import DSM_FILL_LABELS, DSM_FILLS
 from ..compat import VECTOR_LINE, VECTOR_POLYGON
 
 
@@ -42,6 +43,13 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         self.add_length("CELL_SIZE", "Cell size", RASTER.cell_size)
         self.add(QgsProcessingParameterEnum("DEM_METHOD", "DEM method", options=labels(DEM_METHODS),
                                             defaultValue=DEM_METHODS.index(RASTER.dem_method)), advanced=True)
+        self.add(QgsProcessingParameterEnum("DSM_FILL", "DSM cells without a first return",
+                                            options=[DSM_FILL_LABELS[m] for m in DSM_FILLS],
+                                            defaultValue=list(DSM_FILLS).index(RASTER.dsm_fill)), advanced=True,
+                 help="Pinholes of the DSM: left empty (the default and the dissertation's), filled by the nearest "
+                      "return's height, by a TIN of the highest returns around them, or by lidR's subcircles. Filling "
+                      "raises the cover of sparse data (cells count whole): on the sample a medium patch of low "
+                      "shrub reads heavy in a fifth of its cells.")
         self.add(QgsProcessingParameterEnum("PRESET", PRESET_LABEL, options=labels(PRESETS), defaultValue=PRESETS.index(SHRUB.bands)))
         self.add_length("NOISE_FLOOR", "Heights up to this are bare ground", SHRUB.noise_floor, advanced=True)
         self.add_length("RADIUS", "Density radius", SHRUB.radius)
@@ -73,6 +81,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         settings = ShrubSettings(
             raster=RasterSettings(cell_size=self.text(parameters, "CELL_SIZE", context),
                                   dem_method=DEM_METHODS[self.parameterAsEnum(parameters, "DEM_METHOD", context)],
+                                  dsm_fill=DSM_FILLS[self.parameterAsEnum(parameters, "DSM_FILL", context)],
                                   crs=self.crs_text(parameters, context)),
             bands=PRESETS[self.parameterAsEnum(parameters, "PRESET", context)],
             noise_floor=self.text(parameters, "NOISE_FLOOR", context), radius=self.text(parameters, "RADIUS", context),

@@ -1,0 +1,91 @@
+"""The rasters' DSM pinholes filled (``gistools rasters --dsm-fill tin|subcircle``; on by default in the shrub chain).
+
+Pass 1 keeps what the fill needs in each tile's partial grids: the position of every cell's highest first return
+(``tin``), or the DSM of the returns spread on their subcircles over the tile's grid grown by the radius
+(``subcircle``). Pass 2 takes them from the tile and its neighbours, so a cell near a tile edge is filled as in one
+merged run: the TIN sees the neighbours' returns within a ring of cells, the subcircles cross the edges.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from affine import Affine
+
+from ..grid import Grid, snapped_grid
+from ..io.scratch import grids_folder, load_grid
+from ..lidar.dsmfill import fill_from_nearest, fill_from_tin, max_with_position, subcircle_into
+
+__all__ = ["DsmFillScan", "fill_tile_dsm", "TIN_EDGE_CELLS"]
+
+TIN_EDGE_CELLS = 3  # tin: the longest triangle edge, in cells (holes up to about two cells wide are filled)
+
+
+def _sub_grid(bounds, run) -> Grid:
+    w, s, e, n = bounds
+    r = run.subcircle
+    return snapped_grid((w - r, s - r, e + r, n + r), run.cell_size)
+
+
+class DsmFillScan:
+    """Pass 1: what the fill needs, chunk by chunk (``add``), as grids to save with the tile's (``grids``)."""
+
+    def __init__(self, run, info, grid: Grid):
+        self.method, self.run = run.dsm_fill, run
+        n = grid.width * grid.height
+        self.shape = grid.shape
+        if self.method in ("tin", "nearest"):
+            self.z = np.full(n, -np.inf)
+            self.x, self.y = np.full(n, np.nan), np.full(n, np.nan)
+        else:
+            self.grid = _sub_grid(info.bounds, run)
+            self.z = np.full(self.grid.width * self.grid.height, -np.inf)
+
+    def add(self, x, y, z, cell) -> None:
+        """The surface returns of a chunk (x, y, z; ``cell``: their cells on the tile's grid)."""
+        if self.method in ("tin", "nearest"):
+            max_with_position(self.z, self.x, self.y, cell, z, x, y)
+        else:
+            subcircle_into(self.z, self.grid, x, y, z, self.run.subcircle)
+
+    def grids(self) -> dict:
+        z = np.where(np.isinf(self.z), np.nan, self.z)
+        if self.method in ("tin", "nearest"):
+            return {"fill_x": self.x.reshape(self.shape), "fill_y": self.y.reshape(self.shape)}
+        return {"fill_z": z.reshape(self.grid.shape)}
+
+
+def fill_tile_dsm(info, neighbours, run, grid: Grid, dsm: np.ndarray, tile_grid) -> tuple[np.ndarray, int]:
+    """(the tile's DSM with its pinholes filled, how many) from its and its neighbours' pass-1 grids; ``dsm``: the
+    merged DSM of the tile; ``tile_grid(info)``: a tile's grid."""
+    sources = [(info, tile_grid(info))] + [(o, tile_grid(o)) for o in neighbours
+                                           if grids_folder(run.scratch, o.name).is_dir()]
+    if run.dsm_fill == "subcircle":
+        out = np.full(grid.shape, np.nan)
+        for other, _g in sources:
+            sub = _sub_grid(other.bounds, run)
+            window = grid.window_in(sub)
+            if window is not None:
+                rs, cs_, ro, co = window
+                part = load_grid(grids_folder(run.scratch, other.name), "fill_z", mmap=True)[ro, co]
+                out[rs, cs_] = np.fmax(out[rs, cs_], part)
+        return out, int(np.count_nonzero(np.isnan(dsm) & np.isfinite(out)))
+    k = 2 * TIN_EDGE_CELLS
+    ring = Grid(grid.transform * Affine.translation(-k, -k), grid.width + 2 * k, grid.height + 2 * k, grid.crs)
+    z, x, y = (np.full(ring.shape, np.nan) for _ in range(3))
+    for other, g in sources:
+        window = ring.window_in(g)
+        if window is None:
+            continue
+        rs, cs_, ro, co = window
+        folder = grids_folder(run.scratch, other.name)
+        nz = load_grid(folder, "dsm", mmap=True)[ro, co]
+        higher = np.isfinite(nz) & ~(z[rs, cs_] >= nz)
+        for target, key in ((z, None), (x, "fill_x"), (y, "fill_y")):
+            values = nz if key is None else load_grid(folder, key, mmap=True)[ro, co]
+            view = target[rs, cs_]
+            view[higher] = values[higher]
+    out = dsm.copy()
+    if run.dsm_fill == "nearest":
+        return out, fill_from_nearest(out, grid, x.ravel(), y.ravel(), z.ravel(), max_distance=TIN_EDGE_CELLS * run.cell_size)
+    filled = fill_from_tin(out, grid, x.ravel(), y.ravel(), z.ravel(), max_edge=TIN_EDGE_CELLS * run.cell_size)
+    return out, filled
