@@ -241,30 +241,14 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
             surface = usable & surface_class[cls] & (chunk.return_number <= 1)
             if run.return_breaks is not None:
-                # first returns for band counts: bare ones (ground / water) counted per cell, the others kept as
-                # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
-                bare = surface & is_groundish[cls]
-                bare_first += np.bincount(cell[bare], minlength=n)
-                other = surface & ~bare
-                rec = np.empty(int(np.count_nonzero(other)), dtype=FIRST_DTYPE)
-                rec["cell"] = cell[other]
-                rec["z"] = scaled(chunk, "z", other)
-                rec.tofile(first_out)
-            surface_z = scaled(chunk, "z", surface)
-            if track_top:
-                max_with_class(flat_dsm, top_class, cell[surface], surface_z, cls[surface])
-            else:
-                max_into(flat_dsm, cell[surface], surface_z)
-            if fill is not None:
-                fill.add(chunk.x[surface], chunk.y[surface], surface_z, cell[surface])
+                _add_first_returns(chunk, surface, cell, bare_first, first_out)
+            _add_surface(chunk, surface, cell, flat_dsm, top_class if track_top else None, fill)
             if need_dem:
                 ground = usable & (cls == GROUND_CLASS)
                 ground_count += np.bincount(cell[ground], minlength=n)
                 water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
                 scale_offset = ([float(v) for v in chunk.raw.scales], [float(v) for v in chunk.raw.offsets])
-                _write_ground(chunk, ground, info.bounds, run.buffer, ground_out, halo_out, sides)
-                if shore is not None:
-                    shore.add(chunk.x, chunk.y, lambda m, c=chunk: scaled(c, "z", m), ground)
+                _write_ground(chunk, ground, info.bounds, run.buffer, ground_out, halo_out, sides, shore)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     warnings = _outside_bounds(info, outside, done, out_box)
@@ -291,7 +275,30 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     }
 
 
-def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, sides: dict) -> None:
+def _add_first_returns(chunk, surface, cell, bare_first, first_out) -> None:
+    """First returns for the band counts: bare ones (ground / water) counted per cell, the others written as (cell, z)
+    pairs, 8 bytes each, for their height above the DEM in pass 2."""
+    bare = surface & is_groundish[chunk.classification]
+    bare_first += np.bincount(cell[bare], minlength=len(bare_first))
+    other = surface & ~bare
+    rec = np.empty(int(np.count_nonzero(other)), dtype=FIRST_DTYPE)
+    rec["cell"] = cell[other]
+    rec["z"] = scaled(chunk, "z", other)
+    rec.tofile(first_out)
+
+
+def _add_surface(chunk, surface, cell, flat_dsm, top_class, fill) -> None:
+    """A chunk's surface returns into the partial DSM (and the class of its top, and what the DSM fill keeps)."""
+    surface_z = scaled(chunk, "z", surface)
+    if top_class is not None:
+        max_with_class(flat_dsm, top_class, cell[surface], surface_z, chunk.classification[surface])
+    else:
+        max_into(flat_dsm, cell[surface], surface_z)
+    if fill is not None:
+        fill.add(chunk.x[surface], chunk.y[surface], surface_z, cell[surface])
+
+
+def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, sides: dict, shore=None) -> None:
     """Append a chunk's ground points (the LAS integers) to the tile's ground file and to the halo strip of the
     edge within ``b`` they lie near (each point in one strip at most: a tile narrower than two buffers has points
     near both edges); grow the files' extents."""
@@ -311,6 +318,8 @@ def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, s
     for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
         rec[m[ground]].tofile(halo_out[side])  # what the neighbours read
         sides[side].add(x, y, m)
+    if shore is not None:  # --hydro-flatten: the lowest ground point of each water body's shore
+        shore.add(x, y, lambda mask: scaled(chunk, "z", mask), ground)
 
 
 def _outside_bounds(info: TileInfo, outside: int, done: int, out_box) -> list[str]:
