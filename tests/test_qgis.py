@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -692,3 +692,18 @@ def test_dem_hydro_flattened_in_processing_equals_the_library(qgis, tmp_path):
     for t in lib["tiles"]:
         for product in ("dem", "ndsm"):
             same_cells(t["outputs"][product], tmp_path / "q" / product / f"{t['name']}.tif")
+
+
+def test_webmap_in_processing_writes_the_librarys_page(qgis, reference, tmp_path):
+    """gistools:webmap on the chain's folder: the page the library writes (same polygons), listed as HTML."""
+    import re
+
+    from gistools.tasks.webmap import web_map
+
+    copy = tmp_path / "chain"
+    shutil.copytree(reference, copy)
+    lib = Path(web_map(copy)["html"]).read_text()
+    res = qgis.run("gistools:webmap", {"FOLDER": str(copy)})
+    assert res["HTML"] == str(copy / "shrub_map.html") and res["MEGABYTES"] > 0
+    data = re.compile(r"var data = (\{.*?\}), classes = ", re.S)
+    assert data.search(Path(res["HTML"]).read_text()).group(1) == data.search(lib).group(1)

@@ -33,6 +33,7 @@ if [ "${1:-}" = test ]; then
   # the QGIS plugin's tests run in a real headless QGIS (Debian's 3.22 LTR), and call its qgis_process
   QT_QPA_PLATFORM=offscreen "$PY" -c "import qgis.core" 2>/dev/null || need_apt+=(python3-qgis)
   [ -x /usr/bin/qgis_process.bin ] || need_apt+=(qgis)
+  command -v chromium >/dev/null || need_apt+=(chromium)  # the web map tests render the page in headless Chromium
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then

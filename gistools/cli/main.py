@@ -79,6 +79,7 @@ def cli(verbose):
 
 from . import ground as _ground  # noqa: E402
 from . import chm as _chm  # noqa: E402
+from . import deliver as _deliver  # noqa: E402
 from . import info as _info  # noqa: E402
 from . import metrics as _metrics  # noqa: E402
 from . import normalize as _normalize  # noqa: E402
@@ -96,6 +97,7 @@ cli.add_command(_rasters.rasters)
 cli.add_command(_normalize.normalize)
 cli.add_command(_metrics.metrics)
 cli.add_command(_chm.chm)
+cli.add_command(_deliver.webmap)
 cli.add_command(_aquifer.aquifer)
 cli.add_command(_runway.runway)
 cli.add_command(_structure.structure)

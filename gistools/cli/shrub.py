@@ -9,6 +9,7 @@ from ..lidar.shrub import CLASS_METHODS
 from ..lidar.dsmfill import DSM_FILLS
 from ..tasks.rasters import RasterSettings
 from ..tasks.shrub import ShrubSettings, shrub_from_tiles
+from .deliver import basemap_opt
 from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
                       progress_bar)
 
@@ -78,6 +79,8 @@ _step_parameters = _options([
                    "a cell) or none (the dissertation's; filling raises the cover of sparse data: README).")
 @classify_ground_opt
 @_step_parameters
+@click.option("--web-map", is_flag=True, help="Also write OUT/shrub_map.html, the offline web map (gistools webmap).")
+@basemap_opt
 @click.option("--band-points", is_flag=True, help="Also write cell-centre points per band with their height (band_points/).")
 @click.option("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler (tcp://host:8786) or 'local'.")
 @crs_opt
@@ -88,7 +91,7 @@ _step_parameters = _options([
 def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size, dem_method,
           dsm_fill,
           dsm_classes, dem_max_distance, classify_ground, band_preset, band_breaks, noise_floor, radius, density_bands, classify, class_breaks,
-          max_road_width, snap, no_map, band_points, scheduler, crs, jobs, chunk_size, overwrite, quiet):
+          max_road_width, snap, no_map, web_map, basemap, band_points, scheduler, crs, jobs, chunk_size, overwrite, quiet):
     """Shrub density map of LAS/LAZ tiles: DSM/DEM/nDSM, height bands, road and water clipping,
     vegetation density, light / medium / heavy classes, polygons and a printable map.
 
@@ -108,6 +111,12 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
         density_bands=tuple(density_bands), classify=classify, class_breaks=tuple(class_breaks),
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,
     )
+    if web_map:
+        from ..tasks.webmap import check_options
+
+        check_options(basemap)
+    elif basemap:
+        raise click.UsageError("--basemap is for --web-map")
     with progress_bar(quiet) as progress:
         report = batch_report(lambda: shrub_from_tiles(
             inputs, out, settings, roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands,
@@ -119,6 +128,11 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
     if "class_area" in report:
         click.echo("class area (" + unit + "): " + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
         click.echo(_breaks_line(report))
+    if web_map and "class_area" in report:
+        from ..tasks.webmap import web_map as write_web_map
+
+        page = write_web_map(out, basemap=basemap)
+        click.echo(f"web map: {page['html']} ({page['bytes'] / 1e6:.1f} MB)")
     for tile in report.get("tiles", []):
         if tile.get("status") == "failed":
             click.echo(f"  FAILED {tile['error']}", err=True)

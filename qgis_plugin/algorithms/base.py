@@ -53,9 +53,10 @@ def _homepage() -> str:
 HOMEPAGE = _homepage()
 
 GROUP_LIDAR = ("LiDAR", "lidar")
-README_SECTIONS = {"lidar": "command-line", "shrub": "the-shrub-chain", "aquifer": "aquifer-model", "runway": "runway-earthworks",
+README_SECTIONS = {"lidar": "command-line", "shrub": "the-shrub-chain", "deliverables": "field-deliverables", "aquifer": "aquifer-model", "runway": "runway-earthworks",
                    "structure": "structure-reconstruction"}
 GROUP_SHRUB = ("Shrub chain", "shrub")
+GROUP_DELIVER = ("Field deliverables", "deliverables")
 
 # choices are the library's own (the provider loads only once gistools imports)
 DEM_METHODS = list(_gridding.DEM_METHODS)

@@ -1,0 +1,176 @@
+"""The offline web map of a shrub chain's output folder (``gistools webmap OUT``, ``gistools shrub --web-map``,
+``gistools:webmap``): ``OUT/shrub_map.html``, one file that works from a USB stick or a tablet with no network.
+
+The class polygons (``OUT/shrub_classes.gpkg``) are simplified within half a cell in their CRS, reprojected to WGS84
+and inlined as GeoJSON with Leaflet's script and style (gistools/web/vendor, the npm package leaflet@1.9.4); a
+county whose polygons pass ``split_mb`` is split by tile into parts of at most that size, ``shrub_map.html`` then
+linking them (``shrub_map_01.html`` ...).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..errors import InputError, OutputExistsError
+from ..io.atomic import atomic_path
+from ..lidar.shrub import CLASS_STYLE
+from ..web.page import web_map_html
+from .record import read_folder_report
+
+__all__ = ["web_map", "check_options", "GENERATOR"]
+
+GENERATOR = "<meta name='generator' content='gistools web map'>"  # the mark of a page gistools wrote
+COORD_DIGITS = 7  # decimal degrees: 1 cm
+
+
+def _leaflet() -> tuple[str, str]:
+    vendor = resources.files("gistools.web") / "vendor"
+    return (vendor / "leaflet.js").read_text(encoding="utf-8"), (vendor / "leaflet.css").read_text(encoding="utf-8")
+
+
+def check_options(basemap=None, split_mb=40.0) -> None:
+    """--basemap (an XYZ tile URL) and --split-mb (> 0), before anything is read or written."""
+    if basemap is not None and (not str(basemap).startswith(("https://", "http://")) or
+                                not all(k in str(basemap) for k in ("{z}", "{x}", "{y}"))):
+        raise InputError(f"--basemap {basemap!r} is not an XYZ tile URL", hint="e.g. --basemap "
+                         "'https://tile.openstreetmap.org/{z}/{x}/{y}.png' (the page then needs the network)")
+    if not (isinstance(split_mb, (int, float)) and split_mb > 0):
+        raise InputError(f"--split-mb {split_mb!r} must be a positive number of megabytes", hint="e.g. --split-mb 40")
+
+
+def _rounded(coords):
+    if isinstance(coords, (list, tuple)) and coords and isinstance(coords[0], (int, float)):
+        return [round(float(c), COORD_DIGITS) for c in coords]
+    return [_rounded(c) for c in coords]
+
+
+def _features(gdf, tolerance: float) -> list[dict]:
+    """GeoJSON features of the class polygons: simplified within ``tolerance`` (CRS units), in WGS84."""
+    import shapely
+
+    geoms = shapely.simplify(np.asarray(gdf.geometry.values), tolerance, preserve_topology=True)
+    wgs = gdf.set_geometry(geoms).to_crs(4326)
+    feats = []
+    for row, geom in zip(wgs.drop(columns="geometry").to_dict("records"), wgs.geometry):
+        if geom is None or geom.is_empty:
+            continue
+        g = geom.__geo_interface__
+        props = {"tile": str(row.get("tile", "")), "class_code": int(row["class_code"]), "class": str(row["class"]),
+                 "area": float(row["area"]), "area_acres": float(row["area_acres"]), "area_ha": float(row["area_ha"])}
+        feats.append({"type": "Feature", "properties": props,
+                      "geometry": {"type": g["type"], "coordinates": _rounded(g["coordinates"])}})
+    return feats
+
+
+def _parameters(report: dict, n_features: int) -> dict:
+    settings = report.get("settings") or {}
+    unit = report.get("horizontal_unit") or ""
+    acres = report.get("class_area_acres") or {}
+    out = {"CRS": report.get("crs"), "cell size": f"{report.get('cell_size')} {unit}",
+           "density radius": f"{report.get('density_radius')} {unit}",
+           "height bands": settings.get("bands", "exact"), "class breaks": report.get("class_breaks"),
+           "class method": report.get("class_method"), "polygons": n_features}
+    for name in ("light", "medium", "heavy", "road", "water"):
+        if name in acres:
+            out[f"{name} (acres)"] = f"{acres[name]:,.1f}"
+    out["made by"] = f"gistools {__version__}, {time.strftime('%Y-%m-%d')}"
+    return {k: v for k, v in out.items() if v not in (None, "None ")}
+
+
+def _write_page(path: Path, text: str) -> None:
+    if path.exists() and GENERATOR not in path.read_text(errors="ignore")[:4000]:
+        raise OutputExistsError("a file gistools did not write is in the way", path=path,
+                                hint="Move it, or write the map into another folder")
+    with atomic_path(path, overwrite=True) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def _parts(features: list[dict], limit: int) -> list[list[dict]]:
+    """Features grouped by tile into parts of at most about ``limit`` bytes of GeoJSON (a tile is never split)."""
+    by_tile: dict = {}
+    for f in features:
+        by_tile.setdefault(f["properties"]["tile"], []).append(f)
+    parts, current, size = [], [], 0
+    for tile in sorted(by_tile):
+        n = len(json.dumps(by_tile[tile]))
+        if current and size + n > limit:
+            parts.append(current)
+            current, size = [], 0
+        current += by_tile[tile]
+        size += n
+    if current:
+        parts.append(current)
+    return parts
+
+
+def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
+    """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
+    ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
+    (off by default: the page then makes no request to any network address)."""
+    import geopandas as gpd
+
+    check_options(basemap, split_mb)
+    out = Path(out)
+    gpkg = out / "shrub_classes.gpkg"
+    report = read_folder_report(out) or {}
+    if not gpkg.exists() or report.get("cell_size") is None:
+        raise InputError(f"{out}: no shrub classes (shrub_classes.gpkg and report.json) to map",
+                         hint="Run gistools shrub into this folder first")
+    gdf = gpd.read_file(gpkg)
+    features = _features(gdf, float(report["cell_size"]) / 2)
+    classes = [{"code": c, "name": name, "colour": colour} for c, (name, colour) in CLASS_STYLE.items() if c > 0]
+    js, css = _leaflet()
+    title = report.get("map_title") or f"Shrub density - {out.name}"
+    params = _parameters(report, len(features))
+    common = dict(classes=classes, leaflet_js=js, leaflet_css=css, basemap=basemap,
+                  basemap_attribution=basemap_attribution)
+    size = len(json.dumps({"type": "FeatureCollection", "features": features}))
+    parts = _parts(features, int(split_mb * 1e6)) if size > split_mb * 1e6 else [features]
+    written = []
+    if len(parts) > 1:
+        names = [f"shrub_map_{i + 1:02d}.html" for i in range(len(parts))]
+        labels = [f"part {i + 1}: tiles {p[0]['properties']['tile']} - {p[-1]['properties']['tile']}"
+                  for i, p in enumerate(parts)]
+        for i, (part, name) in enumerate(zip(parts, names)):
+            page = web_map_html(title=f"{title} ({labels[i]})", geojson={"type": "FeatureCollection", "features": part},
+                                parameters=params, pages=list(zip(labels, names)), **common)
+            _write_page(out / name, page.replace("<head>\n", "<head>\n" + GENERATOR + "\n", 1))
+            written.append(str(out / name))
+        index = [_footprint(p, i + 1) for i, p in enumerate(parts)]
+        page = web_map_html(title=title, geojson={"type": "FeatureCollection", "features": index}, parameters=params,
+                            pages=list(zip(labels, names)), **common)
+    else:
+        page = web_map_html(title=title, geojson={"type": "FeatureCollection", "features": features}, parameters=params,
+                            **common)
+    html_path = out / "shrub_map.html"
+    text = page.replace("<head>\n", "<head>\n" + GENERATOR + "\n", 1)
+    _write_page(html_path, text)
+    return {"html": str(html_path), "bytes": len(text.encode("utf-8")), "features": len(features), "parts": written}
+
+
+def _footprint(part: list[dict], number: int) -> dict:
+    """The bounding box of a part's polygons, as a grey feature of the index page."""
+    xs, ys = [], []
+
+    def walk(c):
+        if isinstance(c[0], (int, float)):
+            xs.append(c[0])
+            ys.append(c[1])
+        else:
+            for k in c:
+                walk(k)
+
+    for f in part:
+        walk(f["geometry"]["coordinates"])
+    w, s, e, n = min(xs), min(ys), max(xs), max(ys)
+    area_ha = sum(f["properties"]["area_ha"] for f in part)
+    return {"type": "Feature", "properties": {"tile": f"part {number} (shrub_map_{number:02d}.html)", "class_code": 0,
+                                              "class": f"part {number}", "area": 0.0, "area_acres": area_ha / 0.40468564224,
+                                              "area_ha": area_ha},
+            "geometry": {"type": "Polygon", "coordinates": [[[w, s], [e, s], [e, n], [w, n], [w, s]]]}}

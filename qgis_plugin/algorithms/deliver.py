@@ -1,0 +1,50 @@
+"""Deliverables for field teams from a shrub chain's output folder: gistools webmap."""
+
+from __future__ import annotations
+
+from qgis.core import (
+    QgsProcessingOutputFile,
+    QgsProcessingOutputHtml,
+    QgsProcessingOutputNumber,
+    QgsProcessingParameterFile,
+    QgsProcessingParameterNumber,
+    QgsProcessingParameterString,
+)
+
+from .base import GROUP_DELIVER, GistoolsAlgorithm
+from ..compat import DOUBLE, FOLDER
+
+
+class WebMapAlgorithm(GistoolsAlgorithm):
+    _name, _display = "webmap", "Offline web map (HTML)"
+    _group = GROUP_DELIVER
+    _readme_section = "field-deliverables"
+    _help = ("One self-contained HTML page of a shrub chain's output folder (gistools webmap): the class polygons "
+             "(simplified within half a cell, in WGS84) with Leaflet inlined, a legend, a scale bar, the parameters "
+             "that made the map and a popup per polygon (class, area in acres and hectares, tile). It asks the network "
+             "for nothing unless a basemap URL is given, so it works from a USB stick or a tablet in the field. A "
+             "county past the size limit is split by tile into parts, the first page linking them. The page is "
+             "written into the folder (shrub_map.html) and listed in the Results Viewer, which opens it in the "
+             "browser.")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with shrub_classes.gpkg)", behavior=FOLDER),
+                 help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add(QgsProcessingParameterString("BASEMAP", "Basemap tile URL for users who are online (empty: none)",
+                                              optional=True),
+                 help="An XYZ URL such as https://tile.openstreetmap.org/{z}/{x}/{y}.png; with it the page needs the "
+                      "network for the basemap (the polygons still work without).")
+        self.add(QgsProcessingParameterNumber("SPLIT_MB", "Split the map by tile above (MB of polygons)", type=DOUBLE,
+                                              defaultValue=40.0, minValue=0.001), advanced=True)
+        self.addOutput(QgsProcessingOutputHtml("HTML", "Offline web map"))
+        self.addOutput(QgsProcessingOutputFile("HTML_FILE", "Offline web map (file)"))
+        self.addOutput(QgsProcessingOutputNumber("MEGABYTES", "Size of the page (MB)"))
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.webmap import web_map
+
+        result = web_map(self.text(parameters, "FOLDER", context), basemap=self.text(parameters, "BASEMAP", context),
+                         split_mb=self.parameterAsDouble(parameters, "SPLIT_MB", context))
+        feedback.pushInfo(f"wrote {result['html']} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons"
+                          + (f", {len(result['parts'])} parts" if result["parts"] else "") + ")")
+        return {"HTML": result["html"], "HTML_FILE": result["html"], "MEGABYTES": result["bytes"] / 1e6}
