@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -707,3 +707,18 @@ def test_webmap_in_processing_writes_the_librarys_page(qgis, reference, tmp_path
     assert res["HTML"] == str(copy / "shrub_map.html") and res["MEGABYTES"] > 0
     data = re.compile(r"var data = (\{.*?\}), classes = ", re.S)
     assert data.search(Path(res["HTML"]).read_text()).group(1) == data.search(lib).group(1)
+
+
+def test_scene_in_processing_writes_the_librarys_glb(qgis, reference, tmp_path):
+    """gistools:scene on the chain's folder: the library's mesh (same vertices and colours)."""
+    import trimesh
+
+    from gistools.tasks.scene import scene_glb
+
+    copy = tmp_path / "chain"
+    shutil.copytree(reference, copy)
+    lib = trimesh.load(scene_glb(copy, exaggeration=2)["glb"], force="mesh")
+    res = qgis.run("gistools:scene", {"FOLDER": str(copy), "EXAGGERATION": 2.0})
+    got = trimesh.load(res["GLB"], force="mesh")
+    assert res["STEP"] == 1 and np.array_equal(got.vertices, lib.vertices)
+    assert np.array_equal(got.visual.vertex_colors, lib.visual.vertex_colors)

@@ -1,4 +1,4 @@
-"""Deliverables for field teams from a shrub chain's output folder: ``gistools webmap``."""
+"""Deliverables for field teams from a shrub chain's output folder: ``gistools webmap``, ``gistools scene``."""
 
 from __future__ import annotations
 
@@ -29,3 +29,27 @@ def webmap(out, basemap, split_mb):
     result = web_map(out, basemap=basemap, split_mb=split_mb)
     parts = f" and {len(result['parts'])} parts" if result["parts"] else ""
     click.echo(f"wrote {result['html']}{parts} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons)")
+
+
+@click.command()
+@click.argument("out", type=click.Path(exists=True, file_okay=False))
+@click.option("--exaggeration", type=float, default=1.0, show_default=True, help="Heights times this.")
+@click.option("--max-mb", type=float, default=50.0, show_default=True,
+              help="The .glb stays under this size: the grid is decimated (every k-th cell) to fit.")
+@click.option("--surface", type=click.Choice(("dsm", "dem")), default="dsm", show_default=True,
+              help="dsm: the DSM (the DEM where it has no value); dem: the bare ground.")
+def scene(out, exaggeration, max_mb, surface):
+    """Write OUT/scene.glb: the surface of a gistools shrub folder as a glTF mesh in metres with the shrub classes
+    as vertex colours (x east, y up, z south from the mosaic's south-west corner; the origin and CRS in the asset's
+    extras, OUT/scene.prj and OUT/scene.wld beside it), for QGIS 3D, Cesium or Blender.
+
+    \b
+    Examples:
+      $ gistools scene out
+      $ gistools scene out --exaggeration 3 --max-mb 20
+    """
+    from ..tasks.scene import scene_glb
+
+    r = scene_glb(out, exaggeration=exaggeration, max_mb=max_mb, surface=surface)
+    click.echo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every {r['step']} cell(s); "
+               f"heights {r['height_range_m'][0]:.1f} to {r['height_range_m'][1]:.1f} m)")

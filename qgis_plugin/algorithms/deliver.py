@@ -1,9 +1,10 @@
-"""Deliverables for field teams from a shrub chain's output folder: gistools webmap."""
+"""Deliverables for field teams from a shrub chain's output folder: gistools webmap, gistools scene."""
 
 from __future__ import annotations
 
 from qgis.core import (
     QgsProcessingOutputFile,
+    QgsProcessingParameterEnum,
     QgsProcessingOutputHtml,
     QgsProcessingOutputNumber,
     QgsProcessingParameterFile,
@@ -48,3 +49,37 @@ class WebMapAlgorithm(GistoolsAlgorithm):
         feedback.pushInfo(f"wrote {result['html']} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons"
                           + (f", {len(result['parts'])} parts" if result["parts"] else "") + ")")
         return {"HTML": result["html"], "HTML_FILE": result["html"], "MEGABYTES": result["bytes"] / 1e6}
+
+
+class SceneAlgorithm(GistoolsAlgorithm):
+    _name, _display = "scene", "3D scene (glTF .glb)"
+    _group = GROUP_DELIVER
+    _readme_section = "field-deliverables"
+    _help = ("The surface of a shrub chain's output folder as a glTF binary mesh (gistools scene): the DSM (the DEM "
+             "where the DSM has no value) in metres with the shrub classes as vertex colours, x east, y up, z south "
+             "from the mosaic's south-west corner (origin and CRS in the asset's extras; scene.prj and scene.wld "
+             "beside it). QGIS 3D, Cesium and Blender open it. Decimated (every k-th cell) to stay under the size "
+             "given; heights can be exaggerated.")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with dsm.vrt, classes.vrt)",
+                                            behavior=FOLDER), help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add(QgsProcessingParameterEnum("SURFACE", "Surface", options=["DSM (the DEM where it has no value)",
+                                                                          "DEM (bare ground)"], defaultValue=0))
+        self.add(QgsProcessingParameterNumber("EXAGGERATION", "Vertical exaggeration", type=DOUBLE, defaultValue=1.0,
+                                              minValue=0.01))
+        self.add(QgsProcessingParameterNumber("MAX_MB", "Largest file (MB): the mesh is decimated to fit", type=DOUBLE,
+                                              defaultValue=50.0, minValue=0.01), advanced=True)
+        self.addOutput(QgsProcessingOutputFile("GLB", "3D scene (.glb)"))
+        self.addOutput(QgsProcessingOutputNumber("STEP", "Decimation step (every k-th cell)"))
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.scene import SCENE_SURFACES, scene_glb
+
+        r = scene_glb(self.text(parameters, "FOLDER", context),
+                      exaggeration=self.parameterAsDouble(parameters, "EXAGGERATION", context),
+                      max_mb=self.parameterAsDouble(parameters, "MAX_MB", context),
+                      surface=SCENE_SURFACES[self.parameterAsEnum(parameters, "SURFACE", context)])
+        feedback.pushInfo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every "
+                          f"{r['step']} cell(s)); open it in QGIS 3D (a mesh or 3D model), Cesium or Blender")
+        return {"GLB": r["glb"], "STEP": r["step"]}
