@@ -71,6 +71,59 @@ def map_parameters(classes_path, cover_path, unit: LinearUnit) -> str:
     return "; ".join(parts)
 
 
+def scale_bar(ax, bounds, unit: LinearUnit, fontsize: float = 10) -> float:
+    """A scale bar of a round length about a fifth of the width, lower left, in map units; returns its length."""
+    from matplotlib import patheffects
+
+    west, south, east, north = bounds
+    length = _nice_length((east - west) / 5)
+    x0, y0 = west + 0.05 * (east - west), south + 0.05 * (north - south)
+    halo = [patheffects.withStroke(linewidth=7, foreground="white")]  # reads over any class, hides none
+    ax.plot([x0, x0 + length], [y0, y0], color="black", linewidth=4, solid_capstyle="butt", zorder=4,
+            path_effects=[patheffects.Stroke(linewidth=7, foreground="white"), patheffects.Normal()])
+    ax.text(x0 + length / 2, y0 + 0.015 * (north - south), f"{length:g} {unit.short}", ha="center", va="bottom", zorder=4,
+            path_effects=halo, fontsize=fontsize)
+    return length
+
+
+def north_arrow(ax, size: float = 14) -> None:
+    """A north arrow, upper right (north-up maps)."""
+    ax.annotate("N", xy=(0.93, 0.93), xytext=(0.93, 0.83), xycoords="axes fraction", ha="center",
+                arrowprops=dict(facecolor="black", width=4, headwidth=12), fontsize=size, fontweight="bold")
+
+
+def crs_label(crs) -> str:
+    """A rasterio CRS's name (its PROJ name where it parses)."""
+    if not crs:
+        return "no CRS"
+    try:
+        import pyproj
+
+        return pyproj.CRS.from_wkt(crs.to_wkt()).name
+    except Exception:
+        return crs.to_string()
+
+
+def class_rgb(data: np.ndarray) -> np.ndarray:
+    """RGB image of a class raster (the map's colours; 255 no data in light grey)."""
+    import matplotlib
+
+    lut = np.full((256, 3), 255, np.uint8)  # class code -> RGB, one gather for the whole image
+    for code, (_, colour) in SHRUB_COLOURS.items():
+        lut[code] = np.round(np.array(matplotlib.colors.to_rgb(colour)) * 255)
+    lut[255] = round(0.85 * 255)
+    return lut[data]
+
+
+def legend_handles(data: np.ndarray) -> list:
+    from matplotlib.patches import Patch
+
+    handles = [Patch(facecolor=c, edgecolor="black", label=n) for _, (n, c) in SHRUB_COLOURS.items()]
+    if (data == 255).any():  # the legend lists "no data" only where the map shows some
+        handles.append(Patch(facecolor=(0.85, 0.85, 0.85), edgecolor="black", label="no data"))
+    return handles
+
+
 def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150,
               probes=(), parameters: str = "") -> dict:
     """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
@@ -78,9 +131,6 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     Returns {"paths": [png, pdf], "probes": [(col, row) pixel of the PNG for each (x, y) of ``probes``]};
     files are written atomically.
     """
-    import matplotlib
-    from matplotlib.patches import Patch
-
     from .io.raster import atomic_path
 
     with rasterio.open(classes_path) as src:
@@ -89,11 +139,7 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
                         resampling=rasterio.enums.Resampling.mode)
         west, south, east, north = src.bounds
         crs = src.crs
-    lut = np.full((256, 3), 255, np.uint8)  # class code -> RGB, one gather for the whole image
-    for code, (_, colour) in SHRUB_COLOURS.items():
-        lut[code] = np.round(np.array(matplotlib.colors.to_rgb(colour)) * 255)
-    lut[255] = round(0.85 * 255)
-    rgb = lut[data]
+    rgb = class_rgb(data)
     aspect = (north - south) / max(east - west, 1e-9)
     fig = new_figure((11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
     ax = fig.subplots()
@@ -102,30 +148,10 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     ax.set_xlabel(f"x ({unit.name})")
     ax.set_ylabel(f"y ({unit.name})")
     ax.ticklabel_format(useOffset=False, style="plain")
-    handles = [Patch(facecolor=c, edgecolor="black", label=n) for _, (n, c) in SHRUB_COLOURS.items()]
-    if (data == 255).any():  # the legend lists "no data" only where the map shows some
-        handles.append(Patch(facecolor=(0.85, 0.85, 0.85), edgecolor="black", label="no data"))
-    ax.legend(handles=handles, loc="upper left", bbox_to_anchor=(1.01, 1.0), title="Shrub density")
-    # scale bar (a round length about a fifth of the width), in map units
-    length = _nice_length((east - west) / 5)
-    x0, y0 = west + 0.05 * (east - west), south + 0.05 * (north - south)
-    from matplotlib import patheffects
-
-    halo = [patheffects.withStroke(linewidth=7, foreground="white")]  # reads over any class, hides none
-    ax.plot([x0, x0 + length], [y0, y0], color="black", linewidth=4, solid_capstyle="butt", zorder=4,
-            path_effects=[patheffects.Stroke(linewidth=7, foreground="white"), patheffects.Normal()])
-    ax.text(x0 + length / 2, y0 + 0.015 * (north - south), f"{length:g} {unit.short}", ha="center", va="bottom", zorder=4,
-            path_effects=halo)
-    # north arrow (north-up rasters)
-    ax.annotate("N", xy=(0.93, 0.93), xytext=(0.93, 0.83), xycoords="axes fraction", ha="center",
-                arrowprops=dict(facecolor="black", width=4, headwidth=12), fontsize=14, fontweight="bold")
-    crs_name = crs.to_string() if crs else "no CRS"
-    try:
-        import pyproj
-
-        crs_name = pyproj.CRS.from_wkt(crs.to_wkt()).name
-    except Exception:
-        pass
+    ax.legend(handles=legend_handles(data), loc="upper left", bbox_to_anchor=(1.01, 1.0), title="Shrub density")
+    scale_bar(ax, (west, south, east, north), unit)
+    north_arrow(ax)
+    crs_name = crs_label(crs)
     caption = f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius."
     if parameters:  # a second line: what made the map
         caption += f"\n{parameters}."
@@ -147,3 +173,61 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
             fig.savefig(tmp, format=suffix[1:], dpi=dpi)
         written.append(path)
     return {"paths": written, "probes": pixels}
+
+
+PAPER_IN = {"letter": (11.0, 8.5), "a4": (11.69, 8.27), "tabloid": (17.0, 11.0)}  # landscape, inches
+MAP_FRAME = (0.06, 0.08, 0.62, 0.84)  # the map's axes on a map book page (figure fractions)
+
+
+def map_frame_inches(paper: str) -> tuple[float, float]:
+    """The width and height (inches) of the map frame of a map book page."""
+    w, h = PAPER_IN[paper]
+    return w * MAP_FRAME[2], h * MAP_FRAME[3]
+
+
+def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs, scale: float, locator: np.ndarray,
+                 locator_bounds, pages: list, page_index: int, parameters: str, paper: str = "letter"):
+    """One map book page (a matplotlib Figure): the classes of ``data`` (a class raster over ``bounds``) at 1:``scale``,
+    a grid with coordinates, a locator map (``locator``: the whole area's classes, ``pages``: every page's bounds,
+    this one outlined), legend, scale bar, north arrow and what made the map."""
+    from matplotlib.patches import Rectangle
+    from matplotlib.ticker import FuncFormatter, MultipleLocator
+
+    fig = new_figure(PAPER_IN[paper])
+    ax = fig.add_axes(MAP_FRAME)
+    west, south, east, north = bounds
+    ax.imshow(class_rgb(data), extent=(west, east, south, north), interpolation="nearest")
+    ax.set_xlim(west, east)
+    ax.set_ylim(south, north)
+    step = _nice_length((east - west) / 5)
+    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MultipleLocator(step))
+        axis.set_major_formatter(fmt)
+    ax.tick_params(labelsize=7, top=True, right=True, labeltop=True, labelright=True)
+    plt_y = ax.get_yticklabels()
+    for label in plt_y:
+        label.set_rotation(90)
+        label.set_va("center")
+    ax.grid(True, color="black", linewidth=0.4, alpha=0.5)
+    ax.set_title(title, fontsize=12, pad=18)
+    scale_bar(ax, bounds, unit, fontsize=8)
+    north_arrow(ax, size=12)
+    # locator map, upper right of the page
+    loc = fig.add_axes((0.72, 0.55, 0.25, 0.36))
+    lw, ls, le, ln = locator_bounds
+    loc.imshow(class_rgb(locator), extent=(lw, le, ls, ln), interpolation="nearest")
+    for i, (pw, ps, pe, pn) in enumerate(pages):
+        loc.add_patch(Rectangle((pw, ps), pe - pw, pn - ps, fill=i == page_index, facecolor=(0, 0, 0, 0.25),
+                                edgecolor="black" if i == page_index else (0, 0, 0, 0.35),
+                                linewidth=1.6 if i == page_index else 0.4))
+    loc.set_xlim(lw, le)
+    loc.set_ylim(ls, ln)
+    loc.set_xticks([])
+    loc.set_yticks([])
+    loc.set_title(f"page {page_index + 1} of {len(pages)}", fontsize=8)
+    fig.legend(handles=legend_handles(data), loc="upper left", bbox_to_anchor=(0.72, 0.52), title="Shrub density",
+               fontsize=8, title_fontsize=9, frameon=False)
+    fig.text(0.72, 0.08, f"Scale 1:{scale:,.0f} on {paper} paper\nCRS: {crs_label(crs)}\nunits: {unit.name}\n"
+             f"grid every {step:g} {unit.short}\n{parameters}", fontsize=7, va="bottom", wrap=True)
+    return fig

@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -722,3 +722,10 @@ def test_scene_in_processing_writes_the_librarys_glb(qgis, reference, tmp_path):
     got = trimesh.load(res["GLB"], force="mesh")
     assert res["STEP"] == 1 and np.array_equal(got.vertices, lib.vertices)
     assert np.array_equal(got.visual.vertex_colors, lib.visual.vertex_colors)
+
+
+def test_mapbook_in_processing_writes_a_page_per_tile(qgis, reference, tmp_path):
+    copy = tmp_path / "chain"
+    shutil.copytree(reference, copy)
+    res = qgis.run("gistools:mapbook", {"FOLDER": str(copy), "TILE_INDEX": layer("FOOTPRINT")})
+    assert res["PAGES"] == 4 and Path(res["PDF"]).read_bytes().startswith(b"%PDF")

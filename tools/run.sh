@@ -34,6 +34,7 @@ if [ "${1:-}" = test ]; then
   QT_QPA_PLATFORM=offscreen "$PY" -c "import qgis.core" 2>/dev/null || need_apt+=(python3-qgis)
   [ -x /usr/bin/qgis_process.bin ] || need_apt+=(qgis)
   command -v chromium >/dev/null || need_apt+=(chromium)  # the web map tests render the page in headless Chromium
+  command -v pdftoppm >/dev/null || need_apt+=(poppler-utils)  # the map book test renders its pages
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then

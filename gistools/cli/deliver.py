@@ -1,4 +1,5 @@
-"""Deliverables for field teams from a shrub chain's output folder: ``gistools webmap``, ``gistools scene``."""
+"""Deliverables for field teams from a shrub chain's output folder: ``gistools webmap``, ``gistools scene``,
+``gistools mapbook``."""
 
 from __future__ import annotations
 
@@ -53,3 +54,27 @@ def scene(out, exaggeration, max_mb, surface):
     r = scene_glb(out, exaggeration=exaggeration, max_mb=max_mb, surface=surface)
     click.echo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every {r['step']} cell(s); "
                f"heights {r['height_range_m'][0]:.1f} to {r['height_range_m'][1]:.1f} m)")
+
+
+@click.command()
+@click.argument("out", type=click.Path(exists=True, file_okay=False))
+@click.option("--tile-index", default=None, help="Tile footprints (file.gpkg:LAYER): a page per tile, fitted to it. "
+              "Without it: a grid of sheets at --scale.")
+@click.option("--tile-field", default="TILE_ID", show_default=True, help="The tile index's field naming the tile.")
+@click.option("--scale", type=float, default=10000, show_default=True, help="The n of 1:n, for the grid of sheets.")
+@click.option("--paper", type=click.Choice(("letter", "a4", "tabloid")), default="letter", show_default=True,
+              help="Paper (landscape).")
+def mapbook(out, tile_index, tile_field, scale, paper):
+    """Write OUT/map_book.pdf: a page per tile (or per sheet of a grid at 1:SCALE) of a gistools shrub folder's
+    classes, with the roads and water, a coordinate grid, a locator map, legend, scale bar, north arrow and the
+    parameters: what a field team prints.
+
+    \b
+    Examples:
+      $ gistools mapbook out --tile-index sample_tiles/breaklines.gpkg:FOOTPRINT
+      $ gistools mapbook out --scale 5000 --paper a4
+    """
+    from ..tasks.mapbook import map_book
+
+    r = map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper)
+    click.echo(f"wrote {r['pdf']} ({r['pages']} pages, 1:{min(r['scales']):,.0f} to 1:{max(r['scales']):,.0f})")

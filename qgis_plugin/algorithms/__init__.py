@@ -8,13 +8,13 @@ heights    normalize, metrics, chm (heights above ground, cell metrics, canopy h
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.tasks.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
-deliver    webmap, scene (deliverables for field teams)
+deliver    webmap, scene, mapbook (deliverables for field teams)
 
 A new algorithm goes in its group's module and into ALGORITHMS below.
 """
 
 from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
-from .deliver import SceneAlgorithm, WebMapAlgorithm
+from .deliver import MapBookAlgorithm, SceneAlgorithm, WebMapAlgorithm
 from .ground import GroundAlgorithm
 from .heights import ChmAlgorithm, MetricsAlgorithm, NormalizeAlgorithm
 from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
@@ -27,4 +27,4 @@ from .tiles import InfoAlgorithm, PointsAlgorithm
 ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
-              SceneAlgorithm)
+              SceneAlgorithm, MapBookAlgorithm)

@@ -1,4 +1,4 @@
-"""Deliverables for field teams from a shrub chain's output folder: gistools webmap, gistools scene."""
+"""Deliverables for field teams from a shrub chain's output folder: gistools webmap, gistools scene, gistools mapbook."""
 
 from __future__ import annotations
 
@@ -8,12 +8,13 @@ from qgis.core import (
     QgsProcessingOutputHtml,
     QgsProcessingOutputNumber,
     QgsProcessingParameterFile,
+    QgsProcessingParameterVectorLayer,
     QgsProcessingParameterNumber,
     QgsProcessingParameterString,
 )
 
 from .base import GROUP_DELIVER, GistoolsAlgorithm
-from ..compat import DOUBLE, FOLDER
+from ..compat import DOUBLE, FOLDER, VECTOR_POLYGON
 
 
 class WebMapAlgorithm(GistoolsAlgorithm):
@@ -83,3 +84,39 @@ class SceneAlgorithm(GistoolsAlgorithm):
         feedback.pushInfo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every "
                           f"{r['step']} cell(s)); open it in QGIS 3D (a mesh or 3D model), Cesium or Blender")
         return {"GLB": r["glb"], "STEP": r["step"]}
+
+
+class MapBookAlgorithm(GistoolsAlgorithm):
+    _name, _display = "mapbook", "Map book (PDF)"
+    _group = GROUP_DELIVER
+    _readme_section = "field-deliverables"
+    _help = ("A PDF of a shrub chain's output folder to print for field teams (gistools mapbook): a page per tile of "
+             "the tile index (each fitted to the page), or per sheet of a grid at a scale, each with the classes, "
+             "roads and water, a coordinate grid, a locator map, the legend, a scale bar, a north arrow and the "
+             "parameters. The PDF opens from the Results Viewer.")
+    PAPERS = ["letter", "a4", "tabloid"]
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with classes.vrt)", behavior=FOLDER),
+                 help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add(QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (a page per tile; empty: a grid of sheets)",
+                                                   [VECTOR_POLYGON], optional=True))
+        self.add(QgsProcessingParameterString("TILE_FIELD", "Tile index field naming the tile", defaultValue="TILE_ID"),
+                 advanced=True)
+        self.add(QgsProcessingParameterNumber("SCALE", "Scale of the grid of sheets (the n of 1:n)", type=DOUBLE,
+                                              defaultValue=10000.0, minValue=1.0))
+        self.add(QgsProcessingParameterEnum("PAPER", "Paper (landscape)", options=["Letter", "A4", "Tabloid"],
+                                            defaultValue=0), advanced=True)
+        self.addOutput(QgsProcessingOutputFile("PDF", "Map book (PDF)"))
+        self.addOutput(QgsProcessingOutputNumber("PAGES", "Pages"))
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.mapbook import map_book
+
+        r = map_book(self.text(parameters, "FOLDER", context),
+                     tile_index=self.layer_spec(parameters, "TILE_INDEX", context, feedback),
+                     tile_field=self.text(parameters, "TILE_FIELD", context) or "TILE_ID",
+                     scale=self.parameterAsDouble(parameters, "SCALE", context),
+                     paper=self.PAPERS[self.parameterAsEnum(parameters, "PAPER", context)])
+        feedback.pushInfo(f"wrote {r['pdf']} ({r['pages']} pages)")
+        return {"PDF": r["pdf"], "PAGES": r["pages"]}

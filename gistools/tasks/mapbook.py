@@ -1,0 +1,123 @@
+"""The map book of a shrub chain's output folder (``gistools mapbook OUT``, ``gistools:mapbook``): ``OUT/map_book.pdf``,
+one page per tile of a tile index (each fitted to the page), or per sheet of a grid at a scale (1:10,000 by
+default), what a field team prints: the classes with the roads and water, a coordinate grid, a locator map, legend,
+scale bar, north arrow and the parameters (gistools.plot.mapbook_page).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import rasterio
+from rasterio.enums import Resampling
+from rasterio.windows import from_bounds
+
+from ..errors import InputError
+from ..io.atomic import atomic_path
+from ..units import LinearUnit
+from .record import read_folder_report
+
+__all__ = ["map_book", "PAPERS"]
+
+PAPERS = ("letter", "a4", "tabloid")
+MAX_PAGES = 1000
+
+
+def _check(scale, paper, max_pages) -> None:
+    if not (isinstance(scale, (int, float)) and scale > 0):
+        raise InputError(f"--scale {scale!r} must be a positive number (the n of 1:n)", hint="e.g. --scale 10000")
+    if paper not in PAPERS:
+        raise InputError(f"--paper {paper!r} is not one of {', '.join(PAPERS)}", hint="Use --paper letter")
+    if not (isinstance(max_pages, int) and max_pages > 0):
+        raise InputError(f"--max-pages {max_pages!r} must be a positive integer", hint="e.g. --max-pages 1000")
+
+
+def _fitted(bounds, frame_w: float, frame_h: float) -> tuple:
+    """``bounds`` grown about their centre to the frame's proportions."""
+    w, s, e, n = bounds
+    cx, cy = (w + e) / 2, (s + n) / 2
+    half_w, half_h = (e - w) / 2, (n - s) / 2
+    if half_w / frame_w > half_h / frame_h:
+        half_h = half_w * frame_h / frame_w
+    else:
+        half_w = half_h * frame_w / frame_h
+    return cx - half_w, cy - half_h, cx + half_w, cy + half_h
+
+
+def _sheets(extent, ground_w: float, ground_h: float) -> list:
+    """A grid of sheets of ``ground_w`` x ``ground_h`` (CRS units) over ``extent``, from its north-west corner."""
+    w, s, e, n = extent
+    cols, rows = max(1, math.ceil((e - w) / ground_w)), max(1, math.ceil((n - s) / ground_h))
+    return [(w + c * ground_w, n - (r + 1) * ground_h, w + (c + 1) * ground_w, n - r * ground_h)
+            for r in range(rows) for c in range(cols)]
+
+
+def _read(src, bounds, max_px: int) -> np.ndarray:
+    """The class raster over ``bounds`` (255 beyond it), at most ``max_px`` pixels a side (the mode of each block)."""
+    window = from_bounds(*bounds, transform=src.transform)
+    width, height = max(1, round(window.width)), max(1, round(window.height))
+    k = max(1, math.ceil(max(width, height) / max_px))
+    return src.read(1, window=window, boundless=True, fill_value=255, out_shape=(max(1, height // k), max(1, width // k)),
+                    resampling=Resampling.mode if k > 1 else Resampling.nearest)
+
+
+def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tuple[list, list, float | None]:
+    """(page bounds, page labels, the scale when it is fixed)."""
+    if tile_index is None:
+        ground_w, ground_h = frame_w * 0.0254 * scale / unit_m, frame_h * 0.0254 * scale / unit_m
+        sheets = _sheets(tuple(src.bounds), ground_w, ground_h)
+        return sheets, [f"sheet {i + 1}" for i in range(len(sheets))], float(scale)
+    import pyproj
+
+    from ..io.vector import check_crs, check_field, read_layer
+
+    layer = read_layer(tile_index, ("polygon",), "--tile-index")
+    check_field(layer, tile_field, tile_index)
+    layer = check_crs(layer, pyproj.CRS.from_wkt(src.crs.to_wkt()), str(tile_index))
+    pages = [_fitted(g.bounds, frame_w, frame_h) for g in layer.geometry if g is not None and not g.is_empty]
+    labels = [f"tile {t}" for t, g in zip(layer[tile_field], layer.geometry) if g is not None and not g.is_empty]
+    return pages, labels, None
+
+
+def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
+             max_pages: int = MAX_PAGES) -> dict:
+    """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
+    per sheet of a grid at 1:``scale``; returns {"pdf", "pages", "scales"}."""
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    from ..plot import map_frame_inches, map_parameters, mapbook_page
+
+    _check(scale, paper, max_pages)
+    out = Path(out)
+    report = read_folder_report(out) or {}
+    if not (out / "classes.vrt").exists() or not report.get("horizontal_unit_m"):
+        raise InputError(f"{out}: no classes.vrt and report.json to print", hint="Run gistools shrub into this folder first")
+    unit = LinearUnit(report["horizontal_unit"], report["horizontal_unit_m"])
+    title = report.get("map_title") or f"Shrub density - {out.name}"
+    frame_w, frame_h = map_frame_inches(paper)
+    parameters = map_parameters(out / "classes.vrt", out / "cover.vrt", unit)
+    with rasterio.open(out / "classes.vrt") as src:
+        pages, labels, fixed = _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit.metres)
+        keep = [i for i, b in enumerate(pages) if (_read(src, b, 64) != 255).any()]  # sheets with classes on them
+        pages, labels = [pages[i] for i in keep], [labels[i] for i in keep]
+        if not pages:
+            raise InputError(f"{out}: no page has classes on it", hint="Check the tile index's CRS and extent")
+        if len(pages) > max_pages:
+            raise InputError(f"{len(pages):,} pages at 1:{scale:,.0f} is more than --max-pages {max_pages}",
+                             hint="Give a smaller scale (a larger n, e.g. --scale 25000), or a higher --max-pages")
+        locator_bounds = tuple(src.bounds)
+        locator = _read(src, locator_bounds, 400)
+        scales = []
+        with atomic_path(out / "map_book.pdf", overwrite=True) as tmp:
+            with PdfPages(tmp) as pdf:
+                for i, (bounds, label) in enumerate(zip(pages, labels)):
+                    page_scale = fixed or (bounds[2] - bounds[0]) * unit.metres / (frame_w * 0.0254)
+                    scales.append(page_scale)
+                    fig = mapbook_page(_read(src, bounds, 1500), bounds, title=f"{title} - {label}", unit=unit,
+                                       crs=src.crs, scale=page_scale, locator=locator, locator_bounds=locator_bounds,
+                                       pages=pages, page_index=i, parameters=parameters, paper=paper)
+                    pdf.savefig(fig)
+    return {"pdf": str(out / "map_book.pdf"), "pages": len(pages), "labels": labels, "scales": scales,
+            "bounds": pages}
