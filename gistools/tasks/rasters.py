@@ -160,6 +160,7 @@ class TileResult:
     outputs: dict = field(default_factory=dict)
     first_return_bands: list | None = None
     shore_minima: dict = field(default_factory=dict)  # water body -> lowest ground point of its shore (hydro_flatten)
+    shore_profile: dict = field(default_factory=dict)  # river -> {"ix,iy": lowest shore point of that profile cell}
     dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
     dsm_filled_cells: int = 0  # DSM pinholes filled (dsm_fill)
     warnings: list = field(default_factory=list)
@@ -270,9 +271,15 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         "points_by_class": {int(c): int(v) for c, v in enumerate(by_class) if v},
         "points_by_return": {int(r): int(v) for r, v in enumerate(by_return) if v},
         "points_outside_header_bounds": outside,
-        "shore_minima": shore.result() if shore is not None else {},
+        **_shore_result(shore),
         "warnings": warnings,
     }
+
+
+def _shore_result(shore) -> dict:
+    """What pass 1 found of the water bodies' shores (--hydro-flatten), for the tile's result."""
+    return {"shore_minima": shore.result() if shore is not None else {},
+            "shore_profile": shore.profiles() if shore is not None else {}}
 
 
 def _add_first_returns(chunk, surface, cell, bare_first, first_out) -> None:
@@ -765,6 +772,7 @@ def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
     r.points_by_return = value["points_by_return"]
     r.points_outside_header_bounds = value["points_outside_header_bounds"]
     r.shore_minima = value.get("shore_minima", {})
+    r.shore_profile = value.get("shore_profile", {})
     r.warnings = list(value.get("warnings", []))
     for w in r.warnings:
         log.warning("%s", w)

@@ -26,7 +26,7 @@ __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report
 # What a tile's run found (point counts, first returns per band, outputs), written beside the rasters once they
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
-                "first_return_bands", "shore_minima", "dem_filled_cells", "dsm_filled_cells",
+                "first_return_bands", "shore_minima", "shore_profile", "dem_filled_cells", "dsm_filled_cells",
                "warnings", "neighbours", "seconds")
 
 
