@@ -79,6 +79,37 @@ def generate(workdir: Path, points: float, big: float) -> dict:
     return info
 
 
+def generate_levy(workdir: Path) -> dict:
+    """Four 5,000 ft tiles at the Levy County delivery's density (4 ft pulse spacing: about 1.7 M points a tile,
+    1.6 points per 5 ft cell), LAS and LAZ, unless already there."""
+    import pyproj
+
+    from gistools.io.points import write_tile
+    from gistools.synthetic import make_scene, scene_points
+
+    meta = workdir / "levy.json"
+    if meta.exists():
+        return json.loads(meta.read_text())
+    tile, spacing = 5000, 4.0
+    crs = pyproj.CRS.from_epsg(2882)
+    origin = (430000.0, 1810000.0)
+    scene = make_scene(origin, (2 * tile, 2 * tile), seed=5)
+    total = 0
+    for sub in ("levy_las", "levy_laz"):
+        (workdir / sub).mkdir(parents=True, exist_ok=True)
+    for i in range(2):
+        for j in range(2):
+            w, s = origin[0] + i * tile, origin[1] + j * tile
+            p = scene_points(scene, (w, s, w + tile, s + tile), spacing=spacing, seed=100 + 10 * i + j)
+            total += len(p["x"])
+            for sub, suffix in (("levy_las", ".las"), ("levy_laz", ".laz")):
+                write_tile(workdir / sub / f"t{i}{j}{suffix}", p, crs, version="1.2", point_format=1, offsets=[w, s, 0])
+            del p
+    info = {"points": total, "tile_ft": tile, "spacing_ft": spacing}
+    meta.write_text(json.dumps(info))
+    return info
+
+
 def run_child(code: str) -> dict:
     """Run code in a fresh interpreter; it prints one JSON line, to which peak RSS is added."""
     prologue = textwrap.dedent(
@@ -122,7 +153,8 @@ def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
         t = time.perf_counter()
         s = rasters_from_tiles([{str(folder)!r}], {str(out)!r}, RasterSettings(products={tuple(products)!r}), jobs={jobs})
         assert s["counts"]["failed"] == 0, s
-        _done(dict(seconds=time.perf_counter() - t, points=sum(t["points"] for t in s["tiles"])))
+        _done(dict(seconds=time.perf_counter() - t, points=sum(t["points"] for t in s["tiles"]),
+                   stages=s["stage_seconds"]))
     """)
 
 
@@ -177,9 +209,14 @@ def main(argv=None):
     ap.add_argument("--workdir", default="/tmp/gistools-bench")
     ap.add_argument("--skip-whitebox", action="store_true")
     ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")
+    ap.add_argument("--density", choices=("dense", "levy"), default="dense",
+                    help="dense: the 4-tile block of 1 pulse per ft2 (the README's table); levy: four 5,000 ft tiles at "
+                         "the Levy delivery's 4 ft pulse spacing, beside WhiteboxTools, with the time by stage")
     args = ap.parse_args(argv)
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
+    if args.density == "levy":
+        return levy(work, args.skip_whitebox)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
         [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
@@ -228,6 +265,29 @@ def main(argv=None):
                 print(f"{k} / WhiteboxTools ({fmt}):  {rate[k] / wb:.2f}  (target >= 3 with --jobs 2)")
     big = rows["gistools DSM+DEM+nDSM, one big LAS tile"]
     print(f"peak RSS, {info['big_points']:,}-point tile: {max(big['rss_self_mb'], big['rss_children_mb']):.0f} MB  (target < 1500 MB)")
+
+
+def levy(work: Path, skip_whitebox: bool) -> None:
+    """The rasters at the Levy density, LAS and LAZ, --jobs 2, beside WhiteboxTools, with gistools' stage timers."""
+    t = time.perf_counter()
+    info = json.loads(subprocess.run(
+        [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
+                   f"from pathlib import Path; print(json.dumps(b.generate_levy(Path({str(work)!r}))))"],
+        check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
+    n = info["points"]
+    print(f"Levy block: 4 tiles of {info['tile_ft']} ft at {info['spacing_ft']} ft pulse spacing, {n:,} points "
+          f"({n / 4 / (info['tile_ft'] / 5) ** 2:.2f} points per 5 ft cell)  [{time.perf_counter() - t:.0f} s to prepare]",
+          flush=True)
+    for fmt in ("las", "laz"):
+        files = sorted((work / f"levy_{fmt}").glob(f"*.{fmt}"))
+        r = gistools_run(work / f"levy_{fmt}", work / "out_levy", 2)
+        stages = ", ".join(f"{k} {v:.2f} s" for k, v in r["stages"].items())
+        print(f"gistools DSM+DEM+nDSM, {fmt.upper()}, --jobs 2: {r['seconds']:.2f} s ({n / r['seconds'] / 1e6:.2f} M pts/s); "
+              f"summed over the tiles: {stages}", flush=True)
+        if not skip_whitebox:
+            wb = whitebox_run(files, work / "wbt_levy", 5.0, 2 * 15 / 0.3048006096)
+            print(f"WhiteboxTools block max + TIN, {fmt.upper()}, 2 at a time: {wb['seconds']:.2f} s; gistools is "
+                  f"{wb['seconds'] / r['seconds']:.2f}x (target >= 4)", flush=True)
 
 
 if __name__ == "__main__":

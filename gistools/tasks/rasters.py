@@ -163,6 +163,7 @@ class TileResult:
     shore_profile: dict = field(default_factory=dict)  # river -> {"ix,iy": lowest shore point of that profile cell}
     dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
     dsm_filled_cells: int = 0  # DSM pinholes filled (dsm_fill)
+    stage_seconds: dict = field(default_factory=dict)  # the tile's time by stage: read (pass 1), merge, dem, write
     warnings: list = field(default_factory=list)
     neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
     seconds: float = 0.0
@@ -397,6 +398,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     The DEM is computed in strips of at most ``run.tin_block_points`` ground points (plus
     the buffer), so memory stays bounded whatever the tile size.
     """
+    t0 = time.perf_counter()
     crs = crs_from_wkt(run.crs_wkt)
     grid = _tile_grid(info, run, crs)
     own = grids_folder(run.scratch, info.name)
@@ -408,6 +410,7 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     if run.dsm_fill != "none":
         dsm, dsm_filled = fill_tile_dsm(info, neighbours, run, grid, dsm, lambda i: _tile_grid(i, run))
     arrays = {"dsm": dsm, "topclass": top_class}
+    t1 = time.perf_counter()
     return_bands = None
     if run.products != ("dsm",):
         dem, filled = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
@@ -425,9 +428,11 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
             }
     else:
         filled = 0
+    t2 = time.perf_counter()
     outputs = _write_tile_rasters(info, run, grid, arrays)
+    stages = {"merge": t1 - t0, "dem": t2 - t1, "write": time.perf_counter() - t2}
     return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used),
-            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled}
+            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled, "stages": stages}
 
 
 def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, ground_count, water_count):
@@ -685,8 +690,19 @@ def _summary(infos, run, settings: RasterSettings, results, vrts: dict, scratch_
         "counts": {s: sum(r.status == s for r in results.values()) for s in ("ok", "failed", "skipped")},
         "mosaics": vrts,
         "scratch_peak_tiles": scratch_peak if run else 0,
+        "stage_seconds": _stage_totals(results),
         "seconds": round(time.time() - started, 3),
     }
+
+
+def _stage_totals(results) -> dict:
+    """Seconds by stage summed over the tiles done in this run (in the workers: with --jobs N they overlap)."""
+    totals: dict = {}
+    for r in results.values():
+        if r.status == "ok":
+            for k, v in (r.stage_seconds or {}).items():
+                totals[k] = round(totals.get(k, 0.0) + v, 3)
+    return totals
 
 
 def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
@@ -770,6 +786,7 @@ def _take_kept(result: TileResult, rep: dict) -> None:
 def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
     r.points, r.points_by_class = value["points"], value["points_by_class"]
     r.points_by_return = value["points_by_return"]
+    r.stage_seconds = {**r.stage_seconds, "read": round(seconds, 3)}
     r.points_outside_header_bounds = value["points_outside_header_bounds"]
     r.shore_minima = value.get("shore_minima", {})
     r.shore_profile = value.get("shore_profile", {})
@@ -784,6 +801,7 @@ def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
     r.first_return_bands = value["first_return_bands"]
     r.dem_filled_cells = value.get("dem_filled_cells", 0)
     r.dsm_filled_cells = value.get("dsm_filled_cells", 0)
+    r.stage_seconds = {**r.stage_seconds, **{k: round(v, 3) for k, v in value.get("stages", {}).items()}}
     r.neighbours = value["neighbours"]
     new = list(value.get("warnings", []))
     r.warnings = r.warnings + new
