@@ -151,3 +151,16 @@ def test_a_tile_without_ground_fails_alone_with_one_line(tmp_path, sample_tiles)
     assert "\n" not in status["bare"]["error"]
     with pytest.raises(TilesFailed):
         normalize_from_tiles(tiles / "bare.las", tmp_path / "n2")
+
+
+def test_copc_holds_the_heights_as_z_and_refuses_the_extra_dimension(tmp_path, sample_tiles):
+    from gistools.errors import InputError
+
+    with pytest.raises(InputError, match="--replace-z"):
+        normalize_from_tiles(SAMPLE, tmp_path / "no", NormalizeSettings(format="copc"))
+    assert not (tmp_path / "no").exists()
+    report = normalize_from_tiles(sample_tiles[0], tmp_path / "c", NormalizeSettings(format="copc", replace_z=True))
+    assert report["counts"]["ok"] == 1
+    with laspy.CopcReader.open(report["tiles"][0]["output"]) as reader:
+        z = np.asarray(reader.query().z)
+    assert len(z) == laspy.open(sample_tiles[0]).header.point_count and z.min() > -1 and z.max() < 200

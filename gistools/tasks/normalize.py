@@ -73,6 +73,9 @@ class NormalizeSettings:
             raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
         if self.format not in FORMATS:
             raise InputError(f"--format {self.format!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
+        if self.format == "copc" and not self.replace_z:
+            raise InputError("--format copc: gistools' COPC writer holds no extra dimension, so the HeightAboveGround "
+                             "dimension cannot go there", hint="Add --replace-z (the heights as z), or use --format laz")
         if self.format == "copc":
             from ..io.copc import copc_available
 
