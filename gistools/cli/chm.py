@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..tasks.chm import CHM_METHODS, ChmSettings, chm_from_tiles
-from .options import batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
+from .options import finish_batch, batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
 
 _D = ChmSettings()
 
@@ -56,10 +56,5 @@ def chm(inputs, out, method, cell_size, thresholds, threshold_step, max_edge, ti
         report = batch_report(lambda: chm_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
                                                      overwrite=overwrite, progress=progress))
     counts = report["counts"]
-    click.echo(f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
+    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"{report['pits']:,} pits left; mosaic: {report['mosaic']}; report: {out}/report.json")
-    for tile in report["tiles"]:
-        if tile["status"] == "failed":
-            click.echo(f"  FAILED {tile['error']}", err=True)
-    if counts["failed"]:
-        raise SystemExit(1)

@@ -7,7 +7,7 @@ import click
 from ..lidar.ground import GROUND_METHODS
 from ..lidar.noise import NOISE_METHODS
 from ..tasks.ground import FORMATS, GroundSettings, ground_from_tiles
-from .options import batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
+from .options import finish_batch, batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
 
 _D = GroundSettings()  # the options' defaults are the library's
 
@@ -69,10 +69,5 @@ def ground(inputs, out, method, noise, cell, slope, window, threshold, scalar, c
         report = batch_report(lambda: ground_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
                                                         overwrite=overwrite, progress=progress))
     counts = report["counts"]
-    click.echo(f"{counts['ok']} tiles classified, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
+    finish_batch(report, f"{counts['ok']} tiles classified, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"virtual point cloud: {report['vpc']}; report: {out}/report.json")
-    for tile in report["tiles"]:
-        if tile["status"] == "failed":
-            click.echo(f"  FAILED {tile['error']}", err=True)
-    if counts["failed"]:
-        raise SystemExit(1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..tasks.metrics import DEFAULT_METRICS, RETURNS, MetricsSettings, metrics_from_tiles
-from .options import batch_report, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
+from .options import finish_batch, batch_report, crs_opt, jobs_opt, overwrite_opt, parse_classes, progress_bar
 
 _D = MetricsSettings()
 
@@ -47,10 +47,5 @@ def metrics(inputs, out, cell_size, metrics, normalized, classes, returns, buffe
         report = batch_report(lambda: metrics_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
                                                          overwrite=overwrite, progress=progress))
     counts = report["counts"]
-    click.echo(f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
+    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"metrics {', '.join(report['metrics'])}; mosaics {out}/<metric>.vrt; report: {out}/report.json")
-    for tile in report["tiles"]:
-        if tile["status"] == "failed":
-            click.echo(f"  FAILED {tile['error']}", err=True)
-    if counts["failed"]:
-        raise SystemExit(1)

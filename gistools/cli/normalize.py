@@ -7,7 +7,7 @@ import click
 from ..lidar.bands import PRESETS
 from ..tasks.ground import FORMATS
 from ..tasks.normalize import NormalizeSettings, normalize_from_tiles
-from .options import batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
+from .options import finish_batch, batch_report, crs_opt, jobs_opt, overwrite_opt, progress_bar
 
 _D = NormalizeSettings()
 
@@ -55,10 +55,5 @@ def normalize(inputs, out, replace_z, classify_vegetation, bands, noise_floor, r
                                                            jobs=jobs, scheduler=scheduler, overwrite=overwrite,
                                                            progress=progress))
     counts = report["counts"]
-    click.echo(f"{counts['ok']} tiles normalized, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
+    finish_batch(report, f"{counts['ok']} tiles normalized, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"virtual point cloud: {report['vpc']}; report: {out}/report.json")
-    for tile in report["tiles"]:
-        if tile["status"] == "failed":
-            click.echo(f"  FAILED {tile['error']}", err=True)
-    if counts["failed"]:
-        raise SystemExit(1)

@@ -74,6 +74,17 @@ def batch_report(call):
         return err.report
 
 
+def finish_batch(report: dict, summary: str) -> None:
+    """The end of a batch command: its summary line, a line per failed tile (on stderr), exit status 1 when any
+    tile failed."""
+    click.echo(summary)
+    for tile in report.get("tiles", []):
+        if tile.get("status") == "failed":
+            click.echo(f"  FAILED {tile['error']}", err=True)
+    if (report.get("counts") or {}).get("failed"):
+        raise SystemExit(1)
+
+
 def _ground_methods():
     from ..lidar.ground import GROUND_METHODS
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import batch_report, chunk_opt, crs_opt, overwrite_opt, parse_classes
+from .options import finish_batch, batch_report, chunk_opt, crs_opt, overwrite_opt, parse_classes
 
 
 @click.command()
@@ -31,10 +31,5 @@ def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
     summary = batch_report(lambda: points_from_tiles(inputs, out, classes=classes, returns=returns, fmt=fmt, crs=crs,
                                                      overwrite=overwrite, chunk_size=chunk_size))
     c = summary["counts"]
-    click.echo(f"{c['ok']} tiles ok, {c['skipped']} skipped, {c['failed']} failed; "
+    finish_batch(summary, f"{c['ok']} tiles ok, {c['skipped']} skipped, {c['failed']} failed; "
                f"{sum(t['points'] for t in summary['tiles']):,} points written to {out}")
-    for t in summary["tiles"]:
-        if t["status"] == "failed":
-            click.echo(f"  FAILED {t['error']}", err=True)
-    if c["failed"]:
-        raise SystemExit(1)

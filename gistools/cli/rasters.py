@@ -7,7 +7,7 @@ import click
 from ..lidar.dsmfill import DSM_FILLS
 from ..lidar.gridding import DEM_FILLS
 from ..tasks.rasters import RasterSettings, rasters_from_tiles
-from .options import (batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
+from .options import (finish_batch, batch_report, chunk_opt, classify_ground_opt, crs_opt, dem_options, jobs_opt, overwrite_opt, parse_classes,
                       progress_bar)
 
 
@@ -72,10 +72,5 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
                                                           scheduler=scheduler, progress=progress))
     counts = summary["counts"]
     cell = f"cell size {summary['cell_size']:.6g} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
-    click.echo(f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
+    finish_batch(summary, f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
                f"{cell}report: {out}/report.json")
-    for tile in summary["tiles"]:
-        if tile["status"] == "failed":
-            click.echo(f"  FAILED {tile['error']}", err=True)
-    if counts["failed"]:
-        raise SystemExit(1)

@@ -21,10 +21,42 @@ from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool, run_each
 
-__all__ = ["STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers"]
+__all__ = ["STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers", "batch_inputs",
+           "write_batch_report"]
 
 STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
 EVERYWHERE = (-np.inf, -np.inf, np.inf, np.inf)
+
+
+def batch_inputs(inputs, settings, jobs: int, scheduler) -> tuple[list, object]:
+    """Every option checked (``settings.validate()``, the scheduler, --jobs) before anything is read or written; then
+    (the tile paths of ``inputs``, the --crs override or None)."""
+    from ..io.points import parse_crs_text
+    from ..io.tiles import find_tiles
+    from ..validation import check_count, check_scheduler
+
+    settings.validate()
+    check_scheduler(scheduler)
+    check_count(jobs, "--jobs", example="2")
+    override = parse_crs_text(settings.crs) if settings.crs else None
+    return find_tiles(inputs), override
+
+
+def write_batch_report(out: Path, tool: str, crs_label_text, settings, states: dict, started: float, **extra) -> dict:
+    """report.json of a batch command (atomic): tool, crs, settings, ``extra``, the tiles, their counts and the time."""
+    import json
+    import time
+    from dataclasses import asdict
+
+    from ..io.atomic import atomic_path
+
+    result = {"tool": tool, "crs": crs_label_text, "settings": asdict(settings), **extra,
+              "tiles": [asdict(st) for st in states.values()],
+              "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
+              "seconds": round(time.time() - started, 3)}
+    with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(result, indent=2, default=str))
+    return result
 
 
 def read_headers(paths, override, make_state, output_name=None, out: Path | None = None) -> tuple[dict, dict]:

@@ -8,27 +8,25 @@ Methods: ``lidar.chm``.
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..grid import snapped_grid
-from ..io.atomic import atomic_path
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
 from ..io.raster import crs_from_wkt, write_raster, write_vrt
-from ..io.tiles import find_tiles
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.chm import CHM_METHODS, chm_p2r, chm_pitfree, chm_tin, pits
 from ..lidar.normalize import height_above_ground
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_count, check_grid_size, check_length, check_scheduler
-from .buffered import EVERYWHERE, STRIP_FIELDS, buffered_passes, points_around, read_headers
+from ..validation import check_grid_size, check_length
+from .buffered import (EVERYWHERE, STRIP_FIELDS, batch_inputs, buffered_passes, points_around, read_headers,
+                       write_batch_report)
 
 __all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]
 
@@ -159,12 +157,8 @@ def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: in
     """A CHM GeoTIFF per tile of ``inputs`` (``out/chm/<tile>.tif``), ``out/chm.vrt`` and ``out/report.json`` (cells,
     pits per tile); returns the report. Existing tiles are kept unless ``overwrite``; one bad tile is reported."""
     settings = settings or ChmSettings()
-    settings.validate()
-    check_scheduler(scheduler)
-    check_count(jobs, "--jobs", example="2")
+    paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = Path(out)
-    override = parse_crs_text(settings.crs) if settings.crs else None
-    paths = find_tiles(inputs)
     with claim_output(out, "gistools chm"):
         return raise_if_every_tile_failed(_chm_in(paths, out, settings, override, jobs, scheduler, overwrite, progress))
 
@@ -200,18 +194,9 @@ def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, 
                         verb="done", tag="chm")
     tifs = sorted(Path(st.output) for st in states.values() if st.status in ("ok", "skipped") and st.output)
     first = next(iter(infos.values()), None)
-    result = {
-        "tool": "gistools chm", "crs": crs_label(first.crs) if first else None, "settings": asdict(settings),
-        "units": None if run is None else {"cell_size": run.cell_size, "thresholds": list(run.thresholds),
-                                           "threshold_step": run.step,
-                                           "max_edges": list(run.max_edges), "pit_depth": run.pit_depth,
-                                           "vertical_unit": run.z_unit},
-        "mosaic": str(write_vrt(out / "chm.vrt", tifs)) if tifs else None,
-        "pits": sum(st.pits for st in states.values() if st.status == "ok"),
-        "tiles": [asdict(st) for st in states.values()],
-        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
-        "seconds": round(time.time() - started, 3),
-    }
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
+    units = None if run is None else {"cell_size": run.cell_size, "thresholds": list(run.thresholds),
+                                      "threshold_step": run.step, "max_edges": list(run.max_edges),
+                                      "pit_depth": run.pit_depth, "vertical_unit": run.z_unit}
+    return write_batch_report(out, "gistools chm", crs_label(first.crs) if first else None, settings, states, started,
+                              units=units, mosaic=str(write_vrt(out / "chm.vrt", tifs)) if tifs else None,
+                              pits=sum(st.pits for st in states.values() if st.status == "ok"))

@@ -9,29 +9,26 @@ the extra bytes and the VLRs as they were. A ``.vpc`` (virtual point cloud) inde
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import sys
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import shapely
 
 from ..errors import InputError, raise_if_every_tile_failed
-from ..io.atomic import atomic_path
 from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
-from ..io.tiles import find_tiles
 from ..io.vpc import write_vpc
 from ..lidar.ground import GROUND_METHODS, RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
 from ..lidar.noise import NOISE_METHODS
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_count, check_length, check_number, check_scheduler
-from .buffered import buffered_passes, points_around, read_headers
+from ..validation import check_count, check_length, check_number
+from .buffered import batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
@@ -237,12 +234,8 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     classes 0, 1, 2, 7, 18 become water (9) before the filters (the shrub chain passes its hydro polygons).
     """
     settings = settings or GroundSettings()
-    settings.validate()
-    check_scheduler(scheduler)
-    check_count(jobs, "--jobs", example="2")
+    paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = Path(out)
-    override = parse_crs_text(settings.crs) if settings.crs else None
-    paths = find_tiles(inputs)
     with claim_output(out, "gistools ground"):
         return raise_if_every_tile_failed(_ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress,
                                                      water))
@@ -265,10 +258,7 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
     written = [n for n in infos if states[n].status in ("ok", "skipped") and states[n].output]
     vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range, infos[n].point_count, crs)
                                          for n in written]) if written else None
-    result = _ground_report(settings, p, infos, states, crs, vpc, started)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
+    return _ground_report(out, settings, p, infos, states, crs, vpc, started)
 
 
 def _near(water, bounds, margin: float) -> list:
@@ -297,17 +287,11 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
                     tag="ground")
 
 
-def _ground_report(settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc, started) -> dict:
+def _ground_report(out, settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc,
+                   started) -> dict:
     first = next(iter(infos.values()), None)
-    return {
-        "tool": "gistools ground",
-        "crs": crs_label(crs) if crs is not None else None,
-        "settings": asdict(settings),
-        "units": None if p is None else {"cell": p.smrf.cell, "window": p.smrf.window, "threshold": p.smrf.threshold,
-                                         "scalar": p.smrf.scalar, "buffer": p.buffer,
-                                         "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name},
-        "vpc": str(vpc) if vpc else None,
-        "tiles": [asdict(st) for st in states.values()],
-        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
-        "seconds": round(time.time() - started, 3),
-    }
+    units = None if p is None else {"cell": p.smrf.cell, "window": p.smrf.window, "threshold": p.smrf.threshold,
+                                    "scalar": p.smrf.scalar, "buffer": p.buffer, "horizontal_unit": first.unit.name,
+                                    "vertical_unit": first.z_unit.name}
+    return write_batch_report(out, "gistools ground", crs_label(crs) if crs is not None else None, settings, states,
+                              started, units=units, vpc=str(vpc) if vpc else None)

@@ -8,27 +8,25 @@ within the buffer, so a tiled run equals a run on the merged tiles. Definitions:
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
 from ..grid import cell_index, snapped_grid
-from ..io.atomic import atomic_path
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
 from ..io.raster import crs_from_wkt, write_raster, write_vrt
-from ..io.tiles import find_tiles
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.metrics import LAYER_HEIGHT_M, MetricSpec, cell_metrics, needs_heights, parse_metric
 from ..lidar.normalize import height_above_ground
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_count, check_grid_size, check_length, check_scheduler
-from .buffered import EVERYWHERE, STRIP_FIELDS, buffered_passes, points_around, read_headers
+from ..validation import check_grid_size, check_length
+from .buffered import (EVERYWHERE, STRIP_FIELDS, batch_inputs, buffered_passes, points_around, read_headers,
+                       write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
 
@@ -187,12 +185,8 @@ def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, 
     ``out/<metric>.vrt`` and ``out/report.json``; returns the report. Cells without points are nodata. A tile
     whose every metric exists is kept unless ``overwrite``; one bad tile is reported and the others go on."""
     settings = settings or MetricsSettings()
-    settings.validate()
-    check_scheduler(scheduler)
-    check_count(jobs, "--jobs", example="2")
+    paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = Path(out)
-    override = parse_crs_text(settings.crs) if settings.crs else None
-    paths = find_tiles(inputs)
     with claim_output(out, "gistools metrics"):
         return raise_if_every_tile_failed(_metrics_in(paths, out, settings, override, jobs, scheduler, overwrite,
                                                       progress))
@@ -216,10 +210,7 @@ def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, sch
                         jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_metrics_tile,
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,
                         verb="done", tag="metrics")
-    result = _report(settings, run, infos, states, _mosaics(out, run, states), started)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
+    return _report(out, settings, run, infos, states, _mosaics(out, run, states), started)
 
 
 def _todo(infos: dict, states: dict, run: _Run, out: Path, overwrite: bool) -> list[str]:
@@ -250,18 +241,10 @@ def _mosaics(out: Path, run: _Run | None, states: dict) -> dict:
     return mosaics
 
 
-def _report(settings: MetricsSettings, run: _Run | None, infos: dict, states: dict, mosaics: dict, started) -> dict:
+def _report(out, settings: MetricsSettings, run: _Run | None, infos: dict, states: dict, mosaics: dict, started) -> dict:
     first = next(iter(infos.values()), None)
-    return {
-        "tool": "gistools metrics",
-        "crs": crs_label(first.crs) if first else None,
-        "settings": asdict(settings),
-        "metrics": [s.name for s in run.specs] if run else [],
-        "units": None if run is None else {"cell_size": run.cell_size, "buffer": run.buffer, "thresholds": run.thresholds,
-                                           "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
-                                           "layer_height": run.layer},
-        "mosaics": mosaics,
-        "tiles": [asdict(st) for st in states.values()],
-        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
-        "seconds": round(time.time() - started, 3),
-    }
+    units = None if run is None else {"cell_size": run.cell_size, "buffer": run.buffer, "thresholds": run.thresholds,
+                                      "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
+                                      "layer_height": run.layer}
+    return write_batch_report(out, "gistools metrics", crs_label(first.crs) if first else None, settings, states,
+                              started, metrics=[s.name for s in run.specs] if run else [], units=units, mosaics=mosaics)

@@ -10,9 +10,8 @@ in water water (9). Every other dimension, the point order, the VLRs are kept; a
 
 from __future__ import annotations
 
-import json
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import laspy
@@ -20,18 +19,16 @@ import numpy as np
 import shapely
 
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
-from ..io.atomic import atomic_path
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info, write_all_points
-from ..io.tiles import find_tiles
 from ..io.vpc import write_vpc
 from ..lidar.bands import PRESETS, band_thresholds
 from ..lidar.normalize import height_above_ground, vegetation_classes
 from ..progress import ProgressCallback
 from ..units import horizontal_unit, length_to_crs_units
-from ..validation import check_count, check_length, check_scheduler
+from ..validation import check_length
 from ..vector.breaklines import road_polygons, water_polygons
-from .buffered import buffered_passes, points_around, read_headers
+from .buffered import batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 from .ground import FORMATS, _output_name, _wkt1
 
 __all__ = ["NormalizeSettings", "normalize_from_tiles", "HAG_DIMENSION", "GROUND_CLASSES"]
@@ -168,12 +165,8 @@ def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None,
     ``hydro`` (lines) and ``waterbodies`` (polygons), paths or ``file.gpkg:LAYER``, are used with
     ``classify_vegetation``. Existing outputs are kept unless ``overwrite``; one bad tile is reported."""
     settings = settings or NormalizeSettings()
-    settings.validate()
-    check_scheduler(scheduler)
-    check_count(jobs, "--jobs", example="2")
+    paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = Path(out)
-    override = parse_crs_text(settings.crs) if settings.crs else None
-    paths = find_tiles(inputs)
     if (roads or hydro or waterbodies) and not settings.classify_vegetation:
         raise InputError("--roads / --hydro / --waterbodies are used only with --classify-vegetation",
                          hint="Add --classify-vegetation, or leave the breaklines out")
@@ -243,21 +236,11 @@ def _normalize_in(paths, out: Path, settings: NormalizeSettings, override, jobs,
                         scheduler=scheduler, progress=progress, tile_fn=_normalize_tile, tile_args=args, on_done=on_done,
                         verb="normalized", tag="normalize")
         vpc = _vpc(out, infos, states, crs)
-    result = {
-        "tool": "gistools normalize",
-        "crs": crs_label(crs) if crs is not None else None,
-        "settings": asdict(settings),
-        "units": None if p is None else {"buffer": p.buffer, "band_thresholds": list(p.thresholds),
-                                         "noise_floor": p.floor, "vertical_unit": p.z_unit},
-        "dimension": None if settings.replace_z else HAG_DIMENSION,
-        "vpc": str(vpc) if vpc else None,
-        "tiles": [asdict(st) for st in states.values()],
-        "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
-        "seconds": round(time.time() - started, 3),
-    }
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
+    units = None if p is None else {"buffer": p.buffer, "band_thresholds": list(p.thresholds), "noise_floor": p.floor,
+                                    "vertical_unit": p.z_unit}
+    return write_batch_report(out, "gistools normalize", crs_label(crs) if crs is not None else None, settings, states,
+                              started, units=units, dimension=None if settings.replace_z else HAG_DIMENSION,
+                              vpc=str(vpc) if vpc else None)
 
 
 def _params(settings: NormalizeSettings, first) -> _Params:
