@@ -21,7 +21,7 @@ from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool, run_each
 
-__all__ = ["STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers", "batch_inputs",
+__all__ = ["TileState", "gridded_todo", "STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers", "batch_inputs",
            "write_batch_report"]
 
 STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
@@ -120,6 +120,42 @@ def points_around(sources: list, box, crs_text=None) -> list[dict]:
         else:
             parts.append(points_in_box(read_tile_info(source, override), box, fields=STRIP_FIELDS))
     return parts
+
+
+@dataclass
+class TileState:
+    """A tile's line in a batch command's report.json (each command adds its own fields)."""
+
+    name: str
+    path: str
+    status: str = "ok"  # ok / failed / skipped
+    error: str | None = None
+    neighbours: list | None = None  # the neighbours whose points it read
+    warnings: list | None = None
+    seconds: float = 0.0
+
+
+def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwrite: bool, keep) -> list[str]:
+    """The tiles to do of a command that grids them: a tile whose grid at ``cell_size`` would not fit in memory fails,
+    one whose outputs (``outputs_of(name)``: {key: Path}) all exist is kept (``keep(state, outputs)``) unless
+    ``overwrite``."""
+    from ..errors import GistoolsError
+    from ..validation import check_grid_size
+
+    todo = []
+    for name, info in infos.items():
+        try:
+            check_grid_size(info.bounds, cell_size, str(info.path), unit=info.unit.short)
+        except GistoolsError as err:
+            states[name].status, states[name].error = "failed", str(err)
+            continue
+        targets = outputs_of(name)
+        if not overwrite and all(Path(t).exists() for t in targets.values()):
+            states[name].status = "skipped"
+            keep(states[name], targets)
+        else:
+            todo.append(name)
+    return todo
 
 
 @dataclass

@@ -9,12 +9,12 @@ Methods: ``lidar.chm``.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
+from ..errors import DataFileError, InputError, raise_if_every_tile_failed
 from ..grid import snapped_grid
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
@@ -24,9 +24,9 @@ from ..lidar.chm import CHM_METHODS, chm_p2r, chm_pitfree, chm_tin, pits
 from ..lidar.normalize import height_above_ground
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_grid_size, check_length
-from .buffered import (EVERYWHERE, STRIP_FIELDS, batch_inputs, buffered_passes, points_around, read_headers,
-                       write_batch_report)
+from ..validation import check_length
+from .buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+                       read_headers, write_batch_report)
 
 __all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]
 
@@ -139,17 +139,10 @@ def _chm_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
 
 
 @dataclass
-class _TileState:
-    name: str
-    path: str
-    status: str = "ok"
-    error: str | None = None
+class _TileState(TileState):
     output: str | None = None
     pits: int = 0
     cells: int = 0
-    neighbours: list | None = None
-    warnings: list = field(default_factory=list)
-    seconds: float = 0.0
 
 
 def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,
@@ -169,18 +162,8 @@ def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, 
     run = None
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
-        todo = []
-        for name, info in infos.items():
-            target = out / "chm" / f"{name}.tif"
-            try:
-                check_grid_size(info.bounds, run.cell_size, str(info.path), unit=info.unit.short)
-            except GistoolsError as err:
-                states[name].status, states[name].error = "failed", str(err)
-                continue
-            if target.exists() and not overwrite:
-                states[name].status, states[name].output = "skipped", str(target)
-            else:
-                todo.append(name)
+        todo = gridded_todo(infos, states, run.cell_size, lambda name: {"chm": out / "chm" / f"{name}.tif"}, overwrite,
+                            lambda state, targets: setattr(state, "output", str(targets["chm"])))
 
         def on_done(name, value, seconds):
             st = states[name]

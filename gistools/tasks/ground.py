@@ -28,7 +28,7 @@ from ..lidar.noise import NOISE_METHODS
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_count, check_length, check_number
-from .buffered import batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
@@ -210,18 +210,11 @@ def _wkt1(crs) -> str:
 
 
 @dataclass
-class _TileState:
-    name: str
-    path: str
-    status: str = "ok"
-    error: str | None = None
+class _TileState(TileState):
     output: str | None = None
     points: int = 0
     changed: int = 0
     points_by_class: dict | None = None
-    neighbours: list | None = None
-    warnings: list | None = None
-    seconds: float = 0.0
 
 
 def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
+from ..errors import InputError, raise_if_every_tile_failed
 from ..grid import cell_index, snapped_grid
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
@@ -24,9 +24,9 @@ from ..lidar.metrics import LAYER_HEIGHT_M, MetricSpec, cell_metrics, needs_heig
 from ..lidar.normalize import height_above_ground
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_grid_size, check_length
-from .buffered import (EVERYWHERE, STRIP_FIELDS, batch_inputs, buffered_passes, points_around, read_headers,
-                       write_batch_report)
+from ..validation import check_length
+from .buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+                       read_headers, write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
 
@@ -163,19 +163,12 @@ def _description(spec: MetricSpec, z_unit: str) -> str:
 
 
 @dataclass
-class _TileState:
-    name: str
-    path: str
-    status: str = "ok"
-    error: str | None = None
+class _TileState(TileState):
     outputs: dict = field(default_factory=dict)
     points: int = 0
     points_used: int = 0
     cells_with_points: int = 0
     heights_outside_tin: int | None = None
-    neighbours: list | None = None
-    warnings: list | None = None
-    seconds: float = 0.0
 
 
 def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int = 1,
@@ -215,19 +208,11 @@ def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, sch
 
 def _todo(infos: dict, states: dict, run: _Run, out: Path, overwrite: bool) -> list[str]:
     """The tiles to do: not those whose grid is too big (failed), nor those whose every metric exists (kept)."""
-    todo = []
-    for name, info in infos.items():
-        try:
-            check_grid_size(info.bounds, run.cell_size, str(info.path), unit=info.unit.short)
-        except GistoolsError as err:
-            states[name].status, states[name].error = "failed", str(err)
-            continue
-        targets = {s.name: out / s.name / f"{name}.tif" for s in run.specs}
-        if not overwrite and all(t.exists() for t in targets.values()):
-            states[name].status, states[name].outputs = "skipped", {k: str(v) for k, v in targets.items()}
-        else:
-            todo.append(name)
-    return todo
+    def keep(state, targets):
+        state.outputs = {k: str(v) for k, v in targets.items()}
+
+    return gridded_todo(infos, states, run.cell_size, lambda name: {s.name: out / s.name / f"{name}.tif" for s in run.specs},
+                        overwrite, keep)
 
 
 def _mosaics(out: Path, run: _Run | None, states: dict) -> dict:

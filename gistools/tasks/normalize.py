@@ -28,7 +28,7 @@ from ..progress import ProgressCallback
 from ..units import horizontal_unit, length_to_crs_units
 from ..validation import check_length
 from ..vector.breaklines import road_polygons, water_polygons
-from .buffered import batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 from .ground import FORMATS, _output_name, _wkt1
 
 __all__ = ["NormalizeSettings", "normalize_from_tiles", "HAG_DIMENSION", "GROUND_CLASSES"]
@@ -141,20 +141,13 @@ def _normalize_tile(path: str, sources: list, crs_text, p: _Params, target: str,
 
 
 @dataclass
-class _TileState:
-    name: str
-    path: str
-    status: str = "ok"
-    error: str | None = None
+class _TileState(TileState):
     output: str | None = None
     points: int = 0
     outside_tin: int = 0
     hag_range: list | None = None
     reclassified: dict | None = None
     z_range: list | None = None
-    neighbours: list | None = None
-    warnings: list | None = None
-    seconds: float = 0.0
 
 
 def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None, *, roads=None, hydro=None,
