@@ -17,10 +17,19 @@ from .base import GROUP_DELIVER, GistoolsAlgorithm
 from ..compat import DOUBLE, FOLDER, VECTOR_POLYGON
 
 
-class WebMapAlgorithm(GistoolsAlgorithm):
-    _name, _display = "webmap", "Offline web map (HTML)"
+class _DeliverableAlgorithm(GistoolsAlgorithm):
+    """An algorithm that makes a deliverable from a shrub chain's output folder."""
+
     _group = GROUP_DELIVER
     _readme_section = "field-deliverables"
+
+    def add_folder(self, needs: str):
+        self.add(QgsProcessingParameterFile("FOLDER", f"Shrub chain output folder (with {needs})", behavior=FOLDER),
+                 help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+
+
+class WebMapAlgorithm(_DeliverableAlgorithm):
+    _name, _display = "webmap", "Offline web map (HTML)"
     _help = ("One self-contained HTML page of a shrub chain's output folder (gistools webmap): the class polygons "
              "(simplified within half a cell, in WGS84) with Leaflet inlined, a legend, a scale bar, the parameters "
              "that made the map and a popup per polygon (class, area in acres and hectares, tile). It asks the network "
@@ -30,8 +39,7 @@ class WebMapAlgorithm(GistoolsAlgorithm):
              "browser.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with shrub_classes.gpkg)", behavior=FOLDER),
-                 help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add_folder("shrub_classes.gpkg")
         self.add(QgsProcessingParameterString("BASEMAP", "Basemap tile URL for users who are online (empty: none)",
                                               optional=True),
                  help="An XYZ URL such as https://tile.openstreetmap.org/{z}/{x}/{y}.png; with it the page needs the "
@@ -52,10 +60,8 @@ class WebMapAlgorithm(GistoolsAlgorithm):
         return {"HTML": result["html"], "HTML_FILE": result["html"], "MEGABYTES": result["bytes"] / 1e6}
 
 
-class SceneAlgorithm(GistoolsAlgorithm):
+class SceneAlgorithm(_DeliverableAlgorithm):
     _name, _display = "scene", "3D scene (glTF .glb)"
-    _group = GROUP_DELIVER
-    _readme_section = "field-deliverables"
     _help = ("The surface of a shrub chain's output folder as a glTF binary mesh (gistools scene): the DSM (the DEM "
              "where the DSM has no value) in metres with the shrub classes as vertex colours, x east, y up, z south "
              "from the mosaic's south-west corner (origin and CRS in the asset's extras; scene.prj and scene.wld "
@@ -63,8 +69,7 @@ class SceneAlgorithm(GistoolsAlgorithm):
              "given; heights can be exaggerated.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with dsm.vrt, classes.vrt)",
-                                            behavior=FOLDER), help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add_folder("dsm.vrt, classes.vrt")
         self.add(QgsProcessingParameterEnum("SURFACE", "Surface", options=["DSM (the DEM where it has no value)",
                                                                           "DEM (bare ground)"], defaultValue=0))
         self.add(QgsProcessingParameterNumber("EXAGGERATION", "Vertical exaggeration", type=DOUBLE, defaultValue=1.0,
@@ -86,10 +91,8 @@ class SceneAlgorithm(GistoolsAlgorithm):
         return {"GLB": r["glb"], "STEP": r["step"]}
 
 
-class MapBookAlgorithm(GistoolsAlgorithm):
+class MapBookAlgorithm(_DeliverableAlgorithm):
     _name, _display = "mapbook", "Map book (PDF)"
-    _group = GROUP_DELIVER
-    _readme_section = "field-deliverables"
     _help = ("A PDF of a shrub chain's output folder to print for field teams (gistools mapbook): a page per tile of "
              "the tile index (each fitted to the page), or per sheet of a grid at a scale, each with the classes, "
              "roads and water, a coordinate grid, a locator map, the legend, a scale bar, a north arrow and the "
@@ -97,8 +100,7 @@ class MapBookAlgorithm(GistoolsAlgorithm):
     PAPERS = ["letter", "a4", "tabloid"]
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add(QgsProcessingParameterFile("FOLDER", "Shrub chain output folder (with classes.vrt)", behavior=FOLDER),
-                 help="The folder gistools shrub (or the Shrub map algorithm) wrote.")
+        self.add_folder("classes.vrt")
         self.add(QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (a page per tile; empty: a grid of sheets)",
                                                    [VECTOR_POLYGON], optional=True))
         self.add(QgsProcessingParameterString("TILE_FIELD", "Tile index field naming the tile", defaultValue="TILE_ID"),
