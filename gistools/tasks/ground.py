@@ -36,6 +36,18 @@ FORMATS = ("laz", "las", "copc")
 WATER = 9
 
 
+def check_point_format(fmt: str) -> None:
+    """--format of the point-writing commands: laz, las, or copc (which needs copclib)."""
+    if fmt not in FORMATS:
+        raise InputError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
+    if fmt == "copc":
+        from ..io.copc import copc_available
+
+        if not copc_available():
+            raise InputError("--format copc needs copclib, which is not installed",
+                             hint="pip install 'gistools[copc]', or use --format laz")
+
+
 @dataclass(frozen=True)
 class GroundSettings:
     """Parameters of ``gistools ground``. Lengths take a unit ("1m", "3ft") or are in the tiles' CRS units
@@ -83,8 +95,7 @@ class GroundSettings:
             raise InputError(f"--method {self.method!r} is not one of {', '.join(GROUND_METHODS)}", hint="Use --method smrf")
         if self.noise not in NOISE_METHODS:
             raise InputError(f"--noise {self.noise!r} is not one of {', '.join(NOISE_METHODS)}", hint="Use --noise ivf")
-        if self.format not in FORMATS:
-            raise InputError(f"--format {self.format!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
+        check_point_format(self.format)
         for value, name in ((self.cell, "--cell"), (self.window, "--window"), (self.csf_resolution, "--csf-resolution"),
                             (self.ivf_res, "--ivf-res"), (self.threshold, "--threshold"),
                             (self.csf_threshold, "--csf-threshold")):
@@ -101,12 +112,6 @@ class GroundSettings:
         check_count(self.ivf_n, "--ivf-n", minimum=0, example="6")
         if self.csf_rigidness not in (1, 2, 3):
             raise InputError(f"--csf-rigidness {self.csf_rigidness} is not 1, 2 or 3", hint="1 for steep terrain, 3 for flat")
-        if self.format == "copc":
-            from ..io.copc import copc_available
-
-            if not copc_available():
-                raise InputError("--format copc needs copclib, which is not installed",
-                                 hint="pip install 'gistools[copc]', or use --format laz")
         if self.method == "csf":
             import importlib.util
 

@@ -29,7 +29,7 @@ from ..units import horizontal_unit, length_to_crs_units
 from ..validation import check_length
 from ..vector.breaklines import road_polygons, water_polygons
 from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
-from .ground import FORMATS, _output_name, _wkt1
+from .ground import _output_name, _wkt1, check_point_format
 
 __all__ = ["NormalizeSettings", "normalize_from_tiles", "HAG_DIMENSION", "GROUND_CLASSES"]
 
@@ -68,17 +68,10 @@ class NormalizeSettings:
             check_length(value, name, example="60ft")
         if self.bands not in PRESETS:
             raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
-        if self.format not in FORMATS:
-            raise InputError(f"--format {self.format!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
         if self.format == "copc" and not self.replace_z:
             raise InputError("--format copc: gistools' COPC writer holds no extra dimension, so the HeightAboveGround "
                              "dimension cannot go there", hint="Add --replace-z (the heights as z), or use --format laz")
-        if self.format == "copc":
-            from ..io.copc import copc_available
-
-            if not copc_available():
-                raise InputError("--format copc needs copclib, which is not installed",
-                                 hint="pip install 'gistools[copc]', or use --format laz")
+        check_point_format(self.format)
 
 
 @dataclass(frozen=True)
