@@ -82,3 +82,17 @@ def test_bad_map_book_options_are_refused(chain, tmp_path):
         map_book(chain, scale=100, max_pages=3)
     with pytest.raises(InputError, match="Run gistools shrub"):
         map_book(tmp_path)
+
+
+def test_a_pdf_gistools_did_not_write_is_kept(chain, tmp_path):
+    from gistools.errors import OutputExistsError
+
+    copy = tmp_path / "copy"
+    shutil.copytree(chain, copy)
+    (copy / "map_book.pdf").write_bytes(b"%PDF-1.4 someone else's")
+    with pytest.raises(OutputExistsError):
+        map_book(copy)
+    assert (copy / "map_book.pdf").read_bytes() == b"%PDF-1.4 someone else's"
+    (copy / "map_book.pdf").unlink()
+    map_book(copy, tile_index=FOOTPRINT)
+    assert map_book(copy, tile_index=FOOTPRINT)["pages"] == 4  # its own book is replaced

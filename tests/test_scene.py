@@ -87,3 +87,21 @@ def test_bad_scene_options_are_refused_before_anything_is_written(chain, tmp_pat
     assert after == before
     with pytest.raises(InputError, match="Run gistools shrub"):
         scene_glb(tmp_path)
+
+
+def test_a_scene_gistools_did_not_write_is_kept(chain, tmp_path):
+    import shutil
+
+    from gistools.errors import OutputExistsError
+
+    copy = tmp_path / "copy"
+    shutil.copytree(chain, copy)
+    for f in ("scene.glb", "scene.prj", "scene.wld"):
+        (copy / f).unlink(missing_ok=True)
+    (copy / "scene.prj").write_text("my own projection file")
+    with pytest.raises(OutputExistsError):
+        scene_glb(copy)
+    assert (copy / "scene.prj").read_text() == "my own projection file" and not (copy / "scene.glb").exists()
+    (copy / "scene.prj").unlink()
+    scene_glb(copy)
+    scene_glb(copy)  # its own scene is replaced

@@ -14,7 +14,7 @@ import rasterio
 from rasterio.enums import Resampling
 from rasterio.windows import from_bounds
 
-from ..errors import InputError
+from ..errors import InputError, OutputExistsError
 from ..io.atomic import atomic_path
 from ..units import LinearUnit
 from .record import read_folder_report
@@ -23,6 +23,7 @@ __all__ = ["map_book", "PAPERS"]
 
 PAPERS = ("letter", "a4", "tabloid")
 MAX_PAGES = 1000
+CREATOR = "gistools mapbook"  # the PDF's Creator: the mark of a map book gistools wrote
 
 
 def _check(scale, paper, max_pages) -> None:
@@ -98,6 +99,10 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
     title = report.get("map_title") or f"Shrub density - {out.name}"
     frame_w, frame_h = map_frame_inches(paper)
     parameters = map_parameters(out / "classes.vrt", out / "cover.vrt", unit)
+    target = out / "map_book.pdf"
+    if target.exists() and CREATOR.encode() not in target.read_bytes():
+        raise OutputExistsError("a file gistools did not write is in the way", path=target,
+                                hint="Move it, or write the map book from another folder")
     with rasterio.open(out / "classes.vrt") as src:
         pages, labels, fixed = _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit.metres)
         keep = [i for i, b in enumerate(pages) if (_read(src, b, 64) != 255).any()]  # sheets with classes on them
@@ -111,7 +116,7 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
         locator = _read(src, locator_bounds, 400)
         scales = []
         with atomic_path(out / "map_book.pdf", overwrite=True) as tmp:
-            with PdfPages(tmp) as pdf:
+            with PdfPages(tmp, metadata={"Creator": CREATOR, "Title": title}) as pdf:
                 for i, (bounds, label) in enumerate(zip(pages, labels)):
                     page_scale = fixed or (bounds[2] - bounds[0]) * unit.metres / (frame_w * 0.0254)
                     scales.append(page_scale)

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import InputError, OutputExistsError
 from ..io.atomic import atomic_path
 from ..io.raster import read_raster
 from ..lidar.shrub import CLASS_STYLE
@@ -73,6 +73,7 @@ def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: 
     unit_m, z_unit_m = report.get("horizontal_unit_m"), report.get("vertical_unit_m")
     if not unit_m or not z_unit_m or not report.get("crs_wkt"):
         raise InputError(f"{out}: report.json gives no units or CRS", hint="Run gistools shrub into this folder first")
+    _refuse_foreign(out)
     z, classes, grid = _surface(out, surface)
     step = decimation_step(*z.shape, max_mb * 1e6 * 0.95)
     zs = z[::step, ::step]
@@ -102,6 +103,21 @@ def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: 
     up = vertices[:, 1]
     return {"glb": str(out / "scene.glb"), "bytes": len(data), "vertices": len(vertices), "faces": len(faces),
             "step": step, "height_range_m": [float(up.min()), float(up.max())]}
+
+
+def _refuse_foreign(out: Path) -> None:
+    """scene.glb, .prj and .wld are replaced only when the scene there is gistools' own (its extras say so)."""
+    glb = out / "scene.glb"
+    ours = False
+    if glb.exists():
+        try:
+            ours = read_extras(glb).get("generator") == "gistools scene"
+        except (OSError, ValueError, KeyError):
+            ours = False
+    for name in ("scene.glb", "scene.prj", "scene.wld"):
+        if (out / name).exists() and not ours:
+            raise OutputExistsError("a file gistools did not write is in the way", path=out / name,
+                                    hint="Move it, or write the scene from another folder")
 
 
 def _sidecars(out: Path, crs_wkt: str, west: float, south: float, unit_m: float) -> None:
