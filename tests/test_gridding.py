@@ -84,6 +84,23 @@ def test_within_distance_is_exact(cloud):
     assert (~mask).sum() > 100  # the hole is really there
 
 
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("cell,limit", [(1.0, 0.5), (3.3, 7.07), (5.0, 15.0), (5.0, 49.2)])
+def test_within_distance_equals_nearest_point_search(seed, cell, limit):
+    """Two holes far apart (one cut by the grid's edge), points beyond the edges, limits below and above a cell
+    diagonal: every cell as a brute-force nearest-point search decides it."""
+    rng = np.random.default_rng(seed)
+    x, y = rng.random(20000) * 1000, rng.random(20000) * 1000
+    keep = ((x - 300) ** 2 + (y - 350) ** 2 > (60 + 40 * seed) ** 2) & ((x - 880) ** 2 + (y - 700) ** 2 > 90**2)
+    x, y = x[keep], y[keep]
+    g = snapped_grid((100, 100, 900, 900), cell)
+    mask = within_distance(g, x, y, limit)
+    xs, ys = cell_centres(g)
+    cx, cy = np.meshgrid(xs, ys)
+    d, _ = cKDTree(np.column_stack([x, y])).query(np.column_stack([cx.ravel(), cy.ravel()]))
+    assert np.array_equal(mask.ravel(), d <= limit)
+
+
 @pytest.mark.parametrize("method", ["max", "min", "mean"])
 def test_cell_methods(cloud, method):
     x, y, z = cloud

@@ -68,10 +68,11 @@ def dsm_from_points(x, y, z, grid: Grid) -> np.ndarray:
 def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
     """Boolean grid: the cell centre lies within ``max_distance`` (CRS units) of a point.
 
-    Exact: a Euclidean distance transform over the cells holding points (on the
-    grid padded by ``max_distance``, so points beyond the edges count) decides
-    every cell except those within half a cell diagonal of the limit, which a
-    k-d tree of the nearby points settles.
+    Exact. A cell with a point in the square of k cells around it, k x cell diagonal + half a diagonal within
+    ``max_distance``, is near (a maximum filter: most cells of a tile). Around the others (gaps: water, dense
+    canopy), a Euclidean distance transform over the cells holding points (the grid padded by ``max_distance``,
+    so points beyond the edges count) decides every cell except those within half a cell diagonal of the limit,
+    which a k-d tree of the nearby points settles.
     """
     cs = grid.cell_size
     reach = int(np.ceil(max_distance / cs)) + 1
@@ -84,21 +85,38 @@ def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
     occupied = occupied.reshape(padded.shape)
     if not occupied.any():
         return np.zeros(grid.shape, bool)
-    dist = ndimage.distance_transform_edt(~occupied) * cs
     half_diag = cs * np.sqrt(0.5)
-    result = dist + half_diag <= max_distance
-    unsure = (np.abs(dist - max_distance) <= half_diag) & ~result
-    unsure[:reach, :] = unsure[-reach:, :] = unsure[:, :reach] = unsure[:, -reach:] = False
+    k = int(np.floor((max_distance * (1 - 1e-9) - half_diag) / (cs * np.sqrt(2))))
+    if k >= 1:
+        result = ndimage.maximum_filter(occupied.view(np.uint8), size=2 * k + 1, mode="constant").view(bool)
+    else:
+        result = occupied & (half_diag <= max_distance * (1 - 1e-9))
+    inner = (slice(reach, -reach), slice(reach, -reach))
+    rest = np.zeros(padded.shape, bool)
+    rest[inner] = ~result[inner]
+    if not rest.any():
+        return result[inner]
+    # the window of the cells left, with every cell within reach (+ 2 for the k-d tree's candidates) of them
+    rows, cols = np.nonzero(rest)
+    m = reach + 2
+    r0, r1 = max(rows.min() - m, 0), min(rows.max() + m + 1, padded.height)
+    c0, c1 = max(cols.min() - m, 0), min(cols.max() + m + 1, padded.width)
+    win = (slice(r0, r1), slice(c0, c1))
+    dist = ndimage.distance_transform_edt(~occupied[win]) * cs
+    left = rest[win]
+    decided = left & (dist + half_diag <= max_distance)
+    unsure = left & (np.abs(dist - max_distance) <= half_diag) & ~decided
+    result[win] |= decided
     if unsure.any():
-        near = ndimage.distance_transform_edt(~unsure) * cs <= max_distance + 2 * cs
         pick = flat >= 0
-        pick[pick] = near.reshape(-1)[flat[pick]]
+        fr, fc = np.divmod(flat[pick], padded.width)
+        pick[pick] = (fr >= r0) & (fr < r1) & (fc >= c0) & (fc < c1)
         tree = cKDTree(np.column_stack([np.asarray(x)[pick], np.asarray(y)[pick]]))
-        rows, cols = np.nonzero(unsure)
+        ur, uc = np.nonzero(unsure)
         xs, ys = cell_centres(padded)
-        d, _ = tree.query(np.column_stack([xs[cols], ys[rows]]), distance_upper_bound=max_distance * (1 + 1e-12))
-        result[rows, cols] = d <= max_distance
-    return result[reach:-reach, reach:-reach]
+        d, _ = tree.query(np.column_stack([xs[uc + c0], ys[ur + r0]]), distance_upper_bound=max_distance * (1 + 1e-12))
+        result[ur + r0, uc + c0] = d <= max_distance
+    return result[inner]
 
 
 def _idw(grid: Grid, x, y, z, max_distance: float, k: int = 8, power: float = 2.0) -> np.ndarray:
