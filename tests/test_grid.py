@@ -50,3 +50,37 @@ def test_window_in_overlap():
     g = Grid(Affine(10, 0, 0, 0, -10, 100), 10, 10)
     with pytest.raises(ValueError):
         g.window_in(snapped_grid((0, 0, 10, 10), 5.0))
+
+
+@pytest.mark.parametrize("dtype,nodata", [("float32", -9999.0), ("uint8", 255)])
+def test_read_window_equals_a_boundless_read(tmp_path, dtype, nodata):
+    """read_window reads the part inside the raster and fills the rest: the cells of rasterio's boundless read, for
+    windows inside, across every edge and wholly outside, with and without a halo, from a GeoTIFF and a VRT."""
+    import rasterio
+    from rasterio.windows import Window, from_bounds
+
+    from gistools.io.blocks import read_window
+    from gistools.io.raster import write_raster, write_vrt
+
+    rng = np.random.default_rng(4)
+    g = snapped_grid((1000.0, 2000.0, 1300.0, 2200.0), 2.0)
+    data = rng.uniform(0, 100, g.shape).astype(dtype)
+    data[rng.uniform(size=g.shape) < 0.1] = nodata
+    tif = write_raster(tmp_path / "a.tif", data, g, dtype=dtype, nodata=nodata)
+    vrt = write_vrt(tmp_path / "a.vrt", [tif])
+    base_grid = snapped_grid((1100.0, 2050.0, 1500.0, 2300.0), 2.0)
+    base_path = write_raster(tmp_path / "base.tif", np.zeros(base_grid.shape), base_grid)
+    with rasterio.open(base_path) as base:
+        for path in (tif, vrt):
+            with rasterio.open(path) as src:
+                for win in (Window(0, 0, 40, 30), Window(-10, -10, 60, 50), Window(180, 120, 40, 30), Window(190, 5, 30, 20)):
+                    for halo, fill in ((0, None), (5, 0)):
+                        ours = read_window(src, base, win, halo=halo, fill=fill)
+                        west, north = base.transform * (win.col_off - halo, win.row_off - halo)
+                        east, south = west + (win.width + 2 * halo) * 2.0, north - (win.height + 2 * halo) * 2.0
+                        w = from_bounds(west, south, east, north, src.transform).round_offsets().round_lengths()
+                        ref = src.read(1, window=w, boundless=True, fill_value=nodata if fill is None else fill, masked=False)
+                        if dtype == "float32":
+                            ref = ref.astype(np.float64)
+                            ref[ref == nodata] = np.nan
+                        assert np.array_equal(ours, ref, equal_nan=True)

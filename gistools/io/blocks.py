@@ -68,7 +68,13 @@ def read_window(src, base, win: Window, *, halo: int = 0, fill=None) -> np.ndarr
     nodata = src.nodata
     if fill is None:
         fill = nodata if nodata is not None else 0
-    data = src.read(1, window=w, boundless=True, fill_value=fill, masked=False)
+    # the part inside src read as is, the rest filled: what a boundless read gives, without the warped VRT rasterio
+    # builds for one (4-5 times slower on a tile)
+    r0, c0, h, wd = int(w.row_off), int(w.col_off), int(w.height), int(w.width)
+    data = np.full((h, wd), fill, dtype=src.dtypes[0])
+    rr0, rr1, cc0, cc1 = max(r0, 0), min(r0 + h, src.height), max(c0, 0), min(c0 + wd, src.width)
+    if rr1 > rr0 and cc1 > cc0:
+        data[rr0 - r0:rr1 - r0, cc0 - c0:cc1 - c0] = src.read(1, window=Window(cc0, rr0, cc1 - cc0, rr1 - rr0), masked=False)
     if np.issubdtype(data.dtype, np.floating):
         data = data.astype(np.float64)
         if nodata is not None:
