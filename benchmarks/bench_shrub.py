@@ -6,9 +6,14 @@ Generates (once, cached in --workdir) a 4 x 4 block of 5000 ft tiles (the Levy t
 crowns in three bands and three covers, trees, buildings; LAS 1.2, EPSG:2882) and its breakline
 GeoPackage. Then runs, each in a fresh process: ``gistools rasters`` (DSM + TIN DEM + nDSM) and
 ``gistools shrub`` with --jobs 1 and --jobs 2, and prints points per second, the chain / rasters
-ratio (target >= 0.5) and the projected time of a 733-tile county of the same density (target < 20 min).
+ratio (target >= 0.5) and the projected time of a 733-tile county of the same density (target < 20 min; at the
+Levy density, < 10 min), with the seconds by stage from the reports' own timers.
 
     python benchmarks/bench_shrub.py [--points 40e6] [--workdir /tmp/gistools-bench-shrub]
+    python benchmarks/bench_shrub.py --levy     # 16 tiles at the Levy delivery's 4 ft pulse spacing
+
+The county projection is made twice: at the 16-tile throughput (per-run costs counted 46 times over) and from
+the 8-tile and 16-tile runs apart (a cost a tile plus a cost a run, each measured).
 """
 
 from __future__ import annotations
@@ -75,51 +80,64 @@ def run_child(code: str) -> dict:
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
+def chain_run(kind: str, inputs: list, out: Path, jobs: int, vectors: dict) -> dict:
+    """``gistools rasters`` or ``gistools shrub`` in a fresh process: seconds and the report's stage_seconds."""
+    call = ("from gistools import rasters_from_tiles as run\n        kw = {}" if kind == "rasters" else
+            f"from gistools.tasks.shrub import shrub_from_tiles as run\n        kw = {vectors!r}")
+    return run_child(f"""
+        {call}
+        t = time.perf_counter()
+        s = run({[str(i) for i in inputs]!r}, {str(out)!r}, jobs={jobs}, overwrite=True, **kw)
+        assert s["counts"]["failed"] == 0
+        print(json.dumps({{"seconds": time.perf_counter() - t, "stages": s.get("stage_seconds", {{}})}}))
+    """)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--points", type=float, default=40e6)
-    ap.add_argument("--workdir", default="/tmp/gistools-bench-shrub")
+    ap.add_argument("--points", type=float, default=None, help="points in the 16 tiles (default 40e6; --levy 25.5e6)")
+    ap.add_argument("--workdir", default=None,
+                    help="default /tmp/gistools-bench-shrub (--levy: /tmp/gistools-bench-levy16)")
+    ap.add_argument("--levy", action="store_true", help="the Levy delivery's density: 4 ft pulse spacing (25.5e6 points)")
     args = ap.parse_args(argv)
-    work = Path(args.workdir)
+    points = args.points or (25.5e6 if args.levy else 40e6)
+    work = Path(args.workdir or ("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
     work.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
         [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_shrub as b; "
-                   f"from pathlib import Path; print(json.dumps(b.generate(Path({str(work)!r}), {args.points!r})))"],
+                   f"from pathlib import Path; print(json.dumps(b.generate(Path({str(work)!r}), {points!r})))"],
         check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
     n = info["points"]
-    print(f"block: 16 tiles of {TILE_FT:.0f} ft, {n:,} points, {info['spacing_ft']:.2f} ft pulse spacing "
-          f"[{time.perf_counter() - t:.0f} s to prepare]", flush=True)
+    print(f"block: 16 tiles of {TILE_FT:.0f} ft, {n:,} points, {info['spacing_ft']:.2f} ft pulse spacing, "
+          f"{n / 16 / (TILE_FT / 5) ** 2:.2f} points per 5 ft cell [{time.perf_counter() - t:.0f} s to prepare]", flush=True)
     g = work / "breaklines.gpkg"
     vectors = dict(roads=f"{g}:ROADBREAKLINE", hydro=f"{g}:HYDROGRAPHICFEATURE", waterbodies=f"{g}:WATERBODY",
                    wetlands=f"{g}:WETLAND", tile_index=f"{g}:FOOTPRINT")
+    tiles = sorted((work / "tiles").glob("*.las"))
+    half = [f for f in tiles if f.stem[1] in "01"]  # the western two columns: 8 tiles, each with its neighbours
     rows = {}
     for jobs in (1, 2):
-        rows[f"rasters --jobs {jobs}"] = run_child(f"""
-            from gistools import rasters_from_tiles
-            t = time.perf_counter()
-            s = rasters_from_tiles([{str(work / 'tiles')!r}], {str(work / f'out_r{jobs}')!r}, jobs={jobs}, overwrite=True)
-            assert s["counts"]["failed"] == 0
-            print(json.dumps({{"seconds": time.perf_counter() - t}}))
-        """)
-        rows[f"shrub --jobs {jobs}"] = run_child(f"""
-            from gistools.tasks.shrub import shrub_from_tiles
-            t = time.perf_counter()
-            s = shrub_from_tiles([{str(work / 'tiles')!r}], {str(work / f'out_s{jobs}')!r}, jobs={jobs}, overwrite=True,
-                                 **{vectors!r})
-            assert s["counts"]["failed"] == 0
-            print(json.dumps({{"seconds": time.perf_counter() - t}}))
-        """)
-        for k in (f"rasters --jobs {jobs}", f"shrub --jobs {jobs}"):
-            sec = rows[k]["seconds"]
-            print(f"{k:<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles: {sec / 16 * COUNTY_TILES / 60:6.1f} min",
-                  flush=True)
+        for kind in ("rasters", "shrub"):
+            r = rows[f"{kind} --jobs {jobs}"] = chain_run(kind, [work / "tiles"], work / f"out_{kind}{jobs}", jobs, vectors)
+            sec = r["seconds"]
+            stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
+            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at 16-tile "
+                  f"throughput: {sec / 16 * COUNTY_TILES / 60:6.1f} min   [s by stage, summed: {stages}]", flush=True)
     print()
     for jobs in (1, 2):
         ratio = rows[f"rasters --jobs {jobs}"]["seconds"] / rows[f"shrub --jobs {jobs}"]["seconds"]
         print(f"--jobs {jobs}: whole chain / DSM+DEM throughput {ratio:.2f} (target >= 0.5)")
-    county = rows["shrub --jobs 2"]["seconds"] / 16 * COUNTY_TILES / 60
-    print(f"projected 733-tile county, whole chain, --jobs 2: {county:.1f} min (target < 20 min)")
+    # per-run costs (starting the workers, the map) measured apart: the 8-tile runs against the 16-tile ones
+    print()
+    for kind in ("rasters", "shrub"):
+        t8 = chain_run(kind, half, work / f"out_{kind}8", 2, vectors)["seconds"]
+        t16 = rows[f"{kind} --jobs 2"]["seconds"]
+        per_tile = (t16 - t8) / 8
+        per_run = t16 - 16 * per_tile
+        print(f"{kind} --jobs 2: 8 tiles {t8:.1f} s, 16 tiles {t16:.1f} s: {per_tile:.2f} s a tile + {per_run:.1f} s a run; "
+              f"733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min (16-tile throughput: "
+              f"{t16 / 16 * COUNTY_TILES / 60:.1f} min)", flush=True)
 
 
 if __name__ == "__main__":

@@ -48,6 +48,10 @@ def test_report_has_areas_by_band_and_class(shrub_run):
     assert report["band_thresholds"] == pytest.approx([3937 / 1200, 2 * 3937 / 1200, 19.685])
     assert sum(report["class_area"].values()) == pytest.approx(2000 * 2000)
     assert json.loads((out / "report.json").read_text())["class_area"] == report["class_area"]
+    # where the time went, by stage: the rasters' and each step's seconds summed over the tiles, the map's once
+    stages = report["stage_seconds"]
+    assert set(stages) == {"read", "merge", "dem", "write", "bands", "clip", "density", "classes", "polygons_and_map"}
+    assert all(v >= 0 for v in stages.values()) and sum(stages.values()) <= 2 * report["seconds"]
     for name in ("shrub_map.png", "shrub_map.pdf", "shrub_classes.gpkg", "classes.vrt", "cover.vrt", "density.vrt",
                  "bands.vrt", "veg.vrt", "wetveg.vrt"):
         assert (out / name).exists(), name

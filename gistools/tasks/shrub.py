@@ -332,15 +332,20 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         for n in names:
             states[n].status, states[n].error = "ok", None
         ticker = _StepTicker(progress, 0.6 if from_stage == "rasters" else 0.0, 4 * len(names), states, len(names))
-        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick)
+        step_seconds: dict = {}
+        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick, step_seconds)
     finally:
         if pool is not None:
             pool.close()
     good = [n for n in names if states[n].status == "ok"]
     title = f"Shrub density - {_input_label(inputs)}" if inputs else summary.get("map_title") or f"Shrub density - {out.name}"
+    t0 = time.perf_counter()
     _write_chain_outputs(out, good, mosaic, polygons, crs, summary, settings, title if make_map else None)
+    step_seconds["polygons_and_map"] = time.perf_counter() - t0  # once a run, not per tile
     report(progress, 1.0, "done")
     shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started, settings.classify)
+    shrub_report["stage_seconds"] = {**(summary.get("stage_seconds") or {} if from_stage == "rasters" else {}),
+                                     **{k: round(v, 3) for k, v in step_seconds.items()}}
     record = settings_record(settings, dict(zip(LAYERS, layers)), reproject_vectors)
     return write_folder_report(out, _as_run_of(shrub_report, summary, from_stage, title, record))
 
@@ -412,12 +417,20 @@ def _ndsm_bounds(out: Path, name: str):
                             hint="Rerun gistools shrub on the tiles (the rasters stage rewrites it)") from None
 
 
-def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick):
-    """bands, clip, density and classes of every tile that is still ok; (mosaics, class polygons, class breaks)."""
+def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick,
+               seconds_by_step: dict):
+    """bands, clip, density and classes of every tile that is still ok; (mosaics, class polygons, class breaks).
+    ``seconds_by_step`` gets each step's seconds, summed over the tiles."""
     mosaic, polygons = {}, []
 
     def alive():
         return [n for n in names if states[n].status == "ok"]
+
+    def timed_as(stage, done):  # the step's seconds summed over its tiles (in the workers: with --jobs N they overlap)
+        def on_done(name, value, seconds):
+            seconds_by_step[stage] = seconds_by_step.get(stage, 0.0) + seconds
+            done(name, value, seconds)
+        return on_done
 
     def keep_outputs(name, value, seconds):
         states[name].outputs.update(value["outputs"])
@@ -435,21 +448,21 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
         polygons.extend((name, c, g) for c, g in value["polygons"])
 
     run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", p, out) for n in names],
-             pool, states, names, keep_outputs, tick, "bands", out)
+             pool, states, names, timed_as("bands", keep_outputs), tick, "bands", out)
     margin = p.max_road_width + p.max_hydro_width
     good = alive()
     run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin), p, out) for n in good],
-             pool, states, good, clip_done, tick, "clip", out)
+             pool, states, good, timed_as("clip", clip_done), tick, "clip", out)
     good = alive()
     for product in ("bands", "veg", "wetveg"):
         mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
     run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], p, out) for n in good], pool, states,
-             good, keep_outputs, tick, "density", out)
+             good, timed_as("density", keep_outputs), tick, "density", out)
     good = alive()
     cover = write_vrt(out / "cover.vrt", [out / "cover" / f"{n}.tif" for n in good])
     breaks = class_breaks(cover, settings.classify, settings.class_breaks) if cover else DEFAULT_BREAKS
     run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, p, out) for n in good],
-             pool, states, good, classes_done, tick, "classes", out)
+             pool, states, good, timed_as("classes", classes_done), tick, "classes", out)
     return mosaic, polygons, breaks
 
 
