@@ -344,10 +344,15 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
     step_seconds["polygons_and_map"] = time.perf_counter() - t0  # once a run, not per tile
     report(progress, 1.0, "done")
     shrub_report = _shrub_report(summary, base, states, good, params, breaks, mosaic, started, settings.classify)
-    shrub_report["stage_seconds"] = {**(summary.get("stage_seconds") or {} if from_stage == "rasters" else {}),
-                                     **{k: round(v, 3) for k, v in step_seconds.items()}}
+    shrub_report["stage_seconds"] = _stage_seconds(summary, from_stage, step_seconds)
     record = settings_record(settings, dict(zip(LAYERS, layers)), reproject_vectors)
     return write_folder_report(out, _as_run_of(shrub_report, summary, from_stage, title, record))
+
+
+def _stage_seconds(summary: dict, from_stage: str, step_seconds: dict) -> dict:
+    """The run's seconds by stage: the rasters' (when it made them) and the steps', each summed over the tiles."""
+    rasters = summary.get("stage_seconds") or {} if from_stage == "rasters" else {}
+    return {**rasters, **{k: round(v, 3) for k, v in step_seconds.items()}}
 
 
 def _as_run_of(shrub_report: dict, previous: dict, from_stage: str, title: str, record: dict) -> dict:
