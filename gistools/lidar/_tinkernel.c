@@ -494,6 +494,16 @@ done:
 /* min / max of finite doubles (fmin / fmax are library calls without -ffast-math, for NaN rules not needed here) */
 static inline double dmin(double a, double b) { return a < b ? a : b; }
 static inline double dmax(double a, double b) { return a > b ? a : b; }
+/* (int64_t)floor(a) and (int64_t)ceil(a) of a finite a within int64 range, without the library call (baseline
+ * x86-64 has no rounding instruction): a triangle's range of centres, four per triangle */
+static inline int64_t ifloor(double a) {
+    int64_t i = (int64_t)a; /* toward zero */
+    return i - (a < (double)i);
+}
+static inline int64_t iceil(double a) {
+    int64_t i = (int64_t)a;
+    return i + (a > (double)i);
+}
 
 int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const double *v, const double *z, int32_t width,
                      int32_t height, double max_edge2, double *out, const double *box, uint8_t *exact) {
@@ -504,8 +514,8 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
         double ax = u[a], ay = v[a], bx = u[b], by = v[b], cx = u[c], cy = v[c];
         double xmin = dmin(ax, dmin(bx, cx)), xmax = dmax(ax, dmax(bx, cx));
         double ymin = dmin(ay, dmin(by, cy)), ymax = dmax(ay, dmax(by, cy));
-        int64_t r0 = (int64_t)ceil(ymin - 0.5), r1 = (int64_t)floor(ymax - 0.5);
-        int64_t c0 = (int64_t)ceil(xmin - 0.5), c1 = (int64_t)floor(xmax - 0.5);
+        int64_t r0 = iceil(ymin - 0.5), r1 = ifloor(ymax - 0.5);
+        int64_t c0 = iceil(xmin - 0.5), c1 = ifloor(xmax - 0.5);
         if (r1 < r0 || c1 < c0) continue; /* no centre in the bounding box: most triangles */
         if (r0 < 0) r0 = 0;
         if (r1 > height - 1) r1 = height - 1;
@@ -531,27 +541,32 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
         if (!write && !safe) continue;
         double inv = 1.0 / det;
         double za = z[a], zb = z[b], zc = z[c];
+        const int narrow = c1 - c0 <= 2; /* at most 3 centres a row: each tested, without the edge crossings */
         for (int64_t r = r0; r <= r1; r++) {
             double py = r + 0.5 - cy;
-            /* the columns of this row inside the triangle: from the edges the row line crosses */
-            double lo = INFINITY, hi = -INFINITY, yy = r + 0.5;
-            const double px_[3] = {ax, bx, cx}, py_[3] = {ay, by, cy};
-            for (int k = 0; k < 3; k++) {
-                double x1 = px_[k], y1 = py_[k], x2 = px_[(k + 1) % 3], y2 = py_[(k + 1) % 3];
-                if ((y1 - yy) * (y2 - yy) > 0) continue;
-                if (y1 == y2) {
-                    lo = dmin(lo, dmin(x1, x2));
-                    hi = dmax(hi, dmax(x1, x2));
-                } else {
-                    double xx = x1 + (yy - y1) * (x2 - x1) / (y2 - y1);
-                    lo = dmin(lo, xx);
-                    hi = dmax(hi, xx);
+            int64_t k0 = c0, k1 = c1;
+            if (!narrow) {
+                /* the columns of this row inside the triangle: from the edges the row line crosses */
+                double lo = INFINITY, hi = -INFINITY, yy = r + 0.5;
+                const double px_[3] = {ax, bx, cx}, py_[3] = {ay, by, cy};
+                for (int k = 0; k < 3; k++) {
+                    double x1 = px_[k], y1 = py_[k], x2 = px_[(k + 1) % 3], y2 = py_[(k + 1) % 3];
+                    if ((y1 - yy) * (y2 - yy) > 0) continue;
+                    if (y1 == y2) {
+                        lo = dmin(lo, dmin(x1, x2));
+                        hi = dmax(hi, dmax(x1, x2));
+                    } else {
+                        double xx = x1 + (yy - y1) * (x2 - x1) / (y2 - y1);
+                        lo = dmin(lo, xx);
+                        hi = dmax(hi, xx);
+                    }
                 }
+                if (!(hi >= lo)) continue;
+                k0 = (int64_t)ceil(lo - 0.5) - 1; /* one spare column each side: a centre a cell outside the */
+                k1 = (int64_t)floor(hi - 0.5) + 1; /* triangle fails the weight test below by far */
+                if (k0 < c0) k0 = c0;
+                if (k1 > c1) k1 = c1;
             }
-            if (!(hi >= lo)) continue;
-            int64_t k0 = (int64_t)ceil(lo - 0.5) - 1, k1 = (int64_t)floor(hi - 0.5) + 1; /* one spare each side */
-            if (k0 < c0) k0 = c0;
-            if (k1 > c1) k1 = c1;
             for (int64_t col = k0; col <= k1; col++) {
                 double px = col + 0.5 - cx;
                 double w1 = ((by - cy) * px + (cx - bx) * py) * inv;

@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 from affine import Affine
 from scipy import ndimage
-from scipy.spatial import cKDTree
 
 from ..errors import InputError
 from ..grid import Grid, cell_centres, cell_index
@@ -111,6 +110,8 @@ def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
         pick = flat >= 0
         fr, fc = np.divmod(flat[pick], padded.width)
         pick[pick] = (fr >= r0) & (fr < r1) & (fc >= c0) & (fc < c1)
+        from scipy.spatial import cKDTree  # here: scipy.spatial costs a worker 0.1 s to import, and few tiles need it
+
         tree = cKDTree(np.column_stack([np.asarray(x)[pick], np.asarray(y)[pick]]))
         ur, uc = np.nonzero(unsure)
         xs, ys = cell_centres(padded)
@@ -120,6 +121,8 @@ def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
 
 
 def _idw(grid: Grid, x, y, z, max_distance: float, k: int = 8, power: float = 2.0) -> np.ndarray:
+    from scipy.spatial import cKDTree
+
     xs, ys = cell_centres(grid)
     cx, cy = np.meshgrid(xs, ys)
     tree = cKDTree(np.column_stack([x, y]))
