@@ -24,6 +24,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import textwrap
@@ -32,6 +33,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+CODE = ROOT  # the gistools checkout the runs time (--code: another one, e.g. an earlier commit, with this script)
 
 PY = sys.executable
 
@@ -123,7 +125,7 @@ def run_child(code: str) -> dict:
             kids_mb = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024  # max over spawned workers
             result.update(rss_self_mb=self_mb, rss_children_mb=kids_mb)
             print(json.dumps(result))
-        """ % str(ROOT)
+        """ % str(CODE)
     )
     full = prologue + "\nif __name__ == '__main__':\n" + textwrap.indent(textwrap.dedent(code), "    ")
     out = subprocess.run([PY, "-c", full], capture_output=True, text=True, env={**os.environ, "PYTHONWARNINGS": "ignore"})
@@ -209,14 +211,19 @@ def main(argv=None):
     ap.add_argument("--workdir", default="/tmp/gistools-bench")
     ap.add_argument("--skip-whitebox", action="store_true")
     ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")
+    ap.add_argument("--repeat", type=int, default=1, help="--density levy: alternate the two tools this many times, "
+                                                          "compare medians")
+    ap.add_argument("--code", default=None, help="the gistools checkout to time (default: this one)")
     ap.add_argument("--density", choices=("dense", "levy"), default="dense",
                     help="dense: the 4-tile block of 1 pulse per ft2 (the README's table); levy: four 5,000 ft tiles at "
                          "the Levy delivery's 4 ft pulse spacing, beside WhiteboxTools, with the time by stage")
     args = ap.parse_args(argv)
+    global CODE
+    CODE = Path(args.code).resolve() if args.code else ROOT
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
     if args.density == "levy":
-        return levy(work, args.skip_whitebox)
+        return levy(work, args.skip_whitebox, args.repeat)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
         [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
@@ -267,8 +274,10 @@ def main(argv=None):
     print(f"peak RSS, {info['big_points']:,}-point tile: {max(big['rss_self_mb'], big['rss_children_mb']):.0f} MB  (target < 1500 MB)")
 
 
-def levy(work: Path, skip_whitebox: bool) -> None:
-    """The rasters at the Levy density, LAS and LAZ, --jobs 2, beside WhiteboxTools, with gistools' stage timers."""
+def levy(work: Path, skip_whitebox: bool, repeat: int = 1) -> None:
+    """The rasters at the Levy density, LAS and LAZ, --jobs 2, beside WhiteboxTools, with gistools' stage timers;
+    with ``repeat`` > 1 the two tools run alternately that many times and the medians are compared (this machine's
+    speed moves by a fifth from one run to the next)."""
     t = time.perf_counter()
     info = json.loads(subprocess.run(
         [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
@@ -280,14 +289,22 @@ def levy(work: Path, skip_whitebox: bool) -> None:
           flush=True)
     for fmt in ("las", "laz"):
         files = sorted((work / f"levy_{fmt}").glob(f"*.{fmt}"))
-        r = gistools_run(work / f"levy_{fmt}", work / "out_levy", 2)
-        stages = ", ".join(f"{k} {v:.2f} s" for k, v in r["stages"].items())
-        print(f"gistools DSM+DEM+nDSM, {fmt.upper()}, --jobs 2: {r['seconds']:.2f} s ({n / r['seconds'] / 1e6:.2f} M pts/s); "
-              f"summed over the tiles: {stages}", flush=True)
-        if not skip_whitebox:
-            wb = whitebox_run(files, work / "wbt_levy", 5.0, 2 * 15 / 0.3048006096)
-            print(f"WhiteboxTools block max + TIN, {fmt.upper()}, 2 at a time: {wb['seconds']:.2f} s; gistools is "
-                  f"{wb['seconds'] / r['seconds']:.2f}x (target >= 4)", flush=True)
+        ours, theirs = [], []
+        for k in range(repeat):
+            r = gistools_run(work / f"levy_{fmt}", work / "out_levy", 2)
+            ours.append(r["seconds"])
+            stages = ", ".join(f"{k} {v:.2f} s" for k, v in r["stages"].items())
+            print(f"gistools DSM+DEM+nDSM, {fmt.upper()}, --jobs 2: {r['seconds']:.2f} s ({n / r['seconds'] / 1e6:.2f} M "
+                  f"pts/s); summed over the tiles: {stages}", flush=True)
+            if not skip_whitebox:
+                wb = whitebox_run(files, work / "wbt_levy", 5.0, 2 * 15 / 0.3048006096)
+                theirs.append(wb["seconds"])
+                print(f"WhiteboxTools block max + TIN, {fmt.upper()}, 2 at a time: {wb['seconds']:.2f} s; gistools is "
+                      f"{wb['seconds'] / r['seconds']:.2f}x (target >= 4)", flush=True)
+        if repeat > 1 and theirs:
+            mo, mt = statistics.median(ours), statistics.median(theirs)
+            print(f"{fmt.upper()}, medians of {repeat} alternating runs: gistools {mo:.2f} s, WhiteboxTools {mt:.2f} s: "
+                  f"{mt / mo:.2f}x (target >= 4)", flush=True)
 
 
 if __name__ == "__main__":
