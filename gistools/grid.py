@@ -104,15 +104,11 @@ _CELL_INDEX = []  # the compiled kernel's gt_cell_index, once looked up (None: n
 
 def _cell_index_kernel():
     if not _CELL_INDEX:
-        from .lidar.tin import _KERNEL  # gistools' compiled kernel (lidar/_tinkernel.c), when built
+        from .lidar.tin import kernel_function  # gistools' compiled kernel (lidar/_tinkernel.c), when built
 
-        fn = getattr(_KERNEL, "gt_cell_index", None)
-        if fn is not None:
-            f64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-            n = ctypes.c_int64
-            fn.argtypes = [n, f64, f64, ctypes.c_double, n, n, n, n, np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS")]
-            fn.restype = None
-        _CELL_INDEX.append(fn)
+        f64, i64 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.float64, np.int64))
+        n = ctypes.c_int64
+        _CELL_INDEX.append(kernel_function("gt_cell_index", [n, f64, f64, ctypes.c_double, n, n, n, n, i64]))
     return _CELL_INDEX[0]
 
 

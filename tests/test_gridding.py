@@ -30,6 +30,41 @@ def test_dsm_is_the_max_per_cell(cloud):
     assert np.nanmax(np.abs(dsm - ref)) == 0.0
 
 
+@pytest.mark.parametrize("chunks", [1, 3])
+def test_top_class_is_the_class_of_the_highest_point_bare_on_ties(chunks):
+    """max_with_class (compiled and numpy forms) against a point-by-point reference written here: per cell the highest
+    z, and the class of the point giving it; on a tie within a call the last bare (ground 2, water 9) point, else the
+    last point; on a tie with an earlier call's top, the call's class only when bare. Many ties (z in whole feet)."""
+    from gistools.lidar.accumulate import _max_with_class_kernel, _max_with_class_numpy, max_with_class
+
+    if _max_with_class_kernel() is None:
+        pytest.fail("the compiled kernel is not built (pip install -e . with a C compiler)")
+    rng = np.random.default_rng(11)
+    n, m = 400, 2400
+    cell = rng.integers(0, n, m)
+    z = rng.integers(0, 4, m).astype(float)
+    cls = rng.choice(np.array([1, 2, 3, 5, 6, 9], np.uint8), m)
+    dsm_ref, top_ref = np.full(n, -np.inf), np.full(n, 255, np.uint8)
+    dsm_c, top_c, dsm_np, top_np = dsm_ref.copy(), top_ref.copy(), dsm_ref.copy(), top_ref.copy()
+    bare = {2, 9}
+    for part in np.array_split(np.arange(m), chunks):
+        best, win = {}, {}
+        for i in part:  # the call's own maxima and winners
+            c = cell[i]
+            if c not in best or z[i] > best[c]:
+                best[c], win[c] = z[i], cls[i]
+            elif z[i] == best[c] and (cls[i] in bare or win[c] not in bare):
+                win[c] = cls[i]
+        for c in best:  # merged into what the earlier calls left
+            if best[c] > dsm_ref[c] or (best[c] == dsm_ref[c] and win[c] in bare):
+                top_ref[c] = win[c]
+            dsm_ref[c] = max(dsm_ref[c], best[c])
+        max_with_class(dsm_c, top_c, cell[part], z[part], cls[part])
+        _max_with_class_numpy(dsm_np, top_np, cell[part], z[part], cls[part])
+    for dsm, top in ((dsm_c, top_c), (dsm_np, top_np)):
+        assert np.array_equal(dsm, dsm_ref) and np.array_equal(top, top_ref)
+
+
 def test_points_at_cell_centres_give_z_exactly():
     g = snapped_grid((0, 0, 49.9, 49.9), 5.0)
     xs, ys = cell_centres(g)

@@ -973,6 +973,31 @@ SIMD_CLONES void gt_cell_index(int64_t n, const double *x, const double *y, doub
     }
 }
 
+/* The DSM's per-cell maximum of z and the class of the point giving it (lidar/accumulate.py max_with_class, the
+ * same result): the points (flat cell, z, class) of one call first make the call's own maxima `cm` and top classes
+ * `tc` (ties among the call's points: the last bare one, i.e. bare[class], else the last one), then these are merged
+ * into `dsm` / `top` (higher, or equal and bare: the call's class). cm (doubles) and tc (bytes) are caller-owned
+ * scratch of ncells, filled here. */
+void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const uint8_t *cls, const uint8_t *bare,
+                       int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc) {
+    for (int64_t c = 0; c < ncells; c++) cm[c] = -INFINITY;
+    for (int64_t i = 0; i < n; i++) {
+        int64_t c = cell[i];
+        double v = z[i];
+        if (v > cm[c]) {
+            cm[c] = v;
+            tc[c] = cls[i];
+        } else if (v == cm[c] && (bare[cls[i]] || !bare[tc[c]])) {
+            tc[c] = cls[i];
+        }
+    }
+    for (int64_t c = 0; c < ncells; c++) {
+        if (cm[c] == -INFINITY) continue; /* no point of this call */
+        if (cm[c] > dsm[c] || (cm[c] == dsm[c] && bare[tc[c]])) top[c] = tc[c];
+        if (cm[c] > dsm[c]) dsm[c] = cm[c];
+    }
+}
+
 /* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
 void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
     for (int64_t i = 0; i < n; i++) {

@@ -128,16 +128,10 @@ def _box3_sum(a: np.ndarray) -> np.ndarray:
 
 
 def _kernel_function(name: str, *argtypes):
-    """A function of gistools' compiled kernel (lidar/_tinkernel.c) with its argument types, or None where the
-    kernel is not built (or predates it): the numpy code then runs, with the same values."""
-    from .tin import _KERNEL
+    """tin.kernel_function with this module's result types."""
+    from .tin import kernel_function
 
-    if _KERNEL is None or not hasattr(_KERNEL, name):
-        return None
-    fn = getattr(_KERNEL, name)
-    fn.argtypes = list(argtypes)
-    fn.restype = ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None
-    return fn
+    return kernel_function(name, argtypes, ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None)
 
 
 _F64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")

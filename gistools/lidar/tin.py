@@ -49,6 +49,16 @@ def _load_kernel():
 
 
 _KERNEL = _load_kernel()
+
+
+def kernel_function(name: str, argtypes: list, restype=None):
+    """A function of gistools' compiled kernel (lidar/_tinkernel.c) with its argument and result types, or None
+    where the kernel is not built (or predates it): the caller's numpy code then runs, with the same values."""
+    fn = getattr(_KERNEL, name, None) if _KERNEL is not None else None
+    if fn is not None:
+        fn.argtypes = list(argtypes)
+        fn.restype = restype
+    return fn
 _QUANTUM_STEPS = 2**30  # the kernel's integer coordinates span at most this many steps (its exact predicates allow 2^30)
 
 
