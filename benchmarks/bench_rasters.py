@@ -15,7 +15,8 @@ fresh process so peak RSS is its own:
 
 Prints points per second, peak RSS per worker and the ratios the targets are stated in.
 
-    python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench]
+    python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench] [--repeat 3]
+    python benchmarks/bench_rasters.py --density levy [--repeat 3]   # the Levy delivery's density
 """
 
 from __future__ import annotations
@@ -211,8 +212,8 @@ def main(argv=None):
     ap.add_argument("--workdir", default="/tmp/gistools-bench")
     ap.add_argument("--skip-whitebox", action="store_true")
     ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")
-    ap.add_argument("--repeat", type=int, default=1, help="--density levy: alternate the two tools this many times, "
-                                                          "compare medians")
+    ap.add_argument("--repeat", type=int, default=1, help="run gistools (--jobs 2) and WhiteboxTools alternately this "
+                                                          "many times and compare the medians")
     ap.add_argument("--code", default=None, help="the gistools checkout to time (default: this one)")
     ap.add_argument("--density", choices=("dense", "levy"), default="dense",
                     help="dense: the 4-tile block of 1 pulse per ft2 (the README's table); levy: four 5,000 ft tiles at "
@@ -270,6 +271,17 @@ def main(argv=None):
             for jobs in (1, 2):
                 k = f"gistools DSM+DEM+nDSM, {fmt}, --jobs {jobs}"
                 print(f"{k} / WhiteboxTools ({fmt}):  {rate[k] / wb:.2f}  (target >= 3 with --jobs 2)")
+    if args.repeat > 1 and not args.skip_whitebox:  # the ratio again as medians of alternating runs (see levy())
+        for fmt, files in (("LAS", las), ("LAZ", laz)):
+            ours = [rows[f"gistools DSM+DEM+nDSM, {fmt}, --jobs 2"]["seconds"]]
+            theirs = [rows[f"WhiteboxTools block max + TIN, {fmt}, 2 at a time"]["seconds"]]
+            for _ in range(args.repeat - 1):
+                theirs.append(whitebox_run(files, work / "wbt", 5.0, 2 * 15 / 0.3048006096)["seconds"])
+                ours.append(gistools_run(work / fmt.lower(), work / "out", 2)["seconds"])
+            mo, mt = statistics.median(ours), statistics.median(theirs)
+            print(f"{fmt}, --jobs 2, medians of {args.repeat} runs (alternating): gistools {mo:.2f} s "
+                  f"({', '.join(f'{v:.2f}' for v in ours)}), WhiteboxTools {mt:.2f} s "
+                  f"({', '.join(f'{v:.2f}' for v in theirs)}): {mt / mo:.2f}x (target >= 4)", flush=True)
     big = rows["gistools DSM+DEM+nDSM, one big LAS tile"]
     print(f"peak RSS, {info['big_points']:,}-point tile: {max(big['rss_self_mb'], big['rss_children_mb']):.0f} MB  (target < 1500 MB)")
 

@@ -748,6 +748,31 @@ def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(mon
         pool.close()
 
 
+def _rayon_threads():
+    return os.environ.get("RAYON_NUM_THREADS")
+
+
+def test_workers_decode_laz_on_one_thread_unless_the_user_chose(monkeypatch):
+    """lazrs's rayon pool: one thread in each worker (RAYON_NUM_THREADS, read when the pool starts), the parent's
+    environment untouched, and a value the user set is kept."""
+    from gistools.tasks.batch import ProcessPool, worker_timed
+
+    monkeypatch.delenv("RAYON_NUM_THREADS", raising=False)
+    before = dict(os.environ)
+    pool = ProcessPool(1)
+    try:
+        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == "1"
+    finally:
+        pool.close()
+    assert dict(os.environ) == before
+    monkeypatch.setenv("RAYON_NUM_THREADS", "2")
+    pool = ProcessPool(1)
+    try:
+        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == "2"
+    finally:
+        pool.close()
+
+
 @pytest.mark.parametrize("how", ["script without a main guard", "standard input"])
 def test_jobs_2_works_from_a_plain_script_and_from_stdin(tmp_path, how):
     """spawn would re-run such a script in every worker (or cannot re-read stdin): the workers are forked instead,
