@@ -511,6 +511,26 @@ def test_the_nodata_share_is_given_per_cause(shrub_run):
     assert causes["no_first_return"] > 0.05 and causes["water"] > 0  # the sample: 5 ft cells, a pond and a river
 
 
+def test_each_tiles_nodata_causes_are_those_of_its_written_rasters(shrub_run):
+    """The chain takes a tile's nodata causes from its rasters stage (the arrays in memory): they equal the shares
+    counted here from the DSM, DEM and top-class GeoTIFFs it wrote (nodata read as rasterio's mask)."""
+    import rasterio
+
+    out, report = shrub_run
+    tiles = [t for t in report["tiles"] if t["status"] == "ok"]
+    assert tiles
+    for t in tiles:
+        with rasterio.open(out / "dsm" / f"{t['name']}.tif") as a, rasterio.open(out / "dem" / f"{t['name']}.tif") as b, \
+                rasterio.open(out / "topclass" / f"{t['name']}.tif") as c:
+            no_dsm = np.ma.getmaskarray(a.read(1, masked=True))
+            no_dem = np.ma.getmaskarray(b.read(1, masked=True)) & ~no_dsm
+            water = c.read(1) == 9
+        cells = no_dsm.size
+        expect = {"no_first_return": no_dsm.sum() / cells, "water": (no_dem & water).sum() / cells,
+                  "no_ground_near": (no_dem & ~water).sum() / cells}
+        assert t["nodata_by_cause"] == pytest.approx(expect, abs=1e-12), t["name"]
+
+
 def test_a_users_own_qml_beside_the_class_polygons_is_kept(shrub_run, tmp_path):
     """Nothing lost: a style the user saved as shrub_classes.qml survives a rerun; gistools' own is rewritten."""
     import shutil

@@ -27,7 +27,8 @@ import numpy as np
 from ..errors import InputError
 from ..units import METRE, LinearUnit
 
-__all__ = ["BAND_NAMES", "BAND_NODATA", "BAND_ABOVE", "PRESETS", "band_thresholds", "height_bands"]
+__all__ = ["BAND_NAMES", "BAND_NODATA", "BAND_ABOVE", "PRESETS", "band_thresholds", "height_bands", "add_nodata_causes",
+           "nodata_cause_shares"]
 
 BAND_NAMES = ("B0", "B1", "B2", "B3")
 BAND_ABOVE = 4
@@ -77,3 +78,20 @@ def height_bands(ndsm: np.ndarray, thresholds, *, top_is_ground: np.ndarray | No
     if top_is_ground is not None:
         codes[valid & top_is_ground] = 0
     return codes
+
+
+def add_nodata_causes(counts: dict, no_dsm: np.ndarray, no_dem: np.ndarray, top_class: np.ndarray) -> None:
+    """Add to ``counts`` the cells of a block without a band, by cause: ``no_first_return`` (no DSM value), ``water``
+    (no DEM value under a water return, class 9, on top), ``no_ground_near`` (no DEM value otherwise), and ``cells``."""
+    no_dem = no_dem & ~no_dsm
+    water = top_class == 9
+    counts["no_first_return"] = counts.get("no_first_return", 0) + int(no_dsm.sum())
+    counts["water"] = counts.get("water", 0) + int((no_dem & water).sum())
+    counts["no_ground_near"] = counts.get("no_ground_near", 0) + int((no_dem & ~water).sum())
+    counts["cells"] = counts.get("cells", 0) + no_dsm.size
+
+
+def nodata_cause_shares(counts: dict) -> dict:
+    """The counts of ``add_nodata_causes`` as shares of all cells."""
+    cells = max(counts.get("cells", 0), 1)
+    return {k: counts.get(k, 0) / cells for k in ("no_first_return", "water", "no_ground_near")}

@@ -31,10 +31,11 @@ from ..grid import Grid, cell_index, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
-from ..io.raster import atomic_path, crs_from_wkt, write_raster, write_vrt
+from ..io.raster import NODATA, atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
 from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
                                max_with_class, merge_top_class, surface_classes)
+from ..lidar.bands import add_nodata_causes, nodata_cause_shares
 from ..lidar.dsmfill import DSM_FILLS
 from ..lidar.gridding import DEM_FILLS, DEM_METHODS, dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
@@ -163,6 +164,7 @@ class TileResult:
     shore_profile: dict = field(default_factory=dict)  # river -> {"ix,iy": lowest shore point of that profile cell}
     dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
     dsm_filled_cells: int = 0  # DSM pinholes filled (dsm_fill)
+    nodata_by_cause: dict | None = None  # why cells have no height band (lidar.bands), where dsm, dem, topclass are made
     stage_seconds: dict = field(default_factory=dict)  # the tile's time by stage: read (pass 1), merge, dem, write
     warnings: list = field(default_factory=list)
     neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
@@ -431,8 +433,19 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     t2 = time.perf_counter()
     outputs = _write_tile_rasters(info, run, grid, arrays)
     stages = {"merge": t1 - t0, "dem": t2 - t1, "write": time.perf_counter() - t2}
+    causes = _nodata_causes(arrays) if {"dsm", "dem", "topclass"} <= set(run.products) else None
     return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used),
-            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled, "stages": stages}
+            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled, "stages": stages, "nodata_by_cause": causes}
+
+
+def _nodata_causes(arrays: dict) -> dict:
+    """Why the tile's cells have no height band (lidar.bands.add_nodata_causes), from its DSM, DEM and top class as
+    their rasters store them (float32, NODATA for NaN): what the shrub chain's clip step reports, without reading
+    the three rasters back."""
+    counts: dict = {}
+    no_dsm, no_dem = ((np.isnan(a) | (np.asarray(a, np.float32) == np.float32(NODATA))) for a in (arrays["dsm"], arrays["dem"]))
+    add_nodata_causes(counts, no_dsm, no_dem, arrays["topclass"])
+    return nodata_cause_shares(counts)
 
 
 def _merge_neighbours(info, neighbours, run: _Run, grid: Grid, dsm, top_class, ground_count, water_count):
@@ -801,6 +814,7 @@ def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
     r.first_return_bands = value["first_return_bands"]
     r.dem_filled_cells = value.get("dem_filled_cells", 0)
     r.dsm_filled_cells = value.get("dsm_filled_cells", 0)
+    r.nodata_by_cause = value.get("nodata_by_cause")
     r.stage_seconds = {**r.stage_seconds, **{k: round(v, 3) for k, v in value.get("stages", {}).items()}}
     r.neighbours = value["neighbours"]
     new = list(value.get("warnings", []))

@@ -120,11 +120,13 @@ def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:
     return {"outputs": outputs}
 
 
-def _clip_tile(name, bands_path, vec, p, out) -> dict:
+def _clip_tile(name, bands_path, vec, p, out, causes=None) -> dict:
     """Road and water polygons of one tile from the breaklines (S6-S7), vegetation = band - road - water,
-    vegetation inside wetlands (S8-S9)."""
+    vegetation inside wetlands (S8-S9). ``causes``: the tile's nodata causes from the rasters stage of this run (None:
+    read from its rasters)."""
     done = _existing(out, name, ("veg", "wetveg"), p.overwrite["clip"])
-    causes = nodata_causes(*(Path(out) / product / f"{name}.tif" for product in ("dsm", "dem", "topclass")), block=0)
+    if causes is None:
+        causes = nodata_causes(*(Path(out) / product / f"{name}.tif" for product in ("dsm", "dem", "topclass")), block=0)
     if done:
         return {"outputs": done, **band_summary(bands_path, done["wetveg"], block=0), "nodata_by_cause": causes}
     with rasterio.open(bands_path) as src:
@@ -333,7 +335,8 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
             states[n].status, states[n].error = "ok", None
         ticker = _StepTicker(progress, 0.6 if from_stage == "rasters" else 0.0, 4 * len(names), states, len(names))
         step_seconds: dict = {}
-        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick, step_seconds)
+        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick, step_seconds,
+                                              _fresh_causes(base, from_stage))
     finally:
         if pool is not None:
             pool.close()
@@ -347,6 +350,14 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
     shrub_report["stage_seconds"] = _stage_seconds(summary, from_stage, step_seconds)
     record = settings_record(settings, dict(zip(LAYERS, layers)), reproject_vectors)
     return write_folder_report(out, _as_run_of(shrub_report, summary, from_stage, title, record))
+
+
+def _fresh_causes(base: dict, from_stage: str) -> dict:
+    """Tile -> its nodata causes where this run's rasters stage made its rasters (status ok: pass 2 ran); the clip
+    step reads the others' from their rasters."""
+    if from_stage != "rasters":
+        return {}
+    return {n: t["nodata_by_cause"] for n, t in base.items() if t["status"] == "ok" and t.get("nodata_by_cause")}
 
 
 def _stage_seconds(summary: dict, from_stage: str, step_seconds: dict) -> dict:
@@ -423,9 +434,10 @@ def _ndsm_bounds(out: Path, name: str):
 
 
 def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick,
-               seconds_by_step: dict):
+               seconds_by_step: dict, causes: dict):
     """bands, clip, density and classes of every tile that is still ok; (mosaics, class polygons, class breaks).
-    ``seconds_by_step`` gets each step's seconds, summed over the tiles."""
+    ``seconds_by_step`` gets each step's seconds, summed over the tiles; ``causes``: tile -> its nodata causes where
+    this run's rasters stage made them."""
     mosaic, polygons = {}, []
 
     def alive():
@@ -456,7 +468,8 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
              pool, states, names, timed_as("bands", keep_outputs), tick, "bands", out)
     margin = p.max_road_width + p.max_hydro_width
     good = alive()
-    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin), p, out) for n in good],
+    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin), p, out, causes.get(n))
+                          for n in good],
              pool, states, good, timed_as("clip", clip_done), tick, "clip", out)
     good = alive()
     for product in ("bands", "veg", "wetveg"):

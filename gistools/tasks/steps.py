@@ -29,7 +29,8 @@ from ..io.blocks import (BLOCK, PolygonMask, check_outputs_are_not_inputs, open_
 from ..io.raster import NODATA
 from ..io.styles import write_polygon_style
 from ..io.vector import check_crs, check_field, read_layer, verify_gpkg, write_layer
-from ..lidar.bands import BAND_NAMES, BAND_NODATA, band_thresholds, height_bands
+from ..lidar.bands import (BAND_NAMES, BAND_NODATA, add_nodata_causes, band_thresholds, height_bands,
+                           nodata_cause_shares)
 from ..lidar.density import halo_cells
 from ..lidar.gridding import ndsm_from
 from ..lidar.shrub import (CLASS_NAMES, CLASS_NODATA, CLASS_STYLE, breaks_from_sample, lattice_sample, sample_step,
@@ -301,28 +302,21 @@ def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=
 
 
 def nodata_causes(dsm, dem, top_class, *, block: int = BLOCK) -> dict:
-    """Why cells have no height band, as shares of all cells: ``no_first_return`` (no DSM value), ``water`` (no DEM
-    value under a water return, class 9, on top), ``no_ground_near`` (no DEM value otherwise: no ground point within
-    the DEM's maximum distance)."""
+    """Why cells have no height band, as shares of all cells (lidar.bands.add_nodata_causes), from the rasters' files.
+    The chain takes them from the rasters stage instead where it made the rasters in the same run."""
     with contextlib.ExitStack() as stack:
         s_dsm = stack.enter_context(open_raster(dsm, "DSM"))
         s_dem = stack.enter_context(open_raster(dem, "DEM"))
         s_top = stack.enter_context(open_raster(top_class, "top class"))
-        counts = {"no_first_return": 0, "water": 0, "no_ground_near": 0, "cells": 0}
+        counts: dict = {}
 
         def compute(win):
-            no_dsm = np.isnan(read_window(s_dsm, s_dsm, win))
-            no_dem = np.isnan(read_window(s_dem, s_dsm, win)) & ~no_dsm
-            water = read_window(s_top, s_dsm, win, fill=255) == 9
-            counts["no_first_return"] += int(no_dsm.sum())
-            counts["water"] += int((no_dem & water).sum())
-            counts["no_ground_near"] += int((no_dem & ~water).sum())
-            counts["cells"] += no_dsm.size
+            add_nodata_causes(counts, np.isnan(read_window(s_dsm, s_dsm, win)), np.isnan(read_window(s_dem, s_dsm, win)),
+                              read_window(s_top, s_dsm, win, fill=255))
             return {}
 
         run_blockwise(s_dsm, {}, compute, block=block)
-    cells = max(counts.pop("cells"), 1)
-    return {k: v / cells for k, v in counts.items()}
+    return nodata_cause_shares(counts)
 
 
 def band_summary(bands, wetveg=None, *, block: int = BLOCK) -> dict:
