@@ -10,7 +10,7 @@ ratio (target >= 0.5) and the projected time of a 733-tile county of the same de
 Levy density, < 10 min), with the seconds by stage from the reports' own timers.
 
     python benchmarks/bench_shrub.py [--points 40e6] [--workdir /tmp/gistools-bench-shrub]
-    python benchmarks/bench_shrub.py --levy     # 16 tiles at the Levy delivery's 4 ft pulse spacing
+    python benchmarks/bench_shrub.py --levy [--repeat 3]    # 16 tiles at the Levy delivery's 4 ft pulse spacing
 
 The county projection is made twice: at the 16-tile throughput (per-run costs counted 46 times over) and from
 the 8-tile and 16-tile runs apart (a cost a tile plus a cost a run, each measured).
@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import statistics
 import subprocess
 import sys
 import textwrap
@@ -99,6 +100,8 @@ def main(argv=None):
     ap.add_argument("--workdir", default=None,
                     help="default /tmp/gistools-bench-shrub (--levy: /tmp/gistools-bench-levy16)")
     ap.add_argument("--levy", action="store_true", help="the Levy delivery's density: 4 ft pulse spacing (25.5e6 points)")
+    ap.add_argument("--repeat", type=int, default=1, help="run the 8- and 16-tile --jobs 2 runs this many times each, "
+                                                          "alternating, and project from their medians")
     args = ap.parse_args(argv)
     points = args.points or (25.5e6 if args.levy else 40e6)
     work = Path(args.workdir or ("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
@@ -128,15 +131,22 @@ def main(argv=None):
     for jobs in (1, 2):
         ratio = rows[f"rasters --jobs {jobs}"]["seconds"] / rows[f"shrub --jobs {jobs}"]["seconds"]
         print(f"--jobs {jobs}: whole chain / DSM+DEM throughput {ratio:.2f} (target >= 0.5)")
-    # per-run costs (starting the workers, the map) measured apart: the 8-tile runs against the 16-tile ones
+    # per-run costs (starting the workers, the map) measured apart: the 8-tile runs against the 16-tile ones; with
+    # --repeat N, N of each, alternating, and their medians (a difference of two runs carries both runs' noise)
     print()
     for kind in ("rasters", "shrub"):
-        t8 = chain_run(kind, half, work / f"out_{kind}8", 2, vectors)["seconds"]
-        t16 = rows[f"{kind} --jobs 2"]["seconds"]
+        t8s, t16s = [], [rows[f"{kind} --jobs 2"]["seconds"]]
+        for k in range(args.repeat):
+            t8s.append(chain_run(kind, half, work / f"out_{kind}8", 2, vectors)["seconds"])
+            if k + 1 < args.repeat:
+                t16s.append(chain_run(kind, [work / "tiles"], work / f"out_{kind}2", 2, vectors)["seconds"])
+        t8, t16 = statistics.median(t8s), statistics.median(t16s)
         per_tile = (t16 - t8) / 8
         per_run = t16 - 16 * per_tile
-        print(f"{kind} --jobs 2: 8 tiles {t8:.1f} s, 16 tiles {t16:.1f} s: {per_tile:.2f} s a tile + {per_run:.1f} s a run; "
-              f"733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min (16-tile throughput: "
+        runs = f" (medians of {args.repeat}: {', '.join(f'{v:.1f}' for v in t8s)}; {', '.join(f'{v:.1f}' for v in t16s)})" \
+            if args.repeat > 1 else ""
+        print(f"{kind} --jobs 2: 8 tiles {t8:.1f} s, 16 tiles {t16:.1f} s{runs}: {per_tile:.2f} s a tile + {per_run:.1f} s "
+              f"a run; 733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min (16-tile throughput: "
               f"{t16 / 16 * COUNTY_TILES / 60:.1f} min)", flush=True)
 
 
