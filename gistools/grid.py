@@ -99,17 +99,16 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     return Grid(transform, c1 - c0, r1 - r0, crs)
 
 
-_CELL_INDEX = []  # the compiled kernel's gt_cell_index, once looked up (None: not built)
+_CELL_INDEX_ARGS = (ctypes.c_int64, np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS"),
+                    np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS"), ctypes.c_double, ctypes.c_int64,
+                    ctypes.c_int64, ctypes.c_int64, ctypes.c_int64, np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS"))
 
 
 def _cell_index_kernel():
-    if not _CELL_INDEX:
-        from .lidar.tin import kernel_function  # gistools' compiled kernel (lidar/_tinkernel.c), when built
+    """The compiled kernel's gt_cell_index (lidar/_tinkernel.c), or None where it is not built."""
+    from .lidar.tin import kernel_function  # here: lidar.tin imports this module
 
-        f64, i64 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.float64, np.int64))
-        n = ctypes.c_int64
-        _CELL_INDEX.append(kernel_function("gt_cell_index", [n, f64, f64, ctypes.c_double, n, n, n, n, i64]))
-    return _CELL_INDEX[0]
+    return kernel_function("gt_cell_index", _CELL_INDEX_ARGS)
 
 
 def cell_index(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:

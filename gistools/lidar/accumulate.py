@@ -45,19 +45,15 @@ def max_into(dsm: np.ndarray, cell: np.ndarray, z: np.ndarray) -> None:
     np.maximum.at(dsm, cell, z)
 
 
-_MAX_WITH_CLASS = []  # the compiled kernel's gt_max_with_class, once looked up (None: not built)
-
-
 def _max_with_class_kernel():
-    if not _MAX_WITH_CLASS:
-        import ctypes
+    """The compiled kernel's gt_max_with_class (lidar/_tinkernel.c), or None where it is not built."""
+    import ctypes
 
-        from .tin import kernel_function
+    from .tin import kernel_function  # here: the kernel loads with lidar.tin
 
-        f64, i64, u8 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.float64, np.int64, np.uint8))
-        n = ctypes.c_int64
-        _MAX_WITH_CLASS.append(kernel_function("gt_max_with_class", [n, i64, f64, u8, u8, n, f64, u8, f64, u8]))
-    return _MAX_WITH_CLASS[0]
+    f64, i64, u8 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.float64, np.int64, np.uint8))
+    n = ctypes.c_int64
+    return kernel_function("gt_max_with_class", (n, i64, f64, u8, u8, n, f64, u8, f64, u8))
 
 
 def max_with_class(dsm, top_class, cell, z, cls) -> None:

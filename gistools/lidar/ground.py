@@ -131,7 +131,7 @@ def _kernel_function(name: str, *argtypes):
     """tin.kernel_function with this module's result types."""
     from .tin import kernel_function
 
-    return kernel_function(name, argtypes, ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None)
+    return kernel_function(name, tuple(argtypes), ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None)
 
 
 _F64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")

@@ -15,6 +15,7 @@ proportion to the cells, not to points x cells.
 from __future__ import annotations
 
 import ctypes
+import functools
 import os
 
 import numpy as np
@@ -51,9 +52,11 @@ def _load_kernel():
 _KERNEL = _load_kernel()
 
 
-def kernel_function(name: str, argtypes: list, restype=None):
+@functools.cache
+def kernel_function(name: str, argtypes: tuple, restype=None):
     """A function of gistools' compiled kernel (lidar/_tinkernel.c) with its argument and result types, or None
-    where the kernel is not built (or predates it): the caller's numpy code then runs, with the same values."""
+    where the kernel is not built (or predates it): the caller's numpy code then runs, with the same values. Looked
+    up once per name (cached), so callers may ask for it on every call."""
     fn = getattr(_KERNEL, name, None) if _KERNEL is not None else None
     if fn is not None:
         fn.argtypes = list(argtypes)
