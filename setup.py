@@ -9,7 +9,8 @@ import sys
 from setuptools import Extension, setup
 
 # -fno-wrapv: Python builds extensions with -fwrapv (signed overflow defined), which holds back the grid loops;
-# the kernel never relies on signed overflow
-flags = [] if sys.platform == "win32" else ["-O3", "-std=c99", "-fno-wrapv"]
+# the kernel never relies on signed overflow; -ffp-contract=off: no fused multiply-adds (aarch64 would contract
+# a * b + c), so the kernel's float64 arithmetic is numpy's (cell indices, scaled z)
+flags = [] if sys.platform == "win32" else ["-O3", "-std=c99", "-fno-wrapv", "-ffp-contract=off"]
 setup(ext_modules=[Extension("gistools.lidar._tinkernel", ["gistools/lidar/_tinkernel.c"],
                              extra_compile_args=flags, optional=True)])

@@ -46,8 +46,13 @@ class Extent:
     def add(self, x, y, where):
         """Add the points of x, y under the boolean mask ``where`` (reduced in place, no copy)."""
         if where.any():
-            b = (float(np.min(x, where=where, initial=np.inf)), float(np.min(y, where=where, initial=np.inf)),
-                 float(np.max(x, where=where, initial=-np.inf)), float(np.max(y, where=where, initial=-np.inf)))
+            self.add_box((np.min(x, where=where, initial=np.inf), np.min(y, where=where, initial=np.inf),
+                          np.max(x, where=where, initial=-np.inf), np.max(y, where=where, initial=-np.inf)))
+
+    def add_box(self, box):
+        """Add a box (west, south, east, north) of points; an empty one (west > east) adds nothing."""
+        b = tuple(float(v) for v in box)
+        if b[0] <= b[2]:
             self.box = b if self.box is None else (min(self.box[0], b[0]), min(self.box[1], b[1]),
                                                    max(self.box[2], b[2]), max(self.box[3], b[3]))
 

@@ -998,6 +998,94 @@ void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const ui
     }
 }
 
+/* Pass 1 of the rasters over one chunk of points (lidar/scan.py scan_chunk; the same result as its numpy form, one
+ * pass instead of about fifteen). Per point: class and return-number counts (all points); for the usable ones (cell
+ * >= 0, not withheld): a surface first return (surface[class], return number <= 1) goes into the DSM (with `top`:
+ * the class of its highest point, as gt_max_with_class, cm / tc its scratch; without: the max), and with
+ * `bare_first` its first-return record (bare ones counted per cell, the others' cell and float32 z listed); a
+ * ground point (class `gclass`) is counted per cell, its LAS integers X, Y, Z listed in `grec` (and its index in
+ * `gidx` when given), and again in `hrec` with its halo strip in `hside` when it lies in one (1 west, 2 east, 3
+ * south, 4 north; `edges`: west + b, east - b, south + b, north - b); it grows the extents `boxes` (5 x (west,
+ * south, east, north): all ground, then the strips); a water point (class `wclass`) is counted per cell.
+ * X, Y, Z: the LAS integers at a byte stride (laspy's views of the point records); z = Z * zscale + zoffset, as
+ * laspy scales it. counts: first-return records, ground points, points outside the grid (cell -1), halo records.
+ * Null `gcount`: no ground or water work; null `bare_first`: no first-return records. */
+void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double *y, const char *X, int64_t xstride,
+                   const char *Y, int64_t ystride, const char *Z, int64_t zstride, double zscale, double zoffset,
+                   const uint8_t *cls, const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface,
+                   const uint8_t *bare, int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc,
+                   int64_t *by_class, int64_t *by_return, int64_t *bare_first, int32_t *first_cell, float *first_z,
+                   int64_t gclass, int64_t wclass, int64_t *gcount, int64_t *wcount, const double *edges, int32_t *grec,
+                   int64_t *gidx, int32_t *hrec, uint8_t *hside, double *boxes, int64_t *counts) {
+    int64_t nf = 0, ng = 0, nout = 0, nh = 0;
+    if (top)
+        for (int64_t c = 0; c < ncells; c++) cm[c] = -INFINITY;
+    for (int64_t i = 0; i < n; i++) {
+        uint8_t k = cls[i], r = rn[i];
+        by_class[k]++;
+        by_return[r < 15 ? r : 15]++;
+        int64_t c = cell[i];
+        if (c < 0) {
+            nout++;
+            continue;
+        }
+        if (withheld[i]) continue;
+        if (surface[k] && r <= 1) {
+            double v = (double)*(const int32_t *)(Z + i * zstride) * zscale + zoffset;
+            if (bare_first) {
+                if (bare[k]) {
+                    bare_first[c]++;
+                } else {
+                    first_cell[nf] = (int32_t)c;
+                    first_z[nf++] = (float)v;
+                }
+            }
+            if (top) {
+                if (v > cm[c]) {
+                    cm[c] = v;
+                    tc[c] = k;
+                } else if (v == cm[c] && (bare[k] || !bare[tc[c]])) {
+                    tc[c] = k;
+                }
+            } else if (v > dsm[c]) {
+                dsm[c] = v;
+            }
+        }
+        if (!gcount) continue;
+        if (k == wclass) wcount[c]++;
+        if (k != gclass) continue;
+        gcount[c]++;
+        int32_t rec[3] = {*(const int32_t *)(X + i * xstride), *(const int32_t *)(Y + i * ystride),
+                          *(const int32_t *)(Z + i * zstride)};
+        memcpy(grec + 3 * ng, rec, sizeof rec);
+        if (gidx) gidx[ng] = i;
+        ng++;
+        double px = x[i], py = y[i];
+        uint8_t sd = px < edges[0] ? 1 : px > edges[1] ? 2 : py < edges[2] ? 3 : py > edges[3] ? 4 : 0;
+        if (sd) {
+            memcpy(hrec + 3 * nh, rec, sizeof rec);
+            hside[nh++] = sd;
+        }
+        for (int b = 0; b < (sd ? 2 : 1); b++) {
+            double *bx = boxes + 4 * (b ? sd : 0);
+            if (px < bx[0]) bx[0] = px;
+            if (py < bx[1]) bx[1] = py;
+            if (px > bx[2]) bx[2] = px;
+            if (py > bx[3]) bx[3] = py;
+        }
+    }
+    if (top)
+        for (int64_t c = 0; c < ncells; c++) {
+            if (cm[c] == -INFINITY) continue;
+            if (cm[c] > dsm[c] || (cm[c] == dsm[c] && bare[tc[c]])) top[c] = tc[c];
+            if (cm[c] > dsm[c]) dsm[c] = cm[c];
+        }
+    counts[0] = nf;
+    counts[1] = ng;
+    counts[2] = nout;
+    counts[3] = nh;
+}
+
 /* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
 void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
     for (int64_t i = 0; i < n; i++) {

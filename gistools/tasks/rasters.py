@@ -33,10 +33,10 @@ from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
 from ..io.raster import NODATA, atomic_path, crs_from_wkt, write_raster, write_vrt
 from ..io.tiles import find_tiles
-from ..lidar.accumulate import (ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, is_groundish, max_into,
-                               max_with_class, merge_top_class, surface_classes)
+from ..lidar.accumulate import ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, merge_top_class, surface_classes
 from ..lidar.bands import add_nodata_causes, nodata_cause_shares
 from ..lidar.dsmfill import DSM_FILLS
+from ..lidar.scan import GROUND_CLASS, WATER_CLASS, ScanGrids, scan_chunk, surface_mask
 from ..lidar.gridding import DEM_FILLS, DEM_METHODS, dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
@@ -56,8 +56,6 @@ log = logging.getLogger(__name__)
 
 PRODUCTS = ("dsm", "dem", "ndsm", "topclass")
 DEFAULT_PRODUCTS = ("dsm", "dem", "ndsm")
-GROUND_CLASS = 2
-WATER_CLASS = 9
 
 
 @dataclass(frozen=True)
@@ -206,22 +204,17 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     Memory stays flat whatever the tile size: only the grids and one chunk are held.
     """
     grid = _tile_grid(info, run)
-    n = grid.width * grid.height
     need_dem = bool({"dem", "ndsm"} & set(run.products))
-    track_top = "topclass" in run.products
-    dsm = np.full(n, -np.inf)
-    top_class = np.full(n, TOPCLASS_NODATA, np.uint8)
-    bare_first = np.zeros(n, np.int64)
-    ground_count = np.zeros(n, np.int64)
-    water_count = np.zeros(n, np.int64)
-    by_class = np.zeros(256, np.int64)
-    by_return = np.zeros(16, np.int64)
+    grids = ScanGrids.empty(grid.width * grid.height, track_top="topclass" in run.products,
+                            keep_first=run.return_breaks is not None, keep_ground=need_dem, nodata_class=TOPCLASS_NODATA)
     outside = 0
     done = 0
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
     sides = {k: Extent() for k in ("ground", *HALO_SIDES)}
     out_box = Extent()
     scale_offset = None
+    west, south, east, north = info.bounds
+    halo_edges = (west + run.buffer, east - run.buffer, south + run.buffer, north - run.buffer)
     shore = ShoreMinima(run.water, info.bounds, run.shore_width) if run.water and need_dem else None
     fill = DsmFillScan(run, info, grid) if run.dsm_fill != "none" else None
     with contextlib.ExitStack() as files:
@@ -230,45 +223,42 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         first_out = files.enter_context(open(first_path, "wb"))
         fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
         surface_class = surface_classes(run.dsm_classes)
-        flat_dsm = dsm  # 1-D view
         for chunk in iter_chunks(info, run.chunk_size, fields=fields):
-            cls = chunk.classification
-            by_class += np.bincount(cls, minlength=256)[:256]
-            by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
             cell = cell_index(grid, chunk.x, chunk.y)  # -1 outside the grid, i.e. outside the header bounds
-            inside = cell >= 0
-            n_out = int(len(cell) - np.count_nonzero(inside))
-            if n_out:
-                outside += n_out
-                out_box.add(chunk.x, chunk.y, ~inside)
-            usable = inside & ~chunk.withheld
-            # DSM: first returns (return number 0 = not recorded, taken as first) of the chosen classes
-            surface = usable & surface_class[cls] & (chunk.return_number <= 1)
-            if run.return_breaks is not None:
-                _add_first_returns(chunk, surface, cell, bare_first, first_out)
-            _add_surface(chunk, surface, cell, flat_dsm, top_class if track_top else None, fill)
+            raw = chunk.raw
+            scan = scan_chunk(grids, cell, chunk.x, chunk.y, (raw.X, raw.Y, raw.Z), raw.scales[2], raw.offsets[2],
+                              chunk.classification, chunk.return_number, chunk.withheld, surface=surface_class,
+                              halo_edges=halo_edges, ground_index=shore is not None)
+            if scan.outside:
+                outside += scan.outside
+                out_box.add(chunk.x, chunk.y, cell < 0)
+            if grids.keep_first:  # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
+                rec = np.empty(len(scan.first_cell), dtype=FIRST_DTYPE)
+                rec["cell"], rec["z"] = scan.first_cell, scan.first_z
+                rec.tofile(first_out)
+            if fill is not None:
+                surface = surface_mask(cell, chunk.classification, chunk.return_number, chunk.withheld, surface_class)
+                fill.add(chunk.x[surface], chunk.y[surface], scaled(chunk, "z", surface), cell[surface])
             if need_dem:
-                ground = usable & (cls == GROUND_CLASS)
-                ground_count += np.bincount(cell[ground], minlength=n)
-                water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=n)
-                scale_offset = ([float(v) for v in chunk.raw.scales], [float(v) for v in chunk.raw.offsets])
-                _write_ground(chunk, ground, info.bounds, run.buffer, ground_out, halo_out, sides, shore)
+                scale_offset = ([float(v) for v in raw.scales], [float(v) for v in raw.offsets])
+                _write_ground(chunk, scan, ground_out, halo_out, sides, shore)
             done += len(chunk)
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
     warnings = _outside_bounds(info, outside, done, out_box)
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps(meta))
-    finish_surface(dsm)
+    finish_surface(grids.dsm)
     save_grids(
         grids_folder(run.scratch, info.name),
-        dsm=dsm.reshape(grid.shape),
-        top_class=top_class.reshape(grid.shape),
-        bare_first=bare_first.reshape(grid.shape).astype(np.int32),
-        ground_count=ground_count.reshape(grid.shape).astype(np.int32),
-        water_count=water_count.reshape(grid.shape).astype(np.int32),
+        dsm=grids.dsm.reshape(grid.shape),
+        top_class=grids.top_class.reshape(grid.shape),
+        bare_first=grids.bare_first.reshape(grid.shape).astype(np.int32),
+        ground_count=grids.ground_count.reshape(grid.shape).astype(np.int32),
+        water_count=grids.water_count.reshape(grid.shape).astype(np.int32),
         **(fill.grids() if fill is not None else {}),
     )
+    by_class, by_return = grids.by_class, grids.by_return
     return {
         "points": int(by_class.sum()),
         "points_by_class": {int(c): int(v) for c, v in enumerate(by_class) if v},
@@ -285,51 +275,20 @@ def _shore_result(shore) -> dict:
             "shore_profile": shore.profiles() if shore is not None else {}}
 
 
-def _add_first_returns(chunk, surface, cell, bare_first, first_out) -> None:
-    """First returns for the band counts: bare ones (ground / water) counted per cell, the others written as (cell, z)
-    pairs, 8 bytes each, for their height above the DEM in pass 2."""
-    bare = surface & is_groundish[chunk.classification]
-    bare_first += np.bincount(cell[bare], minlength=len(bare_first))
-    other = surface & ~bare
-    rec = np.empty(int(np.count_nonzero(other)), dtype=FIRST_DTYPE)
-    rec["cell"] = cell[other]
-    rec["z"] = scaled(chunk, "z", other)
-    rec.tofile(first_out)
-
-
-def _add_surface(chunk, surface, cell, flat_dsm, top_class, fill) -> None:
-    """A chunk's surface returns into the partial DSM (and the class of its top, and what the DSM fill keeps)."""
-    surface_z = scaled(chunk, "z", surface)
-    if top_class is not None:
-        max_with_class(flat_dsm, top_class, cell[surface], surface_z, chunk.classification[surface])
-    else:
-        max_into(flat_dsm, cell[surface], surface_z)
-    if fill is not None:
-        fill.add(chunk.x[surface], chunk.y[surface], surface_z, cell[surface])
-
-
-def _write_ground(chunk, ground, bounds, b: float, ground_out, halo_out: dict, sides: dict, shore=None) -> None:
+def _write_ground(chunk, scan, ground_out, halo_out: dict, sides: dict, shore=None) -> None:
     """Append a chunk's ground points (the LAS integers) to the tile's ground file and to the halo strip of the
-    edge within ``b`` they lie near (each point in one strip at most: a tile narrower than two buffers has points
-    near both edges); grow the files' extents."""
-    west, south, east, north = bounds
-    raw = chunk.raw
-    rec = np.empty(int(np.count_nonzero(ground)), dtype=GROUND_DTYPE)
-    for axis in "XYZ":
-        rec[axis] = np.asarray(getattr(raw, axis))[ground]
-    rec.tofile(ground_out)
-    x, y = chunk.x, chunk.y  # masks on the whole chunk: cheaper than gathering the ground's x, y
-    sides["ground"].add(x, y, ground)
-    west_edge = ground & (x < west + b)
-    east_edge = ground & (x > east - b) & ~west_edge
-    between = ground & ~(west_edge | east_edge)
-    south_edge = between & (y < south + b)
-    north_edge = between & (y > north - b) & ~south_edge
-    for side, m in (("W", west_edge), ("E", east_edge), ("S", south_edge), ("N", north_edge)):
-        rec[m[ground]].tofile(halo_out[side])  # what the neighbours read
-        sides[side].add(x, y, m)
+    edge within the buffer they lie near (each point in one strip at most: a tile narrower than two buffers has
+    points near both edges); grow the files' extents."""
+    scan.ground_xyz.view(GROUND_DTYPE).tofile(ground_out)
+    sides["ground"].add_box(scan.boxes[0])
+    halo = scan.halo_xyz.view(GROUND_DTYPE)
+    for code, side in enumerate(HALO_SIDES, 1):
+        halo[scan.halo_side == code].tofile(halo_out[side])  # what the neighbours read
+        sides[side].add_box(scan.boxes[code])
     if shore is not None:  # --hydro-flatten: the lowest ground point of each water body's shore
-        shore.add(x, y, lambda mask: scaled(chunk, "z", mask), ground)
+        ground = np.zeros(len(chunk), bool)
+        ground[scan.ground_index] = True
+        shore.add(chunk.x, chunk.y, lambda mask: scaled(chunk, "z", mask), ground)
 
 
 def _outside_bounds(info: TileInfo, outside: int, done: int, out_box) -> list[str]:
