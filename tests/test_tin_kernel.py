@@ -180,3 +180,17 @@ def test_tin_at_points_equals_scipy_and_takes_the_lowest_of_repeats():
     vertex = np.array([5, -1])
     got = tin_at_points(x2, y2, z2, np.array([x[5], x[5]]), np.array([y[5], y[5]]), vertex=vertex)
     assert got == pytest.approx([z[5] - 3, z[5] - 3])
+
+
+def test_quantisation_rounds_as_numpy_rint():
+    """The kernel's integer coordinates (compiled, AVX2 where the CPU has it): rint((v - v0) * scale), halves to
+    even as numpy's rint, and the largest distance to an integer, on LAS-like values and exact halves."""
+    from gistools.lidar.tin import _to_integers
+
+    rng = np.random.default_rng(2)
+    v = np.concatenate([np.round(rng.uniform(400000, 405000, 100_001), 2), 400000 + np.arange(-8, 9) * 0.5])
+    for v0, scale in ((400000.0, 100.0), (400000.0, 2.0), (0.0, 2.0 ** -4)):
+        q, worst = _to_integers(v, v0, scale)
+        r = (v - v0) * scale
+        assert np.array_equal(q, np.rint(r).astype(np.int64))
+        assert worst == np.abs(r - np.rint(r)).max()

@@ -22,6 +22,14 @@
 
 typedef __int128 i128;
 
+/* the grid loops (and the quantisation: nearbyint inline) also built for AVX2, chosen at load time where the CPU has it (GCC / Clang on x86-64 Linux) */
+#if defined(__x86_64__) && defined(__linux__) && (defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 6))
+#define SIMD_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define SIMD_CLONES
+#endif
+
+
 /* sign of cross(q - p, r - p): > 0 when p, q, r turn counter-clockwise */
 static inline int ccw(int64_t px, int64_t py, int64_t qx, int64_t qy, int64_t rx, int64_t ry) {
     int64_t d = (qx - px) * (ry - py) - (qy - py) * (rx - px);
@@ -396,7 +404,7 @@ int64_t gt_delaunay(int64_t n, const int64_t *xin, const int64_t *yin, int32_t *
 }
 
 /* integer coordinates of v: rint((v - v0) * scale); returns the largest distance to an integer */
-double gt_quantise(int64_t n, const double *v, double v0, double scale, int64_t *out) {
+SIMD_CLONES double gt_quantise(int64_t n, const double *v, double v0, double scale, int64_t *out) {
     double worst = 0;
     for (int64_t i = 0; i < n; i++) {
         double r = (v[i] - v0) * scale;
@@ -584,13 +592,6 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
     }
     return written;
 }
-
-/* the grid loops also built for AVX2, chosen at load time where the CPU has it (GCC / Clang on x86-64 Linux) */
-#if defined(__x86_64__) && defined(__linux__) && (defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 6))
-#define SIMD_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define SIMD_CLONES
-#endif
 
 /* ------------------------------------------------------------------ grid morphology (lidar/ground.py: SMRF)
  * `iterations` grey dilations (is_max = 1) or erosions (0) of a rows x cols row-major grid by the 4-neighbour
