@@ -138,9 +138,14 @@ def write_raster(
     """
     path = Path(path)
     data = np.asarray(array)
-    if np.issubdtype(data.dtype, np.floating):
-        data = np.where(np.isnan(data), nodata, data)
-    data = data.astype(dtype)
+    if not np.issubdtype(data.dtype, np.floating):
+        data = data.astype(dtype)
+    elif np.issubdtype(np.dtype(dtype), np.floating):  # cast first, then nodata into the copy: two passes fewer
+        nan = np.isnan(data)
+        data = data.astype(dtype)
+        data[nan] = nodata
+    else:
+        data = np.where(np.isnan(data), nodata, data).astype(dtype)
     profile = dict(
         driver="GTiff",
         width=grid.width,
