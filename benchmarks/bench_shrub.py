@@ -11,6 +11,7 @@ Levy density, < 10 min), with the seconds by stage from the reports' own timers.
 
     python benchmarks/bench_shrub.py [--points 40e6] [--workdir /tmp/gistools-bench-shrub]
     python benchmarks/bench_shrub.py --levy [--repeat 3]    # 16 tiles at the Levy delivery's 4 ft pulse spacing
+    python benchmarks/bench_shrub.py --levy --code /path/to/other/checkout   # time another commit with this script
 
 The county projection is made twice: at the 16-tile throughput (per-run costs counted 46 times over) and from
 the 8-tile and 16-tile runs apart (a cost a tile plus a cost a run, each measured).
@@ -31,6 +32,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 PY = sys.executable
+CODE = ROOT  # the gistools checkout the runs time (--code: another one, e.g. an earlier commit, with this script)
 TILE_FT = 5000.0
 COUNTY_TILES = 733
 
@@ -73,7 +75,7 @@ def generate(work: Path, points: float) -> dict:
 
 
 def run_child(code: str) -> dict:
-    full = "import json, sys, time\nsys.path.insert(0, %r)\nif __name__ == '__main__':\n" % str(ROOT) + \
+    full = "import json, sys, time\nsys.path.insert(0, %r)\nif __name__ == '__main__':\n" % str(CODE) + \
         textwrap.indent(textwrap.dedent(code), "    ")
     out = subprocess.run([PY, "-c", full], capture_output=True, text=True)
     if out.returncode != 0:
@@ -102,7 +104,10 @@ def main(argv=None):
     ap.add_argument("--levy", action="store_true", help="the Levy delivery's density: 4 ft pulse spacing (25.5e6 points)")
     ap.add_argument("--repeat", type=int, default=1, help="run the 8- and 16-tile --jobs 2 runs this many times each, "
                                                           "alternating, and project from their medians")
+    ap.add_argument("--code", default=None, help="the gistools checkout to time (default: this one)")
     args = ap.parse_args(argv)
+    global CODE
+    CODE = Path(args.code).resolve() if args.code else ROOT
     points = args.points or (25.5e6 if args.levy else 40e6)
     work = Path(args.workdir or ("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
     work.mkdir(parents=True, exist_ok=True)

@@ -175,6 +175,7 @@ def test_class_polygons_layer(shrub_run, shrub_area=None):
     assert gdf.crs.to_epsg() == 2882
     assert set(gdf["class"]) == {"light", "medium", "heavy", "road", "water"}
     assert gdf.is_valid.all() and (gdf.groupby(["tile", "class"]).size() == 1).all()  # one dissolved row per tile and class
+    assert list(gdf["tile"]) == sorted(gdf["tile"])  # rows by tile, whichever worker finished first
     for name in ("light", "medium", "heavy"):
         assert gdf.loc[gdf["class"] == name, "area"].sum() == pytest.approx(report["class_area"][name], rel=1e-6)
     assert np.allclose(gdf["area_acres"], gdf["area"] * (1200 / 3937) ** 2 / 4046.8564224)

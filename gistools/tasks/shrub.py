@@ -227,10 +227,19 @@ def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, rep
     }
 
 
-def _subset(vec, bounds, margin):
-    """Vector geometries near a tile (what one worker needs)."""
+def _vector_trees(vec) -> dict:
+    """An R-tree (shapely.STRtree) of each vector layer: a tile's geometries are found in O(log n), not by testing
+    every geometry of the county for every tile."""
+    return {k: shapely.STRtree(v) for k, v in vec.items() if v is not None}
+
+
+def _subset(vec, bounds, margin, trees=None):
+    """Vector geometries near a tile (what one worker needs), in their layer's order: those that intersect the
+    tile's box grown by ``margin``. ``trees``: _vector_trees(vec), built once for all the tiles."""
     area = box(*bounds).buffer(margin)
-    return {k: (None if v is None else [g for g in v if g is not None and g.intersects(area)]) for k, v in vec.items()}
+    trees = trees if trees is not None else _vector_trees(vec)
+    return {k: (None if v is None else [v[i] for i in np.sort(trees[k].query(area, predicate="intersects"))])
+            for k, v in vec.items()}
 
 
 STAGES = ("rasters", "bands", "clip", "density", "classes")
@@ -385,6 +394,8 @@ def _write_chain_outputs(out: Path, good: list, mosaic: dict, polygons: list, cr
         mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good],
                                     categories=CLASS_STYLE if product == "classes" else None)
     unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
+    # by tile (each tile's in the order its task made them): the same rows whatever order the workers finished in
+    polygons = sorted(polygons, key=lambda item: item[0])
     _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, unit.metres ** 2)
     if map_title and mosaic.get("classes"):
         map_from_classes(out, title=map_title, unit=unit)
@@ -468,8 +479,9 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
              pool, states, names, timed_as("bands", keep_outputs), tick, "bands", out)
     margin = p.max_road_width + p.max_hydro_width
     good = alive()
-    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin), p, out, causes.get(n))
-                          for n in good],
+    trees = _vector_trees(vec)
+    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin, trees), p, out,
+                           causes.get(n)) for n in good],
              pool, states, good, timed_as("clip", clip_done), tick, "clip", out)
     good = alive()
     for product in ("bands", "veg", "wetveg"):
