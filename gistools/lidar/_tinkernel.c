@@ -999,6 +999,13 @@ void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const ui
     }
 }
 
+/* the i-th int32 of a field at a byte stride (point records of 34 bytes leave it unaligned: memcpy, one load) */
+static inline int32_t las_int(const char *base, int64_t i, int64_t stride) {
+    int32_t v;
+    memcpy(&v, base + i * stride, sizeof v);
+    return v;
+}
+
 /* Pass 1 of the rasters over one chunk of points (lidar/scan.py scan_chunk; the same result as its numpy form, one
  * pass instead of about fifteen). Per point: class and return-number counts (all points); for the usable ones (cell
  * >= 0, not withheld): a surface first return (surface[class], return number <= 1) goes into the DSM (with `top`:
@@ -1032,7 +1039,7 @@ void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double
         }
         if (withheld[i]) continue;
         if (surface[k] && r <= 1) {
-            double v = (double)*(const int32_t *)(Z + i * zstride) * zscale + zoffset;
+            double v = (double)las_int(Z, i, zstride) * zscale + zoffset;
             if (bare_first) {
                 if (bare[k]) {
                     bare_first[c]++;
@@ -1056,8 +1063,7 @@ void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double
         if (k == wclass) wcount[c]++;
         if (k != gclass) continue;
         gcount[c]++;
-        int32_t rec[3] = {*(const int32_t *)(X + i * xstride), *(const int32_t *)(Y + i * ystride),
-                          *(const int32_t *)(Z + i * zstride)};
+        int32_t rec[3] = {las_int(X, i, xstride), las_int(Y, i, ystride), las_int(Z, i, zstride)};
         memcpy(grec + 3 * ng, rec, sizeof rec);
         if (gidx) gidx[ng] = i;
         ng++;
