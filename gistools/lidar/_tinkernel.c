@@ -22,7 +22,8 @@
 
 typedef __int128 i128;
 
-/* the grid loops (and the quantisation: nearbyint inline) also built for AVX2, chosen at load time where the CPU has it (GCC / Clang on x86-64 Linux) */
+/* the grid loops (and the quantisation: nearbyint inline) also built for AVX2, chosen at load time where the CPU
+ * has it (GCC / Clang on x86-64 Linux) */
 #if defined(__x86_64__) && defined(__linux__) && (defined(__clang__) || (defined(__GNUC__) && __GNUC__ >= 6))
 #define SIMD_CLONES __attribute__((target_clones("avx2", "default")))
 #else
@@ -974,6 +975,27 @@ SIMD_CLONES void gt_cell_index(int64_t n, const double *x, const double *y, doub
     }
 }
 
+/* one point (cell c, z v, class k) into a call's maxima cm and top classes tc: higher wins; on a tie the last bare
+ * one, else the last one */
+static inline void top_add(double *cm, uint8_t *tc, const uint8_t *bare, int64_t c, double v, uint8_t k) {
+    if (v > cm[c]) {
+        cm[c] = v;
+        tc[c] = k;
+    } else if (v == cm[c] && (bare[k] || !bare[tc[c]])) {
+        tc[c] = k;
+    }
+}
+
+/* a call's maxima and top classes merged into dsm / top: higher, or equal and bare, takes the call's class */
+static void top_merge(int64_t ncells, const double *cm, const uint8_t *tc, const uint8_t *bare, double *dsm,
+                      uint8_t *top) {
+    for (int64_t c = 0; c < ncells; c++) {
+        if (cm[c] == -INFINITY) continue; /* no point of this call */
+        if (cm[c] > dsm[c] || (cm[c] == dsm[c] && bare[tc[c]])) top[c] = tc[c];
+        if (cm[c] > dsm[c]) dsm[c] = cm[c];
+    }
+}
+
 /* The DSM's per-cell maximum of z and the class of the point giving it (lidar/accumulate.py max_with_class, the
  * same result): the points (flat cell, z, class) of one call first make the call's own maxima `cm` and top classes
  * `tc` (ties among the call's points: the last bare one, i.e. bare[class], else the last one), then these are merged
@@ -982,21 +1004,8 @@ SIMD_CLONES void gt_cell_index(int64_t n, const double *x, const double *y, doub
 void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const uint8_t *cls, const uint8_t *bare,
                        int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc) {
     for (int64_t c = 0; c < ncells; c++) cm[c] = -INFINITY;
-    for (int64_t i = 0; i < n; i++) {
-        int64_t c = cell[i];
-        double v = z[i];
-        if (v > cm[c]) {
-            cm[c] = v;
-            tc[c] = cls[i];
-        } else if (v == cm[c] && (bare[cls[i]] || !bare[tc[c]])) {
-            tc[c] = cls[i];
-        }
-    }
-    for (int64_t c = 0; c < ncells; c++) {
-        if (cm[c] == -INFINITY) continue; /* no point of this call */
-        if (cm[c] > dsm[c] || (cm[c] == dsm[c] && bare[tc[c]])) top[c] = tc[c];
-        if (cm[c] > dsm[c]) dsm[c] = cm[c];
-    }
+    for (int64_t i = 0; i < n; i++) top_add(cm, tc, bare, cell[i], z[i], cls[i]);
+    top_merge(ncells, cm, tc, bare, dsm, top);
 }
 
 /* the i-th int32 of a field at a byte stride (point records of 34 bytes leave it unaligned: memcpy, one load) */
@@ -1009,8 +1018,8 @@ static inline int32_t las_int(const char *base, int64_t i, int64_t stride) {
 /* Pass 1 of the rasters over one chunk of points (lidar/scan.py scan_chunk; the same result as its numpy form, one
  * pass instead of about fifteen). Per point: class and return-number counts (all points); for the usable ones (cell
  * >= 0, not withheld): a surface first return (surface[class], return number <= 1) goes into the DSM (with `top`:
- * the class of its highest point, as gt_max_with_class, cm / tc its scratch; without: the max), and with
- * `bare_first` its first-return record (bare ones counted per cell, the others' cell and float32 z listed); a
+ * the class of its highest point, by top_add / top_merge as in gt_max_with_class, cm / tc their scratch; without:
+ * the max), and with `bare_first` its first-return record (bare ones counted per cell, the others' cell and float32 z listed); a
  * ground point (class `gclass`) is counted per cell, its LAS integers X, Y, Z listed in `grec` (and its index in
  * `gidx` when given), and again in `hrec` with its halo strip in `hside` when it lies in one (1 west, 2 east, 3
  * south, 4 north; `edges`: west + b, east - b, south + b, north - b); it grows the extents `boxes` (5 x (west,
@@ -1049,12 +1058,7 @@ void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double
                 }
             }
             if (top) {
-                if (v > cm[c]) {
-                    cm[c] = v;
-                    tc[c] = k;
-                } else if (v == cm[c] && (bare[k] || !bare[tc[c]])) {
-                    tc[c] = k;
-                }
+                top_add(cm, tc, bare, c, v, k);
             } else if (v > dsm[c]) {
                 dsm[c] = v;
             }
@@ -1081,12 +1085,7 @@ void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double
             if (py > bx[3]) bx[3] = py;
         }
     }
-    if (top)
-        for (int64_t c = 0; c < ncells; c++) {
-            if (cm[c] == -INFINITY) continue;
-            if (cm[c] > dsm[c] || (cm[c] == dsm[c] && bare[tc[c]])) top[c] = tc[c];
-            if (cm[c] > dsm[c]) dsm[c] = cm[c];
-        }
+    if (top) top_merge(ncells, cm, tc, bare, dsm, top);
     counts[0] = nf;
     counts[1] = ng;
     counts[2] = nout;
