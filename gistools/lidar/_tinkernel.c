@@ -1019,14 +1019,14 @@ static inline int32_t las_int(const char *base, int64_t i, int64_t stride) {
  * pass instead of about fifteen). Per point: class and return-number counts (all points); for the usable ones (cell
  * >= 0, not withheld): a surface first return (surface[class], return number <= 1) goes into the DSM (with `top`:
  * the class of its highest point, by top_add / top_merge as in gt_max_with_class, cm / tc their scratch; without:
- * the max), and with `bare_first` its first-return record (bare ones counted per cell, the others' cell and float32 z listed); a
- * ground point (class `gclass`) is counted per cell, its LAS integers X, Y, Z listed in `grec` (and its index in
- * `gidx` when given), and again in `hrec` with its halo strip in `hside` when it lies in one (1 west, 2 east, 3
- * south, 4 north; `edges`: west + b, east - b, south + b, north - b); it grows the extents `boxes` (5 x (west,
- * south, east, north): all ground, then the strips); a water point (class `wclass`) is counted per cell.
- * X, Y, Z: the LAS integers at a byte stride (laspy's views of the point records); z = Z * zscale + zoffset, as
- * laspy scales it. counts: first-return records, ground points, points outside the grid (cell -1), halo records.
- * Null `gcount`: no ground or water work; null `bare_first`: no first-return records. */
+ * the max), and with `bare_first` its first-return record (bare ones counted per cell, the others' cell and float32
+ * z listed); a ground point (class `gclass`) is counted per cell, its LAS integers X, Y, Z listed in `grec` (and its
+ * index in `gidx` when given), and again in `hrec` with its halo strip in `hside` when it lies in one (1 west, 2
+ * east, 3 south, 4 north; `edges`: west + b, east - b, south + b, north - b); it grows the extents `boxes` (5 x
+ * (west, south, east, north): all ground, then the strips); a water point (class `wclass`) is counted per cell. X,
+ * Y, Z: the LAS integers at a byte stride (laspy's views of the point records); z = Z * zscale + zoffset, as laspy
+ * scales it. counts: first-return records, ground points, points outside the grid (cell -1), halo records. Null
+ * `gcount`: no ground or water work; null `bare_first`: no first-return records. */
 void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double *y, const char *X, int64_t xstride,
                    const char *Y, int64_t ystride, const char *Z, int64_t zstride, double zscale, double zoffset,
                    const uint8_t *cls, const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface,
