@@ -4,12 +4,17 @@ water, return numbers 0 to 20, tied heights, every halo strip), from strided LAS
 
 import numpy as np
 import pytest
+from affine import Affine
+
+from gistools.grid import Grid
 
 from gistools.lidar.accumulate import surface_classes
 from gistools.lidar.scan import ScanGrids, _kernel, _scan_chunk_numpy, scan_chunk
 
 BARE = {2, 9}
 EDGES = (10.0, 90.0, 10.0, 90.0)  # west + b, east - b, south + b, north - b of a 100 x 100 tile with a 10 unit buffer
+GRID = Grid(Affine(5.0, 0, 0.0, 0, -5.0, 100.0), 20, 20)  # the tile's 5-unit cells
+SCALES, OFFSETS = (0.5, 0.5, 0.5), (0.0, 0.0, 100.0)
 
 
 def _points(rng, m):
@@ -95,8 +100,9 @@ def test_scan_chunk_matches_a_point_by_point_reference(keep, chunks):
     for form in (scan_chunk, _scan_chunk_numpy):
         g = ScanGrids.empty(400, track_top=track_top, keep_first=keep_first, keep_ground=keep_ground)
         for (rec, x, y, cls, rn, withheld, cell), (grec, hrec, hside, boxes, first, outside) in zip(parts, chunks_ref):
-            args = (g, cell, x, y, (rec["X"], rec["Y"], rec["Z"]), 0.5, 100.0, cls, rn, withheld)
+            args = (g, GRID, (rec["X"], rec["Y"], rec["Z"]), SCALES, OFFSETS, cls, rn, withheld)
             s = form(*args, surface=table, halo_edges=EDGES) if form is scan_chunk else form(*args, table, EDGES)
+            assert s.cell.dtype == np.int64 and np.array_equal(s.cell, cell)
             assert s.outside == outside
             assert s.ground_xyz.dtype == np.int32 and s.ground_xyz.tolist() == [list(r) for r in grec]
             assert s.halo_xyz.tolist() == [list(r) for r in hrec] and s.halo_side.tolist() == hside
@@ -113,7 +119,7 @@ def test_scan_chunk_gives_the_ground_points_indices_when_asked():
     rng = np.random.default_rng(3)
     rec, x, y, cls, rn, withheld, cell = _points(rng, 2000)
     g = ScanGrids.empty(400, track_top=False, keep_first=False, keep_ground=True)
-    s = scan_chunk(g, cell, x, y, (rec["X"], rec["Y"], rec["Z"]), 0.5, 100.0, cls, rn, withheld,
+    s = scan_chunk(g, GRID, (rec["X"], rec["Y"], rec["Z"]), SCALES, OFFSETS, cls, rn, withheld,
                    surface=surface_classes(None), halo_edges=EDGES, ground_index=True)
     want = np.flatnonzero((cell >= 0) & ~withheld & (cls == 2))
     assert np.array_equal(s.ground_index, want)

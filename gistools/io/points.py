@@ -87,7 +87,7 @@ class PointChunk:
     raw: object = None  # the laspy point record, for fields not extracted (e.g. raw integer Z)
 
     def __len__(self) -> int:
-        return len(self.x)
+        return len(self.raw) if self.raw is not None else len(self.x)
 
     def subset(self, mask: np.ndarray) -> "PointChunk":
         return PointChunk(

@@ -1024,24 +1024,30 @@ static inline int32_t las_int(const char *base, int64_t i, int64_t stride) {
  * index in `gidx` when given), and again in `hrec` with its halo strip in `hside` when it lies in one (1 west, 2
  * east, 3 south, 4 north; `edges`: west + b, east - b, south + b, north - b); it grows the extents `boxes` (5 x
  * (west, south, east, north): all ground, then the strips); a water point (class `wclass`) is counted per cell. X,
- * Y, Z: the LAS integers at a byte stride (laspy's views of the point records); z = Z * zscale + zoffset, as laspy
- * scales it. counts: first-return records, ground points, points outside the grid (cell -1), halo records. Null
- * `gcount`: no ground or water work; null `bare_first`: no first-return records. */
-void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double *y, const char *X, int64_t xstride,
-                   const char *Y, int64_t ystride, const char *Z, int64_t zstride, double zscale, double zoffset,
-                   const uint8_t *cls, const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface,
+ * Y, Z: the LAS integers at a byte stride (laspy's views of the point records); `so`: their scales and offsets
+ * (x, y, z scale, then x, y, z offset): x = X * xscale + xoffset, as laspy scales them. Each point's flat cell
+ * index (-1 outside the grid; `gp`: cell size, col0, row_top, width, height, as gt_cell_index) goes into `cell`.
+ * counts: first-return records, ground points, points outside the grid, halo records. Null `gcount`: no ground or
+ * water work; null `bare_first`: no first-return records. */
+SIMD_CLONES void gt_scan_chunk(int64_t n, const char *X, int64_t xstride, const char *Y, int64_t ystride, const char *Z,
+                   int64_t zstride, const double *so, const double *gp, int64_t *cell, const uint8_t *cls, const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface,
                    const uint8_t *bare, int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc,
                    int64_t *by_class, int64_t *by_return, int64_t *bare_first, int32_t *first_cell, float *first_z,
                    int64_t gclass, int64_t wclass, int64_t *gcount, int64_t *wcount, const double *edges, int32_t *grec,
                    int64_t *gidx, int32_t *hrec, uint8_t *hside, double *boxes, int64_t *counts) {
     int64_t nf = 0, ng = 0, nout = 0, nh = 0;
+    const double xscale = so[0], yscale = so[1], zscale = so[2], xoffset = so[3], yoffset = so[4], zoffset = so[5];
+    const double size = gp[0], c0 = gp[1], top_row = gp[2] - 1, w = gp[3], h = gp[4];
     if (top)
         for (int64_t c = 0; c < ncells; c++) cm[c] = -INFINITY;
     for (int64_t i = 0; i < n; i++) {
         uint8_t k = cls[i], r = rn[i];
         by_class[k]++;
         by_return[r < 15 ? r : 15]++;
-        int64_t c = cell[i];
+        double px = (double)las_int(X, i, xstride) * xscale + xoffset, py = (double)las_int(Y, i, ystride) * yscale + yoffset;
+        double col = floor(px / size) - c0, row = top_row - floor(py / size);
+        int64_t c = (col >= 0 && col < w && row >= 0 && row < h) ? (int64_t)(row * w + col) : -1;
+        cell[i] = c;
         if (c < 0) {
             nout++;
             continue;
@@ -1071,7 +1077,6 @@ void gt_scan_chunk(int64_t n, const int64_t *cell, const double *x, const double
         memcpy(grec + 3 * ng, rec, sizeof rec);
         if (gidx) gidx[ng] = i;
         ng++;
-        double px = x[i], py = y[i];
         uint8_t sd = px < edges[0] ? 1 : px > edges[1] ? 2 : py < edges[2] ? 3 : py > edges[3] ? 4 : 0;
         if (sd) {
             memcpy(hrec + 3 * nh, rec, sizeof rec);

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..grid import Grid, cell_index
 from .accumulate import _max_with_class_numpy, is_groundish, max_into
 
 __all__ = ["GROUND_CLASS", "WATER_CLASS", "ScanGrids", "ChunkScan", "scan_chunk", "surface_mask"]
@@ -53,12 +54,14 @@ class ScanGrids:
 
 @dataclass
 class ChunkScan:
-    """What a chunk gives beyond the grids: its usable ground points as the LAS integers X, Y, Z (``ground_xyz``, n x
+    """What a chunk gives beyond the grids: each point's flat cell index (``cell``, int64, -1 outside the grid); its
+    usable ground points as the LAS integers X, Y, Z (``ground_xyz``, n x
     3 int32, in order; ``ground_index``: their indices into the chunk, when asked for), those within the buffer of an
     edge again (``halo_xyz``) with their strip (``halo_side``: 1-4 = west, east, south, north), the extents (west,
     south, east, north, CRS units) of all of them and of each strip (``boxes``, 5 x 4, inf where empty), its
     non-bare surface first returns (cell int32, z float32) and how many points lie outside the grid."""
 
+    cell: np.ndarray
     ground_xyz: np.ndarray
     ground_index: np.ndarray | None
     halo_xyz: np.ndarray
@@ -86,7 +89,7 @@ def _kernel():
     n, d = ctypes.c_int64, ctypes.c_double
     f64, i64, i32, u8, f32 = arr(np.float64), arr(np.int64), arr(np.int32), arr(np.uint8), arr(np.float32)
     return kernel_function("gt_scan_chunk", (
-        n, i64, f64, f64, ptr, n, ptr, n, ptr, n, d, d, u8, u8, u8, u8, u8, n, f64, ptr, f64, u8, i64, i64, ptr, i32, f32,
+        n, ptr, n, ptr, n, ptr, n, f64, f64, i64, u8, u8, u8, u8, u8, n, f64, ptr, f64, u8, i64, i64, ptr, i32, f32,
         n, n, ptr, ptr, f64, i32, ptr, i32, u8, f64, i64))
 
 
@@ -98,23 +101,26 @@ def _strided_int32(a) -> np.ndarray:
     return a
 
 
-def scan_chunk(grids: ScanGrids, cell, x, y, xyz_raw, z_scale: float, z_offset: float, cls, return_number, withheld, *,
+def scan_chunk(grids: ScanGrids, grid: Grid, xyz_raw, scales, offsets, cls, return_number, withheld, *,
                surface: np.ndarray, halo_edges, ground_index: bool = False) -> ChunkScan:
-    """One chunk into ``grids`` (in place); returns its :class:`ChunkScan`.
+    """One chunk into ``grids`` (in place; ``grid``: the tile's); returns its :class:`ChunkScan`.
 
-    cell: flat cell index per point (grid.cell_index, -1 outside); x, y: float64 CRS units; xyz_raw: the LAS
-    integers X, Y, Z (z = Z * z_scale + z_offset, as laspy scales them); cls, return_number: uint8; withheld: bool;
+    xyz_raw: the LAS integers X, Y, Z, with the header's ``scales`` and ``offsets`` (x = X * x scale + x offset, CRS
+    units, as laspy scales them; the cells as grid.cell_index finds them); cls, return_number: uint8; withheld: bool;
     surface: the class table of the DSM (accumulate.surface_classes); halo_edges: (west + buffer, east - buffer,
     south + buffer, north - buffer) of the tile: a ground point west of the first is in the west strip, else east
     of the second in the east strip, else south, else north. ``ground_index``: also give the ground points' indices."""
     fn = _kernel()
     if fn is None:
-        return _scan_chunk_numpy(grids, cell, x, y, xyz_raw, z_scale, z_offset, cls, return_number, withheld, surface,
+        return _scan_chunk_numpy(grids, grid, xyz_raw, scales, offsets, cls, return_number, withheld, surface,
                                  halo_edges, ground_index)
-    count = len(cell)
+    raw = [_strided_int32(a) for a in xyz_raw]
+    count = len(raw[0])
+    cell = np.empty(count, np.int64)
+    scale_offset = np.array([*scales, *offsets], np.float64)
+    lattice = np.array([grid.cell_size, grid.col0, grid.row_top, grid.width, grid.height], np.float64)
     cls, return_number, withheld = (np.ascontiguousarray(a).view(np.uint8) if np.asarray(a).dtype == bool
                                     else np.ascontiguousarray(a, np.uint8) for a in (cls, return_number, withheld))
-    raw = [_strided_int32(a) for a in xyz_raw]
     ncells = len(grids.dsm)
     g = grids
     first_cell = np.empty(count if g.keep_first else 0, np.int32)
@@ -130,28 +136,30 @@ def scan_chunk(grids: ScanGrids, cell, x, y, xyz_raw, z_scale: float, z_offset: 
     def address(a, on=True):
         return a.ctypes.data if on and a is not None else None
 
-    fn(count, np.ascontiguousarray(cell, np.int64), np.ascontiguousarray(x, np.float64), np.ascontiguousarray(y, np.float64),
-       *(v for a in raw for v in (address(a), a.strides[0])), float(z_scale), float(z_offset), cls, return_number,
+    fn(count, *(v for a in raw for v in (address(a), a.strides[0])), scale_offset, lattice, cell, cls, return_number,
        withheld, np.ascontiguousarray(surface).view(np.uint8), is_groundish.view(np.uint8), ncells, g.dsm,
        address(g.top_class, g.track_top), *scratch, g.by_class, g.by_return, address(g.bare_first, g.keep_first),
        first_cell, first_z, GROUND_CLASS, WATER_CLASS, address(g.ground_count, g.keep_ground),
        address(g.water_count, g.keep_ground), np.asarray(halo_edges, np.float64), ground_xyz, address(index), halo_xyz,
        halo_side, boxes, counts)
     nf, ng, outside, nh = (int(v) for v in counts)
-    return ChunkScan(ground_xyz[:ng], index[:ng] if index is not None else None, halo_xyz[:nh], halo_side[:nh], boxes,
-                     first_cell[:nf], first_z[:nf], outside)
+    return ChunkScan(cell, ground_xyz[:ng], index[:ng] if index is not None else None, halo_xyz[:nh], halo_side[:nh],
+                     boxes, first_cell[:nf], first_z[:nf], outside)
 
 
-def _scan_chunk_numpy(grids: ScanGrids, cell, x, y, xyz_raw, z_scale, z_offset, cls, return_number, withheld, surface,
+def _scan_chunk_numpy(grids: ScanGrids, grid: Grid, xyz_raw, scales, offsets, cls, return_number, withheld, surface,
                       halo_edges, ground_index=False) -> ChunkScan:
     """scan_chunk in numpy (where the kernel is not built; the reference its compiled form is tested against)."""
     g = grids
+    X, Y, Z = (np.asarray(a) for a in xyz_raw)
+    x, y = X * float(scales[0]) + float(offsets[0]), Y * float(scales[1]) + float(offsets[1])
+    z_scale, z_offset = float(scales[2]), float(offsets[2])
+    cell = cell_index(grid, x, y)
     g.by_class += np.bincount(cls, minlength=256)[:256]
     g.by_return += np.bincount(np.minimum(return_number, 15), minlength=16)[:16]
     inside = cell >= 0
     usable = inside & ~withheld
     surf = surface_mask(cell, cls, return_number, withheld, surface)
-    X, Y, Z = (np.asarray(a) for a in xyz_raw)
     z = Z[surf] * z_scale + z_offset
     first_cell, first_z = np.empty(0, np.int32), np.empty(0, np.float32)
     if g.keep_first:
@@ -168,7 +176,7 @@ def _scan_chunk_numpy(grids: ScanGrids, cell, x, y, xyz_raw, z_scale, z_offset, 
     outside = int(len(cell) - np.count_nonzero(inside))
     none = np.empty((0, 3), np.int32)
     if not g.keep_ground:
-        return ChunkScan(none, None, none, np.empty(0, np.uint8), boxes, first_cell, first_z, outside)
+        return ChunkScan(cell, none, None, none, np.empty(0, np.uint8), boxes, first_cell, first_z, outside)
     ground = usable & (cls == GROUND_CLASS)
     g.ground_count += np.bincount(cell[ground], minlength=len(g.ground_count))
     g.water_count += np.bincount(cell[usable & (cls == WATER_CLASS)], minlength=len(g.water_count))
@@ -187,5 +195,5 @@ def _scan_chunk_numpy(grids: ScanGrids, cell, x, y, xyz_raw, z_scale, z_offset, 
     xyz = np.column_stack([X[ground], Y[ground], Z[ground]]).astype(np.int32)
     side = side[ground]
     halo = side > 0
-    return ChunkScan(xyz, np.flatnonzero(ground) if ground_index else None, xyz[halo], side[halo], boxes, first_cell,
-                     first_z, outside)
+    return ChunkScan(cell, xyz, np.flatnonzero(ground) if ground_index else None, xyz[halo], side[halo], boxes,
+                     first_cell, first_z, outside)

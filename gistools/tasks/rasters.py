@@ -27,7 +27,7 @@ import numpy as np
 from affine import Affine
 
 from ..errors import Cancelled, DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
-from ..grid import Grid, cell_index, snapped_grid
+from ..grid import Grid, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.atomic import raise_output_error
 from ..io.outdir import SCRATCH_PREFIX, claim_output
@@ -221,17 +221,17 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         ground_out = files.enter_context(open(ground_file(run.scratch, info.name), "wb"))
         halo_out = {k: files.enter_context(open(ground_file(run.scratch, info.name, k), "wb")) for k in HALO_SIDES}
         first_out = files.enter_context(open(first_path, "wb"))
-        fields = ("x", "y", "classification", "return_number", "withheld")  # z is scaled only where used
+        fields = _scan_fields(whole_xy=shore is not None or fill is not None)
         surface_class = surface_classes(run.dsm_classes)
         for chunk in iter_chunks(info, run.chunk_size, fields=fields):
-            cell = cell_index(grid, chunk.x, chunk.y)  # -1 outside the grid, i.e. outside the header bounds
             raw = chunk.raw
-            scan = scan_chunk(grids, cell, chunk.x, chunk.y, (raw.X, raw.Y, raw.Z), raw.scales[2], raw.offsets[2],
-                              chunk.classification, chunk.return_number, chunk.withheld, surface=surface_class,
-                              halo_edges=halo_edges, ground_index=shore is not None)
+            scan = scan_chunk(grids, grid, (raw.X, raw.Y, raw.Z), raw.scales, raw.offsets, chunk.classification,
+                              chunk.return_number, chunk.withheld, surface=surface_class, halo_edges=halo_edges,
+                              ground_index=shore is not None)
+            cell = scan.cell  # -1 outside the grid, i.e. outside the header bounds
             if scan.outside:
                 outside += scan.outside
-                out_box.add(chunk.x, chunk.y, cell < 0)
+                _add_outside(out_box, chunk, cell < 0)
             if grids.keep_first:  # (cell, z) pairs, 8 bytes each, for their height above the DEM in pass 2
                 rec = np.empty(len(scan.first_cell), dtype=FIRST_DTYPE)
                 rec["cell"], rec["z"] = scan.first_cell, scan.first_z
@@ -267,6 +267,17 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         **_shore_result(shore),
         "warnings": warnings,
     }
+
+
+def _scan_fields(whole_xy: bool) -> tuple:
+    """The fields pass 1 has laspy extract: x and y only for the steps that use them whole (the scan scales x, y
+    itself, as laspy would; z is scaled only where used)."""
+    return ("classification", "return_number", "withheld") + (("x", "y") if whole_xy else ())
+
+
+def _add_outside(out_box: Extent, chunk, off: np.ndarray) -> None:
+    """Grow ``out_box`` by the chunk's points under ``off`` (those outside the grid), scaled only for them."""
+    out_box.add(scaled(chunk, "x", off), scaled(chunk, "y", off), np.ones(int(np.count_nonzero(off)), bool))
 
 
 def _shore_result(shore) -> dict:
