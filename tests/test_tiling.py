@@ -72,6 +72,21 @@ def test_dem_in_strips_equals_dem_in_one_piece(sample_tiles, sample_run, tmp_pat
     _compare(tmp_path, sample_run[0])
 
 
+def test_dem_tins_in_small_strips_equal_the_dem_of_one_tin(sample_tiles, sample_run, tmp_path, monkeypatch):
+    """The DEM's TINs built on strips of at most 5,000 ground points each (TIN_STRIP_POINTS, within one read
+    strip) give the same DEM as one TIN a tile, cell for cell."""
+    import gistools.tasks.rasters as rasters
+
+    monkeypatch.setattr(rasters, "TIN_STRIP_POINTS", 5_000)
+    assert max(rasters._strips(np.full(200, 100), 5_000), key=lambda s: s[1] - s[0]) == (0, 50)
+    summary = rasters_from_tiles(sample_tiles, tmp_path)
+    assert summary["counts"]["ok"] == 4
+    for tile in sample_tiles:
+        a, _, _ = read_raster(tmp_path / "dem" / f"{tile.stem}.tif")
+        b, _, _ = read_raster(sample_run[0] / "dem" / f"{tile.stem}.tif")
+        assert np.array_equal(a, b, equal_nan=True), tile.stem
+
+
 def test_dsm_only_run(sample_tiles, sample_run, tmp_path):
     summary = rasters_from_tiles(sample_tiles, tmp_path, RasterSettings(products=("dsm",)))
     assert sorted(summary["mosaics"]) == ["dsm"] and not (tmp_path / "dem").exists()
