@@ -963,16 +963,20 @@ void gt_cell_mean(int64_t n, const int64_t *flat, const double *z, const uint8_t
     for (int64_t i = 0; i < ncells; i++) out[i] = count[i] > 0 ? sum[i] / (double)count[i] : NAN;
 }
 
+/* the flat cell index (row * width + col) of (x, y), -1 outside the grid: col0, top (row_top - 1), width and
+ * height as doubles (grid.cell_index's float64 operations) */
+static inline int64_t cell_of(double x, double y, double cell, double c0, double top, double w, double h) {
+    double c = floor(x / cell) - c0;
+    double r = top - floor(y / cell);
+    return (c >= 0 && c < w && r >= 0 && r < h) ? (int64_t)(r * w + c) : -1;
+}
+
 /* Flat cell index (row * width + col) of each point, -1 outside the grid (grid.cell_index): the same float64
  * operations as its numpy form, in one pass. */
 SIMD_CLONES void gt_cell_index(int64_t n, const double *x, const double *y, double cell, int64_t col0, int64_t row_top,
                                int64_t width, int64_t height, int64_t *out) {
     const double c0 = (double)col0, top = (double)(row_top - 1), w = (double)width, h = (double)height;
-    for (int64_t i = 0; i < n; i++) {
-        double c = floor(x[i] / cell) - c0;
-        double r = top - floor(y[i] / cell);
-        out[i] = (c >= 0 && c < w && r >= 0 && r < h) ? (int64_t)(r * w + c) : -1;
-    }
+    for (int64_t i = 0; i < n; i++) out[i] = cell_of(x[i], y[i], cell, c0, top, w, h);
 }
 
 /* one point (cell c, z v, class k) into a call's maxima cm and top classes tc: higher wins; on a tie the last bare
@@ -1030,8 +1034,8 @@ static inline int32_t las_int(const char *base, int64_t i, int64_t stride) {
  * counts: first-return records, ground points, points outside the grid, halo records. Null `gcount`: no ground or
  * water work; null `bare_first`: no first-return records. */
 SIMD_CLONES void gt_scan_chunk(int64_t n, const char *X, int64_t xstride, const char *Y, int64_t ystride, const char *Z,
-                   int64_t zstride, const double *so, const double *gp, int64_t *cell, const uint8_t *cls, const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface,
-                   const uint8_t *bare, int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc,
+                   int64_t zstride, const double *so, const double *gp, int64_t *cell, const uint8_t *cls,
+                   const uint8_t *rn, const uint8_t *withheld, const uint8_t *surface, const uint8_t *bare, int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc,
                    int64_t *by_class, int64_t *by_return, int64_t *bare_first, int32_t *first_cell, float *first_z,
                    int64_t gclass, int64_t wclass, int64_t *gcount, int64_t *wcount, const double *edges, int32_t *grec,
                    int64_t *gidx, int32_t *hrec, uint8_t *hside, double *boxes, int64_t *counts) {
@@ -1044,10 +1048,9 @@ SIMD_CLONES void gt_scan_chunk(int64_t n, const char *X, int64_t xstride, const 
         uint8_t k = cls[i], r = rn[i];
         by_class[k]++;
         by_return[r < 15 ? r : 15]++;
-        double px = (double)las_int(X, i, xstride) * xscale + xoffset, py = (double)las_int(Y, i, ystride) * yscale + yoffset;
-        double col = floor(px / size) - c0, row = top_row - floor(py / size);
-        int64_t c = (col >= 0 && col < w && row >= 0 && row < h) ? (int64_t)(row * w + col) : -1;
-        cell[i] = c;
+        double px = (double)las_int(X, i, xstride) * xscale + xoffset;
+        double py = (double)las_int(Y, i, ystride) * yscale + yoffset;
+        int64_t c = cell[i] = cell_of(px, py, size, c0, top_row, w, h);
         if (c < 0) {
             nout++;
             continue;

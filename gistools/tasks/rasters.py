@@ -352,6 +352,11 @@ def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[
     return out
 
 
+def _rows(grid: Grid, r0: int, r1: int) -> Grid:
+    """The grid of rows r0 to r1 (exclusive) of ``grid``."""
+    return Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
+
+
 def _strips(counts_per_row: np.ndarray, max_points: int) -> list[tuple[int, int]]:
     """Row ranges holding at most about ``max_points`` ground points each."""
     strips, start, acc = [], 0, 0
@@ -451,7 +456,7 @@ def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> t
     dem = np.full(grid.shape, np.nan)
     filled = 0
     for r0, r1 in _strips(ground_count.sum(axis=1), run.tin_block_points):
-        strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
+        strip = _rows(grid, r0, r1)
         w, s, e, n = strip.bounds
         box = (w - b, s - b, e + b, n + b)
         sources = ground_sources(run.scratch, info.name, box)
@@ -485,7 +490,7 @@ def _tin_dem_in_strips(x, y, z, grid: Grid, counts_per_row, run: _Run, water) ->
         return tin_dem_with_halo(x, y, z, grid, halo=b, max_distance=run.max_distance, water=water)
     dem = np.empty(grid.shape)
     for r0, r1 in parts:
-        strip = Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
+        strip = _rows(grid, r0, r1)
         _, south, _, north = strip.bounds
         near = (y >= south - b) & (y <= north + b)  # x lies within the buffer already
         dem[r0:r1] = tin_dem_with_halo(x[near], y[near], z[near], strip, halo=b, max_distance=run.max_distance,
