@@ -16,7 +16,7 @@ fresh process so peak RSS is its own:
 Prints points per second, peak RSS per worker and the ratios the targets are stated in.
 
     python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench] [--repeat 3]
-    python benchmarks/bench_rasters.py --density levy [--repeat 3]   # the Levy delivery's density
+    python benchmarks/bench_rasters.py --density levy [--repeat 3] [--laz14]   # the Levy delivery's density
 """
 
 from __future__ import annotations
@@ -111,6 +111,37 @@ def generate_levy(workdir: Path) -> dict:
     info = {"points": total, "tile_ft": tile, "spacing_ft": spacing}
     meta.write_text(json.dumps(info))
     return info
+
+
+def generate_laz14(workdir: Path) -> None:
+    """The Levy block again as LAS 1.4 point format 6 LAZ, with the fields a delivery of today carries: GPS time
+    (rising along the file), intensity (by class, with noise), scan angle and point source (flight lines 1,500 ft
+    wide, east to west), unless already there."""
+    import laspy
+    import numpy as np
+
+    out = workdir / "levy_laz14"
+    if out.is_dir() and len(list(out.glob("*.laz"))) == 4:
+        return
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(14)
+    for src in sorted((workdir / "levy_las").glob("*.las")):
+        las = laspy.read(src)
+        header = laspy.LasHeader(point_format=6, version="1.4")
+        header.scales, header.offsets = las.header.scales, las.header.offsets
+        header.add_crs(las.header.parse_crs())
+        new = laspy.LasData(header)
+        n = len(las.points)
+        new.X, new.Y, new.Z = las.X, las.Y, las.Z
+        for name in ("classification", "return_number", "number_of_returns"):
+            setattr(new, name, np.asarray(getattr(las, name)))
+        line = np.floor((np.asarray(las.x) - 430000.0) / 1500.0)
+        new.point_source_id = (line + 1).astype(np.uint16)
+        new.scan_angle = np.clip(((np.asarray(las.x) - 430000.0) % 1500.0 - 750.0) / 750.0 * 2000, -30000, 30000).astype(np.int16)
+        new.gps_time = 3.0e8 + np.arange(n) * 2e-6 + rng.uniform(0, 1e-7, n)
+        base = np.where(np.asarray(las.classification) == 2, 900, 400)
+        new.intensity = np.clip(base + rng.normal(0, 120, n), 0, 65535).astype(np.uint16)
+        new.write(out / (src.stem + ".laz"))
 
 
 def run_child(code: str) -> dict:
@@ -218,13 +249,16 @@ def main(argv=None):
     ap.add_argument("--density", choices=("dense", "levy"), default="dense",
                     help="dense: the 4-tile block of 1 pulse per ft2 (the README's table); levy: four 5,000 ft tiles at "
                          "the Levy delivery's 4 ft pulse spacing, beside WhiteboxTools, with the time by stage")
+    ap.add_argument("--laz14", action="store_true",
+                    help="with --density levy: also the block as LAS 1.4 point format 6 LAZ (GPS time, intensity, scan "
+                         "angle, point source), of which pass 1 decodes only the layers it uses")
     args = ap.parse_args(argv)
     global CODE
     CODE = Path(args.code).resolve() if args.code else ROOT
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
     if args.density == "levy":
-        return levy(work, args.skip_whitebox, args.repeat)
+        return levy(work, args.skip_whitebox, args.repeat, args.laz14)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
         [PY, "-c", f"import json, sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
@@ -286,7 +320,7 @@ def main(argv=None):
     print(f"peak RSS, {info['big_points']:,}-point tile: {max(big['rss_self_mb'], big['rss_children_mb']):.0f} MB  (target < 1500 MB)")
 
 
-def levy(work: Path, skip_whitebox: bool, repeat: int = 1) -> None:
+def levy(work: Path, skip_whitebox: bool, repeat: int = 1, laz14: bool = False) -> None:
     """The rasters at the Levy density, LAS and LAZ, --jobs 2, beside WhiteboxTools, with gistools' stage timers;
     with ``repeat`` > 1 the two tools run alternately that many times and the medians are compared (this machine's
     speed moves by a fifth from one run to the next)."""
@@ -299,23 +333,32 @@ def levy(work: Path, skip_whitebox: bool, repeat: int = 1) -> None:
     print(f"Levy block: 4 tiles of {info['tile_ft']} ft at {info['spacing_ft']} ft pulse spacing, {n:,} points "
           f"({n / 4 / (info['tile_ft'] / 5) ** 2:.2f} points per 5 ft cell)  [{time.perf_counter() - t:.0f} s to prepare]",
           flush=True)
-    for fmt in ("las", "laz"):
-        files = sorted((work / f"levy_{fmt}").glob(f"*.{fmt}"))
+    formats = ("las", "laz")
+    if laz14:
+        t = time.perf_counter()
+        subprocess.run([PY, "-c", f"import sys; sys.path.insert(0, {str(ROOT / 'benchmarks')!r}); import bench_rasters as b; "
+                                  f"from pathlib import Path; b.generate_laz14(Path({str(work)!r}))"], check=True)
+        print(f"the same as LAS 1.4 point format 6 LAZ with GPS time, intensity, scan angle and point source "
+              f"[{time.perf_counter() - t:.0f} s to prepare]", flush=True)
+        formats += ("laz14",)
+    for fmt in formats:
+        files = sorted((work / f"levy_{fmt}").glob("*.la[sz]"))
+        label = {"laz14": "LAZ 1.4 PF 6"}.get(fmt, fmt.upper())
         ours, theirs = [], []
         for k in range(repeat):
             r = gistools_run(work / f"levy_{fmt}", work / "out_levy", 2)
             ours.append(r["seconds"])
             stages = ", ".join(f"{k} {v:.2f} s" for k, v in r["stages"].items())
-            print(f"gistools DSM+DEM+nDSM, {fmt.upper()}, --jobs 2: {r['seconds']:.2f} s ({n / r['seconds'] / 1e6:.2f} M "
+            print(f"gistools DSM+DEM+nDSM, {label}, --jobs 2: {r['seconds']:.2f} s ({n / r['seconds'] / 1e6:.2f} M "
                   f"pts/s); summed over the tiles: {stages}", flush=True)
             if not skip_whitebox:
                 wb = whitebox_run(files, work / "wbt_levy", 5.0, 2 * 15 / 0.3048006096)
                 theirs.append(wb["seconds"])
-                print(f"WhiteboxTools block max + TIN, {fmt.upper()}, 2 at a time: {wb['seconds']:.2f} s; gistools is "
+                print(f"WhiteboxTools block max + TIN, {label}, 2 at a time: {wb['seconds']:.2f} s; gistools is "
                       f"{wb['seconds'] / r['seconds']:.2f}x (target >= 4)", flush=True)
         if repeat > 1 and theirs:
             mo, mt = statistics.median(ours), statistics.median(theirs)
-            print(f"{fmt.upper()}, medians of {repeat} alternating runs: gistools {mo:.2f} s, WhiteboxTools {mt:.2f} s: "
+            print(f"{label}, medians of {repeat} alternating runs: gistools {mo:.2f} s, WhiteboxTools {mt:.2f} s: "
                   f"{mt / mo:.2f}x (target >= 4)", flush=True)
 
 

@@ -81,3 +81,46 @@ def test_noise_and_withheld_points_stay_out_of_the_dsm(cloud, tmp_path):
         dsm_classes=tuple(range(0, 32))))
     c, _, _ = read_raster(tmp_path / "c" / "dsm" / "noisy2.tif")
     assert np.nanmax(c) > np.nanmax(a) + 400  # asked for every class: the noise is there (withheld still out)
+
+
+def test_las14_laz_decodes_only_the_layers_pass_1_uses_with_the_same_rasters(cloud, tmp_path):
+    """A LAS 1.4 point format 6 LAZ is compressed in layers: pass 1 decodes X, Y, returns, Z, classification and
+    the flags (withheld), not GPS time, intensity, scan angle, user data or point source; the rasters equal those
+    of the same points as LAS, withheld points (high above the scene) still left out."""
+    import laspy
+
+    from gistools.io.points import iter_chunks
+
+    rng = np.random.default_rng(7)
+    write_tile(tmp_path / "src.las", cloud, CRS, version="1.4", point_format=6)
+    las = laspy.read(tmp_path / "src.las")
+    n = len(las.points)
+    las.intensity = rng.integers(0, 60000, n)
+    las.gps_time = rng.uniform(1e8, 2e8, n)
+    las.scan_angle = rng.integers(-9000, 9000, n)
+    las.user_data = rng.integers(0, 255, n)
+    las.point_source_id = rng.integers(1, 500, n)
+    high = rng.choice(n, 200, replace=False)
+    las.Z[high] += 50_000  # 500 m up: in the DSM if their withheld flag were not decoded
+    withheld = np.zeros(n, bool)
+    withheld[high] = True
+    las.withheld = withheld
+    las.write(tmp_path / "t.las")
+    las.write(tmp_path / "t.laz")
+    ref = laspy.read(tmp_path / "t.las")
+    chunks = list(iter_chunks(read_tile_info(tmp_path / "t.laz"), 10_000, only_fields=True))
+    for name in ("classification", "return_number", "number_of_returns", "withheld"):
+        assert np.array_equal(np.concatenate([getattr(c, name) for c in chunks]), np.asarray(getattr(ref, name))), name
+    for name in ("X", "Y", "Z"):
+        assert np.array_equal(np.concatenate([np.asarray(getattr(c.raw, name)) for c in chunks]), getattr(ref, name))
+    # the GPS time layer was skipped: each LAZ chunk repeats its first point's (50,000 points a chunk)
+    skipped = np.concatenate([np.asarray(c.raw.gps_time) for c in chunks])
+    assert len(np.unique(skipped)) <= n // 50_000 + 1 and len(np.unique(ref.gps_time)) == n
+    rasters_from_tiles([tmp_path / "t.las"], tmp_path / "a")
+    rasters_from_tiles([tmp_path / "t.laz"], tmp_path / "b")
+    for product in ("dsm", "dem", "ndsm"):
+        a, _, _ = read_raster(tmp_path / "a" / product / "t.tif")
+        b, _, _ = read_raster(tmp_path / "b" / product / "t.tif")
+        assert np.array_equal(a, b, equal_nan=True), product
+    dsm, _, _ = read_raster(tmp_path / "b" / "dsm" / "t.tif")
+    assert np.nanmax(dsm) < np.max(cloud["z"]) + 1  # the withheld points, 500 m up, are out

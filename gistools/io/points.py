@@ -336,16 +336,21 @@ ALL_FIELDS = ("x", "y", "z", "classification", "return_number", "number_of_retur
 
 
 def iter_chunks(
-    info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensity: bool = False, fields=ALL_FIELDS
+    info: TileInfo, chunk_size: int = DEFAULT_CHUNK_SIZE, *, intensity: bool = False, fields=ALL_FIELDS,
+    only_fields: bool = False,
 ) -> Iterator[PointChunk]:
     """Points of a tile, ``chunk_size`` at a time, as :class:`PointChunk` arrays.
 
     ``fields`` limits what is extracted (the others are None), which saves time on
-    big tiles. Raises DataFileError naming the file when decoding fails (e.g. a truncated LAZ).
+    big tiles. ``only_fields``: a LAS 1.4 LAZ of point format 6 to 10 (compressed in layers) decodes only the
+    layers of ``fields``, X, Y, Z (and intensity when asked): GPS time, scan angle, point source, user data, RGB,
+    NIR and extra bytes are skipped, and hold no values in ``raw`` (the caller must not use them). Other files decode
+    whole either way. Raises DataFileError naming the file when decoding fails (e.g. a truncated LAZ).
     """
     path = info.path
+    selection = decoded_layers(fields, intensity) if only_fields else laspy.DecompressionSelection.all()
     try:
-        with laspy.open(path) as reader:
+        with laspy.open(path, decompression_selection=selection) as reader:
             for points in reader.chunk_iterator(chunk_size):
                 if len(points) == 0:
                     continue
@@ -356,6 +361,20 @@ def iter_chunks(
         raise
     except Exception as err:
         raise _open_error(path, err) from None
+
+
+def decoded_layers(fields, intensity: bool = False) -> "laspy.DecompressionSelection":
+    """The LAZ layers (laspy.DecompressionSelection) that hold X, Y, Z and ``fields``: in point formats 6 to 10 the
+    return numbers share the X, Y layer, the withheld flag is in the flags layer."""
+    layers = laspy.DecompressionSelection
+    selection = layers.XY_RETURNS_CHANNEL | layers.Z
+    if "classification" in fields:
+        selection |= layers.CLASSIFICATION
+    if "withheld" in fields:
+        selection |= layers.FLAGS
+    if intensity or "intensity" in fields:
+        selection |= layers.INTENSITY
+    return selection
 
 
 _DTYPES = {"x": np.float64, "y": np.float64, "z": np.float64, "classification": np.uint8, "return_number": np.uint8,

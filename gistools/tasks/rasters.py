@@ -223,7 +223,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
         first_out = files.enter_context(open(first_path, "wb"))
         fields = _scan_fields(whole_xy=shore is not None or fill is not None)
         surface_class = surface_classes(run.dsm_classes)
-        for chunk in iter_chunks(info, run.chunk_size, fields=fields):
+        for chunk in iter_chunks(info, run.chunk_size, fields=fields, only_fields=True):
             raw = chunk.raw
             scan = scan_chunk(grids, grid, (raw.X, raw.Y, raw.Z), raw.scales, raw.offsets, chunk.classification,
                               chunk.return_number, chunk.withheld, surface=surface_class, halo_edges=halo_edges,
