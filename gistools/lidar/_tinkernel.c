@@ -312,9 +312,19 @@ static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, in
     add_tri(&d, s0, s1, s2, -1, -1, -1);
 
     int64_t xp = 0, yp = 0;
+    int32_t key_next = hash_key(&d, (double)X(0), (double)Y(0));
     for (int64_t k = 0; k < n; k++) {
         int32_t i = (int32_t)k;
         int64_t x = X(k), y = Y(k);
+        int32_t key = key_next; /* this point's hash key */
+        /* The sweep's time is the latency of its loads from the hull where a point lands (a random angle: not in
+         * L1). The next point's start on the hull is looked up now and its records fetched at the end of this
+         * insertion, while they are not needed yet (hints only: the hash may change meanwhile). */
+        int32_t ahead = -1;
+        if (k + 1 < n) {
+            key_next = hash_key(&d, (double)X(k + 1), (double)Y(k + 1));
+            ahead = hhash[key_next];
+        }
         if (k > 0 && x == xp && y == yp) { /* a repeat of the previous point */
             (*repeats)++;
             continue;
@@ -324,7 +334,6 @@ static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, in
         if (i == s0 || i == s1 || i == s2) continue;
         /* a visible hull edge, found from the angular hash */
         int32_t start = 0;
-        int32_t key = hash_key(&d, (double)x, (double)y);
         for (int32_t j = 0; j < hsize; j++) {
             start = hhash[(key + j) % hsize];
             if (start != -1 && start != hnext[start]) break;
@@ -369,8 +378,15 @@ static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, in
         d.hstart = hprev[i] = e;
         hnext[e] = hprev[nn] = i;
         hnext[i] = nn;
-        hhash[hash_key(&d, (double)x, (double)y)] = i;
+        hhash[key] = i;
         hhash[hash_key(&d, (double)X(e), (double)Y(e))] = e;
+        if (ahead >= 0) {
+            int32_t h = hprev[ahead], ht = htri[h];
+            __builtin_prefetch(&pts[2 * h]);
+            __builtin_prefetch(&hnext[h]);
+            __builtin_prefetch(&half[ht]);
+            __builtin_prefetch(&triangles[ht]);
+        }
     }
     result = d.tlen / 3;
     stack = d.stack;
