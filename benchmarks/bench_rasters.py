@@ -151,6 +151,9 @@ def run_child(code: str) -> dict:
         import json, resource, sys, time
         sys.path.insert(0, %r)
         def _done(result):
+            import multiprocessing
+            for child in multiprocessing.active_children():  # workers exit on their own once done: reap them,
+                child.join()                                  # so that RUSAGE_CHILDREN counts them
             # VmHWM: this process's own peak (ru_maxrss would carry the parent's peak across fork+exec)
             with open("/proc/self/status") as fh:
                 self_mb = next(int(l.split()[1]) for l in fh if l.startswith("VmHWM")) / 1024
