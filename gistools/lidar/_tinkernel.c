@@ -152,13 +152,13 @@ static int64_t legalize(Del *d, int64_t a) {
     return ar;
 }
 
-/* sort (key, id) pairs by key: LSD radix sort on the key's bits (keys >= 0) */
+/* sort (key, id) pairs by key: LSD radix sort on the key's bits (keys >= 0) from bit `shift0` up; stable */
 typedef struct {
     uint64_t key;
     int32_t id;
 } Pair;
 
-static int radix_sort(Pair *a, int64_t n) {
+static int radix_sort_from(Pair *a, int64_t n, int shift0) {
     Pair *tmp = (Pair *)malloc((size_t)n * sizeof(Pair));
     if (!tmp) return -1;
     enum { BITS = 11, BUCKETS = 1 << BITS };
@@ -171,7 +171,7 @@ static int radix_sort(Pair *a, int64_t n) {
     for (int64_t i = 0; i < n; i++)
         if (a[i].key > maxkey) maxkey = a[i].key;
     Pair *src = a, *dst = tmp;
-    for (int shift = 0; shift < 64 && (maxkey >> shift); shift += BITS) {
+    for (int shift = shift0; shift < 64 && (maxkey >> shift); shift += BITS) {
         memset(count, 0, BUCKETS * sizeof(int64_t));
         for (int64_t i = 0; i < n; i++) count[(src[i].key >> shift) & (BUCKETS - 1)]++;
         int64_t s = 0;
@@ -188,6 +188,30 @@ static int radix_sort(Pair *a, int64_t n) {
     if (src != a) memcpy(a, src, (size_t)n * sizeof(Pair));
     free(tmp);
     free(count);
+    return 0;
+}
+
+/* by key, equal keys in input order (as a radix sort on the whole key), in half its passes: a radix sort on the
+ * high 32 bits, then each run of equal high bits (short: they hold 20 bits of a double's mantissa) in order by a
+ * stable insertion sort. Runs longer than 32 (keys this close: points on a circle) get the whole radix sort. */
+static int sort_by_key(Pair *a, int64_t n) {
+    if (radix_sort_from(a, n, 32)) return -1;
+    int64_t run = 1, longest = 1;
+    for (int64_t i = 1; i < n; i++) {
+        run = (a[i].key >> 32) == (a[i - 1].key >> 32) ? run + 1 : 1;
+        if (run > longest) longest = run;
+    }
+    if (longest > 32) return radix_sort_from(a, n, 0);
+    for (int64_t i = 1; i < n; i++) {
+        if (a[i].key >= a[i - 1].key) continue; /* (a smaller key in order by the high bits shares them) */
+        Pair p = a[i];
+        int64_t j = i - 1;
+        while (j >= 0 && a[j].key > p.key) {
+            a[j + 1] = a[j];
+            j--;
+        }
+        a[j + 1] = p;
+    }
     return 0;
 }
 
@@ -271,7 +295,7 @@ static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, in
         order[i].key = key;
         order[i].id = (int32_t)i;
     }
-    if (radix_sort(order, n)) goto done;
+    if (sort_by_key(order, n)) goto done;
     pts = (int64_t *)malloc((size_t)n * 2 * sizeof(int64_t));
     int64_t maxhe = 3 * (2 * n);
     half = (int32_t *)malloc((size_t)maxhe * sizeof(int32_t));
