@@ -728,7 +728,8 @@ def _blas_threads() -> int:
 
 
 def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(monkeypatch):
-    """The pool's initializer limits BLAS in each worker (threadpoolctl); the parent's os.environ is not edited."""
+    """Each worker runs one BLAS thread (it starts with OPENBLAS_NUM_THREADS and the like at 1, and its initializer
+    limits the pools already loaded by threadpoolctl); the parent's os.environ is the same afterwards."""
     from gistools.tasks.batch import WORKER_THREAD_ENV, ProcessPool
 
     for k in WORKER_THREAD_ENV:

@@ -6,6 +6,7 @@ one-line message, and the other tiles go on.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import logging
 import multiprocessing
@@ -88,6 +89,24 @@ def one_thread_per_worker() -> None:
     except ImportError:  # an install without it: the pools keep their size
         return
     threadpool_limits(limits=1)
+
+
+@contextlib.contextmanager
+def _worker_environment():
+    """The environment workers start with: one thread for BLAS and OpenMP (WORKER_THREAD_ENV) where the user set
+    none, so that numpy's and scipy's OpenBLAS start no pool in them (threadpoolctl can only shrink a pool that
+    exists: its threads spin about 0.1 s of CPU a process after the import, while the other workers start). Set
+    only while the workers are spawned; the parent's environment is the same afterwards."""
+    if any(k in os.environ for k in WORKER_THREAD_ENV):
+        yield
+        return
+    for k in WORKER_THREAD_ENV:
+        os.environ[k] = "1"
+    try:
+        yield
+    finally:
+        for k in WORKER_THREAD_ENV:
+            os.environ.pop(k, None)
 
 
 def _watch_parent(parent: int) -> None:
@@ -193,6 +212,9 @@ class ProcessPool:
             ctx.set_executable(python)
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+        with _worker_environment():  # every worker starts now (a task each), inheriting it
+            for _ in range(jobs):
+                self.pool.submit(os.getpid)
 
     def submit(self, fn, *args):
         return self.pool.submit(fn, *args)
