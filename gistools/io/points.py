@@ -453,7 +453,7 @@ def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, 
     if _is_copc(info.path):
         parts = [_copc_box(info.path, box, fields)]
     else:
-        for chunk in iter_chunks(info, chunk_size, intensity="intensity" in fields):
+        for chunk in iter_chunks(info, chunk_size, intensity="intensity" in fields, only_fields=True):
             keep = (chunk.x >= w) & (chunk.x <= e) & (chunk.y >= s) & (chunk.y <= n) & ~chunk.withheld
             if keep.any():
                 parts.append({k: getattr(chunk, k)[keep] for k in fields})

@@ -21,7 +21,7 @@ def tile_summary(path, crs=None) -> dict:
     info = read_tile_info(path, crs, require_crs=False)
     by_class = np.zeros(256, np.int64)
     by_return = np.zeros(16, np.int64)
-    for chunk in iter_chunks(info):
+    for chunk in iter_chunks(info, only_fields=True):
         by_class += np.bincount(chunk.classification, minlength=256)[:256]
         by_return += np.bincount(np.minimum(chunk.return_number, 15), minlength=16)[:16]
     return {

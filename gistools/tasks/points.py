@@ -43,7 +43,7 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
     written = 0
     with atomic_path(path, overwrite=True, keep_suffix=True) as tmp_named:
         parts = []
-        for chunk in iter_chunks(info, chunk_size, intensity=True):
+        for chunk in iter_chunks(info, chunk_size, intensity=True, only_fields=True):
             keep = _select(chunk, classes, returns)
             if not keep.any():
                 continue
