@@ -30,6 +30,13 @@ typedef __int128 i128;
 #define SIMD_CLONES
 #endif
 
+/* a hint to fetch the cache line of *p (GCC / Clang; nothing elsewhere) */
+#if defined(__GNUC__) || defined(__clang__)
+#define PREFETCH(p) __builtin_prefetch(p)
+#else
+#define PREFETCH(p) ((void)(p))
+#endif
+
 
 /* sign of cross(q - p, r - p): > 0 when p, q, r turn counter-clockwise */
 static inline int ccw(int64_t px, int64_t py, int64_t qx, int64_t qy, int64_t rx, int64_t ry) {
@@ -406,10 +413,10 @@ static int64_t triangulate(int64_t n, const int64_t *xin, const int64_t *yin, in
         hhash[hash_key(&d, (double)X(e), (double)Y(e))] = e;
         if (ahead >= 0) {
             int32_t h = hprev[ahead], ht = htri[h];
-            __builtin_prefetch(&pts[2 * h]);
-            __builtin_prefetch(&hnext[h]);
-            __builtin_prefetch(&half[ht]);
-            __builtin_prefetch(&triangles[ht]);
+            PREFETCH(&pts[2 * h]);
+            PREFETCH(&hnext[h]);
+            PREFETCH(&half[ht]);
+            PREFETCH(&triangles[ht]);
         }
     }
     result = d.tlen / 3;
