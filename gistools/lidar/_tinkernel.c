@@ -566,6 +566,13 @@ int64_t gt_rasterize(int64_t ntri, const int32_t *tri, const double *u, const do
     int64_t written = 0;
     const double eps = -1e-9;
     for (int64_t t = 0; t < ntri; t++) {
+        if (t + 16 < ntri) { /* the vertices of a triangle ahead: in sweep order, a ring of the sweep apart */
+            const int32_t *ahead = tri + 3 * (t + 16);
+            for (int k = 0; k < 3; k++) {
+                PREFETCH(&u[ahead[k]]);
+                PREFETCH(&v[ahead[k]]);
+            }
+        }
         int32_t a = tri[3 * t], b = tri[3 * t + 1], c = tri[3 * t + 2];
         double ax = u[a], ay = v[a], bx = u[b], by = v[b], cx = u[c], cy = v[c];
         double xmin = dmin(ax, dmin(bx, cx)), xmax = dmax(ax, dmax(bx, cx));
