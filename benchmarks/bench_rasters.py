@@ -186,6 +186,8 @@ def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
     return run_child(f"""
         import shutil
         from gistools import rasters_from_tiles, RasterSettings
+        from gistools.tasks.batch import worker_thread_environment
+        worker_thread_environment()  # as the command line does for its workers
         shutil.rmtree({str(out)!r}, ignore_errors=True)
         t = time.perf_counter()
         s = rasters_from_tiles([{str(folder)!r}], {str(out)!r}, RasterSettings(products={tuple(products)!r}), jobs={jobs})
@@ -206,6 +208,8 @@ def heights_run(kind, folder, out, jobs, **settings) -> dict:
     return run_child(f"""
         import shutil
         {call}
+        from gistools.tasks.batch import worker_thread_environment
+        worker_thread_environment()  # as the command line does for its workers
         shutil.rmtree({str(out)!r}, ignore_errors=True)
         t = time.perf_counter()
         s = run([{str(folder)!r}], {str(out)!r}, settings, jobs={jobs})

@@ -89,6 +89,8 @@ def chain_run(kind: str, inputs: list, out: Path, jobs: int, vectors: dict) -> d
             f"from gistools.tasks.shrub import shrub_from_tiles as run\n        kw = {vectors!r}")
     return run_child(f"""
         {call}
+        from gistools.tasks.batch import worker_thread_environment
+        worker_thread_environment()  # as the command line does for its workers
         t = time.perf_counter()
         s = run({[str(i) for i in inputs]!r}, {str(out)!r}, jobs={jobs}, overwrite=True, **kw)
         assert s["counts"]["failed"] == 0

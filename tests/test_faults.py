@@ -728,8 +728,7 @@ def _blas_threads() -> int:
 
 
 def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(monkeypatch):
-    """Each worker runs one BLAS thread (it starts with OPENBLAS_NUM_THREADS and the like at 1, and its initializer
-    limits the pools already loaded by threadpoolctl); the parent's os.environ is the same afterwards."""
+    """The pool's initializer limits BLAS in each worker (threadpoolctl); the parent's os.environ is not edited."""
     from gistools.tasks.batch import WORKER_THREAD_ENV, ProcessPool
 
     for k in WORKER_THREAD_ENV:
@@ -747,6 +746,22 @@ def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(mon
         assert pool.submit(_blas_threads).result(timeout=120) in (0, 2)
     finally:
         pool.close()
+
+
+def test_the_command_line_gives_its_workers_one_blas_thread_unless_the_user_chose(monkeypatch):
+    """The command line (not the library: QGIS's threads read the environment) sets WORKER_THREAD_ENV to 1 for the
+    workers it spawns; a variable the user set keeps every one of them as it is."""
+    from gistools.tasks.batch import WORKER_THREAD_ENV, worker_thread_environment
+
+    for k in WORKER_THREAD_ENV:
+        monkeypatch.delenv(k, raising=False)
+    worker_thread_environment()
+    assert all(os.environ[k] == "1" for k in WORKER_THREAD_ENV)
+    for k in WORKER_THREAD_ENV:
+        monkeypatch.delenv(k, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "4")
+    worker_thread_environment()
+    assert os.environ["MKL_NUM_THREADS"] == "4" and not any(k in os.environ for k in WORKER_THREAD_ENV if k != "MKL_NUM_THREADS")
 
 
 def _rayon_threads():

@@ -109,9 +109,10 @@ for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub
 
 
 def main():  # console_scripts entry point
-    from ..tasks.batch import keep_freed_memory
+    from ..tasks.batch import keep_freed_memory, worker_thread_environment
 
     keep_freed_memory()  # tile after tile in this process: reuse the freed arrays (tasks/batch.py)
+    worker_thread_environment()  # the workers this process spawns start with one BLAS thread
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _on_sigint)
     try:

@@ -6,7 +6,6 @@ one-line message, and the other tiles go on.
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import logging
 import multiprocessing
@@ -91,22 +90,16 @@ def one_thread_per_worker() -> None:
     threadpool_limits(limits=1)
 
 
-@contextlib.contextmanager
-def _worker_environment():
-    """The environment workers start with: one thread for BLAS and OpenMP (WORKER_THREAD_ENV) where the user set
-    none, so that numpy's and scipy's OpenBLAS start no pool in them (threadpoolctl can only shrink a pool that
-    exists: its threads spin about 0.1 s of CPU a process after the import, while the other workers start). Set
-    only while the workers are spawned; the parent's environment is the same afterwards."""
+def worker_thread_environment() -> None:
+    """For the command line, a process gistools owns: WORKER_THREAD_ENV set to 1 where the user set none, so that
+    the workers it spawns load numpy's and scipy's OpenBLAS with no thread pool (threadpoolctl, in each worker's
+    initializer, can only shrink a pool that exists: its threads spin about 0.1 s of CPU a worker after the import,
+    while the other workers start). The library never calls it: in QGIS other threads read the environment while
+    a plugin runs, and setenv is not safe beside them."""
     if any(k in os.environ for k in WORKER_THREAD_ENV):
-        yield
         return
     for k in WORKER_THREAD_ENV:
         os.environ[k] = "1"
-    try:
-        yield
-    finally:
-        for k in WORKER_THREAD_ENV:
-            os.environ.pop(k, None)
 
 
 def _watch_parent(parent: int) -> None:
@@ -212,9 +205,8 @@ class ProcessPool:
             ctx.set_executable(python)
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
-        with _worker_environment():  # every worker starts now (a task each), inheriting it
-            for _ in range(jobs):
-                self.pool.submit(os.getpid)
+        for _ in range(jobs):  # every worker starts now (a task each), importing while the parent plans the run
+            self.pool.submit(os.getpid)
 
     def submit(self, fn, *args):
         return self.pool.submit(fn, *args)
