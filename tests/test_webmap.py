@@ -184,3 +184,60 @@ def test_a_big_county_is_split_by_tile_and_foreign_pages_are_kept(chain, tmp_pat
     assert (copy / "shrub_map.html").read_text() == "<html>my own page</html>"
     with pytest.raises(InputError, match="--basemap"):
         web_map(copy, basemap="tiles.example.org")
+
+
+PAYLOADS = ["<img src=x onerror=\"document.documentElement.dataset.pwned='img'\">",
+            "<script>document.documentElement.dataset.pwned='script'</script>",
+            "'\"><svg onload=\"document.documentElement.dataset.pwned='svg'\"></svg>",
+            "</script><script>document.documentElement.dataset.pwned='close'</script>"]
+
+
+def injected_folder(out, dest) -> Path:
+    """A copy of a chain's folder whose every field that reaches the page carries markup that would run script:
+    tile names and class names of the polygons, the title, CRS, units and settings of report.json."""
+    shutil.copytree(out, dest)
+    gdf = gpd.read_file(dest / "shrub_classes.gpkg")
+    gdf["tile"] = [f"{PAYLOADS[i % 4]}{t}.las" for i, t in enumerate(gdf.tile)]
+    gdf["class"] = [PAYLOADS[(i + 1) % 4] + str(c) for i, c in enumerate(gdf["class"])]
+    (dest / "shrub_classes.gpkg").unlink()
+    gdf.to_file(dest / "shrub_classes.gpkg")
+    report = json.loads((dest / "report.json").read_text())
+    report.update(map_title=PAYLOADS[0] + "title", crs=PAYLOADS[1] + "EPSG", horizontal_unit=PAYLOADS[2],
+                  class_method=PAYLOADS[3], settings={**report.get("settings", {}), "bands": PAYLOADS[0]})
+    (dest / "report.json").write_text(json.dumps(report))
+    return dest
+
+
+def ran_script(page: Path, tmp_path) -> tuple[bool, str]:
+    """Open ``page`` with every popup open (#popups); whether any injected handler or script ran."""
+    dom = chromium("--dump-dom", page.resolve().as_uri() + "#popups", home=tmp_path).stdout
+    assert "<div class=\"leaflet-popup-content\"" in dom and "<details class=\"gt-box" in dom  # popups, panels drawn
+    return re.search(r"<html[^>]*data-pwned", dom) is not None, dom
+
+
+def test_no_markup_from_the_data_runs_in_the_page(chain, tmp_path):
+    from gistools.web.page import content_security_policy
+
+    out, _ = chain
+    folder = injected_folder(out, tmp_path / "hostile")
+    result = web_map(folder, basemap_attribution=PAYLOADS[2])
+    page = Path(result["html"])
+    ran, dom = ran_script(page, tmp_path)
+    assert not ran
+    assert re.search(r"<br>tile (&lt;|'\"&gt;)", dom)  # the tile name is shown, as text
+    assert re.search(r"<b>(&lt;|'\"&gt;)", dom)  # the class name too
+    assert "&lt;script&gt;document.documentElement.dataset.pwned='script'&lt;/script&gt;EPSG" in dom  # the CRS
+    # the same page with the popup built from markup and no policy: the check sees the handler run
+    text = page.read_text()
+    unsafe = text.replace("return popup(f.properties);", "var d = document.createElement('div'); d.innerHTML = "
+                          "'<b>' + f.properties['class'] + '</b> tile ' + f.properties.tile; return d;")
+    assert unsafe != text
+    control = tmp_path / "control.html"
+    control.write_text(re.sub(r"<meta http-equiv='Content-Security-Policy'[^\n]*\n", "", unsafe))
+    assert ran_script(control, tmp_path)[0]
+    # and the policy alone, with that unsafe popup, still stops it (defence in depth)
+    scripts = re.findall(r"<script>(.*?)</script>", unsafe, re.S)
+    policy = content_security_policy(scripts)
+    guarded = tmp_path / "guarded.html"
+    guarded.write_text(re.sub(r"content=\"[^\"]*\"", lambda m: f'content="{policy}"', unsafe, count=1))
+    assert not ran_script(guarded, tmp_path)[0]

@@ -6,10 +6,14 @@ writes). Nothing on the page asks the network for anything unless a basemap URL 
 
 from __future__ import annotations
 
+import base64
+import hashlib
 import html
 import json
+import re
+from urllib.parse import urlsplit
 
-__all__ = ["web_map_html", "script_json"]
+__all__ = ["web_map_html", "script_json", "content_security_policy"]
 
 _STYLE = """
 html, body, #map { height: 100%; margin: 0; }
@@ -35,15 +39,29 @@ _SCRIPT = """
   var colour = {};
   classes.forEach(function (c) { colour[c.code] = c.colour; });
   function fmt(v, d) { return Number(v).toLocaleString(undefined, {maximumFractionDigits: d}); }
+  // every value from the data reaches the page as text nodes, never as markup
+  function el(tag, text, cls) {
+    var e = document.createElement(tag);
+    if (text !== undefined) { e.textContent = String(text); }
+    if (cls) { e.className = cls; }
+    return e;
+  }
+  function popup(p) {
+    var div = el("div");
+    div.appendChild(el("b", p["class"]));
+    div.appendChild(el("br"));
+    div.appendChild(document.createTextNode(fmt(p.area_acres, 2) + " acres, " + fmt(p.area_ha, 2) + " ha"));
+    div.appendChild(el("br"));
+    div.appendChild(document.createTextNode("tile " + p.tile));
+    return div;
+  }
   var layer = L.geoJSON(data, {
     style: function (f) {
       return {color: "#333333", weight: 0.6, fillColor: colour[f.properties.class_code] || "#000000",
               fillOpacity: options.fill_opacity};
     },
     onEachFeature: function (f, l) {
-      var p = f.properties;
-      l.bindPopup("<b>" + p["class"] + "</b><br>" + fmt(p.area_acres, 2) + " acres, " + fmt(p.area_ha, 2) +
-                  " ha<br>tile " + p.tile);
+      l.bindPopup(function () { return popup(f.properties); });
     }
   }).addTo(map);
   function fit() {
@@ -61,16 +79,38 @@ _SCRIPT = """
   var legend = L.control({position: "bottomright"});
   legend.onAdd = function () {
     var div = L.DomUtil.create("div", "gt-box");
-    div.innerHTML = "<h3>" + options.legend_title + "</h3>" + classes.map(function (c) {
-      return "<div><span class='gt-swatch' style='background:" + c.colour + "'></span>" + c.name + "</div>";
-    }).join("");
+    div.appendChild(el("h3", options.legend_title));
+    classes.forEach(function (c) {
+      var row = el("div"), swatch = el("span", undefined, "gt-swatch");
+      swatch.style.background = /^#[0-9a-fA-F]{6}$/.test(c.colour) ? c.colour : "#000000";
+      row.appendChild(swatch);
+      row.appendChild(document.createTextNode(c.name));
+      div.appendChild(row);
+    });
     return div;
   };
   legend.addTo(map);
   var info = L.control({position: "topright"});
   info.onAdd = function () {
-    var div = L.DomUtil.create("details", "gt-box");
-    div.innerHTML = options.parameters_html;
+    var div = L.DomUtil.create("details", "gt-box"), table = el("table");
+    div.appendChild(el("summary", options.title));
+    options.parameters.forEach(function (kv) {
+      var tr = el("tr");
+      tr.appendChild(el("td", kv[0]));
+      tr.appendChild(el("td", kv[1]));
+      table.appendChild(tr);
+    });
+    div.appendChild(table);
+    if (options.pages.length) {
+      var links = el("div", undefined, "gt-pages");
+      links.appendChild(el("b", "Parts of this map"));
+      options.pages.forEach(function (page) {
+        var a = el("a", page[0]);
+        a.href = page[1];
+        links.appendChild(a);
+      });
+      div.appendChild(links);
+    }
     L.DomEvent.disableClickPropagation(div);
     return div;
   };
@@ -81,6 +121,9 @@ _SCRIPT = """
     var p = map.latLngToContainerPoint([lat, lon]);
     return [p.x, p.y];
   };
+  if (/[#&]popups(&|$)/.test(location.hash)) {  // #popups: open every polygon's popup (the injection test)
+    layer.eachLayer(function (l) { l.openPopup(); });
+  }
   var probe = /[#&]probe=([^&]+)/.exec(location.hash);  // #probe=lon,lat;lon,lat: their pixels into the page
   if (probe) {
     window.setTimeout(function () {  // once the page has settled (its size and view final)
@@ -99,17 +142,33 @@ _SCRIPT = """
 
 
 def script_json(value) -> str:
-    """JSON to put inside a <script> element (no "</" can close it early)."""
-    return json.dumps(value, separators=(",", ":")).replace("</", "<\\/")
+    """JSON to put inside a <script> element (no "</" can close it early, no "<!--" can open a comment)."""
+    return (json.dumps(value, separators=(",", ":")).replace("</", "<\\/").replace("<!--", "<\\u0021--")
+            .replace("\u2028", "\\u2028").replace("\u2029", "\\u2029"))
 
 
-def _parameters_html(title: str, parameters: dict, pages: list | None) -> str:
-    rows = "".join(f"<tr><td>{html.escape(str(k))}</td><td>{html.escape(str(v))}</td></tr>" for k, v in parameters.items())
-    links = ""
-    if pages:
-        links = "<div class='gt-pages'><b>Parts of this map</b>" + "".join(
-            f"<a href='{html.escape(href)}'>{html.escape(label)}</a>" for label, href in pages) + "</div>"
-    return f"<summary>{html.escape(title)}</summary><table>{rows}</table>{links}"
+def _source(url: str | None) -> str:
+    """The Content-Security-Policy source of an XYZ tile URL's host ({s}.tile.example.org: *.tile.example.org);
+    its scheme alone where a placeholder sits elsewhere in the host."""
+    if not url:
+        return ""
+    parts = urlsplit(url)
+    host = parts.netloc
+    head, _, rest = host.partition(".")
+    if re.fullmatch(r"\{[a-z]+\}", head) and rest and "{" not in rest:
+        host = "*." + rest
+    if "{" in host or not re.fullmatch(r"[A-Za-z0-9.*:\[\]-]+", host):
+        return f" {parts.scheme}:"
+    return f" {parts.scheme}://{host}"
+
+
+def content_security_policy(scripts: list[str], basemap: str | None = None) -> str:
+    """The page's policy: no script but its own inline ones (by their sha256, so no inline handler or injected
+    script runs), nothing fetched but data: images and the basemap's tiles, no plug-ins, forms or base URL."""
+    hashes = " ".join("'sha256-" + base64.b64encode(hashlib.sha256(s.encode("utf-8")).digest()).decode() + "'"
+                      for s in scripts)
+    return (f"default-src 'none'; script-src {hashes}; style-src 'unsafe-inline'; img-src data:{_source(basemap)}; "
+            "base-uri 'none'; form-action 'none'; object-src 'none'")
 
 
 def web_map_html(*, title: str, geojson: dict, classes: list, parameters: dict, leaflet_js: str, leaflet_css: str,
@@ -117,12 +176,22 @@ def web_map_html(*, title: str, geojson: dict, classes: list, parameters: dict, 
                  fill_opacity: float = 0.75, legend_title: str = "Shrub density") -> str:
     """The page's HTML. ``classes``: [{"code", "name", "colour"}] in legend order; ``parameters``: what made the
     map (shown in a panel); ``pages``: [(label, href)] of the other parts of a split map; ``basemap``: an XYZ tile
-    URL template for users who are online (None: no request to any network address)."""
-    options = {"basemap": basemap, "basemap_attribution": basemap_attribution, "fill_opacity": fill_opacity,
-               "legend_title": html.escape(legend_title), "parameters_html": _parameters_html(title, parameters, pages)}
+    URL template for users who are online (None: no request to any network address).
+
+    Every value from the data (class names, tile names, parameters, the title) reaches the page as DOM text, never
+    as markup, and a Content-Security-Policy lets only the page's own two scripts run."""
+    options = {"basemap": basemap, "fill_opacity": fill_opacity, "title": str(title), "legend_title": str(legend_title),
+               # Leaflet shows the attribution as markup: given as text, it is escaped
+               "basemap_attribution": html.escape(basemap_attribution) if basemap_attribution else None,
+               "parameters": [[str(k), str(v)] for k, v in parameters.items()],
+               "pages": [[str(label), str(href)] for label, href in (pages or [])]}
     script = _SCRIPT % {"data": script_json(geojson), "classes": script_json(classes), "options": script_json(options)}
+    leaflet = f"\n{leaflet_js}\n"
+    ours = f"\n{script}\n"
+    policy = html.escape(content_security_policy([leaflet, ours], basemap))
     return (f"<!DOCTYPE html>\n<html lang='en'>\n<head>\n<meta charset='utf-8'>\n"
+            f"<meta http-equiv='Content-Security-Policy' content=\"{policy}\">\n"
             f"<meta name='viewport' content='width=device-width, initial-scale=1'>\n"
-            f"<title>{html.escape(title)}</title>\n<style>\n{leaflet_css}\n{_STYLE}</style>\n"
-            f"<script>\n{leaflet_js}\n</script>\n</head>\n<body>\n<div id='map'></div>\n"
-            f"<script>\n{script}\n</script>\n</body>\n</html>\n")
+            f"<title>{html.escape(str(title))}</title>\n<style>\n{leaflet_css}\n{_STYLE}</style>\n"
+            f"<script>{leaflet}</script>\n</head>\n<body>\n<div id='map'></div>\n"
+            f"<script>{ours}</script>\n</body>\n</html>\n")
