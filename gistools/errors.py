@@ -12,6 +12,7 @@ __all__ = [
     "DataFileError",
     "MissingCRSError",
     "OutputExistsError",
+    "OutOfMemoryError",
     "OutputError",
     "OutputBusyError",
     "Cancelled",
@@ -25,13 +26,26 @@ class GistoolsError(Exception):
 
     def __init__(self, message: str, *, path=None, hint: str | None = None):
         self.path = None if path is None else str(path)
-        self.hint = hint
+        self._hint = hint
         text = message
         if self.path and not message.startswith(self.path):
             text = f"{self.path}: {message}"
         if hint:
             text = f"{text.rstrip('.')}. {hint}"
         super().__init__(text)
+
+    @property
+    def hint(self) -> str | None:
+        from .parameters.core import render
+
+        return None if self._hint is None else render(self._hint)
+
+    def __str__(self) -> str:
+        """The message with its parameters named as the reader speaks: ``overwrite=True`` to a Python caller,
+        ``--overwrite`` on the command line, the dialog's label in QGIS (gistools.parameters.render)."""
+        from .parameters.core import render
+
+        return render(super().__str__())
 
 
 class InputError(GistoolsError, ValueError):
@@ -52,6 +66,10 @@ class DataFileError(GistoolsError, OSError):
 
 class MissingCRSError(DataFileError):
     """A file carries no coordinate reference system."""
+
+
+class OutOfMemoryError(GistoolsError, MemoryError):
+    """The machine ran out of memory (or the system killed a worker): the run's problem, not a tile's."""
 
 
 class OutputExistsError(GistoolsError, FileExistsError):

@@ -20,6 +20,7 @@ import pyproj
 from affine import Affine
 
 from .errors import InputError
+from .parameters import option
 
 __all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "evaluate_on_grid"]
 
@@ -89,7 +90,7 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     ((10.0, 0.0, 30.0, 20.0), (4, 4))
     """
     if not cell_size > 0:
-        raise InputError(f"cell size {cell_size!r} must be positive", hint="Give e.g. --cell-size 5ft")
+        raise InputError(f"cell size {cell_size!r} must be positive", hint=f"Give e.g. {option('cell_size', '5ft')}")
     west, south, east, north = bounds
     c0 = int(np.floor(west / cell_size))
     c1 = int(np.floor(east / cell_size)) + 1

@@ -126,6 +126,11 @@ def legend_handles(data: np.ndarray) -> list:
     return handles
 
 
+def plain(text) -> str:
+    """Text shown as it is: a "$" in a folder's name (cost_$5_$10) is not taken for matplotlib's math markup."""
+    return str(text).replace("$", r"\$")
+
+
 def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixels: int = 2000, dpi: int = 150,
               probes=(), parameters: str = "") -> dict:
     """A printable shrub density map of a class raster: PNG and PDF, legend, scale bar, north arrow, CRS note.
@@ -146,7 +151,7 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     fig = new_figure((11.0, float(np.clip(8.0 * aspect + 1.8, 4.5, 14.0))))
     ax = fig.subplots()
     ax.imshow(rgba, extent=(west, east, south, north), interpolation="nearest")
-    ax.set_title(title)
+    ax.set_title(plain(title))
     ax.set_xlabel(f"x ({unit.name})")
     ax.set_ylabel(f"y ({unit.name})")
     ax.ticklabel_format(useOffset=False, style="plain")
@@ -157,7 +162,7 @@ def shrub_map(classes_path, out_stem, *, title: str, unit: LinearUnit, max_pixel
     caption = f"CRS: {crs_name}; units: {unit.name}. Classes from vegetation cover within the density radius."
     if parameters:  # a second line: what made the map
         caption += f"\n{parameters}."
-    fig.text(0.01, 0.01, caption, fontsize=8, va="bottom")
+    fig.text(0.01, 0.01, plain(caption), fontsize=8, va="bottom")
     # a fixed frame, not tight_layout: with an equal-aspect image it clipped the legend (outside the axes, right)
     ax.set_position([0.1, 0.08, 0.7, 0.85])
     ax.set_anchor("W")
@@ -212,7 +217,7 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
         label.set_rotation(90)
         label.set_va("center")
     ax.grid(True, color="black", linewidth=0.4, alpha=0.5)
-    ax.set_title(title, fontsize=12, pad=18)
+    ax.set_title(plain(title), fontsize=12, pad=18)
     scale_bar(ax, bounds, unit, fontsize=8)
     north_arrow(ax, size=12)
     # locator map, upper right of the page
@@ -230,6 +235,6 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     loc.set_title(f"page {page_index + 1} of {len(pages)}", fontsize=8)
     fig.legend(handles=legend_handles(data), loc="upper left", bbox_to_anchor=(0.72, 0.52), title="Shrub density",
                fontsize=8, title_fontsize=9, frameon=False)
-    fig.text(0.72, 0.08, f"Scale 1:{scale:,.0f} on {paper} paper\nCRS: {crs_label(crs)}\nunits: {unit.name}\n"
-             f"grid every {step:g} {unit.short}\n{parameters}", fontsize=7, va="bottom", wrap=True)
+    fig.text(0.72, 0.08, plain(f"Scale 1:{scale:,.0f} on {paper} paper\nCRS: {crs_label(crs)}\nunits: {unit.name}\n"
+                               f"grid every {step:g} {unit.short}\n{parameters}"), fontsize=7, va="bottom", wrap=True)
     return fig

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import pyproj
 
 from .errors import InputError
+from .parameters import option
 
 __all__ = [
     "METRE",
@@ -74,7 +75,7 @@ def horizontal_unit(crs: pyproj.CRS) -> LinearUnit:
         )
     unit = _axis_unit(horizontal.axis_info)
     if unit is None:
-        raise InputError(f"CRS {horizontal.name!r} has no linear unit", hint="Give a projected CRS with --crs")
+        raise InputError(f"CRS {horizontal.name!r} has no linear unit", hint=f"Give a projected CRS with {option('crs')}")
     return unit
 
 

@@ -13,6 +13,7 @@ import math
 import numpy as np
 
 from .errors import InputError
+from .parameters import PARAMETERS, option
 from .units import parse_length
 
 __all__ = ["check_scheduler", "check_length", "check_number", "check_breaks", "check_count", "grid_shape", "check_grid_size",
@@ -23,52 +24,61 @@ __all__ = ["check_scheduler", "check_length", "check_number", "check_breaks", "c
 MAX_GRID_CELLS = 400_000_000
 
 
-def check_length(value, option: str, *, minimum: float = 0.0, allow_equal: bool = False, example: str = "5ft"):
+def named(name: str, value=None) -> str:
+    """A parameter as a message names it (:func:`gistools.parameters.option`): ``name`` is its Python name (or,
+    still taken, its flag); other text (a value that is not a parameter) is used as it is."""
+    key = name[2:].replace("-", "_") if name.startswith("--") else name
+    if key in PARAMETERS:
+        return option(key, value)
+    return name if value is None else f"{name} {value}"
+
+
+def check_length(value, name: str, *, minimum: float = 0.0, allow_equal: bool = False, example: str = "5ft"):
     """A length option ("25ft", "1.5m", 5): finite and > ``minimum`` (>= with ``allow_equal``); returns it unchanged."""
-    number, _ = parse_length(value, name=option)
+    number, _ = parse_length(value, name=named(name))
     ok = math.isfinite(number) and (number >= minimum if allow_equal else number > minimum)
     if not ok:
         bound = f"at least {minimum:g}" if allow_equal else ("positive" if minimum == 0 else f"more than {minimum:g}")
-        raise InputError(f"{option} {value!r} must be a finite length, {bound}", hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {value!r} must be a finite length, {bound}", hint=f"Give e.g. {named(name, example)}")
     return value
 
 
-def check_number(value, option: str, *, low=None, high=None, low_open: bool = False, example: str = "1"):
+def check_number(value, name: str, *, low=None, high=None, low_open: bool = False, example: str = "1"):
     """A plain number option within [low, high] (``low_open``: > low); returns it as float."""
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise InputError(f"{option} {value!r} is not a number", hint=f"Give e.g. {option} {example}") from None
+        raise InputError(f"{named(name)} {value!r} is not a number", hint=f"Give e.g. {named(name, example)}") from None
     bad = not math.isfinite(v) or (low is not None and (v <= low if low_open else v < low)) or (high is not None and v > high)
     if bad:
         span = f"{'>' if low_open else '>='} {low:g}" if low is not None else ""
         span += (" and " if span and high is not None else "") + (f"<= {high:g}" if high is not None else "")
-        raise InputError(f"{option} {value!r} must be a finite number {span}".rstrip(), hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {value!r} must be a finite number {span}".rstrip(), hint=f"Give e.g. {named(name, example)}")
     return v
 
 
-def check_count(value, option: str, *, minimum: int = 1, example: str = "1") -> int:
+def check_count(value, name: str, *, minimum: int = 1, example: str = "1") -> int:
     """An integer option of at least ``minimum``."""
     if isinstance(value, bool) or not float(value).is_integer() or int(value) < minimum:
-        raise InputError(f"{option} {value!r} must be an integer of at least {minimum}", hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {value!r} must be an integer of at least {minimum}", hint=f"Give e.g. {named(name, example)}")
     return int(value)
 
 
-def check_breaks(values, option: str, *, count: int, low: float, high: float, low_open: bool = False,
+def check_breaks(values, name: str, *, count: int, low: float, high: float, low_open: bool = False,
                  example: str = "0.3,0.7") -> tuple[float, ...]:
     """``count`` strictly increasing finite numbers within [low, high] (``low_open``: above low)."""
     try:
         v = tuple(float(x) for x in values)
     except (TypeError, ValueError):
-        raise InputError(f"{option} {values!r} is not a list of numbers", hint=f"Give e.g. {option} {example}") from None
+        raise InputError(f"{named(name)} {values!r} is not a list of numbers", hint=f"Give e.g. {named(name, example)}") from None
     shown = ",".join(f"{x:g}" for x in v)
     if len(v) != count:
-        raise InputError(f"{option} {shown}: needs {count} values, got {len(v)}", hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {shown}: needs {count} values, got {len(v)}", hint=f"Give e.g. {named(name, example)}")
     if not all(math.isfinite(x) for x in v) or any(b <= a for a, b in zip(v, v[1:])):
-        raise InputError(f"{option} {shown}: the values must be finite and increasing", hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {shown}: the values must be finite and increasing", hint=f"Give e.g. {named(name, example)}")
     if (v[0] <= low if low_open else v[0] < low) or v[-1] > high:
-        raise InputError(f"{option} {shown}: the values must lie {'above' if low_open else 'within'} "
-                         f"{low:g}{' and up to' if low_open else ' -'} {high:g}", hint=f"Give e.g. {option} {example}")
+        raise InputError(f"{named(name)} {shown}: the values must lie {'above' if low_open else 'within'} "
+                         f"{low:g}{' and up to' if low_open else ' -'} {high:g}", hint=f"Give e.g. {named(name, example)}")
     return v
 
 
@@ -80,21 +90,32 @@ def grid_shape(bounds, cell_size: float) -> tuple[int, int]:
     return int(cols), int(rows)
 
 
-def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_cells: int = MAX_GRID_CELLS,
+def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_cells: int | None = None,
                     bytes_per_cell: int = 40) -> tuple[int, int]:
-    """Refuse a grid of more than ``max_cells`` cells before anything is allocated, with the numbers."""
+    """Refuse a grid of more than ``max_cells`` cells (default: :data:`MAX_GRID_CELLS`, or fewer where this
+    process's memory holds fewer at ``bytes_per_cell``) before anything is allocated, with the numbers."""
+    from .machine import available_memory
+
     if not all(math.isfinite(b) for b in bounds) or not math.isfinite(cell_size) or cell_size <= 0:
         raise InputError(f"{what}: bounds {bounds} at cell size {cell_size!r} give no grid",
-                         hint="Check the header's bounds and --cell-size")
+                         hint=f"Check the header's bounds and {option('cell_size')}")
     cols, rows = grid_shape(bounds, cell_size)
     cells = cols * rows
-    if cells > max_cells:
+    memory = available_memory() if max_cells is None else None
+    held = MAX_GRID_CELLS if max_cells is None else max_cells
+    by_memory = memory is not None and int(0.8 * memory // bytes_per_cell) < held
+    if by_memory:
+        held = int(0.8 * memory // bytes_per_cell)
+    if cells > held:
         gb = cells * bytes_per_cell / 1e9
         w, s, e, n = bounds
+        limit = (f"more than this process's {memory / 1e9:.1f} GB of available memory holds ({held:,} cells)"
+                 if by_memory else f"more than the {held:,} cells a tile may have")
         raise InputError(
             f"{what}: {e - w:.6g} x {n - s:.6g} {unit} at cell size {cell_size:g} {unit} is a grid of "
-            f"{cols:,} x {rows:,} cells (about {gb:,.0f} GB), more than the {max_cells:,} cells a tile may have",
-            hint="Give a larger --cell-size, or check the tile's header bounds (lasinfo)")
+            f"{cols:,} x {rows:,} cells (about {gb:,.1f} GB), {limit}",
+            hint=f"Give a larger {option('cell_size')}" + (", run on a machine with more memory" if by_memory else "")
+            + ", or check the tile's header bounds (lasinfo)")
     return cols, rows
 
 
@@ -109,14 +130,15 @@ def check_geometry_types(types, allowed: tuple[str, ...], what: str, path: str) 
     if bad:
         hint = f"Give the {what} layer (e.g. file.gpkg:LAYER) of {' or '.join(allowed)} features"
         if allowed == ("line",) and any(_GEOMETRY_FAMILY.get(t) == "polygon" for t in bad):
-            hint += " (outlines as polygons: convert them with QGIS's Polygons to Lines; water polygons go to --waterbodies)"
+            hint += (" (outlines as polygons: convert them with QGIS's Polygons to Lines; water polygons go to "
+                     f"{option('waterbodies')})")
         raise InputError(
             f"{what} must hold {' or '.join(a + 's' for a in allowed)}, but the layer holds {', '.join(bad)}",
             path=path, hint=hint)
 
 
 def check_scheduler(address) -> None:
-    """A Dask scheduler address: "local", host:port, or scheme://host:port (tcp, tls, ucx, inproc, ws, wss)."""
+    """A Dask scheduler address: "local", host:port, or scheme://host:port (tcp, tls, ucx, ws, wss)."""
     if address is None or address == "local":
         return
     text = str(address)
@@ -124,6 +146,9 @@ def check_scheduler(address) -> None:
     if not sep:  # host:port, which Dask reads as tcp://host:port
         scheme, rest = "tcp", text
     host, _, port = rest.rpartition(":")
-    if scheme not in ("tcp", "tls", "ucx", "inproc", "ws", "wss") or not rest or (scheme != "inproc" and not (host and port.isdigit())):
-        raise InputError(f"--scheduler {text!r} is not a Dask scheduler address",
-                         hint="Give e.g. --scheduler tcp://127.0.0.1:8786, or --scheduler local")
+    if scheme in ("inproc",):  # a scheduler inside this process cannot run tiles in other processes
+        raise InputError(f"{option('scheduler')} {text!r}: an in-process address cannot reach workers",
+                         hint=f"Give e.g. {option('scheduler', 'tcp://127.0.0.1:8786')}, or {option('scheduler', 'local')}")
+    if scheme not in ("tcp", "tls", "ucx", "ws", "wss") or not rest or not (host and port.isdigit()):
+        raise InputError(f"{option('scheduler')} {text!r} is not a Dask scheduler address",
+                         hint=f"Give e.g. {option('scheduler', 'tcp://127.0.0.1:8786')}, or {option('scheduler', 'local')}")

@@ -67,7 +67,7 @@ def test_dask_local_cluster(sample_tiles, sample_run, tmp_path):
 
 
 def test_unreachable_scheduler_is_a_clear_error(sample_tiles, tmp_path):
-    with pytest.raises(InputError, match="no Dask scheduler answers"):
+    with pytest.raises(InputError, match="cannot connect to a Dask scheduler there"):
         rasters_from_tiles(sample_tiles[:1], tmp_path, scheduler=f"tcp://127.0.0.1:{_free_port()}")
 
 

@@ -100,8 +100,8 @@ def test_two_tiles_fill_as_one(tiles, tmp_path, fill):
 
 
 def test_bad_fill_options_are_refused(tmp_path):
-    with pytest.raises(InputError, match="--dsm-fill"):
+    with pytest.raises(InputError, match="dsm_fill"):
         rasters_from_tiles(tmp_path, tmp_path / "o", RasterSettings(dsm_fill="kriging"))
-    with pytest.raises(InputError, match="--subcircle"):
+    with pytest.raises(InputError, match="subcircle"):
         rasters_from_tiles(tmp_path, tmp_path / "o", RasterSettings(dsm_fill="subcircle", subcircle="0m"))
     assert not (tmp_path / "o").exists()

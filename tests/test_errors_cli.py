@@ -70,7 +70,7 @@ def _write_without_crs(src, dest):
 def test_missing_crs_is_refused_unless_given(sample_tiles, tmp_path):
     tile = tmp_path / "nocrs.las"
     _write_without_crs(sample_tiles[0], tile)
-    with pytest.raises(MissingCRSError, match="nocrs.las: header has no CRS. Pass the tiles' CRS with --crs"):
+    with pytest.raises(MissingCRSError, match="nocrs.las: header has no CRS. Pass the tiles' CRS with crs"):
         read_tile_info(tile)
     result = CliRunner().invoke(cli, ["rasters", str(tile), "--out", str(tmp_path / "a"), "-q"])
     assert result.exit_code == 1 and "header has no CRS" in result.output and "--crs" in result.output

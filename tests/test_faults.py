@@ -608,11 +608,11 @@ def test_a_stale_lock_is_taken_over(tiles, tmp_path):
 
 # ------------------------------------------------------------------ Ctrl-C at several moments, kill -9 of the parent
 
-def _interrupt_when(args, ready, out: Path):
+def _interrupt_when(args, ready, out: Path, signum=signal.SIGINT):
     proc = subprocess.Popen(GISTOOLS + [str(a) for a in args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     reached = _wait_for(lambda: ready(out) or proc.poll() is not None, 120)
     assert reached and proc.poll() is None, "the run ended before the moment of the interrupt"
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signum)
     stdout, stderr = proc.communicate(timeout=120)
     return proc.returncode, stdout + stderr
 
@@ -625,13 +625,18 @@ MOMENTS = {
 }
 
 
-@pytest.mark.parametrize("moment,jobs", [("reading", 1), ("gridding", 2), ("steps", 1), ("map", 1)])
-def test_ctrl_c_ends_with_130_and_one_line_and_the_rerun_resumes(tiles, tmp_path, moment, jobs, shrub_done):
+@pytest.mark.parametrize("moment,jobs,signum", [("reading", 1, signal.SIGINT), ("gridding", 2, signal.SIGINT),
+                                                ("steps", 1, signal.SIGINT), ("map", 1, signal.SIGINT),
+                                                ("gridding", 2, signal.SIGTERM), ("steps", 1, signal.SIGTERM),
+                                                ("reading", 2, signal.SIGHUP)])
+def test_ctrl_c_ends_with_130_and_one_line_and_the_rerun_resumes(tiles, tmp_path, moment, jobs, signum, shrub_done):
+    """Ctrl-C, and what a scheduler, `timeout` or a closed terminal sends (SIGTERM, SIGHUP), clean up alike:
+    exit 128 + the signal, one line, no lock, scratch or partial file, and the rerun completes the run."""
     out = tmp_path / "out"
     args = ["shrub", tiles, "--out", out, "-q", "--jobs", jobs, "--chunk-size", "2000", *SHRUB_VECTORS]
     before = snapshot(tiles)
-    code, text = _interrupt_when(args, MOMENTS[moment], out)
-    assert code == 130, text
+    code, text = _interrupt_when(args, MOMENTS[moment], out, signum)
+    assert code == 128 + signum, text
     one_line(text, "interrupted")
     assert "Exception ignored" not in text
     no_partial_under_final_names(out)
@@ -820,3 +825,153 @@ def test_a_library_call_whose_every_tile_failed_raises_with_the_report(tmp_path)
     assert json.loads((tmp_path / "out" / "report.json").read_text())["counts"]["failed"] == 1
     code, text = invoke(["rasters", bad, "--out", tmp_path / "out2", "-q"])  # the CLI prints it and exits 1
     assert code == 1 and "FAILED" in text and "Traceback" not in text
+
+
+# ------------------------------------------------------------------ the record never replaces a user's file
+
+@pytest.mark.parametrize("command", [["rasters", "-q"], ["ground", "-q"], ["metrics", "-q"], ["chm", "-q"],
+                                     ["normalize", "-q"], ["points"], ["shrub", "-q", *SHRUB_VECTORS]])
+def test_a_report_json_gistools_did_not_write_is_kept_and_the_run_refused(tiles, tmp_path, command):
+    out = tmp_path / "out"
+    out.mkdir()
+    mine = out / "report.json"
+    mine.write_text('{"project": "my own notes", "budget": 1200}\n')
+    (out / "notes.txt").write_text("field notes\n")
+    before, inputs = snapshot(out), snapshot(tiles)
+    code, text = invoke([command[0], tiles, "--out", out, *command[1:]])
+    assert code == 1, text
+    one_line(text, "report.json gistools did not write is in the way", "another output folder")
+    assert snapshot(out) == before and snapshot(tiles) == inputs
+
+
+# ------------------------------------------------------------------ text tables parsers would misread silently
+
+@pytest.mark.parametrize("case,needle", [
+    ("nul", "holds a NUL byte"),
+    ("latin1", "is not UTF-8 text (byte 0xe9"),
+    ("huge_field", "is longer than 1 MB"),
+])
+@pytest.mark.parametrize("tool", ["runway", "aquifer"])
+def test_a_text_table_a_parser_would_misread_is_one_line(tmp_path, case, needle, tool):
+    """A NUL byte (the C parser cut the value at it: one light became an outlier), an ANSI / Latin-1 export, a
+    1 GB field (96 s, 7 GB, then a message of a billion characters): refused before parsing, in one short line."""
+    src = tmp_path / "in.csv"
+    df = _runway_frame() if tool == "runway" else _aquifer_frame()
+    text = df.to_csv(index=False)
+    lines = text.splitlines(keepends=True)
+    if case == "nul":
+        row = lines[5].split(",")
+        row[2] = row[2][:3] + "\0" + row[2][3:]
+        lines[5] = ",".join(row)
+        data = "".join(lines).encode()
+    elif case == "latin1":
+        data = "".join(lines).encode("latin-1")[:-1] + " caf\u00e9\n".encode("latin-1")  # a remark in Latin-1
+    else:
+        data = "".join(lines).encode() + b"1," + b"9" * 2_000_000 + b"\n"
+    src.write_bytes(data)
+    args = (["runway", src, "--code", "4E", "--crs", "EPSG:3003", "--out", tmp_path / "o", "-q"] if tool == "runway"
+            else ["aquifer", "model", src, "--layers", "LS,AU,AD,AQ", "--crs", "EPSG:3003", "--out", tmp_path / "o",
+                  "-q", "--no-figures"])
+    code, text = invoke(args)
+    assert code == 1, text
+    line = one_line(text, needle, str(src))
+    assert len(line) < 400
+    assert src.read_bytes() == data
+    assert not (tmp_path / "o" / "report.json").exists()
+
+
+def test_a_breakline_layer_without_features_is_a_warning_not_a_traceback(tiles, tmp_path, caplog):
+    import geopandas as gpd
+
+    empty = tmp_path / "empty.gpkg"
+    roads = gpd.read_file(B, layer="ROADBREAKLINE").iloc[:0]
+    roads.to_file(empty, layer="ROADS", driver="GPKG")
+    out = tmp_path / "out"
+    code, text = invoke(["shrub", tiles, "--out", out, "-q", "--roads", f"{empty}:ROADS", "--no-map"])
+    assert code == 0, text
+    assert "has no features" in caplog.text
+
+
+def test_layers_are_addressed_as_in_qgis_and_with_colons_in_their_names(tmp_path):
+    import geopandas as gpd
+
+    from gistools.io.vector import read_layer, split_layer_spec
+
+    assert split_layer_spec(r"C:\data\b.gpkg") == (Path(r"C:\data\b.gpkg"), None)
+    assert split_layer_spec(r"C:\data\b.gpkg:ROADS") == (Path(r"C:\data\b.gpkg"), "ROADS")
+    assert split_layer_spec("b.gpkg:ROADS:2020") == (Path("b.gpkg"), "ROADS:2020")
+    assert split_layer_spec("b.gpkg|layername=ROADS:2020") == (Path("b.gpkg"), "ROADS:2020")
+    gpkg = tmp_path / "b.gpkg"
+    roads = gpd.read_file(B, layer="ROADBREAKLINE")
+    roads.to_file(gpkg, layer="ROADS:2020", driver="GPKG")
+    for spec in (f"{gpkg}:ROADS:2020", f"{gpkg}|layername=ROADS:2020"):
+        assert len(read_layer(spec, ("line",), "--roads")) == len(roads)
+
+
+# ------------------------------------------------------------------ odd but legal values, broken links, hostile VPCs
+
+def test_a_dangling_tile_link_is_named_not_dropped(tiles, tmp_path):
+    (tiles / "gone.las").symlink_to(tmp_path / "unmounted" / "gone.las")  # a tile on a disk that is not mounted
+    before = snapshot(tiles)
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "out", "-q"])
+    assert code == 1, text
+    one_line(text, "gone.las: a link to a tile that is not there", "Mount the disk")
+    assert snapshot(tiles) == before and not (tmp_path / "out").exists()
+    (tiles / "gone.las").unlink()
+    (tiles / "loop.las").symlink_to(tiles / "loop.las")  # a link to itself
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "out", "-q"])
+    assert code == 1, text
+    one_line(text, "loop.las: a link to a tile that is not there")
+
+
+@pytest.mark.parametrize("doc,needle", [
+    ({"type": "FeatureCollection", "features": ["a.las", "b.las"]}, "an item is a str, not an object"),
+    ({"type": "FeatureCollection", "features": {"a": 1}}, "its features are a dict, not a list"),
+    ({"type": "FeatureCollection", "features": [{"properties": {"proj:epsg": 999999},
+                                                 "assets": {"data": {"href": "./a.las"}}}]}, "not a known EPSG code"),
+    ({"type": "FeatureCollection", "features": [{"properties": {},
+                                                 "assets": {"data": {"href": "https://example.com/a.laz"}}}]},
+     "gistools reads local files only"),
+    ("[" * 200_000 + "]" * 200_000, "nested too deep"),
+])
+def test_a_vpc_that_is_not_one_is_one_line(tmp_path, doc, needle):
+    vpc = tmp_path / "tiles.vpc"
+    vpc.write_text(doc if isinstance(doc, str) else json.dumps(doc))
+    code, text = invoke(["rasters", vpc, "--out", tmp_path / "out", "-q"])
+    assert code == 1, text
+    one_line(text, needle, str(vpc))
+    assert not (tmp_path / "out").exists()
+
+
+def test_odd_output_folders_are_one_line_or_work(tiles, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    before = snapshot(tmp_path)
+    code, text = invoke(["rasters", tiles, "--out", "", "-q"])  # an unset variable: never the current folder
+    assert code in (1, 2), text
+    assert "Traceback" not in text and snapshot(tmp_path) == before
+    out = tmp_path / "locked"
+    (out / ".gistools.lock").mkdir(parents=True)  # someone's folder of the lock's name
+    code, text = invoke(["rasters", tiles, "--out", out, "-q"])
+    assert code == 1, text
+    one_line(text, ".gistools.lock is a folder")
+    dollars = tmp_path / "cost_$5_$10"  # matplotlib would read $5_$ as math in the map's title
+    code, text = invoke(["shrub", tiles, "--out", dollars, "-q", *SHRUB_VECTORS])
+    assert code == 0, text
+    assert (dollars / "shrub_map.png").exists()
+
+
+@pytest.mark.parametrize("address,needle", [("inproc://x", "an in-process address cannot reach workers"),
+                                            ("ucx://127.0.0.1:9", "cannot connect to a Dask scheduler there")])
+def test_scheduler_addresses_dask_cannot_use_are_one_line(tiles, tmp_path, address, needle):
+    code, text = invoke(["rasters", tiles, "--out", tmp_path / "out", "-q", "--scheduler", address])
+    assert code == 1, text
+    one_line(text, needle)
+
+
+def test_a_legal_long_tile_name_is_made(tmp_path):
+    name = "t" * 240  # 244 characters with .las: legal; the hidden partial name must still fit in 255 bytes
+    (tmp_path / "tiles").mkdir()
+    las12(tmp_path / "tiles" / f"{name}.las")
+    code, text = invoke(["rasters", tmp_path / "tiles", "--out", tmp_path / "out", "-q", "--cell-size", "10ft"])
+    assert code == 0, text
+    assert (tmp_path / "out" / "dem" / f"{name}.tif").exists()

@@ -109,7 +109,7 @@ def _meets(path, poly):
 def test_hydro_flatten_needs_the_dem_and_a_polygon_layer(tmp_path):
     with pytest.raises(InputError, match="add dem"):
         rasters_from_tiles(SAMPLE, tmp_path / "a", RasterSettings(products=("dsm",), hydro_flatten=WATER))
-    with pytest.raises(InputError, match="--shore-width"):
+    with pytest.raises(InputError, match="shore_width"):
         rasters_from_tiles(SAMPLE, tmp_path / "b", RasterSettings(hydro_flatten=WATER, shore_width="-3ft"))
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
 
@@ -152,7 +152,7 @@ def test_dem_voids_are_filled_by_a_tin_across_or_left(tmp_path, sample_tiles):
     idw = dems["idw"][void][in_roof]
     assert np.isfinite(idw).all() and near.min() <= idw.min() and idw.max() <= near.max()
     assert np.array_equal(dems["tin"][~void], dems["none"][~void])
-    with pytest.raises(InputError, match="--dem-fill"):
+    with pytest.raises(InputError, match="dem_fill"):
         rasters_from_tiles(tiles, tmp_path / "bad", RasterSettings(dem_fill="kriging"))
 
 

@@ -156,7 +156,7 @@ def test_a_tile_without_ground_fails_alone_with_one_line(tmp_path, sample_tiles)
 def test_copc_holds_the_heights_as_z_and_refuses_the_extra_dimension(tmp_path, sample_tiles):
     from gistools.errors import InputError
 
-    with pytest.raises(InputError, match="--replace-z"):
+    with pytest.raises(InputError, match="replace_z"):  # a Python call: the message names the argument
         normalize_from_tiles(SAMPLE, tmp_path / "no", NormalizeSettings(format="copc"))
     assert not (tmp_path / "no").exists()
     report = normalize_from_tiles(sample_tiles[0], tmp_path / "c", NormalizeSettings(format="copc", replace_z=True))

@@ -194,7 +194,7 @@ def test_points_equal_the_library(qgis, tmp_path):
 
     result = qgis.run("gistools:points", {"INPUT": str(SAMPLE), "CLASSES": "2", "RETURNS": 2,
                                           "OUTPUT_FOLDER": str(tmp_path / "q")})
-    points_from_tiles(SAMPLE, tmp_path / "lib", classes=(2,), returns="any")
+    points_from_tiles(SAMPLE, tmp_path / "lib", classes=(2,), returns="all")
     files = sorted((tmp_path / "q").glob("*.gpkg"))
     assert len(files) == 4
     total = 0
@@ -729,3 +729,65 @@ def test_mapbook_in_processing_writes_a_page_per_tile(qgis, reference, tmp_path)
     shutil.copytree(reference, copy)
     res = qgis.run("gistools:mapbook", {"FOLDER": str(copy), "TILE_INDEX": layer("FOOTPRINT")})
     assert res["PAGES"] == 4 and Path(res["PDF"]).read_bytes().startswith(b"%PDF")
+
+
+# the algorithms' command on the command line (None: a step the command line runs only inside the chain)
+COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize": "normalize", "metrics": "metrics",
+              "chm": "chm", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
+              "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
+              "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
+              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook"}
+
+
+# the steps in QGIS take rasters; on the command line they rerun on a folder, whose record gives these
+RASTER_STEP_ONLY = {"z_unit"}
+
+
+@pytest.mark.parametrize("name", sorted(COMMAND_OF))
+def test_every_parameter_comes_from_its_one_declaration(qgis, name):
+    """Each algorithm's settings are made from gistools.parameters, as the command line's options are: the same
+    names, labels, defaults, choices and help; only where the inputs come from and where outputs go are its own."""
+    from qgis.core import QgsApplication
+
+    from gistools.cli.main import cli
+    from gistools.parameters import COMMANDS, PARAMETERS, ByUnits
+
+    alg = QgsApplication.processingRegistry().algorithmById(f"gistools:{name}")
+    declared = {p.qgis_name: n for n, p in alg._spec.items()}
+    # where the data come from (layers, files, folders, the field pickers of a layer) is the algorithm's own
+    inputs = ("raster", "vector", "source", "file", "multilayer", "field", "pointcloud", "folderDestination")
+    own = [d.name() for d in alg.parameterDefinitions() if not d.isDestination() and d.name() not in declared
+           and d.type() not in inputs]
+    assert not own, f"gistools:{name} declares parameters outside gistools.parameters: {own}"
+    command = COMMAND_OF[name]
+    click_command = cli
+    for part in (command or "").split():
+        click_command = click_command.commands[part]
+    options = {p.name: p for p in click_command.params} if command else {}
+    for qname, pname in declared.items():
+        p, d = PARAMETERS[pname], alg.parameterDefinition(qname)
+        assert d.description().startswith(p.label)
+        if hasattr(d, "help"):
+            assert d.help().startswith(p.help_text("qgis")), qname
+        if p.kind in ("choice", "choices"):  # the declared labels (in the order the algorithm's saved models use)
+            order = alg._orders.get(pname, tuple(p.choices))
+            assert d.options() == [p.choices[v] for v in order] and set(order) == set(p.choices)
+        if command and pname not in RASTER_STEP_ONLY:
+            assert pname in COMMANDS[command], f"{qname} of gistools:{name} is not an option of gistools {command}"
+            o = options[pname]
+            order = alg._orders.get(pname, tuple(p.choices))
+            if p.kind == "choices" and d.defaultValue() is not None:  # several: "1,2,3" on the command line
+                assert ",".join(str(order[i]) for i in d.defaultValue()) == str(o.default), qname
+            elif (p.kind == "choice" or p.choices) and d.defaultValue() is not None:
+                assert order[d.defaultValue()] == o.default, qname
+            elif p.kind in ("length", "text", "int") and not p.choices and not o.required and not isinstance(p.default, ByUnits) and d.defaultValue() is not None:
+                assert str(d.defaultValue()) == str(o.default), qname
+
+
+def test_a_renamed_parameter_is_refused_naming_its_new_name(qgis, reference, tmp_path):
+    """BREAKS of the bands step is the class breaks everywhere else (now BAND_BREAKS), BANDS of normalize the band
+    limits (now PRESET): a saved model or script giving the old name is told, not run on the default."""
+    with pytest.raises(QgsProcessingException, match="BREAKS is now BAND_BREAKS"):
+        qgis.run("gistools:bands", {"NDSM": str(reference / "ndsm.vrt"), "BREAKS": "1,2,6",
+                                    "OUTPUT": str(tmp_path / "b.tif")})
+    assert not (tmp_path / "b.tif").exists()

@@ -86,3 +86,20 @@ def test_every_readme_command_block_runs_as_printed(tmp_path):
         codes = set(np.unique(src.read(1)).tolist())
     assert {0, 1, 2, 3, 4, 5} <= codes
     assert len(gpd.read_file(model / "shrub_classes.gpkg")) > 0
+
+
+def test_the_python_example_after_the_command_blocks_speaks_python(tmp_path):
+    """Run after the command blocks (which made out/ with 5 ft cells), the example's 1 m call into the same folder
+    is refused by the library, and its message names the Python argument (overwrite=True), never a flag."""
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## Python\n"):]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    shutil.copytree(SAMPLE, tmp_path / "sample_tiles")
+    first = subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", "sample_tiles", "--out", "out", "-q"],
+                           cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert first.returncode == 0, first.stderr
+    (tmp_path / "example.py").write_text(code)
+    proc = subprocess.run([sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        last = proc.stderr.strip().splitlines()[-1]
+        assert "overwrite=True" in last and "--" not in last, last

@@ -201,7 +201,7 @@ def test_vector_crs_mismatch_is_refused(sample_tiles, tmp_path):
     roads.to_file(tmp_path / "roads_wgs84.gpkg", layer="roads")
     with pytest.raises(CRSMismatchError) as err:
         shrub_from_tiles(sample_tiles, tmp_path / "out", roads=f"{tmp_path / 'roads_wgs84.gpkg'}:roads")
-    assert "EPSG:4326" in str(err.value) and "EPSG:2882" in str(err.value) and "--reproject-vectors" in str(err.value)
+    assert "EPSG:4326" in str(err.value) and "EPSG:2882" in str(err.value) and "reproject_vectors=True" in str(err.value)
     assert not (tmp_path / "out" / "dsm").exists()  # refused before the raster stage, not after it
     report = shrub_from_tiles(sample_tiles, tmp_path / "out2", roads=f"{tmp_path / 'roads_wgs84.gpkg'}:roads",
                               reproject_vectors=True, make_map=False)

@@ -74,3 +74,38 @@ def test_vertical_unit_from_geotiff_keys(tmp_path):
 
     with pytest.raises(CRSMismatchError, match="z is in metre"):
         common_crs([read_tile_info(tmp_path / "f.las"), read_tile_info(tmp_path / "m.las")])
+
+
+def _shrub(args, tmp_path, name):
+    from click.testing import CliRunner
+
+    from conftest import SAMPLE
+    from gistools.cli.main import cli
+
+    b = SAMPLE / "breaklines.gpkg"
+    out = tmp_path / name
+    run = CliRunner().invoke(cli, ["shrub", str(SAMPLE), "--out", str(out), "-q", "--no-map",
+                                   "--roads", f"{b}:ROADBREAKLINE", *args])
+    assert run.exit_code == 0, run.output
+    import json
+
+    return json.loads((out / "report.json").read_text()), run.output
+
+
+def test_defaults_read_naturally_in_the_datas_unit(tmp_path):
+    """With no options, a CRS in feet gets the dissertation's 5 ft cells, 25 ft radius, 60 ft roads and 0.2 ft snap;
+    a metre CRS (the same coordinates read as UTM metres) 1.5 m, 7.5 m, 18 m and 0.06 m; the console says so."""
+    feet, said = _shrub([], tmp_path, "feet")
+    assert feet["cell_size"] == 5.0 and feet["horizontal_unit"] == "US survey foot"
+    assert feet["density_radius"] == 25.0
+    assert "cell size 5 ftUS" in said and "radius 25 ftUS" in said
+    metres, said = _shrub(["--crs", "EPSG:32617"], tmp_path, "metres")
+    assert metres["cell_size"] == 1.5 and metres["horizontal_unit"] == "metre"
+    assert metres["density_radius"] == 7.5
+    settings = metres["settings"]
+    assert (settings["max_road_width"], settings["snap"], settings["radius"]) == ("18m", "0.06m", "7.5m")
+    assert settings["raster"]["cell_size"] == "1.5m"
+    assert "cell size 1.5 m" in said and "radius 7.5 m" in said
+    # a length given keeps its value whatever the unit
+    given, _ = _shrub(["--crs", "EPSG:32617", "--cell-size", "5ft", "--radius", "25ft"], tmp_path, "given")
+    assert given["cell_size"] == pytest.approx(1.524) and given["density_radius"] == pytest.approx(7.62)

@@ -5,16 +5,12 @@ from __future__ import annotations
 
 import click
 
-basemap_opt = click.option("--basemap", default=None, metavar="URL",
-                           help="An XYZ tile URL under the polygons, for users who are online (default: none; the page "
-                                "then makes no request to any network address).")
+from .spec import spec_options
 
 
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
-@basemap_opt
-@click.option("--split-mb", type=float, default=40.0, show_default=True,
-              help="Above this many megabytes of polygons the map is split by tile into parts (and an index page).")
+@spec_options("webmap")
 def webmap(out, basemap, split_mb):
     """Write OUT/shrub_map.html: the shrub classes of a gistools shrub folder as one self-contained offline web map
     (Leaflet and the polygons inlined; legend, scale bar, the parameters, a popup per polygon with its class, area
@@ -34,11 +30,7 @@ def webmap(out, basemap, split_mb):
 
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
-@click.option("--exaggeration", type=float, default=1.0, show_default=True, help="Heights times this.")
-@click.option("--max-mb", type=float, default=50.0, show_default=True,
-              help="The .glb stays under this size: the grid is decimated (every k-th cell) to fit.")
-@click.option("--surface", type=click.Choice(("dsm", "dem")), default="dsm", show_default=True,
-              help="dsm: the DSM (the DEM where it has no value); dem: the bare ground.")
+@spec_options("scene")
 def scene(out, exaggeration, max_mb, surface):
     """Write OUT/scene.glb: the surface of a gistools shrub folder as a glTF mesh in metres with the shrub classes
     as vertex colours (x east, y up, z south from the mosaic's south-west corner; the origin and CRS in the asset's
@@ -58,16 +50,11 @@ def scene(out, exaggeration, max_mb, surface):
 
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
-@click.option("--tile-index", default=None, help="Tile footprints (file.gpkg:LAYER): a page per tile, fitted to it. "
-              "Without it: a grid of sheets at --scale.")
-@click.option("--tile-field", default="TILE_ID", show_default=True, help="The tile index's field naming the tile.")
-@click.option("--scale", type=float, default=10000, show_default=True, help="The n of 1:n, for the grid of sheets.")
-@click.option("--paper", type=click.Choice(("letter", "a4", "tabloid")), default="letter", show_default=True,
-              help="Paper (landscape).")
-def mapbook(out, tile_index, tile_field, scale, paper):
-    """Write OUT/map_book.pdf: a page per tile (or per sheet of a grid at 1:SCALE) of a gistools shrub folder's
-    classes, with the roads and water, a coordinate grid, a locator map, legend, scale bar, north arrow and the
-    parameters: what a field team prints.
+@spec_options("mapbook")
+def mapbook(out, tile_index, tile_field, scale, paper, max_pages):
+    """Write OUT/map_book.pdf: a page per tile of --tile-index, each fitted to it (without it: per sheet of a grid
+    at 1:SCALE) of a gistools shrub folder's classes, with the roads and water, a coordinate grid, a locator map,
+    legend, scale bar, north arrow and the parameters: what a field team prints.
 
     \b
     Examples:
@@ -76,5 +63,5 @@ def mapbook(out, tile_index, tile_field, scale, paper):
     """
     from ..tasks.mapbook import map_book
 
-    r = map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper)
+    r = map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper, max_pages=max_pages)
     click.echo(f"wrote {r['pdf']} ({r['pages']} pages, 1:{min(r['scales']):,.0f} to 1:{max(r['scales']):,.0f})")

@@ -2,21 +2,21 @@
 
 from __future__ import annotations
 
-import json
+import json as _json
 
 import click
 
 from ..errors import GistoolsError
 from ..io.tiles import find_tiles
 from ..tasks.info import tile_summary
-from .options import crs_opt
+from .spec import spec_options
 
 
 @click.command()
 @click.argument("tiles", nargs=-1, required=True)
-@crs_opt
-@click.option("--json", "as_json", is_flag=True, help="Print JSON instead of text.")
-def info(tiles, crs, as_json):
+@spec_options("info")
+@click.option("--json", "json", is_flag=True, help="Print JSON instead of text.")
+def info(tiles, crs, json):
     """Print header, CRS, units and point counts by class and return of TILES.
 
     \b
@@ -34,7 +34,7 @@ def info(tiles, crs, as_json):
             failed += 1
             continue
         summaries.append(s)
-        if not as_json:
+        if not json:
             click.echo(f"{s['file']}")
             click.echo(f"  LAS {s['las_version']}, point format {s['point_format']}, {s['points']:,} points"
                        f"{' (LAZ)' if s['compressed'] else ''}")
@@ -46,7 +46,7 @@ def info(tiles, crs, as_json):
             click.echo(f"  bounds: x {w:.2f} .. {e:.2f}, y {so:.2f} .. {n:.2f}, z {s['z_range'][0]:.2f} .. {s['z_range'][1]:.2f}")
             click.echo("  by class: " + ", ".join(f"{c}: {n:,}" for c, n in s["points_by_class"].items()))
             click.echo("  by return: " + ", ".join(f"{r}: {n:,}" for r, n in s["points_by_return"].items()))
-    if as_json:
-        click.echo(json.dumps(summaries, indent=2))
+    if json:
+        click.echo(_json.dumps(summaries, indent=2))
     if failed:
         raise SystemExit(1)

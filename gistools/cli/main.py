@@ -7,6 +7,7 @@ names the file, the problem and the fix, and exit with status 1; no traceback.
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 import threading
@@ -15,10 +16,11 @@ import click
 
 from .. import __version__
 from ..errors import Cancelled, GistoolsError
+from ..parameters import ENV, speaks
 from ..progress import request_interrupt
 
 
-_INTERRUPTS = {"n": 0}
+_INTERRUPTS = {"n": 0, "signal": signal.SIGINT}
 INTERRUPTED = "gistools: interrupted; complete outputs are kept, no partial file is left under a final name (rerun to resume)"
 
 
@@ -27,31 +29,45 @@ def _on_sigint(signum, frame):
     raised, so the clean-up completes; a third one raises again. The count makes sure the run ends with 130 even
     when a library swallowed the KeyboardInterrupt."""
     _INTERRUPTS["n"] += 1
+    _INTERRUPTS["signal"] = signum or signal.SIGINT
     request_interrupt()
     if _INTERRUPTS["n"] != 2:
         raise KeyboardInterrupt
 
 
+def _status() -> int:
+    """The exit status of an interrupted run: 128 + the signal (130 for Ctrl-C, 143 for SIGTERM, 129 for SIGHUP)."""
+    return 128 + int(_INTERRUPTS["signal"])
+
+
+# what ends a run besides Ctrl-C: a scheduler or `timeout` (SIGTERM), a closed terminal (SIGHUP); Windows has neither
+STOP_SIGNALS = [getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)]
+
+
 class GistoolsGroup(click.Group):
     def invoke(self, ctx):
+        with speaks("cli"):  # library messages name parameters by their flags (gistools.parameters)
+            return self._invoke(ctx)
+
+    def _invoke(self, ctx):
         try:
             value = super().invoke(ctx)
         except Cancelled as err:
             click.echo(f"gistools: {err}", err=True)
-            sys.exit(130)
+            sys.exit(_status())
         except GistoolsError as err:
             if _INTERRUPTS["n"]:
                 click.echo(INTERRUPTED, err=True)
-                sys.exit(130)
+                sys.exit(_status())
             click.echo(f"gistools: error: {err}", err=True)
             sys.exit(1)
         except KeyboardInterrupt:
             click.echo(INTERRUPTED, err=True)
-            sys.exit(130)
+            sys.exit(_status())
         except SystemExit:
             if _INTERRUPTS["n"]:
                 click.echo(INTERRUPTED, err=True)
-                sys.exit(130)
+                sys.exit(_status())
             raise
         except OSError as err:  # an output that cannot be written, met outside the checked writes
             from ..io.atomic import output_error
@@ -63,7 +79,7 @@ class GistoolsGroup(click.Group):
             sys.exit(1)
         if _INTERRUPTS["n"]:  # a Ctrl-C some library swallowed ("Exception ignored ..."): still an interrupt
             click.echo(INTERRUPTED, err=True)
-            sys.exit(130)
+            sys.exit(_status())
         return value
 
 
@@ -111,15 +127,17 @@ for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub
 def main():  # console_scripts entry point
     from ..tasks.batch import keep_freed_memory, worker_thread_environment
 
+    os.environ.setdefault(ENV, "cli")  # the workers this process starts name parameters by their flags too
     keep_freed_memory()  # tile after tile in this process: reuse the freed arrays (tasks/batch.py)
     worker_thread_environment()  # the workers this process spawns start with one BLAS thread
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, _on_sigint)
+        for signum in STOP_SIGNALS:  # each cleans up as Ctrl-C does: the folder as it was, the lock and scratch gone
+            signal.signal(signum, _on_sigint)
     try:
         cli(prog_name="gistools")
     except KeyboardInterrupt:  # outside a command (start-up, argument parsing)
         click.echo(INTERRUPTED, err=True)
-        sys.exit(130)
+        sys.exit(_status())
 
 
 if __name__ == "__main__":

@@ -43,6 +43,17 @@ def overwrite_opt(fn):
         return fn(*args, **kwargs)
 
     return _resume_or_overwrite(wrapper)
+def _folder(ctx, param, value):
+    if value is not None and not str(value).strip():  # an unset variable ($OUT): never the current folder
+        raise click.BadParameter("is empty: give the output folder, e.g. --out out")
+    return value
+
+
+def out_opt(help: str = "Output folder."):  # noqa: A002 - click's word
+    """--out / -o: the output folder (an empty value is refused, not taken as the current folder)."""
+    return click.option("--out", "-o", required=True, type=click.Path(file_okay=False), callback=_folder, help=help)
+
+
 jobs_opt = click.option("--jobs", "-j", type=click.IntRange(1), default=1, show_default=True,
                         help="Tiles processed in parallel (local processes).")
 crs_opt = click.option("--crs", default=None, help="CRS of the tiles (EPSG:2882, WKT): required when a header has none; overrides the header's otherwise.")

@@ -4,18 +4,14 @@ from __future__ import annotations
 
 import click
 
-from .options import finish_batch, batch_report, chunk_opt, crs_opt, overwrite_opt, parse_classes
+from .options import out_opt, batch_report, finish_batch, overwrite_opt
+from .spec import spec_options
 
 
 @click.command()
 @click.argument("inputs", nargs=-1, required=True)
-@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder (one layer per tile).")
-@click.option("--classes", callback=parse_classes, default="1,2", show_default=True, help="ASPRS classes to keep.")
-@click.option("--returns", type=click.Choice(["first", "last", "any"]), default="any", show_default=True)
-@click.option("--format", "fmt", type=click.Choice(["gpkg", "parquet"]), default="gpkg", show_default=True,
-              help="GeoPackage, or GeoParquet (needs pyarrow) for tiles of millions of points.")
-@crs_opt
-@chunk_opt
+@out_opt("Output folder (one layer per tile).")
+@spec_options("points", skip=("overwrite",))
 @overwrite_opt
 def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
     """LAS/LAZ tiles to point layers with x, y, z, class, return number and intensity
@@ -24,7 +20,7 @@ def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
     \b
     Examples (the dissertation's two runs):
       $ gistools points tiles --classes 1,2 --returns first --out non-ground
-      $ gistools points tiles --classes 2 --returns any --out ground
+      $ gistools points tiles --classes 2 --returns all --out ground
     """
     from ..tasks.points import points_from_tiles
 

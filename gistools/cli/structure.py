@@ -5,30 +5,14 @@ from __future__ import annotations
 import click
 
 from ..tasks.structure import structure_model
-from .options import overwrite_opt, progress_bar
-
-
-def _triple(ctx, param, value):
-    try:
-        parts = tuple(float(v) for v in value.split(","))
-    except ValueError:
-        parts = ()
-    if len(parts) != 3:
-        raise click.BadParameter(f"{value!r} is not three comma-separated numbers")
-    return parts
+from .options import out_opt, overwrite_opt, progress_bar
+from .spec import spec_options
 
 
 @click.command()
 @click.argument("source")
-@click.option("--out", "-o", required=True, type=click.Path(file_okay=False), help="Output folder.")
-@click.option("--height-interval", "h", type=float, default=None, help="Largest height step between consecutive levels, m (default: estimated).")
-@click.option("--distance", "d", type=float, default=None, help="Planimetric distance joining points into a cluster, m (default: estimated).")
-@click.option("--tolerance", "t", type=float, default=None, help="Planimetric tolerance of matching and of the chain / sown split, m (default 4).")
-@click.option("--columns", default="123", show_default=True, help="Which input columns are x, y, z (213 swaps x and y).")
-@click.option("--scales", callback=_triple, default="1,1,1", show_default=True, help="Signed scale per axis.")
-@click.option("--rotations", callback=_triple, default="0,0,0", show_default=True, help="Degrees about x, y, z.")
-@click.option("--loop-mode", type=click.Choice(["classic", "catmull-rom"]), default="classic", show_default=True,
-              help="catmull-rom: also write the dissertation's Catmull-Rom loops (new points and lines).")
+@out_opt()
+@spec_options("structure", skip=("overwrite",))
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True)
 def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overwrite, quiet):

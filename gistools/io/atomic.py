@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import errno
+import hashlib
 import os
 import re
 import secrets
@@ -19,6 +20,7 @@ import shutil
 from pathlib import Path
 
 from ..errors import GistoolsError, OutputError, OutputExistsError
+from ..parameters import option
 
 __all__ = ["atomic_path", "partial_name", "is_partial", "output_error", "raise_output_error", "check_nonempty",
            "disk_is_full", "no_space_error"]
@@ -34,12 +36,20 @@ _FOLDER_ERRNOS = {errno.EROFS: "is on a read-only file system", errno.EACCES: "i
                   errno.EPERM: "is not writable (permission denied)", errno.ENOTDIR: "is under a file, not a folder"}
 
 
+NAME_MAX = 255  # bytes of a file name on the file systems of Linux, macOS and Windows
+
+
 def partial_name(path, keep_suffix: bool = False) -> Path:
     """The partial file for ``path``: hidden, in the same folder, owned by this process.
     ``keep_suffix``: end in the final suffix too (laspy picks LAZ, GDAL the GeoPackage driver, by it)."""
     path = Path(path)
-    name = f".{path.name}.gistools-{os.getpid()}-{_TOKEN}.partial"
-    return path.with_name(name + (path.suffix if keep_suffix else ""))
+    tail = f".gistools-{os.getpid()}-{_TOKEN}.partial" + (path.suffix if keep_suffix else "")
+    stem = path.name
+    room = NAME_MAX - 1 - len(tail.encode())  # a legal 240-character tile name still gets a legal partial name
+    if len(stem.encode()) > room:
+        digest = hashlib.sha1(stem.encode()).hexdigest()[:10]
+        stem = stem.encode()[:max(room - 11, 1)].decode("utf-8", "ignore") + "~" + digest
+    return path.with_name(f".{stem}{tail}")
 
 
 def is_partial(path) -> bool:
@@ -75,7 +85,7 @@ def output_error(err: BaseException, path) -> OutputError | None:
         return no_space_error(path)
     if code in _FOLDER_ERRNOS:
         return OutputError(f"{path} cannot be written: {_existing_parent(Path(path).parent)} {_FOLDER_ERRNOS[code]}",
-                           hint="Choose another --out (a writable folder)")
+                           hint=f"Choose another {option('out')} (a writable folder)")
     return None
 
 
@@ -95,7 +105,7 @@ def no_space_error(path) -> OutputError:
     except OSError:
         free = 0.0
     return OutputError(f"no space left on {_mount_point(where)} (writing {path}; {free:.1f} MB free)",
-                       hint="Free some space or choose another --out; complete outputs are kept and a rerun resumes")
+                       hint=f"Free some space or choose another {option('out')}; complete outputs are kept and a rerun resumes")
 
 
 def raise_output_error(err: BaseException, path) -> None:
@@ -119,7 +129,7 @@ def unreadable_output(tmp, what: str, err=None) -> OutputError:
         return no_space_error(final_name(tmp))
     reason = f" ({err})" if err else ""
     return OutputError(f"{final_name(tmp)}: the {what} just written does not read back{reason}",
-                       hint="Check the disk of --out (full, failing?) and run again")
+                       hint=f"Check the disk of {option('out')} (full, failing?) and run again")
 
 
 def check_nonempty(tmp: Path) -> None:
@@ -137,7 +147,8 @@ def atomic_path(path, *, overwrite: bool = False, keep_suffix: bool = False, ver
     """
     path = Path(path)
     if path.exists() and not overwrite:
-        raise OutputExistsError("output exists", path=path, hint="Pass --overwrite to replace it, or choose another --out")
+        raise OutputExistsError("output exists", path=path,
+                                hint=f"Pass {option('overwrite')} to replace it, or choose another {option('out')}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except OSError as err:

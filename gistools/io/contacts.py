@@ -17,6 +17,9 @@ import pandas as pd
 import pyproj
 
 from ..errors import DataFileError, InputError
+from ..parameters import option
+from .text import check_text_file, shown
+from .vector import split_layer_spec
 from .points import parse_crs_text
 from .text import read_id_xyz
 
@@ -63,7 +66,7 @@ def _numbers(values, path, field, lines) -> np.ndarray:
     bad = np.flatnonzero(~np.isfinite(out))
     if bad.size:
         k = int(bad[0])
-        raise InputError(f"line {lines[k]}: {field} {values[k]!r} is not a number", path=path,
+        raise InputError(f"line {lines[k]}: {field} {shown(values[k])} is not a number", path=path,
                          hint=f"Fix or remove that row ({bad.size} such row(s) in all)")
     return out
 
@@ -84,6 +87,7 @@ def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.n
     """A CSV or vector layer as a frame of strings, with the file line of each row."""
     text = spec or str(path)
     if spec is None and path.suffix.lower() in (".csv", ".txt", ".tsv", ".xyz", ".dat"):
+        check_text_file(path, "contacts table")
         try:
             df = pd.read_csv(path, sep=_sniff(path), encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False, low_memory=False)
         except Exception as err:
@@ -155,7 +159,7 @@ def _one_table(source, swap_xy, fields=None) -> tuple[pd.DataFrame, object]:
     src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
     path = Path(src)
     if not path.exists() and ":" in src:
-        path = Path(src.rsplit(":", 1)[0])
+        path = split_layer_spec(src)[0]
     if not path.exists():
         raise DataFileError("file not found", path=path, hint="Check the path")
     df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
@@ -168,14 +172,15 @@ def _check_layers(pts: pd.DataFrame, layers, min_points: int) -> None:
     unknown = sorted(set(pts["layer"]) - set(layers))
     if unknown:
         k = int(np.flatnonzero(pts["layer"].isin(unknown).to_numpy())[0])
-        raise InputError(f"line {pts['line'].iloc[k]}: layer {unknown[0]!r} is not in --layers {','.join(layers)}",
+        raise InputError(f"line {pts['line'].iloc[k]}: layer {unknown[0]!r} is not in {option('layers', ','.join(layers))}",
                          path=pts["source"].iloc[k],
-                         hint=f"Add it to --layers in its place top to bottom, or remove its rows (unknown: {', '.join(unknown)})")
+                         hint=f"Add it to {option('layers')} in its place top to bottom, or remove its rows (unknown: "
+                              f"{', '.join(unknown)})")
     for layer in layers:
         n = int((pts["layer"] == layer).sum())
         if n < min_points:
             raise InputError(f"layer {layer} has {n} point(s); a surface needs at least {min_points}",
-                             path=pts["source"].iloc[0], hint="Check the layer names in the file and in --layers")
+                             path=pts["source"].iloc[0], hint=f"Check the layer names in the file and in {option('layers')}")
 
 
 def _contacts_crs(crs, found_crs, where) -> pyproj.CRS:
@@ -185,7 +190,7 @@ def _contacts_crs(crs, found_crs, where) -> pyproj.CRS:
         out_crs = pyproj.CRS.from_user_input(found_crs)
     else:
         raise InputError("the contacts carry no CRS", path=where,
-                         hint="Give one with --crs (the Milan data: EPSG:3003, Monte Mario / Italy zone 1)")
+                         hint=f"Give one with {option('crs')} (the Milan data: EPSG:3003, Monte Mario / Italy zone 1)")
     if out_crs.is_geographic:
         raise InputError(f"CRS {out_crs.name!r} is geographic (degrees)", path=where,
                          hint="Give the contacts in a projected CRS in metres or feet")
@@ -201,7 +206,7 @@ def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points
     """
     layers = [str(lay).strip() for lay in layers]
     if len(layers) < 2 or len(set(layers)) != len(layers):
-        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint="e.g. --layers LS,AU,AD,AQ")
+        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint=f"e.g. {option('layers', 'LS,AU,AD,AQ')}")
     found_crs = None
     if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
         frames = _per_layer_files(source, swap_xy)

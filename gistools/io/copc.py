@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import option
 
 __all__ = ["write_copc", "copc_available"]
 
@@ -34,7 +35,7 @@ def _copc_format(las):
         return las
     target = {0: 6, 1: 6, 2: 7, 3: 7, 4: 6, 5: 7}.get(pf)
     if target is None:
-        raise InputError(f"point format {pf} has no COPC equivalent", hint="Use --format laz")
+        raise InputError(f"point format {pf} has no COPC equivalent", hint=f"Use {option('format', 'laz')}")
     return laspy.convert(las, point_format_id=target, file_version="1.4")
 
 
@@ -75,7 +76,8 @@ def write_copc(las, path, *, crs_wkt: str | None, max_node_points: int = 100_000
     import copclib
 
     if list(las.point_format.extra_dimension_names):
-        raise InputError("--format copc does not carry extra-bytes dimensions here", hint="Use --format laz")
+        raise InputError(f"{option('format', 'copc')} does not carry extra-bytes dimensions here",
+                         hint=f"Use {option('format', 'laz')}")
     las = _copc_format(las)
     pf = las.header.point_format.id
     x, y, z = (np.asarray(a, np.float64) for a in (las.x, las.y, las.z))

@@ -20,10 +20,11 @@ import threading
 import time
 from pathlib import Path
 
-from ..errors import OutputBusyError, OutputError
+from ..errors import OutputBusyError, OutputError, OutputExistsError
+from ..parameters import option
 from .atomic import is_partial, raise_output_error
 
-__all__ = ["claim_output", "LOCK_NAME", "remove_leftovers"]
+__all__ = ["claim_output", "output_folder", "check_record", "is_our_record", "LOCK_NAME", "remove_leftovers"]
 
 log = logging.getLogger(__name__)
 
@@ -60,12 +61,13 @@ def _alive(pid: int, start: str | None) -> bool:
 
 def _make_folder(out: Path) -> None:
     if out.exists() and not out.is_dir():
-        raise OutputError(f"--out {out} is a file, not a folder", hint="Choose a folder for --out")
+        raise OutputError(f"{option('out')} {out} is a file, not a folder", hint=f"Choose a folder for {option('out')}")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise_output_error(err, out)
-        raise OutputError(f"--out {out} cannot be created ({err.strerror or err})", hint="Choose another --out") from None
+        raise OutputError(f"{option('out')} {out} cannot be created ({err.strerror or err})",
+                          hint=f"Choose another {option('out')}") from None
 
 
 def _take_lock(out: Path, command: str) -> Path:
@@ -73,6 +75,9 @@ def _take_lock(out: Path, command: str) -> Path:
     me = {"pid": os.getpid(), "host": socket.gethostname(), "start": _process_start(os.getpid()),
           "command": command, "since": time.strftime("%Y-%m-%d %H:%M:%S")}
     for _ in range(3):
+        if lock.is_dir() and not lock.is_symlink():  # not gistools' lock: someone's folder of that name
+            raise OutputError(f"{lock} is a folder, where gistools keeps its lock file",
+                              hint=f"Rename or move that folder, or choose another {option('out')}")
         try:
             fd = os.open(lock, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644)
         except FileExistsError:
@@ -81,7 +86,7 @@ def _take_lock(out: Path, command: str) -> Path:
                 raise OutputBusyError(
                     f"{out} is in use by another gistools run ({holder.get('command', 'gistools')}, process "
                     f"{holder.get('pid')} on {holder.get('host')} since {holder.get('since')})",
-                    hint=f"Wait for it to end or choose another --out; if that run is gone, delete {lock}")
+                    hint=f"Wait for it to end or choose another {option('out')}; if that run is gone, delete {lock}")
             log.warning("%s: taking over the lock of a run that is gone (%s)", out, holder)
             with contextlib.suppress(FileNotFoundError):
                 lock.unlink()
@@ -98,7 +103,7 @@ def _take_lock(out: Path, command: str) -> Path:
             raise_output_error(err, lock)
             raise
         return lock
-    raise OutputBusyError(f"{out}: the lock {lock} keeps changing hands", hint="Choose another --out")
+    raise OutputBusyError(f"{out}: the lock {lock} keeps changing hands", hint=f"Choose another {option('out')}")
 
 
 def _read_lock(lock: Path) -> dict | None:
@@ -149,19 +154,48 @@ def remove_leftovers(out: Path) -> None:
                     entry.unlink()
 
 
+def output_folder(out) -> Path:
+    """``out`` as a Path; an empty value (an unset variable) is refused, never taken as the current folder."""
+    if out is None or not str(out).strip():
+        raise OutputError(f"{option('out')} is empty", hint=f"Give the output folder, e.g. {option('out', 'out')}")
+    return Path(out)
+
+
+RECORD_NAME = "report.json"
+
+
+def is_our_record(path) -> bool:
+    """Whether ``path`` is a record gistools wrote: a JSON object whose ``tool`` names a gistools command."""
+    try:
+        value = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return False
+    return isinstance(value, dict) and str(value.get("tool") or "").startswith("gistools")
+
+
+def check_record(out) -> None:
+    """Refuse a folder whose ``report.json`` gistools did not write (a user's own file of that name), before
+    anything is written: the record of the run would replace it."""
+    record = Path(out) / RECORD_NAME
+    if record.is_dir() or (record.exists() and not is_our_record(record)):
+        raise OutputExistsError(f"a {RECORD_NAME} gistools did not write is in the way", path=record,
+                                hint="Move or rename it, or choose another output folder")
+
+
 @contextlib.contextmanager
 def claim_output(out, command: str = "gistools"):
     """Create and lock the output folder ``out`` for the block, after removing this program's leftovers.
 
-    Raises OutputError (not writable, a file, read-only) or OutputBusyError (another run holds it) before
-    anything is written. Nested claims of one folder in one process (the shrub chain runs the rasters) share
+    Raises OutputError (not writable, a file, read-only), OutputBusyError (another run holds it) or
+    OutputExistsError (a report.json gistools did not write is there) before anything is written. Nested claims of one folder in one process (the shrub chain runs the rasters) share
     the lock.
     """
-    out = Path(out)
+    out = output_folder(out)
     key = os.path.abspath(out)
     with _HELD_LOCK:
         nested = _HELD.get(key, 0) > 0
         if not nested:
+            check_record(out)
             _make_folder(out)
             _take_lock(out, command)
             remove_leftovers(out)

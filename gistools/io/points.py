@@ -17,6 +17,7 @@ import numpy as np
 import pyproj
 
 from ..errors import CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
+from ..parameters import option
 from ..units import LinearUnit, horizontal_unit, vertical_unit
 
 __all__ = [
@@ -108,7 +109,7 @@ def parse_crs_text(text: str) -> pyproj.CRS:
     try:
         return pyproj.CRS.from_user_input(text)
     except pyproj.exceptions.CRSError as err:
-        raise InputError(f"--crs {text!r} is not a CRS ({err})", hint="Give e.g. EPSG:2882 or a WKT string") from None
+        raise InputError(f"{option('crs')} {text!r} is not a CRS ({err})", hint="Give e.g. EPSG:2882 or a WKT string") from None
 
 
 def _open_error(path: Path, err: Exception) -> DataFileError:
@@ -262,7 +263,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
         raise MissingCRSError(
             crs_note or "header has no CRS",
             path=path,
-            hint='Pass the tiles\' CRS with --crs, e.g. --crs EPSG:2882 (CLI), or set "Input CRS" (QGIS)',
+            hint=f"Pass the tiles' CRS with {option('crs')}, e.g. {option('crs', 'EPSG:2882')}",
         )
     used = crs if crs is not None else file_crs
     if require_crs:
@@ -321,13 +322,14 @@ def common_crs(infos: list[TileInfo]) -> pyproj.CRS:
             raise CRSMismatchError(
                 f"CRS {crs_label(info.crs)} differs from {crs_label(first.crs)} of {first.path}",
                 path=info.path,
-                hint="Reproject the tiles to one CRS, or run them separately; --crs overrides the CRS of every tile",
+                hint=f"Reproject the tiles to one CRS, or run them separately; {option('crs')} overrides the CRS of every tile",
             )
         if abs(info.z_unit.metres - first.z_unit.metres) > 1e-9:
             raise CRSMismatchError(
                 f"z is in {info.z_unit.name} but in {first.z_unit.name} in {first.path}",
                 path=info.path,
-                hint="Convert the tiles to one vertical unit, or run them separately; --crs with a compound CRS overrides both",
+                hint=f"Convert the tiles to one vertical unit, or run them separately; {option('crs')} with a compound CRS "
+                     "overrides both",
             )
     return first.crs
 

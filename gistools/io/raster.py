@@ -73,6 +73,13 @@ def verify_raster(tmp: Path) -> None:
         raise unreadable_output(tmp, "raster", err) from None
 
 
+def file_stamp(path) -> list[int]:
+    """[size in bytes, modification time in ns] of a file: what a resumed run compares with the stamp taken when
+    gistools wrote and checked it (a rename keeps both), instead of opening every raster again."""
+    st = os.stat(path)
+    return [int(st.st_size), int(st.st_mtime_ns)]
+
+
 def raster_is_readable(path) -> bool:
     """True when ``path`` opens and is whole (what a resumed run checks of each raster it keeps)."""
     try:
@@ -198,20 +205,48 @@ def read_raster(path) -> tuple[np.ndarray, Grid, float | None]:
     return data, grid, nodata
 
 
-def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: dict | None = None) -> Path | None:
-    """A GDAL VRT mosaic of single-band GeoTIFFs on one lattice (written atomically).
+def _vrt_palette(categories: dict) -> list[str]:
+    """The VRT band's colour table and category names of ``categories`` {code: (name, "#rrggbb")}."""
+    lines = ["    <ColorInterp>Palette</ColorInterp>",
+             "    <CategoryNames>" + "".join(f"<Category>{html.escape(n)}</Category>"
+                                         for n in _category_names(categories)) + "</CategoryNames>",
+             "    <ColorTable>"]
+    for c in range(max(categories) + 1):
+        r, g, b, a = rgba(categories[c][1]) if c in categories else (0, 0, 0, 0)
+        lines.append(f'      <Entry c1="{r}" c2="{g}" c3="{b}" c4="{a}"/>')
+    return lines + ["    </ColorTable>"]
 
-    Sources are referenced relative to the VRT. Returns None when ``sources`` is empty. ``categories``
-    {code: (name, "#rrggbb")}: the mosaic's colour table (only these codes: a short legend) and category names.
-    """
-    path = Path(path)
+
+def _vrt_sources(sources, geometry: dict):
+    """([(path, transform, width, height, crs, nodata, dtype)], units, description) of a mosaic's sources: the first
+    is opened (CRS, data type, nodata and units, which the sources of one product share); the others where
+    ``geometry`` does not give their grid."""
     metas = []
     units = description = None
     for src_path in sources:
+        known = geometry.get(str(src_path)) if metas else None
+        if known is not None:
+            transform, width, height = known
+            metas.append((Path(src_path), transform, width, height, metas[0][4], metas[0][5], metas[0][6]))
+            continue
         with rasterio.open(src_path) as src:
             metas.append((Path(src_path), src.transform, src.width, src.height, src.crs, src.nodata, src.dtypes[0]))
             if len(metas) == 1:
                 units, description = src.units[0], src.descriptions[0]
+    return metas, units, description
+
+
+def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: dict | None = None,
+              geometry: dict | None = None) -> Path | None:
+    """A GDAL VRT mosaic of single-band GeoTIFFs on one lattice (written atomically).
+
+    Sources are referenced relative to the VRT. Returns None when ``sources`` is empty. ``geometry``: {source path:
+    (transform, width, height)} known without opening the file (a tile's grid from its report); the first source is
+    opened for the CRS, data type, nodata and units, which the sources of one product share. ``categories``
+    {code: (name, "#rrggbb")}: the mosaic's colour table (only these codes: a short legend) and category names.
+    """
+    path = Path(path)
+    metas, units, description = _vrt_sources(sources, geometry or {})
     if not metas:
         return None
     cs = metas[0][1].a
@@ -236,14 +271,7 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: 
     if units:
         lines.append(f"    <UnitType>{html.escape(units)}</UnitType>")
     if categories:
-        lines.append("    <ColorInterp>Palette</ColorInterp>")
-        lines.append("    <CategoryNames>" + "".join(f"<Category>{html.escape(n)}</Category>"
-                                                  for n in _category_names(categories)) + "</CategoryNames>")
-        lines.append("    <ColorTable>")
-        for c in range(max(categories) + 1):
-            r, g, b, a = rgba(categories[c][1]) if c in categories else (0, 0, 0, 0)
-            lines.append(f'      <Entry c1="{r}" c2="{g}" c3="{b}" c4="{a}"/>')
-        lines.append("    </ColorTable>")
+        lines += _vrt_palette(categories)
     for src_path, tr, w, h, _, nd, _ in metas:
         xoff = int(round((tr.c - west) / cs))
         yoff = int(round((north - tr.f) / cs))

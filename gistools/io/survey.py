@@ -9,6 +9,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import DataFileError, InputError
+from .text import check_text_file, shown
 
 __all__ = ["read_survey"]
 
@@ -23,6 +24,7 @@ def _raw_table(text: str) -> tuple[pd.DataFrame, np.ndarray, object]:
     if p.suffix.lower() in (".csv", ".txt"):
         if not p.is_file():
             raise DataFileError("file not found", path=p, hint="Check the path")
+        check_text_file(p, "survey table")
         try:
             df = pd.read_csv(p, sep=None, engine="python", encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False)
         except (pd.errors.EmptyDataError, pd.errors.ParserError, csv.Error, UnicodeDecodeError) as err:
@@ -78,7 +80,7 @@ def read_survey(path, fields: dict | None = None) -> tuple[pd.DataFrame, object]
         v = pd.to_numeric(df[found[k]], errors="coerce").to_numpy(np.float64)
         bad = np.flatnonzero(~np.isfinite(v))
         if bad.size:
-            raise InputError(f"line {lines[bad[0]]}: {k} {df[found[k]].iloc[bad[0]]!r} is not a number", path=text,
+            raise InputError(f"line {lines[bad[0]]}: {k} {shown(df[found[k]].iloc[bad[0]])} is not a number", path=text,
                              hint=f"Fix or remove that row ({bad.size} such row(s) in all)")
         out[k] = v
     if "id" not in out:

@@ -13,6 +13,24 @@ __all__ = ["find_tiles", "LAS_SUFFIXES"]
 LAS_SUFFIXES = (".las", ".laz")
 
 
+def _link_target(path: Path) -> str:
+    try:
+        return f"it points to {path.readlink()}"
+    except OSError as err:
+        return str(err.strerror or err)
+
+
+def _folder_tiles(folder: Path) -> list[Path]:
+    """The LAS/LAZ files of a folder; a link to a tile that is not there (a disk not mounted, a loop) is refused."""
+    tiles = sorted(f for f in folder.iterdir() if f.suffix.lower() in LAS_SUFFIXES)
+    broken = [f for f in tiles if f.is_symlink() and not f.exists()]
+    if broken:
+        raise InputError(f"{broken[0]}: a link to a tile that is not there ({_link_target(broken[0])})"
+                         + (f", and {len(broken) - 1} more" if len(broken) > 1 else ""),
+                         hint="Mount the disk it points to, or remove the link")
+    return [f for f in tiles if f.is_file()]
+
+
 def find_tiles(inputs) -> list[Path]:
     """LAS/LAZ (and COPC) files from files, folders (their *.las / *.laz, not recursive), glob patterns and
     virtual point clouds (``.vpc``: the files it lists).
@@ -26,7 +44,7 @@ def find_tiles(inputs) -> list[Path]:
     for item in inputs:
         p = Path(item)
         if p.is_dir():
-            found += sorted(f for f in p.iterdir() if f.is_file() and f.suffix.lower() in LAS_SUFFIXES)
+            found += _folder_tiles(p)
         elif p.is_file() and p.suffix.lower() == VPC_SUFFIX:
             found += [item["path"] for item in read_vpc(p)]
         elif p.is_file():

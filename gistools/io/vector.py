@@ -10,20 +10,43 @@ import numpy as np
 import pyproj
 
 from ..errors import CRSMismatchError, DataFileError, InputError
+from ..parameters import option, render
 from ..validation import check_geometry_types
 from .points import crs_label
 
 log = logging.getLogger(__name__)
 
-__all__ = ["absolute_spec", "read_layer", "check_crs", "write_layer", "write_layers"]
+__all__ = ["absolute_spec", "read_layer", "check_crs", "write_layer", "write_layers", "split_layer_spec"]
 
 
-def _split(spec) -> tuple[Path, str | None]:
+VECTOR_SUFFIXES = (".gpkg", ".shp", ".geojson", ".json", ".fgb", ".gml", ".kml", ".sqlite", ".gdb", ".parquet", ".tab")
+
+
+def split_layer_spec(spec) -> tuple[Path, str | None]:
+    """(file, layer) of a layer as the user names it: ``file.gpkg:LAYER`` (the command line's form),
+    ``file.gpkg|layername=LAYER`` (QGIS's), or a file alone. A Windows drive (``C:\\data\\b.gpkg``) is part of the
+    path, and a layer name may hold ":" (``b.gpkg:ROADS:2020``): the file is the first part ending in a vector
+    file's suffix (or naming a file that exists), the layer all after it."""
     text = str(spec)
-    if ":" in text and not Path(text).exists():
-        path, layer = text.rsplit(":", 1)
+    if "|" in text:
+        path, _, options = text.partition("|")
+        layer = None
+        for item in options.split("|"):
+            key, _, value = item.partition("=")
+            if key.strip().lower() == "layername":
+                layer = value
         return Path(path), layer
+    if Path(text).exists():
+        return Path(text), None
+    for i, c in enumerate(text):
+        if c == ":" and i > 0:
+            left = text[:i]
+            if left.lower().endswith(VECTOR_SUFFIXES) or Path(left).is_file():
+                return Path(left), text[i + 1:] or None
     return Path(text), None
+
+
+_split = split_layer_spec
 
 
 def absolute_spec(spec) -> str:
@@ -39,6 +62,9 @@ def read_layer(spec, kinds: tuple[str, ...] | None = None, what: str = "layer") 
     naming the layer as ``what`` (e.g. "--roads"). Invalid polygons (self-intersecting rings, bow ties) are
     repaired with shapely.make_valid, as QGIS's Fix Geometries does, with a warning naming each feature."""
     gdf = _read_layer(spec)
+    if kinds is not None and len(gdf) == 0:
+        log.warning("%s: the %s layer has no features; nothing of it is used", spec, render(what))
+        return gdf
     if kinds is not None:
         check_geometry_types(gdf.geometry.geom_type, kinds, what, str(spec))
         gdf = _repaired(gdf, str(spec), what)
@@ -49,6 +75,8 @@ def _repaired(gdf: gpd.GeoDataFrame, spec: str, what: str) -> gpd.GeoDataFrame:
     import shapely
 
     geoms = gdf.geometry.to_numpy()
+    if len(geoms) == 0:
+        return gdf
     present = np.array([g is not None for g in geoms])
     bad = np.flatnonzero(present & ~shapely.is_valid(np.where(present, geoms, None)))
     if bad.size == 0:
@@ -61,7 +89,8 @@ def _repaired(gdf: gpd.GeoDataFrame, spec: str, what: str) -> gpd.GeoDataFrame:
             parts = [p for p in shapely.get_parts(g) if p.geom_type in ("Polygon", "MultiPolygon")]
             g = shapely.union_all(parts) if parts else shapely.Polygon()
         fixed[i] = g
-        log.warning("%s: %s feature %s is not valid (%s); repaired with make_valid", spec, what, gdf.index[i], reason)
+        log.warning("%s: %s feature %s is not valid (%s); repaired with make_valid", spec, render(what), gdf.index[i],
+                    reason)
     out = gdf.copy()
     out[out.geometry.name] = gpd.GeoSeries(fixed, index=gdf.index, crs=gdf.crs)
     return out
@@ -93,7 +122,7 @@ def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: b
     raise CRSMismatchError(
         f"layer CRS {crs_label(layer_crs)} differs from {against} CRS {crs_label(crs)}",
         path=name,
-        hint='Reproject the layer, or have gistools do it: --reproject-vectors (CLI), "Reproject layers" (QGIS)',
+        hint=f"Reproject the layer, or have gistools do it: {option('reproject_vectors')}",
     )
 
 
@@ -102,7 +131,7 @@ def check_field(gdf: gpd.GeoDataFrame, field: str, spec, what: str = "the tile i
     if field not in gdf.columns:
         fields = ", ".join(str(c) for c in gdf.columns if c != gdf.geometry.name)
         raise InputError(f"{what} has no field {field!r} (fields: {fields})", path=str(spec),
-                         hint="Name the tile-number field (--tile-field in the CLI, 'Tile number field' in QGIS)")
+                         hint=f"Name the tile-number field ({option('tile_field')})")
 
 
 def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = True) -> Path:

@@ -82,22 +82,47 @@ def write_vpc(path, tiles, *, overwrite: bool = True) -> Path:
     return path
 
 
+MAX_VPC_BYTES = 512 * 2**20  # a VPC lists files: half a gigabyte of JSON is not one
+
+
+def _vpc_item(path: Path, it) -> dict:
+    """One item of a VPC as gistools reads it; DataFileError naming what is wrong."""
+    if not isinstance(it, dict):
+        raise ValueError(f"an item is a {type(it).__name__}, not an object")
+    props = it.get("properties") or {}
+    href = str(it["assets"]["data"]["href"])
+    if "://" in href and not href.lower().startswith("file://"):
+        raise DataFileError(f"lists a remote file ({href}); gistools reads local files only", path=path,
+                            hint="Download the tiles and give their folder (or a VPC of the local copies)")
+    href = href[len("file://"):] if href.lower().startswith("file://") else href
+    bbox = props.get("proj:bbox")
+    bounds = (bbox[0], bbox[1], bbox[3], bbox[4]) if bbox and len(bbox) == 6 else (tuple(bbox) if bbox else None)
+    wkt = props.get("proj:wkt2")
+    if not wkt and props.get("proj:epsg"):
+        try:
+            wkt = pyproj.CRS.from_epsg(int(props["proj:epsg"])).to_wkt()
+        except (pyproj.exceptions.CRSError, ValueError, TypeError):
+            raise DataFileError(f"an item's proj:epsg {props['proj:epsg']!r} is not a known EPSG code", path=path,
+                                hint="Fix the item's proj:epsg, or give its proj:wkt2") from None
+    return {"path": (path.parent / href).resolve() if not Path(href).is_absolute() else Path(href),
+            "bounds": bounds, "count": props.get("pc:count"), "crs_wkt": wkt}
+
+
 def read_vpc(path) -> list[dict]:
     """The files of a VPC: [{"path", "bounds" (native west, south, east, north), "count", "crs_wkt"}]."""
     path = Path(path)
     try:
+        if path.stat().st_size > MAX_VPC_BYTES:
+            raise ValueError(f"{path.stat().st_size / 2**20:,.0f} MB of JSON")
         doc = json.loads(path.read_text(encoding="utf-8-sig"))
-        items = doc["features"]
-        out = []
-        for it in items:
-            props = it.get("properties", {})
-            href = it["assets"]["data"]["href"]
-            bbox = props.get("proj:bbox")
-            bounds = (bbox[0], bbox[1], bbox[3], bbox[4]) if bbox and len(bbox) == 6 else (tuple(bbox) if bbox else None)
-            wkt = props.get("proj:wkt2") or (pyproj.CRS.from_epsg(props["proj:epsg"]).to_wkt() if props.get("proj:epsg") else None)
-            out.append({"path": (path.parent / href).resolve() if not Path(href).is_absolute() else Path(href),
-                        "bounds": bounds, "count": props.get("pc:count"), "crs_wkt": wkt})
-    except (OSError, ValueError, KeyError, TypeError, IndexError) as err:
-        raise DataFileError(f"not a virtual point cloud (STAC ItemCollection) ({type(err).__name__}: {err})", path=path,
+        items = doc["features"] if isinstance(doc, dict) else None
+        if not isinstance(items, list):
+            raise ValueError(f"its features are a {type(items).__name__}, not a list")
+        out = [_vpc_item(path, it) for it in items]
+    except DataFileError:
+        raise
+    except (OSError, ValueError, KeyError, TypeError, IndexError, RecursionError) as err:
+        why = "nested too deep" if isinstance(err, RecursionError) else f"{type(err).__name__}: {str(err)[:200]}"
+        raise DataFileError(f"not a virtual point cloud (STAC ItemCollection) ({why})", path=path,
                             hint="Give a .vpc written by gistools, pdal_wrench build_vpc, lasR or QGIS") from None
     return out

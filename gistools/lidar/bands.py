@@ -25,6 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import choices, option
 from ..units import METRE, LinearUnit
 
 __all__ = ["BAND_NAMES", "BAND_NODATA", "BAND_ABOVE", "PRESETS", "band_thresholds", "height_bands", "add_nodata_causes",
@@ -34,10 +35,11 @@ BAND_NAMES = ("B0", "B1", "B2", "B3")
 BAND_ABOVE = 4
 BAND_NODATA = 255
 # Upper limits of B1, B2, B3. "exact": 1, 2, 6 m. "text_literal": the dissertation's printed feet (L4554-4592).
-PRESETS = {
+_LIMITS = {
     "exact": ((1.0, 2.0, 6.0), LinearUnit("metre", METRE)),
     "text_literal": ((3.28, 6.56, 19.658), LinearUnit("US survey foot", 1200.0 / 3937.0)),
 }
+PRESETS = {name: _LIMITS[name] for name in choices("bands")}  # the names declared in gistools.parameters.shrub
 
 
 def band_thresholds(z_unit: LinearUnit, preset: str = "exact", breaks_m=None) -> tuple[float, float, float]:
@@ -52,7 +54,7 @@ def band_thresholds(z_unit: LinearUnit, preset: str = "exact", breaks_m=None) ->
     elif preset in PRESETS:
         values, unit = PRESETS[preset]
     else:
-        raise InputError(f"band preset {preset!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
+        raise InputError(f"band preset {preset!r} is not one of {', '.join(PRESETS)}", hint=f"Use {option('bands', 'exact')}")
     if len(values) != 3 or not 0 < values[0] < values[1] < values[2]:
         raise InputError(f"band breaks {values} must be three increasing positive heights", hint="e.g. 1,2,6 (metres)")
     if abs(unit.metres - z_unit.metres) < 1e-12:

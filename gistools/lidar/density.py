@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import option
 
 __all__ = ["disk_kernel", "disk_count", "point_density", "halo_cells"]
 
@@ -32,7 +33,7 @@ def disk_kernel(radius: float, cell_size: float) -> np.ndarray:
     81
     """
     if not radius > 0:
-        raise InputError(f"density radius {radius!r} must be positive", hint="e.g. --radius 25ft")
+        raise InputError(f"density radius {radius!r} must be positive", hint=f"e.g. {option('radius', '25ft')}")
     k = halo_cells(radius * (1 + 1e-5), cell_size)
     off = np.arange(-k, k + 1) * cell_size
     return (off[:, None] ** 2 + off[None, :] ** 2) <= radius * radius * (1 + 2e-5)

@@ -16,10 +16,11 @@ import numpy as np
 
 from ..grid import Grid, cell_index
 from .accumulate import max_into
+from ..parameters import choices
 
 __all__ = ["DSM_FILLS", "SUBCIRCLE", "max_with_position", "subcircle_into", "fill_from_tin", "fill_from_nearest"]
 
-DSM_FILLS = ("none", "nearest", "tin", "subcircle")
+DSM_FILLS = choices("dsm_fill")  # declared in gistools.parameters.rasters
 SUBCIRCLE = np.array([(np.cos(a), np.sin(a)) for a in np.arange(8) * np.pi / 4])  # lidR's 8 points of the circle
 
 

@@ -12,6 +12,7 @@ from scipy import ndimage
 
 from ..errors import InputError
 from ..grid import Grid, cell_centres, cell_index
+from ..parameters import choices, option
 from .accumulate import finish_surface, max_into
 from .tin import tin_engine, tin_to_grid, tin_to_grid_exact
 
@@ -27,7 +28,7 @@ __all__ = [
     "within_distance",
 ]
 
-DEM_METHODS = ("tin", "max", "min", "mean", "idw")
+DEM_METHODS = choices("dem_method")  # declared in gistools.parameters.rasters
 
 
 def cell_statistic(grid: Grid, x, y, z, statistic: str = "max") -> np.ndarray:
@@ -168,7 +169,7 @@ def dem_from_ground_points(
     cells equal those of one mosaic-wide computation.
     """
     if method not in DEM_METHODS:
-        raise InputError(f"DEM method {method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin")
+        raise InputError(f"DEM method {method!r} is not one of {', '.join(DEM_METHODS)}", hint=f"Use {option('dem_method', 'tin')}")
     x = np.asarray(x, np.float64)
     y = np.asarray(y, np.float64)
     z = np.asarray(z, np.float64)
@@ -290,7 +291,7 @@ def _open_box(box, extent) -> list[float]:
             n if extent[3] > n else big]
 
 
-DEM_FILLS = ("none", "tin", "idw")
+DEM_FILLS = choices("dem_fill")
 
 
 def fill_voids(dem: np.ndarray, grid: Grid, x, y, z, *, method: str, keep: np.ndarray | None = None,

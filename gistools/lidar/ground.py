@@ -25,23 +25,32 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
+from ..parameters import choices, default_for
+from ..units import METRE, LinearUnit, length_to_crs_units
+
 __all__ = ["SmrfParams", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "GROUND_METHODS"]
 
 FILL_RINGS = 32
 
 
+def _metres(name: str) -> float:
+    """The declared default of length parameter ``name`` (gistools.parameters.lidar) in metres."""
+    return length_to_crs_units(default_for(name), LinearUnit("metre", METRE), name=name)
+
+
 @dataclass(frozen=True)
 class SmrfParams:
     """SMRF parameters in the data's units: ``cell``, ``window`` in CRS units; ``threshold``, ``scalar`` in the
     vertical unit; ``slope`` dimensionless (rise over run in true lengths); ``z_per_xy``: vertical units per CRS
-    unit of the same length (1 when both are metres or both feet)."""
+    unit of the same length (1 when both are metres or both feet). The defaults are gistools ground's
+    (gistools.parameters.lidar), for data in metres."""
 
-    cell: float
-    slope: float
-    window: float
-    threshold: float
-    scalar: float
+    cell: float = _metres("cell")
+    slope: float = default_for("slope")
+    window: float = _metres("window")
+    threshold: float = _metres("threshold")
+    scalar: float = _metres("scalar")
     z_per_xy: float = 1.0
     refine: bool = True  # measure the points again against the mean of the ground found (see smrf_ground)
 
@@ -296,7 +305,7 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
 
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
 RECLASSIFIED = (0, 1, 2, 7, 18)  # never classified, unclassified, ground, noise: the classes a run decides anew
-GROUND_METHODS = ("smrf", "csf")
+GROUND_METHODS = choices("ground_method")  # declared in gistools.parameters (rasters' GROUND_METHODS)
 
 
 @dataclass(frozen=True)
@@ -304,12 +313,12 @@ class NoiseParams:
     """Noise rules in the data's units: ``method`` ivf | sor | none; IVF voxel ``res`` (CRS units) and ``n``; SOR
     ``k`` and ``multiplier``; ``low_depth`` (vertical unit): a point this far below the ground surface is low noise."""
 
-    method: str = "ivf"
-    res: float = 5.0
-    n: int = 6
-    k: int = 8
-    multiplier: float = 2.0
-    low_depth: float = 1.0
+    method: str = default_for("noise")
+    res: float = _metres("ivf_res")
+    n: int = default_for("ivf_n")
+    k: int = default_for("sor_k")
+    multiplier: float = default_for("sor_multiplier")
+    low_depth: float = _metres("low_noise_depth")
 
 
 @dataclass(frozen=True)
@@ -317,12 +326,12 @@ class CsfParams:
     """Cloth Simulation Filter parameters (lidR ``csf()`` / PDAL ``filters.csf``): ``resolution`` (CRS units),
     ``threshold`` (vertical unit), ``rigidness`` 1-3, ``time_step``, ``iterations``, ``slope_smooth``."""
 
-    resolution: float = 0.5
-    threshold: float = 0.5
-    rigidness: int = 1
-    time_step: float = 0.65
-    iterations: int = 500
-    slope_smooth: bool = False
+    resolution: float = _metres("csf_resolution")
+    threshold: float = _metres("csf_threshold")
+    rigidness: int = default_for("csf_rigidness")
+    time_step: float = default_for("csf_time_step")
+    iterations: int = default_for("csf_iterations")
+    slope_smooth: bool = default_for("csf_slope_smooth")
 
 
 def csf_ground(x, y, z, candidates: np.ndarray, p: CsfParams) -> np.ndarray:
@@ -381,7 +390,7 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
         ground = csf_ground(x, y, z, candidates, csf or CsfParams())
         surface = None
     else:
-        ground, surface = smrf_ground(x, y, z, candidates, smrf)
+        ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())
     new = old.copy()
     if not keep_classes:
         new[open_ & np.isin(old, (GROUND_CLASS, LOW_NOISE, HIGH_NOISE))] = UNCLASSIFIED

@@ -21,6 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import option
 
 __all__ = ["MetricSpec", "parse_metric", "cell_metrics", "ATTRIBUTES", "STATISTICS", "needs_heights", "LAYER_HEIGHT_M"]
 
@@ -47,8 +48,8 @@ class MetricSpec:
 
 
 def _bad(name: str, why: str) -> InputError:
-    return InputError(f"metric {name!r}: {why}", hint="e.g. --metrics count,z_max,z_p95,hag_above2m,cover_above2m,"
-                                                      "fuel_1_3m (README \"Cell metrics\" lists them)")
+    example = option("metrics", "count,z_max,z_p95,hag_above2m,cover_above2m,fuel_1_3m")
+    return InputError(f"metric {name!r}: {why}", hint=f"e.g. {example} (the documentation's \"Cell metrics\" lists them)")
 
 
 def parse_metric(name: str) -> MetricSpec:

@@ -9,9 +9,11 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from ..parameters import choices, default_for
+
 __all__ = ["isolated_points", "statistical_outliers", "NOISE_METHODS"]
 
-NOISE_METHODS = ("ivf", "sor", "none")
+NOISE_METHODS = choices("noise")  # declared in gistools.parameters.lidar
 
 
 def _voxel_keys(ix, iy, iz) -> np.ndarray:
@@ -23,7 +25,7 @@ def _voxel_keys(ix, iy, iz) -> np.ndarray:
 _DENSE_VOXELS = 16_000_000  # a count grid up to this many voxels (64 MB of int32); past it, the sorted-key search
 
 
-def isolated_points(x, y, z, *, res: float, n: int = 6) -> np.ndarray:
+def isolated_points(x, y, z, *, res: float, n: int = default_for("ivf_n")) -> np.ndarray:
     """Isolated Voxel Filter (lidR ``ivf`` / lasR ``classify_with_ivf``): True for each point with at most ``n``
     other points in its 3 x 3 x 3 voxels of ``res`` (CRS units; lidR's default 5 m, n = 6)."""
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
@@ -71,7 +73,8 @@ def _isolated_sparse(ix, iy, iz) -> np.ndarray:
     return around[inverse.ravel()] - 1
 
 
-def statistical_outliers(x, y, z, *, k: int = 8, multiplier: float = 2.0) -> np.ndarray:
+def statistical_outliers(x, y, z, *, k: int = default_for("sor_k"),
+                         multiplier: float = default_for("sor_multiplier")) -> np.ndarray:
     """Statistical outlier rule (PDAL ``filters.outlier`` statistical, lidR ``sor``): True for each point whose mean
     distance to its ``k`` nearest neighbours exceeds the mean of those distances by ``multiplier`` standard deviations."""
     pts = np.column_stack([np.asarray(x, np.float64), np.asarray(y, np.float64), np.asarray(z, np.float64)])

@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import choices, option
 
 __all__ = ["CLASS_NAMES", "CLASS_STYLE", "CLASS_NODATA", "CLASS_METHODS", "DEFAULT_BREAKS", "sample_step", "lattice_sample",
            "breaks_from_sample", "shrub_classes", "quantile_breaks", "jenks_breaks"]
@@ -28,7 +29,7 @@ CLASS_STYLE = {
 }
 CLASS_NODATA = 255
 DEFAULT_BREAKS = (0.30, 0.70)
-CLASS_METHODS = ("breaks", "quantile", "jenks")  # fixed cover breaks, or breaks from the data
+CLASS_METHODS = choices("classify")  # fixed cover breaks, or breaks from the data (gistools.parameters.shrub)
 
 
 def shrub_classes(cover: np.ndarray, breaks=DEFAULT_BREAKS, *, road: np.ndarray | None = None,
@@ -37,7 +38,7 @@ def shrub_classes(cover: np.ndarray, breaks=DEFAULT_BREAKS, *, road: np.ndarray 
     b1, b2 = breaks
     if not 0 <= b1 < b2 <= 1:
         raise InputError(f"class breaks {breaks} must satisfy 0 <= light/medium < medium/heavy <= 1",
-                         hint="e.g. --breaks 0.3,0.7")
+                         hint=f"e.g. {option('class_breaks', DEFAULT_BREAKS)}")
     f = np.nan_to_num(np.asarray(cover, np.float64), nan=0.0)
     codes = np.select([f <= 0, f <= b1, f <= b2], [0, 1, 2], 3).astype(np.uint8)
     if nodata is not None:

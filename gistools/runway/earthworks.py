@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..parameters import option
 
 __all__ = ["heron", "heron_kahan", "strip_areas", "dissertation_strip_areas", "section_areas", "compensate",
            "station_volumes", "brueckner", "balance_points", "overhaul"]
@@ -91,7 +92,7 @@ def compensate(a_cut, a_fill, f_cut: float = 1.0, f_fill: float = 1.0) -> np.nda
     """Net area after transverse compensation: f_cut A_cut - f_fill A_fill (f_cut: swell of the dug
     material, f_fill: its compaction in the fill; the dissertation's "overturned" diagram with factors 1)."""
     if f_cut <= 0 or f_fill <= 0:
-        raise InputError(f"cut / fill factors {f_cut}, {f_fill} must be positive", hint="e.g. --swell 1.2 --compaction 1.0")
+        raise InputError(f"cut / fill factors {f_cut}, {f_fill} must be positive", hint=f"e.g. {option('f_cut', 1.2)} {option('f_fill', 1.0)}")
     return f_cut * np.asarray(a_cut, np.float64) - f_fill * np.asarray(a_fill, np.float64)
 
 

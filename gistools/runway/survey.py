@@ -23,6 +23,7 @@ from scipy.ndimage import median_filter
 from scipy.spatial import cKDTree
 
 from ..errors import InputError
+from ..parameters import option
 
 __all__ = ["SurveyChecks", "check_survey", "Frame", "fit_frame", "estimate_spacing"]
 
@@ -205,7 +206,7 @@ def fit_frame(points: pd.DataFrame, *, origin: str = "low", profile_window: int 
     chain = shapely.line_locate_point(line, shapely.points(x, y))
     w = int(profile_window)
     if w < 1 or w % 2 == 0:
-        raise InputError(f"profile window {w} must be an odd number >= 1", hint="e.g. --profile-window 5")
+        raise InputError(f"profile window {w} must be an odd number >= 1", hint=f"e.g. {option('profile_window', 5)}")
     if w > 1 and len(z) >= 3:
         h = w // 2
         # symmetric windows, shrinking at the ends: a straight grade stays exactly straight

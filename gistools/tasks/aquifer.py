@@ -27,9 +27,11 @@ from ..aquifer.walls import unit_mesh
 from ..io.meshes import write_obj, write_ply
 from ..mesh import is_closed, match_rings
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..grid import cell_centres, evaluate_on_grid, snapped_grid
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path, write_raster
+from ..parameters import check_all, choices, option
 from ..validation import check_count, check_length, check_number
 from ..io.vector import check_crs, read_layer, write_layers
 from ..progress import ProgressCallback, report
@@ -38,7 +40,7 @@ from ..units import horizontal_unit, length_to_crs_units
 __all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "query_model", "unit_name"]
 
 
-ORDERS = ("stratigraphic", "raw")
+ORDERS = choices("order")  # declared in gistools.parameters.aquifer
 
 
 @dataclass(frozen=True)
@@ -73,24 +75,15 @@ class AquiferSettings:
     order: str = "stratigraphic"
 
     def validate(self) -> None:
-        """Every option checked before anything is read or written."""
-        check_length(self.xy_tol, "--xy-tol", allow_equal=True, example="0.5m")
-        check_count(self.k, "--k", minimum=3, example="12")
-        check_length(self.abs_thr, "--abs-thr", example="8m")
-        check_number(self.c, "--c", low=0, low_open=True, example="5")
-        check_number(self.f_nn, "--f-nn", low=0, low_open=True, example="5")
-        check_length(self.order_tol, "--order-tol", allow_equal=True, example="1m")
-        if self.concave_ratio is not None:
-            check_number(self.concave_ratio, "--concave", low=0, high=1, example="0.3")
-        check_count(self.n_per_edge, "--n-per-edge", minimum=0, example="2")
-        if self.cell_size is not None:
-            check_length(self.cell_size, "--cell-size", example="10m")
-        if self.matching not in ("3d", "2d"):
-            raise InputError(f"--matching {self.matching!r} is not 3d or 2d")
-        if self.mesh_format not in ("ply", "obj"):
-            raise InputError(f"mesh format {self.mesh_format!r} is not ply or obj")
-        if self.order not in ORDERS:
-            raise InputError(f"--order {self.order!r} is not one of {', '.join(ORDERS)}", hint="Use --order stratigraphic")
+        """Every option checked against its declaration (gistools.parameters.aquifer) before anything is read or
+        written."""
+        check_all(self, ("xy_tol", "abs_thr", "order_tol", "concave_ratio", "n_per_edge", "matching", "mesh_format",
+                         "order"))
+        check_count(self.k, "k", minimum=3, example="12")
+        check_number(self.c, "c", low=0, low_open=True, example="5")
+        check_number(self.f_nn, "f_nn", low=0, low_open=True, example="5")
+        if self.cell_size is not None:  # the parameter thickness_cell_size (cell_size is the rasters')
+            check_length(self.cell_size, "cell_size", example="10m")
 
 
 def unit_name(upper: str, lower: str) -> str:
@@ -145,9 +138,9 @@ def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSet
     s.validate()
     points, crs_obj = read_contacts(source, layers, crs=crs, swap_xy=swap_xy, fields=fields)
     unit = horizontal_unit(crs_obj)
-    length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
-    osets = OutlierSettings(xy_tol=length(s.xy_tol, "xy tolerance"), k=int(s.k), abs_thr=length(s.abs_thr, "outlier threshold"),
-                            c=float(s.c), f_nn=float(s.f_nn), order_tol=length(s.order_tol, "order tolerance"))
+    length = lambda name: length_to_crs_units(getattr(s, name), unit, name=option(name))  # noqa: E731
+    osets = OutlierSettings(xy_tol=length("xy_tol"), k=int(s.k), abs_thr=length("abs_thr"), c=float(s.c),
+                            f_nn=float(s.f_nn), order_tol=length("order_tol"))
     report(progress, 0.05, "outliers")
     kept, flags = find_outliers(points, layers, osets)
     report(progress, 0.2, "surfaces")
@@ -205,18 +198,20 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
         footprint = common_footprint(U, L)
         if footprint.is_empty or footprint.area <= 0:
             raise InputError(f"layers {up} and {lo} do not overlap in plan, so unit {unit_name(up, lo)} has no footprint",
-                             hint="Check the layers' x, y (the same CRS, --swap-xy) and that each layer is the right one")
+                             hint=f"Check the layers' x, y (the same CRS, {option('swap_xy')}) and that each layer is "
+                                  "the right one")
         region = footprint if within_poly is None else footprint.intersection(within_poly)
         vol = overlay_volume(U, L, region, origin=origin)
         verts, faces = unit_mesh(U, L)
         extent = max(footprint.bounds[2] - footprint.bounds[0], footprint.bounds[3] - footprint.bounds[1])
-        cell = length_to_crs_units(s.cell_size, unit_len, name="cell size") if s.cell_size else _nice(extent / 500)
+        cell = (length_to_crs_units(s.cell_size, unit_len, name=option("cell_size")) if s.cell_size
+                else _nice(extent / 500))
         grid_t, grid = _thickness_grid(U, L, footprint, cell, model.crs)
         unit = {"upper": up, "lower": lo, "mesh": (verts, faces), "footprint": footprint, "region": region,
                 "wall_triangles": len(faces) - len(U.triangles) - len(L.triangles)}  # outer wall (+ hole walls)
         figures = ordered_unit(vol, grid_t, grid, s.order)
         if s.order == "stratigraphic":
-            iso = isopach(model.points, up, lo, length_to_crs_units(s.xy_tol, unit_len, name="xy tolerance"))
+            iso = isopach(model.points, up, lo, length_to_crs_units(s.xy_tol, unit_len, name=option("xy_tol")))
             if iso is not None:
                 figures.update(_isopach_figures(iso, vol, region, grid, origin))
         model.units[unit_name(up, lo)] = {**unit, **figures}
@@ -356,9 +351,10 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     started = time.time()
     s = settings or AquiferSettings()
     s.validate()
-    out = Path(out)
+    out = output_folder(out)
     if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("an aquifer model is already there", path=out, hint="Pass --overwrite, or choose another --out")
+        raise OutputExistsError("an aquifer model is already there", path=out,
+                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
     model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress,
                         fields=fields)
     compute_units(model, s, within=within, progress=progress)
@@ -447,7 +443,7 @@ def load_model(out) -> Model:
     """The surfaces of a written model (``out/aquifer.gpkg`` cleaned points + report.json settings)."""
     import geopandas as gpd
 
-    out = Path(out)
+    out = output_folder(out)
     path = out / "report.json"
     if not path.exists():
         raise InputError(f"{out}: no report.json of an aquifer model", hint="Run gistools aquifer model first")
@@ -470,11 +466,12 @@ def aquifer_query(out, x, y, method: str = "tin", *, k: int = 10) -> dict:
 
 def query_model(model: Model, x, y, method: str = "tin", *, k: int = 10) -> dict:
     """:func:`aquifer_query` on a loaded model (load it once for many points)."""
-    if method not in HEIGHT_METHODS:
-        raise InputError(f"--method {method!r} is not one of {', '.join(HEIGHT_METHODS)}")
-    check_count(k, "--k", example="10")
-    check_number(x, "--x", example="1517365")
-    check_number(y, "--y", example="5031638")
+    if method not in HEIGHT_METHODS:  # the parameter height_method (method is the ground / CHM methods')
+        raise InputError(f"{option('method')} {method!r} is not one of {', '.join(HEIGHT_METHODS)}",
+                         hint=f"Use {option('method', 'tin')}")
+    check_count(k, "k", example="10")
+    check_number(x, "x", example="1517365")
+    check_number(y, "y", example="5031638")
     heights, above = {}, None
     for layer in model.layers:
         z, inside = height_at(model.surfaces[layer], [x], [y], method, k=k)

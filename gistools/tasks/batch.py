@@ -19,13 +19,15 @@ import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from pathlib import Path
 
-from ..errors import Cancelled, GistoolsError, InputError
+from ..errors import Cancelled, GistoolsError, InputError, OutOfMemoryError
 from ..io.atomic import raise_output_error
+from ..machine import address_space_limit, free_memory, usable_cpus
+from ..parameters import option
 from ..progress import check_interrupt
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "drive", "fail"]
+__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "drive", "fail", "worker_count", "machine_error"]
 
 
 def fail(result, err: BaseException, out=None) -> None:
@@ -34,9 +36,31 @@ def fail(result, err: BaseException, out=None) -> None:
     check_interrupt()  # a Ctrl-C that a C extension turned into another error: the run stops
     if out is not None:
         raise_output_error(err, out)
+    machine_error(err, getattr(result, "name", None) or getattr(result, "path", ""))
     result.status = "failed"
     result.error = str(err) if isinstance(err, GistoolsError) else f"{result.path}: {type(err).__name__}: {err}"
 
+
+
+def machine_error(err: BaseException, tile) -> None:
+    """Raise the run's error for a tile that met the machine's limits (out of memory, a worker killed by the
+    system): no tile's fault, so the run stops with the numbers and the fix instead of blaming the tile."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    if isinstance(err, GistoolsError):
+        return
+    limit, memory = address_space_limit(), free_memory()
+    if limit is not None:
+        have = f" (this process may map {limit / 1e9:.1f} GB: ulimit -v)"
+    else:
+        have = f" ({memory / 1e9:.1f} GB available now)" if memory is not None else ""
+    fix = (f"Run with fewer {option('jobs')}, a smaller {option('chunk_size')} or a larger {option('cell_size')}, "
+           "or on a machine with more memory")
+    if isinstance(err, MemoryError):
+        raise OutOfMemoryError(f"the machine ran out of memory while making tile {tile}{have}", hint=fix) from None
+    if isinstance(err, BrokenProcessPool):
+        raise OutOfMemoryError(f"a worker process was killed by the system while making tile {tile} (most often: "
+                               f"out of memory{have})", hint=fix) from None
 
 
 def python_executable() -> str:
@@ -140,11 +164,13 @@ def keep_freed_memory() -> bool:
 
 
 def _worker_start(parent: int, main_thread: bool) -> None:
-    """In each worker process: leave Ctrl-C to the parent (which stops the workers and cleans up, so a
+    """In each worker process: leave Ctrl-C (and SIGTERM, SIGHUP) to the parent (which stops the workers and cleans up, so a
     Ctrl-C prints one line, not a traceback per worker), and die with the parent: Linux's
     PR_SET_PDEATHSIG when the parent's main thread started the pool (the signal follows the thread), and
     everywhere a watchdog thread that exits once the parent is gone."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):  # sent to the whole process group: the parent handles them
+        if hasattr(signal, name):
+            signal.signal(getattr(signal, name), signal.SIG_IGN)
     one_thread_per_worker()
     one_decoder_thread()
     keep_freed_memory()
@@ -203,6 +229,7 @@ class ProcessPool:
         python = python_executable()
         if python != sys.executable and method == "spawn":
             ctx.set_executable(python)
+        self.workers = jobs
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
         for _ in range(jobs):  # every worker starts now (a task each), importing while the parent plans the run
@@ -236,18 +263,21 @@ class DaskPool:
             from dask.distributed import Client, LocalCluster
         except ImportError:
             raise InputError(
-                "--scheduler needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
+                f"{option('scheduler')} needs dask.distributed, which is not installed", hint="pip install 'gistools[dask]'"
             ) from None
         self.cluster = None
+        self.workers = jobs
         if address == "local":
             self.cluster = LocalCluster(n_workers=jobs, threads_per_worker=1, processes=True, dashboard_address=None)
             self.client = Client(self.cluster)
         else:
             try:
                 self.client = Client(address, timeout=10)
-            except (OSError, TimeoutError) as err:
-                raise InputError(f"--scheduler {address}: no Dask scheduler answers ({err})",
-                                 hint="Start one (dask scheduler) or check the address") from None
+            except Exception as err:  # no answer, a protocol this install lacks (ucx), TLS without certificates
+                why = str(err).splitlines()[0][:200] if str(err) else type(err).__name__
+                raise InputError(f"{option('scheduler', address)}: cannot connect to a Dask scheduler there ({why})",
+                                 hint="Start one (dask scheduler), check the address, or give tls:// its "
+                                      "certificates in Dask's configuration") from None
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -303,10 +333,35 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb, out=None) -
         raise
 
 
-def make_pool(jobs: int, scheduler: str | None, n_tasks: int):
-    """A DaskPool for a scheduler address, a ProcessPool for jobs > 1, else None (inline)."""
+WORKER_BASE_BYTES = 250_000_000  # a worker with numpy, scipy, rasterio, pyproj and laspy imported
+
+
+def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn=None) -> int:
+    """The workers a run starts: ``jobs``, but never more than its tasks, the usable CPUs (with a warning) or what
+    the available memory holds at ``task_bytes`` a task (with a warning)."""
+    warn = warn or (lambda text: log.warning("gistools: %s", text))
+    count = max(1, min(int(jobs), max(int(n_tasks), 1)))
+    cpus = usable_cpus()
+    if count > cpus:
+        warn(f"{jobs} jobs asked for, {cpus} CPUs here: running {cpus} at a time")
+        count = cpus
+    memory = free_memory()  # each worker has its own address space: the machine's memory is what they share
+    if memory is not None and count > 1:
+        each = WORKER_BASE_BYTES + int(task_bytes or 0)
+        fits = max(1, int(0.8 * memory // each))
+        if fits < count:
+            warn(f"{count} workers of about {each / 1e9:.1f} GB each do not fit in the {memory / 1e9:.1f} GB of memory "
+                 f"available: running {fits} at a time")
+            count = fits
+    return count
+
+
+def make_pool(jobs: int, scheduler: str | None, n_tasks: int, task_bytes: int | None = None):
+    """A DaskPool for a scheduler address, a ProcessPool for more than one worker (``jobs`` capped by
+    :func:`worker_count`: never more workers than tasks, CPUs or the memory holds), else None (inline)."""
     if scheduler:
-        return DaskPool(scheduler, jobs)
+        return DaskPool(scheduler, jobs if scheduler != "local" else worker_count(jobs, n_tasks, task_bytes))
+    jobs = worker_count(jobs, n_tasks, task_bytes) if jobs > 1 else 1
     if jobs > 1 and n_tasks > 1:
         method, warning = start_method()
         if warning:
@@ -318,8 +373,9 @@ def make_pool(jobs: int, scheduler: str | None, n_tasks: int):
 def drive(pool, owned: bool, in_flight: int, next_task, start, pending: dict, finish) -> None:
     """Keep up to ``in_flight`` tasks going: ``next_task()`` gives (kind, name) or None, ``start(kind, name)`` runs it
     inline (``pool`` None) or puts its future in ``pending``; ``finish(kind, name, value, seconds, err)`` takes each
-    result (a worker's error, a crash included, as ``err``). On any error or Ctrl-C the pending tasks are cancelled,
-    and an ``owned`` pool is stopped at once; it is closed at the end."""
+    result (a worker's error, a crash included, as ``err``). On any error or Ctrl-C the pending tasks are cancelled
+    and the pool is stopped at once (a caller's shared pool too: the run is over); an ``owned`` pool is closed at
+    the end."""
     try:
         while True:
             while len(pending) < in_flight and (task := next_task()) is not None:
@@ -335,11 +391,8 @@ def drive(pool, owned: bool, in_flight: int, next_task, start, pending: dict, fi
                     continue
                 finish(kind, name, value, seconds, None)
     except BaseException:
-        if pool is not None and owned:
-            pool.close(list(pending))
-        elif pool is not None:  # the caller's pool: cancel this run's tasks, the caller closes it
-            for fut in pending:
-                fut.cancel()
+        if pool is not None:  # the run stops: its workers too, the caller's pool included, before the caller's
+            pool.close(list(pending))  # clean-up removes the scratch they might still be writing into
         raise
     finally:
         if pool is not None and owned:

@@ -9,6 +9,8 @@ bad tile is reported and the others go on.
 
 from __future__ import annotations
 
+from ..parameters import option, render
+
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -20,8 +22,9 @@ from ..io.outdir import SCRATCH_PREFIX
 from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool, run_each
+from .schedule import neighbour_pairs
 
-__all__ = ["TileState", "gridded_todo", "STRIP_FIELDS", "tile_neighbours", "points_around", "buffered_passes", "read_headers", "batch_inputs",
+__all__ = ["TileState", "gridded_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
            "write_batch_report"]
 
 STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
@@ -37,7 +40,7 @@ def batch_inputs(inputs, settings, jobs: int, scheduler) -> tuple[list, object]:
 
     settings.validate()
     check_scheduler(scheduler)
-    check_count(jobs, "--jobs", example="2")
+    check_count(jobs, "jobs", example="2")
     override = parse_crs_text(settings.crs) if settings.crs else None
     return find_tiles(inputs), override
 
@@ -68,7 +71,8 @@ def read_headers(paths, override, make_state, output_name=None, out: Path | None
     for p in paths:
         st = states[p.stem] = make_state(p.stem, str(p))
         if output_name is not None and Path(p).resolve().parent == Path(out).resolve() and output_name(p) == p.name:
-            st.status, st.error = "failed", f"{p}: the output would overwrite this input; choose another --out"
+            st.status, st.error = "failed", render(f"{p}: the output would overwrite this input; "
+                                                    f"choose another {option('out')}")
             continue
         try:
             infos[p.stem] = read_tile_info(p, override)
@@ -77,15 +81,12 @@ def read_headers(paths, override, make_state, output_name=None, out: Path | None
     return states, infos
 
 
-def tile_neighbours(infos: dict, name: str, buffer: float) -> list[str]:
-    """Paths of the tiles of ``infos`` (name -> TileInfo) whose bounds come within ``buffer`` of tile ``name``."""
-    w, s, e, n = infos[name].bounds
-    hits = []
-    for other, info in infos.items():
-        ow, os_, oe, on = info.bounds
-        if other != name and ow <= e + buffer and oe >= w - buffer and os_ <= n + buffer and on >= s - buffer:
-            hits.append(str(info.path))
-    return hits
+def neighbour_table(infos: dict, buffer: float) -> dict[str, list[str]]:
+    """{tile: paths of the tiles of ``infos`` (name -> TileInfo) whose bounds come within ``buffer`` of it} (an
+    R-tree: n log n)."""
+    names = list(infos)
+    pairs = neighbour_pairs([infos[n].bounds for n in names], buffer)
+    return {name: [str(infos[names[j]].path) for j in js] for name, js in zip(names, pairs)}
 
 
 def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
@@ -167,12 +168,12 @@ class _StripState:
     inner: tuple | None = None
 
 
-def _sources(infos: dict, name: str, strips: dict, buffer: float) -> tuple[list, list]:
+def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -> tuple[list, list]:
     """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
     w, s, e, n = infos[name].bounds
     grown = (w - buffer, s - buffer, e + buffer, n + buffer)
     sources, warnings = [], []
-    for path in tile_neighbours(infos, name, buffer):
+    for path in table[name]:
         nb = Path(path).stem
         st = strips.get(nb)
         if st is None or st.status != "ok":
@@ -194,7 +195,8 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
     seconds)`` takes each result. A failed write to ``out`` stops the run; a failed tile does not."""
     if not todo:
         return
-    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in tile_neighbours(infos, n, buffer))]))
+    table = neighbour_table(infos, buffer)
+    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in table[n])]))
     strips = {n: _StripState(n) for n in need}
     done = [0]
     total = len(need) + len(todo)
@@ -217,7 +219,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         left = [n for n in todo if states[n].status != "failed"]
         arglist = []
         for n in left:
-            sources, warnings = _sources(infos, n, strips, buffer)
+            sources, warnings = _sources(infos, n, strips, buffer, table)
             states[n].warnings = warnings
             arglist.append((n, tile_fn, *tile_args(n, sources)))
         run_each(_named, arglist, pool, states, left, on_done, tick, verb, out)

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..grid import snapped_grid
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
@@ -22,6 +23,8 @@ from ..io.raster import crs_from_wkt, write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.chm import CHM_METHODS, chm_p2r, chm_pitfree, chm_tin, pits
 from ..lidar.normalize import height_above_ground
+from ..parameters import check_all, default_for, option
+from ..parameters.lidar import COMMAND_DEFAULTS, check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
@@ -34,41 +37,44 @@ GROUND_CLASSES = (2, 9)
 PIT_DEPTH = "1m"  # a pit: a cell more than this below all 8 neighbours (counted in report.json)
 
 
+def _lengths(name: str) -> tuple:
+    return tuple(default_for(name).split(","))
+
+
 @dataclass(frozen=True)
 class ChmSettings:
-    """Parameters of ``gistools chm``. ``method``: p2r, pitfree or tin. ``thresholds``, ``threshold_step`` and
-    ``max_edge``: pitfree's height thresholds (those given, then one every step up to the highest return; step "0":
-    only those given) and its triangle edge limits (the first layer's, then the upper layers'; "0" = no limit). The
-    defaults (0, 2, 4, ... m; 0, 1.5 m) remove all but 1 % of the pits on the synthetic conifer stand of
-    tests/test_chm.py, where lidR's (0, 2, 5, 10, 15 m; 0, 1 m: ``--thresholds 0m,2m,5m,10m,15m --threshold-step 0
-    --max-edge 0,1m``) leave 36 %. ``tin_max_edge``: the tin method's limit. ``buffer``: how far the neighbours'
-    points are read. Lengths take a unit or are in the tiles' CRS units."""
+    """Parameters of ``gistools chm`` (declared in gistools.parameters.lidar: names, defaults, help). ``method``:
+    p2r, pitfree or tin. ``thresholds``, ``threshold_step`` and ``max_edge``: pitfree's height thresholds (those
+    given, then one every step up to the highest return; step "0": only those given) and its triangle edge limits
+    (the first layer's, then the upper layers'; "0" = no limit). The defaults (0, 2, 4, ... m; 0, 1.5 m) remove all
+    but 1 % of the pits on the synthetic conifer stand of tests/test_chm.py, where lidR's (0, 2, 5, 10, 15 m; 0, 1 m:
+    ``--thresholds 0m,2m,5m,10m,15m --threshold-step 0 --max-edge 0,1m``) leave 36 %. ``tin_max_edge``: the tin
+    method's limit. ``buffer``: how far the neighbours' points are read. Lengths take a unit or are in the tiles' CRS
+    units."""
 
-    cell_size: str | float = "0.5m"
-    method: str = "pitfree"
-    thresholds: tuple = ("0m", "2m")
-    threshold_step: str | float = "2m"
-    max_edge: tuple = ("0", "1.5m")
-    tin_max_edge: str | float = "0"
-    buffer: str | float = "30m"
+    cell_size: str | float = COMMAND_DEFAULTS["chm"]["cell_size"]
+    method: str = default_for("chm_method")
+    thresholds: tuple = _lengths("thresholds")
+    threshold_step: str | float = default_for("threshold_step")
+    max_edge: tuple = _lengths("max_edge")
+    tin_max_edge: str | float = default_for("tin_max_edge")
+    buffer: str | float = COMMAND_DEFAULTS["chm"]["buffer"]
     crs: str | None = None
 
     def validate(self) -> None:
-        if self.method not in CHM_METHODS:
-            raise InputError(f"--method {self.method!r} is not one of {', '.join(CHM_METHODS)}", hint="Use --method pitfree")
-        check_length(self.cell_size, "--cell-size", example="0.5m")
-        check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
-        check_length(self.tin_max_edge, "--tin-max-edge", allow_equal=True, example="0")
-        check_length(self.threshold_step, "--threshold-step", allow_equal=True, example="2m")
+        """Every field checked against its declaration, then pitfree's lists."""
+        check_method("chm_method", self.method)
+        check_all(self, ("cell_size", "buffer", "tin_max_edge", "threshold_step"))
         if not self.thresholds:
-            raise InputError("--thresholds: give at least one height", hint="e.g. --thresholds 0m,2m,5m,10m,15m")
+            raise InputError(f"{option('thresholds')}: give at least one height",
+                             hint=f"e.g. {option('thresholds', ('0m', '2m', '5m', '10m', '15m'))}")
         for t in self.thresholds:
-            check_length(t, "--thresholds", allow_equal=True, example="0m,2m,5m,10m,15m")
+            check_length(t, "thresholds", allow_equal=True, example="0m,2m,5m,10m,15m")
         if len(self.max_edge) != 2:
-            raise InputError(f"--max-edge {','.join(map(str, self.max_edge))}: give two lengths (the first layer's, "
-                             "the upper layers')", hint="e.g. --max-edge 0,1m")
+            raise InputError(f"{option('max_edge', tuple(self.max_edge))}: give two lengths (the first layer's, "
+                             "the upper layers')", hint=f"e.g. {option('max_edge', ('0', '1m'))}")
         for e in self.max_edge:
-            check_length(e, "--max-edge", allow_equal=True, example="0,1m")
+            check_length(e, "max_edge", allow_equal=True, example="0,1m")
 
 
 @dataclass(frozen=True)
@@ -151,7 +157,7 @@ def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: in
     pits per tile); returns the report. Existing tiles are kept unless ``overwrite``; one bad tile is reported."""
     settings = settings or ChmSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
-    out = Path(out)
+    out = output_folder(out)
     with claim_output(out, "gistools chm"):
         return raise_if_every_tile_failed(_chm_in(paths, out, settings, override, jobs, scheduler, overwrite, progress))
 

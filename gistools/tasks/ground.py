@@ -19,39 +19,39 @@ import numpy as np
 import shapely
 
 from ..errors import InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import GROUND_METHODS, RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
-from ..lidar.noise import NOISE_METHODS
+from ..lidar.ground import RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
+from ..parameters import check, check_all, choices, default_for, option
+from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..validation import check_count, check_length, check_number
 from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
-FORMATS = ("laz", "las", "copc")
+FORMATS = choices("format")  # declared in gistools.parameters.lidar
 WATER = 9
 
 
 def check_point_format(fmt: str) -> None:
-    """--format of the point-writing commands: laz, las, or copc (which needs copclib)."""
-    if fmt not in FORMATS:
-        raise InputError(f"--format {fmt!r} is not one of {', '.join(FORMATS)}", hint="Use --format laz")
+    """The format of the point-writing commands: laz, las, or copc (which needs copclib)."""
+    check("format", fmt)
     if fmt == "copc":
         from ..io.copc import copc_available
 
         if not copc_available():
-            raise InputError("--format copc needs copclib, which is not installed",
-                             hint="pip install 'gistools[copc]', or use --format laz")
+            raise InputError(f"{option('format', 'copc')} needs copclib, which is not installed",
+                             hint=f"pip install 'gistools[copc]', or use {option('format', 'laz')}")
 
 
 @dataclass(frozen=True)
 class GroundSettings:
-    """Parameters of ``gistools ground``. Lengths take a unit ("1m", "3ft") or are in the tiles' CRS units
-    (heights: their vertical unit).
+    """Parameters of ``gistools ground`` (declared in gistools.parameters.lidar: names, defaults, help). Lengths take
+    a unit ("1m", "3ft") or are in the tiles' CRS units (heights: their vertical unit).
 
     SMRF (Pingel et al. 2013; PDAL's names): ``cell``, ``slope`` (rise over run), ``window`` (largest opening
     radius), ``threshold`` and ``scalar`` (a point within threshold + scalar x local slope of the surface is
@@ -66,58 +66,44 @@ class GroundSettings:
     formats 6-8, so formats 0-5 are converted, and stores points in octree order).
     """
 
-    method: str = "smrf"
-    noise: str = "ivf"
-    cell: str | float = "1m"
-    slope: float = 0.1
-    window: str | float = "18m"
-    threshold: str | float = "0.15m"
-    scalar: str | float = "0.5m"
-    csf_resolution: str | float = "0.5m"
-    csf_threshold: str | float = "0.5m"
-    csf_rigidness: int = 1
-    csf_time_step: float = 0.65
-    csf_iterations: int = 500
-    csf_slope_smooth: bool = False
-    ivf_res: str | float = "5m"
-    ivf_n: int = 6
-    sor_k: int = 8
-    sor_multiplier: float = 2.0
-    low_noise_depth: str | float = "1m"
+    method: str = default_for("ground_method")
+    noise: str = default_for("noise")
+    cell: str | float = default_for("cell")
+    slope: float = default_for("slope")
+    window: str | float = default_for("window")
+    threshold: str | float = default_for("threshold")
+    scalar: str | float = default_for("scalar")
+    csf_resolution: str | float = default_for("csf_resolution")
+    csf_threshold: str | float = default_for("csf_threshold")
+    csf_rigidness: int = default_for("csf_rigidness")
+    csf_time_step: float = default_for("csf_time_step")
+    csf_iterations: int = default_for("csf_iterations")
+    csf_slope_smooth: bool = default_for("csf_slope_smooth")
+    ivf_res: str | float = default_for("ivf_res")
+    ivf_n: int = default_for("ivf_n")
+    sor_k: int = default_for("sor_k")
+    sor_multiplier: float = default_for("sor_multiplier")
+    low_noise_depth: str | float = default_for("low_noise_depth")
     buffer: str | float | None = None
-    keep_classes: bool = False
-    format: str = "laz"
+    keep_classes: bool = default_for("keep_classes")
+    format: str = default_for("format")
     crs: str | None = None
 
+    CHECKED = ("noise", "cell", "slope", "window", "threshold", "scalar", "csf_resolution", "csf_threshold",
+               "csf_rigidness", "csf_time_step", "csf_iterations", "ivf_res", "ivf_n", "sor_k", "sor_multiplier",
+               "low_noise_depth", "buffer")
+
     def validate(self) -> None:
-        """Every option checked before anything is read or written."""
-        if self.method not in GROUND_METHODS:
-            raise InputError(f"--method {self.method!r} is not one of {', '.join(GROUND_METHODS)}", hint="Use --method smrf")
-        if self.noise not in NOISE_METHODS:
-            raise InputError(f"--noise {self.noise!r} is not one of {', '.join(NOISE_METHODS)}", hint="Use --noise ivf")
+        """Every option checked against its declaration before anything is read or written."""
+        check_method("ground_method", self.method)
+        check_all(self, self.CHECKED)
         check_point_format(self.format)
-        for value, name in ((self.cell, "--cell"), (self.window, "--window"), (self.csf_resolution, "--csf-resolution"),
-                            (self.ivf_res, "--ivf-res"), (self.threshold, "--threshold"),
-                            (self.csf_threshold, "--csf-threshold")):
-            check_length(value, name, example="1m")
-        check_length(self.scalar, "--scalar", allow_equal=True, example="0.5m")
-        check_length(self.low_noise_depth, "--low-noise-depth", example="1m")
-        if self.buffer is not None:
-            check_length(self.buffer, "--buffer", allow_equal=True, example="50m")
-        check_number(self.slope, "--slope", low=0, example="0.1")
-        check_number(self.csf_time_step, "--csf-time-step", low=0, example="0.65")
-        check_number(self.sor_multiplier, "--sor-multiplier", low=0, example="2")
-        for value, name in ((self.csf_iterations, "--csf-iterations"), (self.sor_k, "--sor-k")):
-            check_count(value, name, example="8")
-        check_count(self.ivf_n, "--ivf-n", minimum=0, example="6")
-        if self.csf_rigidness not in (1, 2, 3):
-            raise InputError(f"--csf-rigidness {self.csf_rigidness} is not 1, 2 or 3", hint="1 for steep terrain, 3 for flat")
         if self.method == "csf":
             import importlib.util
 
             if importlib.util.find_spec("CSF") is None:  # cloth-simulation-filter, the optional extra
-                raise InputError("--method csf needs cloth-simulation-filter, which is not installed",
-                                 hint="pip install 'gistools[ground]', or use --method smrf")
+                raise InputError(f"{option('method', 'csf')} needs cloth-simulation-filter, which is not installed",
+                                 hint=f"pip install 'gistools[ground]', or use {option('method', 'smrf')}")
 
 
 @dataclass(frozen=True)
@@ -233,7 +219,7 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     """
     settings = settings or GroundSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
-    out = Path(out)
+    out = output_folder(out)
     with claim_output(out, "gistools ground"):
         return raise_if_every_tile_failed(_ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress,
                                                      water))

@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 from ..errors import GistoolsError
+from ..parameters import option, render
 from ..io.atomic import atomic_path
 from ..io.points import crs_label, iter_chunks, read_tile_info
 from ..io.tiles import find_tiles
@@ -35,9 +36,9 @@ def tile_summary(path, crs=None) -> dict:
         "scales": info.scales,
         "offsets": info.offsets,
         "crs": crs_label(info.crs),
-        "crs_source": None if info.crs is None else "file" if info.crs_from_file else "--crs",
+        "crs_source": None if info.crs is None else "file" if info.crs_from_file else "given",
         "crs_note": info.crs_note if info.crs is not None or info.crs_note else
-        "the header has no CRS: give one with --crs (CLI) or 'Input CRS' (QGIS) to use the file",
+        render(f"the header has no CRS: give one with {option('crs')} to use the file"),
         "horizontal_unit": _unit_name(info, "unit"),
         "vertical_unit": _unit_name(info, "z_unit"),
         "points_by_class": {int(c): int(n) for c, n in enumerate(by_class) if n},

@@ -15,24 +15,27 @@ from rasterio.enums import Resampling
 from rasterio.windows import from_bounds
 
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..io.atomic import atomic_path
+from ..parameters import check, choices, default_for, option, render
 from ..units import LinearUnit
 from .record import read_folder_report
 
 __all__ = ["map_book", "PAPERS"]
 
-PAPERS = ("letter", "a4", "tabloid")
-MAX_PAGES = 1000
+PAPERS = choices("paper")  # declared in gistools.parameters.deliver
+MAX_PAGES = default_for("max_pages")
 CREATOR = "gistools mapbook"  # the PDF's Creator: the mark of a map book gistools wrote
 
 
 def _check(scale, paper, max_pages) -> None:
     if not (isinstance(scale, (int, float)) and scale > 0):
-        raise InputError(f"--scale {scale!r} must be a positive number (the n of 1:n)", hint="e.g. --scale 10000")
-    if paper not in PAPERS:
-        raise InputError(f"--paper {paper!r} is not one of {', '.join(PAPERS)}", hint="Use --paper letter")
+        raise InputError(f"{option('scale')} {scale!r} must be a positive number (the n of 1:n)",
+                         hint=f"e.g. {option('scale', '10000')}")
+    check("paper", paper)
     if not (isinstance(max_pages, int) and max_pages > 0):
-        raise InputError(f"--max-pages {max_pages!r} must be a positive integer", hint="e.g. --max-pages 1000")
+        raise InputError(f"{option('max_pages')} {max_pages!r} must be a positive integer",
+                         hint=f"e.g. {option('max_pages', '1000')}")
 
 
 def _fitted(bounds, frame_w: float, frame_h: float) -> tuple:
@@ -74,7 +77,7 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tupl
 
     from ..io.vector import check_crs, check_field, read_layer
 
-    layer = read_layer(tile_index, ("polygon",), "--tile-index")
+    layer = read_layer(tile_index, ("polygon",), render(option("tile_index")))  # also in a log line: named now
     check_field(layer, tile_field, tile_index)
     layer = check_crs(layer, pyproj.CRS.from_wkt(src.crs.to_wkt()), str(tile_index))
     pages = [_fitted(g.bounds, frame_w, frame_h) for g in layer.geometry if g is not None and not g.is_empty]
@@ -91,7 +94,7 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
     from ..plot import map_frame_inches, map_parameters, mapbook_page
 
     _check(scale, paper, max_pages)
-    out = Path(out)
+    out = output_folder(out)
     report = read_folder_report(out) or {}
     if not (out / "classes.vrt").exists() or not report.get("horizontal_unit_m"):
         raise InputError(f"{out}: no classes.vrt and report.json to print", hint="Run gistools shrub into this folder first")
@@ -110,8 +113,9 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
         if not pages:
             raise InputError(f"{out}: no page has classes on it", hint="Check the tile index's CRS and extent")
         if len(pages) > max_pages:
-            raise InputError(f"{len(pages):,} pages at 1:{scale:,.0f} is more than --max-pages {max_pages}",
-                             hint="Give a smaller scale (a larger n, e.g. --scale 25000), or a higher --max-pages")
+            raise InputError(f"{len(pages):,} pages at 1:{scale:,.0f} is more than {option('max_pages', max_pages)}",
+                             hint=f"Give a smaller scale (a larger n, e.g. {option('scale', '25000')}), or a higher "
+                                  f"{option('max_pages')}")
         locator_bounds = tuple(src.bounds)
         locator = _read(src, locator_bounds, 400)
         scales = []

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..grid import cell_index, snapped_grid
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
@@ -22,6 +23,8 @@ from ..io.raster import crs_from_wkt, write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.metrics import LAYER_HEIGHT_M, MetricSpec, cell_metrics, needs_heights, parse_metric
 from ..lidar.normalize import height_above_ground
+from ..parameters import check_all, choices, default_for, option
+from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
@@ -30,27 +33,31 @@ from .buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffer
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
 
-RETURNS = ("all", "first", "last")
-DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p95")
+RETURNS = choices("returns")  # declared in gistools.parameters.lidar: the same words as gistools points
+DEFAULT_METRICS = tuple(default_for("metrics"))
 GROUND_CLASSES = (2, 9)  # the TIN of heights above ground: ground and water, as lidR's normalize_height
 
 
 @dataclass(frozen=True)
 class MetricsSettings:
-    """Parameters of ``gistools metrics``. ``metrics``: names (lidar.metrics); ``normalized``: every z_* metric is
-    computed on heights above ground instead and named hag_*. ``classes``: the ASPRS classes whose points count
-    (None: all but noise 7, 18); ``returns``: all, first or last. ``buffer``: how far the neighbours' ground points
-    are read for heights above ground (default 30 m, lidR's chunk buffer). Lengths take a unit or are in the
-    tiles' CRS units; a threshold in a metric's name ("hag_above2m", "cover_above6ft") likewise, a bare number
-    being in the tiles' vertical unit."""
+    """Parameters of ``gistools metrics`` (declared in gistools.parameters.lidar: names, defaults, help).
+    ``metrics``: names (lidar.metrics); ``normalized``: every z_* metric is computed on heights above ground instead
+    and named hag_*. ``classes``: the ASPRS classes whose points count (None: all but noise 7, 18); ``returns``:
+    first, last or all ("any", the old word of gistools points for all, is still taken). ``buffer``: how far the
+    neighbours' ground points are read for heights above ground (default 30 m, lidR's chunk buffer). Lengths take a
+    unit or are in the tiles' CRS units; a threshold in a metric's name ("hag_above2m", "cover_above6ft") likewise, a
+    bare number being in the tiles' vertical unit."""
 
-    cell_size: str | float = "5m"
+    cell_size: str | float = COMMAND_DEFAULTS["metrics"]["cell_size"]
     metrics: tuple[str, ...] = DEFAULT_METRICS
-    normalized: bool = False
+    normalized: bool = default_for("normalized")
     classes: tuple[int, ...] | None = None
-    returns: str = "all"
-    buffer: str | float = "30m"
+    returns: str = default_for("returns")
+    buffer: str | float = COMMAND_DEFAULTS["metrics"]["buffer"]
     crs: str | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "returns", current_word("returns", self.returns))
 
     def specs(self) -> list[MetricSpec]:
         """The metrics asked for, hag_* in place of z_* when ``normalized`` (each name once)."""
@@ -58,15 +65,11 @@ class MetricsSettings:
         return [parse_metric(m) for m in dict.fromkeys(names)]
 
     def validate(self) -> None:
+        """Every field checked against its declaration, then each metric's name and thresholds."""
         if not self.metrics:
-            raise InputError("no metric given", hint="e.g. --metrics count,z_max,z_p95")
+            raise InputError("no metric given", hint=f"e.g. {option('metrics', ('count', 'z_max', 'z_p95'))}")
         self.specs()
-        check_length(self.cell_size, "--cell-size", example="5m")
-        check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
-        if self.returns not in RETURNS:
-            raise InputError(f"--returns {self.returns!r} is not one of {', '.join(RETURNS)}", hint="Use --returns all")
-        if self.classes is not None and (not self.classes or any(not 0 <= int(c) <= 255 for c in self.classes)):
-            raise InputError(f"--classes {self.classes}: class codes are integers 0-255", hint="e.g. --classes 1,2,3,4,5")
+        check_all(self, ("cell_size", "buffer", "returns", "classes"))
         for spec in self.specs():
             for value, unit in spec.numbers:
                 if unit:
@@ -179,7 +182,7 @@ def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, 
     whose every metric exists is kept unless ``overwrite``; one bad tile is reported and the others go on."""
     settings = settings or MetricsSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
-    out = Path(out)
+    out = output_folder(out)
     with claim_output(out, "gistools metrics"):
         return raise_if_every_tile_failed(_metrics_in(paths, out, settings, override, jobs, scheduler, overwrite,
                                                       progress))

@@ -19,11 +19,14 @@ import numpy as np
 import shapely
 
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info, write_all_points
 from ..io.vpc import write_vpc
-from ..lidar.bands import PRESETS, band_thresholds
+from ..lidar.bands import band_thresholds
 from ..lidar.normalize import height_above_ground, vegetation_classes
+from ..parameters import check_all, default_for, option, render
+from ..parameters.lidar import COMMAND_DEFAULTS
 from ..progress import ProgressCallback
 from ..units import horizontal_unit, length_to_crs_units
 from ..validation import check_length
@@ -39,38 +42,37 @@ GROUND_CLASSES = (2, 9)
 
 @dataclass(frozen=True)
 class NormalizeSettings:
-    """Parameters of ``gistools normalize``. ``buffer``: how far the neighbours' ground points are read (30 m,
-    lidR's chunk buffer). ``replace_z``: heights above ground replace z (no extra dimension). ``classify_vegetation``:
-    classes 3 / 4 / 5 for unclassified points by the height bands (``bands``: exact 1 / 2 / 6 m or text_literal;
-    low up to T1, medium up to T3, high above), points within ``noise_floor`` of the ground untouched; road surface
-    (11) and water (9) for points of classes 0-2 within ``noise_floor`` of the ground inside the road and water
-    polygons made from the breaklines (the shrub chain's rules: ``snap``, ``max_road_width``, ...). ``format``:
-    laz, las or copc."""
+    """Parameters of ``gistools normalize`` (declared in gistools.parameters.lidar: names, defaults, help).
+    ``buffer``: how far the neighbours' ground points are read (30 m, lidR's chunk buffer). ``replace_z``: heights
+    above ground replace z (no extra dimension). ``classify_vegetation``: classes 3 / 4 / 5 for unclassified points
+    by the height bands (``bands``: exact 1 / 2 / 6 m or text_literal; low up to T1, medium up to T3, high above),
+    points within ``noise_floor`` of the ground untouched; road surface (11) and water (9) for points of classes 0-2
+    within ``noise_floor`` of the ground inside the road and water polygons made from the breaklines (the shrub
+    chain's rules: ``snap``, ``max_road_width``, ...). ``format``: laz, las or copc."""
 
-    buffer: str | float = "30m"
-    replace_z: bool = False
-    classify_vegetation: bool = False
-    bands: str = "exact"
-    noise_floor: str | float = "0.1m"
+    buffer: str | float = COMMAND_DEFAULTS["normalize"]["buffer"]
+    replace_z: bool = default_for("replace_z")
+    classify_vegetation: bool = default_for("classify_vegetation")
+    bands: str = default_for("bands")
+    noise_floor: str | float = default_for("noise_floor")
     snap: str | float = "0.2ft"
     max_road_width: str | float = "60ft"
     max_hydro_width: str | float = "500ft"
     single_line_width: str | float = "8ft"
-    format: str = "laz"
+    format: str = default_for("format")
     crs: str | None = None
 
     def validate(self) -> None:
-        check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
-        check_length(self.noise_floor, "--noise-floor", allow_equal=True, example="0.1m")
-        check_length(self.snap, "--snap", allow_equal=True, example="0.2ft")
-        for value, name in ((self.max_road_width, "--max-road-width"), (self.max_hydro_width, "--max-hydro-width"),
-                            (self.single_line_width, "--single-line-width")):
+        """Every field checked against its declaration, then the rules between them."""
+        check_all(self, ("buffer", "noise_floor", "bands"))
+        check_length(self.snap, "snap", allow_equal=True, example="0.2ft")
+        for value, name in ((self.max_road_width, "max_road_width"), (self.max_hydro_width, "max_hydro_width"),
+                            (self.single_line_width, "single_line_width")):
             check_length(value, name, example="60ft")
-        if self.bands not in PRESETS:
-            raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
         if self.format == "copc" and not self.replace_z:
-            raise InputError("--format copc: gistools' COPC writer holds no extra dimension, so the HeightAboveGround "
-                             "dimension cannot go there", hint="Add --replace-z (the heights as z), or use --format laz")
+            raise InputError(f"{option('format', 'copc')}: gistools' COPC writer holds no extra dimension, so the "
+                             "HeightAboveGround dimension cannot go there",
+                             hint=f"Add {option('replace_z')} (the heights as z), or use {option('format', 'laz')}")
         check_point_format(self.format)
 
 
@@ -106,7 +108,7 @@ def _normalize_tile(path: str, sources: list, crs_text, p: _Params, target: str,
               for a, k in ((x, "x"), (y, "y"), (z, "z"))]
     if len(ground[0]) == 0:
         raise DataFileError("no ground (class 2 or 9) points in the tile or within the buffer of its neighbours",
-                            path=path, hint="Classify ground first (gistools ground), or give a larger --buffer")
+                            path=path, hint=f"Classify ground first (gistools ground), or give a larger {option('buffer')}")
     vertex = np.full(len(x), -1, np.int64)
     vertex[g] = np.arange(int(np.count_nonzero(g)))  # the tile's own ground points come first in the TIN's points
     hag, inside = height_above_ground(x, y, z, *ground, vertex=vertex)
@@ -152,10 +154,11 @@ def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None,
     ``classify_vegetation``. Existing outputs are kept unless ``overwrite``; one bad tile is reported."""
     settings = settings or NormalizeSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
-    out = Path(out)
+    out = output_folder(out)
     if (roads or hydro or waterbodies) and not settings.classify_vegetation:
-        raise InputError("--roads / --hydro / --waterbodies are used only with --classify-vegetation",
-                         hint="Add --classify-vegetation, or leave the breaklines out")
+        raise InputError(f"{option('roads')} / {option('hydro')} / {option('waterbodies')} are used only with "
+                         f"{option('classify_vegetation')}",
+                         hint=f"Add {option('classify_vegetation')}, or leave the breaklines out")
     with claim_output(out, "gistools normalize"):
         return raise_if_every_tile_failed(_normalize_in(paths, out, settings, override, jobs, scheduler, overwrite,
                                                         progress, (roads, hydro, waterbodies), reproject_vectors))
@@ -168,7 +171,7 @@ def _layers(specs, crs, reproject) -> dict:
     loaded = {}
     for (name, spec) in zip(kinds, specs):
         if spec:
-            gdf = check_crs(read_layer(spec, kinds[name], f"--{name}"), crs, str(spec), reproject=reproject)
+            gdf = check_crs(read_layer(spec, kinds[name], render(option(name))), crs, str(spec), reproject=reproject)
             loaded[name] = [g for g in gdf.geometry if g is not None and not g.is_empty]
     return loaded
 

@@ -12,16 +12,18 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import GistoolsError, InputError, OutputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path
-from ..validation import check_count
+from ..parameters import check, choices, default_for, option
+from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..io.tiles import find_tiles
 from ..progress import check_interrupt, ProgressCallback, report
 
 __all__ = ["points_from_tiles", "RETURNS"]
 
-RETURNS = ("first", "last", "any")
+RETURNS = choices("returns")  # declared in gistools.parameters.lidar: the same words as gistools metrics
 
 
 def _select(chunk, classes, returns):
@@ -68,26 +70,26 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
     return written
 
 
-def points_from_tiles(inputs, out, *, classes=(1, 2), returns: str = "any", fmt: str = "gpkg", crs: str | None = None,
-                      overwrite: bool = False, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                      progress: ProgressCallback | None = None) -> dict:
+def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classes"], returns: str = default_for("returns"),
+                      fmt: str = default_for("fmt"), crs: str | None = None, overwrite: bool = False,
+                      chunk_size: int = DEFAULT_CHUNK_SIZE, progress: ProgressCallback | None = None) -> dict:
     """Point layers ``out/<tile>.gpkg`` (or .parquet) of the chosen classes and returns of each tile.
 
-    classes: ASPRS codes, None for all; returns: first, last or any. The dissertation ran it
-    twice: non-ground = classes 1, 2 first returns; ground = class 2, any return.
+    classes: ASPRS codes, None for all; returns: first, last or all ("any", the old word for all, is still
+    taken). The dissertation ran it twice: non-ground = classes 1, 2 first returns; ground = class 2, any return.
     """
-    if returns not in RETURNS:
-        raise InputError(f"--returns {returns!r} is not one of {', '.join(RETURNS)}")
-    if fmt not in ("gpkg", "parquet"):
-        raise InputError(f"--format {fmt!r} is not gpkg or parquet")
+    returns = current_word("returns", returns)
+    check("classes", classes)
+    check("returns", returns)
+    check("fmt", fmt)
     if fmt == "parquet":
         try:
             import pyarrow  # noqa: F401
         except ImportError as err:
             raise InputError(f"GeoParquet needs pyarrow, which does not import ({err})",
-                             hint="pip install 'gistools[parquet]', or use --format gpkg") from None
-    check_count(chunk_size, "--chunk-size", example="2000000")
-    out = Path(out)
+                             hint=f"pip install 'gistools[parquet]', or use {option('fmt', 'gpkg')}") from None
+    check("chunk_size", chunk_size)
+    out = output_folder(out)
     override = parse_crs_text(crs) if crs else None
     paths = find_tiles(inputs)
     with claim_output(out, "gistools points"):

@@ -27,6 +27,7 @@ import numpy as np
 from affine import Affine
 
 from ..errors import Cancelled, DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..grid import Grid, snapped_grid
 from ..io.points import DEFAULT_CHUNK_SIZE, TileInfo, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info, scaled
 from ..io.atomic import raise_output_error
@@ -35,9 +36,8 @@ from ..io.raster import NODATA, atomic_path, crs_from_wkt, write_raster, write_v
 from ..io.tiles import find_tiles
 from ..lidar.accumulate import ASPRS_STYLE, NOISE_CLASSES, TOPCLASS_NODATA, finish_surface, merge_top_class, surface_classes
 from ..lidar.bands import add_nodata_causes, nodata_cause_shares
-from ..lidar.dsmfill import DSM_FILLS
 from ..lidar.scan import GROUND_CLASS, WATER_CLASS, ScanGrids, scan_chunk, surface_mask
-from ..lidar.gridding import DEM_FILLS, DEM_METHODS, dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
+from ..lidar.gridding import dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
 from .batch import drive, fail, make_pool, timed, worker_timed
@@ -46,16 +46,17 @@ from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_
 from .dsmfill import DsmFillScan, fill_tile_dsm
 from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
-from .schedule import TwoPassSchedule
+from .schedule import TwoPassSchedule, neighbour_pairs
 from ..units import length_to_crs_units
-from ..validation import check_scheduler, check_count, check_grid_size, check_length
+from ..parameters import check_all, choices, default_for, option
+from ..validation import check_scheduler, check_count, check_grid_size, check_length, grid_shape
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
 
 log = logging.getLogger(__name__)
 
-PRODUCTS = ("dsm", "dem", "ndsm", "topclass")
-DEFAULT_PRODUCTS = ("dsm", "dem", "ndsm")
+PRODUCTS = choices("products")  # declared in gistools.parameters.rasters
+DEFAULT_PRODUCTS = default_for("products")
 
 
 @dataclass(frozen=True)
@@ -99,49 +100,20 @@ class RasterSettings:
     subcircle: str | float | None = None
 
     def validate(self) -> None:
-        bad = [p for p in self.products if p not in PRODUCTS]
-        if bad or not self.products:
-            raise InputError(f"products {', '.join(bad) or '(none)'}: choose among {', '.join(PRODUCTS)}", hint="e.g. --products dsm,dem")
-        if self.dem_method not in DEM_METHODS:
-            raise InputError(
-                f"--dem-method {self.dem_method!r} is not one of {', '.join(DEM_METHODS)}", hint="Use --dem-method tin"
-            )
-        check_count(self.chunk_size, "--chunk-size", example="2000000")
+        """Every field checked against its declaration (gistools.parameters), then the rules between them."""
+        check_all(self, ("products", "dem_method", "chunk_size", "cell_size", "dem_max_distance", "buffer", "dsm_classes",
+                         "classify_ground", "dsm_fill", "subcircle", "dem_fill", "shore_width"))
         check_count(self.tin_block_points, "tin_block_points", example="5000000")
-        check_length(self.cell_size, "--cell-size", example="5ft")
-        check_length(self.dem_max_distance, "--dem-max-distance", example="15m")
-        if self.buffer is not None:
-            check_length(self.buffer, "--buffer", allow_equal=True, example="30m")
-        if self.dsm_classes is not None and (not self.dsm_classes or any(not 0 <= int(c) <= 255 for c in self.dsm_classes)):
-            raise InputError(f"--dsm-classes {self.dsm_classes}: class codes are integers 0-255", hint="e.g. --dsm-classes 1,2")
-        if self.classify_ground is not None:
-            from ..lidar.ground import GROUND_METHODS
-
-            if self.classify_ground not in GROUND_METHODS:
-                raise InputError(f"--classify-ground {self.classify_ground!r} is not one of {', '.join(GROUND_METHODS)}",
-                                 hint="Use --classify-ground smrf")
-        self._check_dem_options()
         if self.return_band_breaks is not None:
             values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]
             if len(values) < 2:
                 raise InputError(f"return band breaks {self.return_band_breaks}: give at least two heights")
-
-
-    def _check_dem_options(self) -> None:
-        """--dem-fill, --dsm-fill, --subcircle, --hydro-flatten and --shore-width."""
-        if self.dsm_fill not in DSM_FILLS:
-            raise InputError(f"--dsm-fill {self.dsm_fill!r} is not one of {', '.join(DSM_FILLS)}", hint="Use --dsm-fill tin")
-        if self.subcircle is not None:
-            check_length(self.subcircle, "--subcircle", example="0.2m")
-        if self.dem_fill not in DEM_FILLS:
-            raise InputError(f"--dem-fill {self.dem_fill!r} is not one of {', '.join(DEM_FILLS)}", hint="Use --dem-fill tin")
-        if self.shore_width is not None:
-            check_length(self.shore_width, "--shore-width", example="10ft")
         if self.hydro_flatten is not None and "dem" not in self.products:
-            raise InputError("--hydro-flatten flattens the DEM: add dem to --products", hint="e.g. --products dsm,dem,ndsm")
+            raise InputError(f"{option('hydro_flatten')} flattens the DEM: add dem to {option('products')}",
+                             hint=f"e.g. {option('products', ('dsm', 'dem', 'ndsm'))}")
         if self.hydro_flatten is not None and "ndsm" in self.products and "dsm" not in self.products:
-            raise InputError("--hydro-flatten redoes the nDSM from the DSM: add dsm to --products, or leave ndsm out",
-                             hint="e.g. --products dsm,dem,ndsm")
+            raise InputError(f"{option('hydro_flatten')} redoes the nDSM from the DSM: add dsm to {option('products')}, "
+                             "or leave ndsm out", hint=f"e.g. {option('products', ('dsm', 'dem', 'ndsm'))}")
 
 
 @dataclass
@@ -162,6 +134,7 @@ class TileResult:
     shore_profile: dict = field(default_factory=dict)  # river -> {"ix,iy": lowest shore point of that profile cell}
     dem_filled_cells: int = 0  # DEM voids filled (dem_fill)
     dsm_filled_cells: int = 0  # DSM pinholes filled (dsm_fill)
+    grid: list | None = None  # the tile's grid: transform (a, b, c, d, e, f), width, height
     nodata_by_cause: dict | None = None  # why cells have no height band (lidar.bands), where dsm, dem, topclass are made
     stage_seconds: dict = field(default_factory=dict)  # the tile's time by stage: read (pass 1), merge, dem, write
     warnings: list = field(default_factory=list)
@@ -340,16 +313,21 @@ def _first_return_bands(path: Path, dem_flat: np.ndarray, breaks, bare: int, chu
     return [int(c) for c in counts]
 
 
-def _neighbours(info: TileInfo, infos: list[TileInfo], distance: float) -> list[TileInfo]:
-    w, s, e, n = info.bounds
-    out = []
-    for other in infos:
-        if other.path == info.path:
-            continue
-        ow, os_, oe, on = other.bounds
-        if ow <= e + distance and oe >= w - distance and os_ <= n + distance and on >= s - distance:
-            out.append(other)
-    return out
+def _neighbours(infos: list[TileInfo], distance: float) -> dict[str, list[TileInfo]]:
+    """{tile: the other tiles within ``distance`` of its bounds}, in the order of ``infos`` (an R-tree: n log n)."""
+    pairs = neighbour_pairs([i.bounds for i in infos], distance)
+    return {info.name: [infos[j] for j in js if infos[j].path != info.path] for info, js in zip(infos, pairs)}
+
+
+def _task_bytes(infos, run: _Run) -> int:
+    """About the most memory one tile's task takes: its grids (about 40 bytes a cell, with the neighbours' edges),
+    a chunk of points (about 60 bytes a point) and a TIN strip (about 110 bytes a ground point)."""
+    most = 0
+    for info in infos:
+        cols, rows = grid_shape(info.bounds, run.cell_size)
+        points = min(int(info.point_count), int(run.chunk_size))
+        most = max(most, 40 * (cols + 2) * (rows + 2) + 60 * points + 110 * min(int(info.point_count), TIN_STRIP_POINTS))
+    return most
 
 
 def _rows(grid: Grid, r0: int, r1: int) -> Grid:
@@ -410,7 +388,8 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     stages = {"merge": t1 - t0, "dem": t2 - t1, "write": time.perf_counter() - t2}
     causes = _nodata_causes(arrays) if {"dsm", "dem", "topclass"} <= set(run.products) else None
     return {"outputs": outputs, "first_return_bands": return_bands, "warnings": warnings, "neighbours": sorted(used),
-            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled, "stages": stages, "nodata_by_cause": causes}
+            "dem_filled_cells": filled, "dsm_filled_cells": dsm_filled, "stages": stages, "nodata_by_cause": causes,
+            "grid": [*grid.transform[:6], grid.width, grid.height]}
 
 
 def _nodata_causes(arrays: dict) -> dict:
@@ -558,7 +537,7 @@ def rasters_from_tiles(
     settings.validate()
     check_scheduler(scheduler)
     started = time.time()
-    out = Path(out)
+    out = output_folder(out)
     paths = find_tiles(inputs)
     override = parse_crs_text(settings.crs) if settings.crs else None
     with claim_output(out, "gistools rasters"):
@@ -650,7 +629,7 @@ def _water(settings: RasterSettings, crs, unit, cell_size: float) -> tuple:
         return (), 0.0, None
     from ..io.vector import absolute_spec, check_crs, read_layer
 
-    layer = check_crs(read_layer(settings.hydro_flatten, ("polygon",), "--hydro-flatten"), crs, str(settings.hydro_flatten))
+    layer = check_crs(read_layer(settings.hydro_flatten, ("polygon",), option("hydro_flatten")), crs, str(settings.hydro_flatten))
     shore = (length_to_crs_units(settings.shore_width, unit, name="shore width") if settings.shore_width is not None
              else 2 * cell_size)
     return water_bodies(list(layer.geometry), shore), shore, f"{absolute_spec(settings.hydro_flatten)} {shore:.6g}"
@@ -676,8 +655,11 @@ def _mosaics(out: Path, products, results) -> dict:
     for product in products:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
         mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
+        known = {str(t): (Affine(*results[t.stem].grid[:6]), *results[t.stem].grid[6:8]) for t in mine
+                 if isinstance(results[t.stem].grid, list) and len(results[t.stem].grid) == 8}
         if mine:
-            vrts[product] = str(write_vrt(out / f"{product}.vrt", mine, categories=ASPRS_STYLE if product == "topclass" else None))
+            vrts[product] = str(write_vrt(out / f"{product}.vrt", mine, categories=ASPRS_STYLE if product == "topclass" else None,
+                                          geometry=known))
     return vrts
 
 
@@ -722,7 +704,7 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
     """Both passes over the tiles (kept tiles of an earlier run skipped); returns the scratch's peak in tiles."""
     out = Path(run.out)
     settings = run_settings(run)
-    neighbours = {i.name: _neighbours(i, infos, run.buffer + run.cell_size) for i in infos}
+    neighbours = _neighbours(infos, run.buffer + run.cell_size)
     kept = {} if overwrite else kept_tiles(out, infos, neighbours, run, settings)
     todo = {i.name for i in infos if kept.get(i.name) is None}
     for name, rep in kept.items():
@@ -767,8 +749,9 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         _release(run.scratch, schedule.releasable())
         return task
 
-    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan))
-    drive(pool, pool is not shared_pool, 1 if pool is None else 2 * max(jobs, 1), next_task, start, pending, finish)
+    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan), _task_bytes(scan, run))
+    drive(pool, pool is not shared_pool, 1 if pool is None else 2 * max(getattr(pool, "workers", jobs), 1), next_task, start,
+          pending, finish)
     return schedule.scratch_peak
 
 
@@ -810,6 +793,7 @@ def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
 
 def _grid_done(r: TileResult, value: dict, seconds: float) -> None:
     r.outputs = value["outputs"]
+    r.grid = value.get("grid")
     r.first_return_bands = value["first_return_bands"]
     r.dem_filled_cells = value.get("dem_filled_cells", 0)
     r.dsm_filled_cells = value.get("dsm_filled_cells", 0)

@@ -13,9 +13,10 @@ import logging
 from pathlib import Path
 
 from ..errors import InputError
+from ..parameters import option
 from ..io.atomic import atomic_path
 from ..io.points import crs_label
-from ..io.raster import crs_from_wkt, raster_is_readable
+from ..io.raster import crs_from_wkt, file_stamp, raster_is_readable
 
 log = logging.getLogger("gistools.tasks.rasters")
 
@@ -27,7 +28,7 @@ __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report
 # are all written: the mark of a complete tile, and what a resumed run reports for the tiles it keeps.
 TILE_FIELDS = ("points", "points_by_class", "points_by_return", "points_outside_header_bounds", "outputs",
                 "first_return_bands", "shore_minima", "shore_profile", "dem_filled_cells", "dsm_filled_cells",
-               "warnings", "neighbours", "seconds")
+               "warnings", "neighbours", "seconds", "grid")
 
 
 def tile_report_file(out: Path, name: str) -> Path:
@@ -49,8 +50,11 @@ def run_settings(run) -> dict:
 
 
 def write_tile_report(out: Path, result, settings: dict) -> None:
+    """The tile's report, with each raster's stamp (size, mtime) as it was written and checked."""
+    stamps = {p: file_stamp(path) for p, path in (result.outputs or {}).items()}
     with atomic_path(tile_report_file(out, result.name), overwrite=True) as tmp:
-        tmp.write_text(json.dumps({**{k: getattr(result, k) for k in TILE_FIELDS}, "settings": settings}, indent=1))
+        tmp.write_text(json.dumps({**{k: getattr(result, k) for k in TILE_FIELDS}, "settings": settings,
+                                   "stamps": stamps}, indent=1))
 
 
 def read_tile_report(out: Path, name: str) -> dict | None:
@@ -65,7 +69,8 @@ def read_tile_report(out: Path, name: str) -> dict | None:
 
 SETTING_NAMES = {"cell_size": "cell size", "dem_method": "DEM method", "dem_max_distance": "DEM max distance",
                   "buffer": "buffer", "dsm_classes": "DSM classes", "z_unit": "z unit", "crs_wkt": "CRS",
-                  "hydro_flatten": "--hydro-flatten layer and shore width", "dem_fill": "--dem-fill", "dsm_fill": "--dsm-fill"}
+                  "hydro_flatten": f"{option('hydro_flatten')} layer and shore width", "dem_fill": option("dem_fill"),
+                  "dsm_fill": option("dsm_fill")}
 
 
 def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -> None:
@@ -88,7 +93,7 @@ def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -
         if not same:
             raise InputError(
                 f"{out}: tile {name} was made with {SETTING_NAMES[key]} {shown[0]}, this run asks {shown[1]}",
-                hint="Pass --overwrite to redo the tiles with the new settings, or choose another --out")
+                hint=f"Pass {option('overwrite')} to redo the tiles with the new settings, or choose another {option('out')}")
 
 
 def complete_tile(out: Path, name: str, rep: dict | None, products, return_breaks=None) -> dict | None:
@@ -96,8 +101,12 @@ def complete_tile(out: Path, name: str, rep: dict | None, products, return_break
     ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
     if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
         return None
+    stamps = rep.get("stamps") if isinstance(rep.get("stamps"), dict) else {}
     for p in products:  # a kept raster must open and read whole: a damaged one is recomputed
-        if not raster_is_readable(out / p / f"{name}.tif"):
+        path = out / p / f"{name}.tif"
+        if stamps.get(p) == file_stamp(path):
+            continue  # the file gistools wrote and checked, untouched since (same size and time)
+        if not raster_is_readable(path):
             log.warning("%s: damaged, recomputing the tile", out / p / f"{name}.tif")
             return None
     if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):

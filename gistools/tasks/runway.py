@@ -19,6 +19,7 @@ import shapely
 from scipy.interpolate import LinearNDInterpolator
 
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..grid import evaluate_on_grid, snapped_grid
 from ..io.points import parse_crs_text
 from ..io.outdir import claim_output
@@ -30,9 +31,17 @@ from ..runway.earthworks import (balance_points, brueckner, compensate, disserta
 from ..runway.icao import template as make_template
 from ..io.survey import read_survey
 from ..runway.survey import SurveyChecks, check_survey, estimate_spacing, fit_frame
-from ..units import horizontal_unit
+from ..parameters import check_all, option
+from ..units import METRE, LinearUnit, horizontal_unit, length_to_crs_units
 
-__all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks", "area_diagram", "brueckner_diagram"]
+__all__ = ["RunwaySettings", "compute_earthworks", "runway_earthworks", "runway_metres", "area_diagram",
+           "brueckner_diagram"]
+
+
+def runway_metres(value, name: str) -> float:
+    """A length of parameter ``name`` ("10m", "30ft", "32.8ftUS", or a bare number in metres) in metres: the ICAO
+    template and the survey's CRS are in metres."""
+    return length_to_crs_units(value, LinearUnit("metre", METRE), name=option(name))
 
 
 @dataclass(frozen=True)
@@ -54,6 +63,14 @@ class RunwaySettings:
     free_haul: float | None = None
     area_method: str = "exact"
     checks: SurveyChecks = field(default_factory=SurveyChecks)
+
+    def validate(self) -> None:
+        """Every setting checked against its declaration (gistools.parameters.runway) before anything is read; the
+        code by the ICAO template (which lists the valid ones)."""
+        check_all(self, ("runway_type", "template", "origin", "profile_window", "f_cut", "f_fill", "area_method"))
+        if int(self.profile_window) % 2 == 0:
+            raise InputError(f"{option('profile_window')} {self.profile_window} must be an odd number >= 1",
+                             hint=f"e.g. {option('profile_window', '5')}")
 
 
 @dataclass
@@ -104,8 +121,7 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
                        progress: ProgressCallback | None = None) -> Earthworks:
     """All the steps in memory on survey points (id, type, x, y, z)."""
     st = settings or RunwaySettings()
-    if st.area_method not in ("exact", "dissertation"):
-        raise InputError(f"area method {st.area_method!r} is not exact or dissertation")
+    st.validate()
     tpl = make_template(st.code, st.runway_type, st.template)
     report(progress, 0.05, "checks")
     kept, removed = check_survey(points, st.checks)
@@ -121,11 +137,12 @@ def compute_earthworks(points: pd.DataFrame, settings: RunwaySettings | None = N
                               2 * tpl.half_width)
     s = float(st.spacing) if st.spacing else estimate_spacing(ground_pts["chainage"].to_numpy(), ground_pts["offset"].to_numpy())
     if not s > 0:
-        raise InputError(f"spacing {s} must be positive", hint="e.g. --spacing 10")
+        raise InputError(f"{option('spacing')} {s} must be positive", hint=f"e.g. {option('spacing', '10m')}")
     length = frame.line.length
     n = int(np.floor(length / s + 1e-9))
     if n > 1_000_000:
-        raise InputError(f"spacing {s:g} m over {length:,.1f} m gives {n + 1:,} stations", hint="Give a larger --spacing")
+        raise InputError(f"spacing {s:g} m over {length:,.1f} m gives {n + 1:,} stations",
+                         hint=f"Give a larger {option('spacing')}")
     stations = np.arange(n + 1) * s
     if length - stations[-1] > 1e-6 * s:
         stations = np.append(stations, length)
@@ -249,9 +266,11 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     """The whole pipeline on a survey file; writes under ``out`` and returns the report (``out/report.json``)."""
     started = time.time()
     st = settings or RunwaySettings()
-    out = Path(out)
+    st.validate()
+    out = output_folder(out)
     if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("a runway run is already there", path=out, hint="Pass --overwrite, or choose another --out")
+        raise OutputExistsError("a runway run is already there", path=out,
+                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
     make_template(st.code, st.runway_type, st.template)  # refuse an unknown code before reading anything
     points, file_crs = read_survey(source, fields)
     if crs is not None:
@@ -259,7 +278,8 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     elif file_crs is not None:
         crs_obj = pyproj.CRS.from_user_input(file_crs)
     else:
-        raise InputError("the survey carries no CRS", path=source, hint="Give one with --crs (Orio al Serio: EPSG:3003)")
+        raise InputError("the survey carries no CRS", path=source,
+                         hint=f"Give one with {option('crs')} (Orio al Serio: EPSG:3003)")
     unit = horizontal_unit(crs_obj)
     if abs(unit.metres - 1.0) > 1e-12:
         raise InputError(f"the CRS is in {unit.name}; the ICAO template is in metres", path=source,

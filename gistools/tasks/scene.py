@@ -17,15 +17,17 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..io.atomic import atomic_path
 from ..io.raster import read_raster
 from ..lidar.shrub import CLASS_STYLE
+from ..parameters import check, choices, option
 from ..scene import decimation_step, grid_mesh
 from .record import read_folder_report
 
 __all__ = ["scene_glb", "read_extras", "SCENE_SURFACES", "GROUND_COLOUR"]
 
-SCENE_SURFACES = ("dsm", "dem")
+SCENE_SURFACES = choices("surface")  # declared in gistools.parameters.deliver
 GROUND_COLOUR = "#e2dac4"  # class 0 (no vegetation): pale earth in 3D, where the map's white would vanish
 
 
@@ -35,11 +37,12 @@ def _rgb(hex_colour: str) -> tuple[int, int, int]:
 
 def _check(exaggeration, max_mb, surface) -> None:
     if not (isinstance(exaggeration, (int, float)) and exaggeration > 0):
-        raise InputError(f"--exaggeration {exaggeration!r} must be a positive number", hint="e.g. --exaggeration 2")
+        raise InputError(f"{option('exaggeration')} {exaggeration!r} must be a positive number",
+                         hint=f"e.g. {option('exaggeration', '2')}")
     if not (isinstance(max_mb, (int, float)) and max_mb > 0):
-        raise InputError(f"--max-mb {max_mb!r} must be a positive number of megabytes", hint="e.g. --max-mb 50")
-    if surface not in SCENE_SURFACES:
-        raise InputError(f"--surface {surface!r} is not one of {', '.join(SCENE_SURFACES)}", hint="Use --surface dsm")
+        raise InputError(f"{option('max_mb')} {max_mb!r} must be a positive number of megabytes",
+                         hint=f"e.g. {option('max_mb', '50')}")
+    check("surface", surface)
 
 
 def _surface(out: Path, surface: str):
@@ -68,7 +71,7 @@ def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: 
     except ImportError:
         raise InputError("gistools scene needs trimesh, which is not installed",
                          hint="pip install 'gistools[scene]'") from None
-    out = Path(out)
+    out = output_folder(out)
     report = read_folder_report(out) or {}
     unit_m, z_unit_m = report.get("horizontal_unit_m"), report.get("vertical_unit_m")
     if not unit_m or not z_unit_m or not report.get("crs_wkt"):

@@ -1,7 +1,6 @@
-"""The shrub chain's settings: one place for its parameters and their defaults (the dissertation's values).
-
-The chain (``tasks.shrub``), the one-step functions (``tasks.steps``), the CLI options and the QGIS
-algorithms all take their defaults from here.
+"""The shrub chain's settings. Each parameter, with its default (the dissertation's values), is declared once in
+gistools.parameters.shrub; the chain (``tasks.shrub``), the one-step functions (``tasks.steps``), the CLI options and
+the QGIS algorithms take them from there.
 """
 
 from __future__ import annotations
@@ -10,16 +9,21 @@ import math
 from dataclasses import dataclass, field
 
 from ..errors import InputError
-from ..lidar.shrub import CLASS_METHODS, DEFAULT_BREAKS
-from ..validation import check_breaks, check_length
+from ..parameters import check_all, choices, default_for, option
+from ..validation import check_breaks
 from .rasters import RasterSettings
 
 __all__ = ["ShrubSettings", "DEFAULTS"]
 
+# the fields checked against their declarations (gistools.parameters.shrub)
+DECLARED = ("bands", "noise_floor", "snap", "max_road_width", "max_hydro_width", "single_line_width", "radius", "classify",
+            "class_breaks", "tile_field")
+
 
 @dataclass(frozen=True)
 class ShrubSettings:
-    """Parameters of the shrub chain. Lengths take a unit ("25ft", "0.1m") or are CRS units.
+    """Parameters of the shrub chain. Lengths take a unit ("25ft", "0.1m") or are CRS units. Each is declared once,
+    with its default, in gistools.parameters.shrub.
 
     bands: "exact" (1, 2, 6 m) or "text_literal" (the dissertation's 3.28 / 6.56 / 19.658 ft),
     or band_breaks_m = three heights in metres. noise_floor: heights up to it are bare (B0).
@@ -32,39 +36,31 @@ class ShrubSettings:
     """
 
     raster: RasterSettings = field(default_factory=RasterSettings)
-    bands: str = "exact"
-    band_breaks_m: tuple[float, float, float] | None = None
-    noise_floor: str | float = "0.1m"
-    snap: str | float = "0.2ft"
-    max_road_width: str | float = "60ft"
-    max_hydro_width: str | float = "500ft"
-    single_line_width: str | float = "8ft"
-    radius: str | float = "25ft"
-    density_bands: tuple[int, ...] = (1, 2, 3)
-    classify: str = "breaks"
-    class_breaks: tuple[float, float] = DEFAULT_BREAKS
-    tile_field: str = "TILE_ID"
+    bands: str = default_for("bands")
+    band_breaks_m: tuple[float, float, float] | None = default_for("band_breaks_m")
+    noise_floor: str | float = default_for("noise_floor")
+    snap: str | float = default_for("snap")
+    max_road_width: str | float = default_for("max_road_width")
+    max_hydro_width: str | float = default_for("max_hydro_width")
+    single_line_width: str | float = default_for("single_line_width")
+    radius: str | float = default_for("radius")
+    density_bands: tuple[int, ...] = default_for("density_bands")
+    classify: str = default_for("classify")
+    class_breaks: tuple[float, float] = default_for("class_breaks")
+    tile_field: str = default_for("tile_field")
 
     def validate(self):
-        """Every option checked before anything is read or written (validation layer)."""
+        """Every option checked before anything is read or written (validation layer): each field against its
+        declaration (gistools.parameters), then what a declaration does not say."""
         self.raster.validate()
-        if self.classify not in CLASS_METHODS:
-            raise InputError(f"--classify {self.classify!r} is not one of {', '.join(CLASS_METHODS)}")
-        if not self.density_bands or any(b not in (1, 2, 3) for b in self.density_bands):
-            raise InputError(f"density bands {self.density_bands} must be among 1, 2, 3", hint="e.g. --density-bands 1,2,3")
-        from ..lidar.bands import PRESETS
-
-        if self.bands not in PRESETS:
-            raise InputError(f"--bands {self.bands!r} is not one of {', '.join(PRESETS)}", hint="Use --bands exact")
-        if self.band_breaks_m is not None:
-            check_breaks(self.band_breaks_m, "--band-breaks", count=3, low=0, high=math.inf, low_open=True, example="1,2,6")
-        check_breaks(self.class_breaks, "--breaks", count=2, low=0, high=1, example="0.3,0.7")
-        check_length(self.noise_floor, "--noise-floor", allow_equal=True, example="0.1m")
-        check_length(self.snap, "--snap", allow_equal=True, example="0.2ft")
-        check_length(self.radius, "--radius", example="25ft")
-        check_length(self.max_road_width, "--max-road-width", example="60ft")
-        check_length(self.max_hydro_width, "max_hydro_width", example="500ft")
-        check_length(self.single_line_width, "single_line_width", example="8ft")
+        check_all(self, DECLARED)
+        bands = choices("density_bands")
+        if not self.density_bands or any(b not in bands for b in self.density_bands):
+            raise InputError(f"{option('density_bands', tuple(self.density_bands))} must be among "
+                             f"{', '.join(map(str, bands))}", hint=f"e.g. {option('density_bands', bands)}")
+        if self.band_breaks_m is not None:  # heights above the ground: the first one above 0
+            check_breaks(self.band_breaks_m, "band_breaks_m", count=3, low=0, high=math.inf, low_open=True,
+                         example="1,2,6")
 
 
 DEFAULTS = ShrubSettings()  # the defaults, for signatures and option declarations

@@ -29,6 +29,7 @@ import shapely
 from shapely.geometry import box
 
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
+from ..io.outdir import output_folder
 from ..io.points import parse_crs_text, read_tile_info
 from ..io.tiles import find_tiles
 from ..io.outdir import Rollback, claim_output
@@ -39,6 +40,7 @@ from ..lidar.vegetation import VEG_ROAD, VEG_WATER
 from ..io.styles import write_polygon_style
 from ..lidar.shrub import CLASS_NAMES, CLASS_STYLE, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
+from ..parameters import option, render
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
@@ -213,9 +215,11 @@ def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, rep
         return check_crs(read_layer(spec, kinds, name), crs, str(spec), reproject=reproject)
 
     lines, polygons = ("line",), ("polygon",)  # as the QGIS algorithms declare them
-    roads_g, hydro_g = load(roads, "--roads", lines), load(hydro, "--hydro", lines)
-    wb_g, wet_g = load(waterbodies, "--waterbodies", polygons), load(wetlands, "--wetlands", polygons)
-    idx_g = load(tile_index, "--tile-index", polygons)
+    # each layer named as the reader names the parameter (--roads, roads, the dialog's label), in messages and the log
+    roads_g, hydro_g = load(roads, render(option("roads")), lines), load(hydro, render(option("hydro")), lines)
+    wb_g = load(waterbodies, render(option("waterbodies")), polygons)
+    wet_g = load(wetlands, render(option("wetlands")), polygons)
+    idx_g = load(tile_index, render(option("tile_index")), polygons)
     if idx_g is not None:
         check_field(idx_g, settings.tile_field, tile_index)
     return {
@@ -283,7 +287,7 @@ def shrub_from_tiles(
     check_scheduler(scheduler)
     if from_stage not in STAGES:
         raise InputError(f"stage {from_stage!r} is not one of {', '.join(STAGES)}")
-    out = Path(out)
+    out = output_folder(out)
     if from_stage != "rasters" and not (out / "report.json").exists():
         _previous_run(out)  # refuses with the reason before the folder is touched
     run = dict(roads=roads, hydro=hydro, waterbodies=waterbodies, wetlands=wetlands, tile_index=tile_index,
@@ -633,7 +637,7 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
     """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``."""
     from ..plot import map_parameters, shrub_map
 
-    out = Path(out)
+    out = output_folder(out)
     if not (out / "classes.vrt").exists():
         raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")
     summary = _previous_run(out) if unit is None or title is None else {}

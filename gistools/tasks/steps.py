@@ -56,7 +56,8 @@ def _z_unit(src, path, z_unit) -> LinearUnit:
     word = (src.units or (None,))[0] or src.tags().get("GISTOOLS_Z_UNIT")
     if not word:
         raise InputError("raster carries no vertical unit", path=path,
-                         hint="Give the z unit (m, ft or ftUS): --z-unit in the CLI, 'Z unit' in QGIS")
+                         hint="Give its vertical unit (m, ft or ftUS): z_unit from Python, 'Vertical unit of the nDSM' "
+                              "in QGIS")
     return unit_from_word(word, name=f"{path}: vertical unit")
 
 

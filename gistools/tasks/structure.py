@@ -14,8 +14,10 @@ import pandas as pd
 import shapely
 
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path
+from ..parameters import check as check_parameter, option
 from ..validation import check_number
 from scipy.spatial import QhullError
 from ..io.text import read_cloud
@@ -73,7 +75,8 @@ def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 
     span = np.linalg.svd(xy, compute_uv=False) if len(xy) >= 2 else np.zeros(2)
     if span[0] <= 1e-9 * max(1.0, float(np.abs(xyz[:, :2]).max())) or span[1] <= 1e-9 * span[0]:
         raise InputError("the points do not span an area in plan (all identical or on one line)", path=source,
-                         hint="Give the building's whole cloud, with x, y, z in the columns given by --columns")
+                         hint="Give the building's whole cloud, with x, y, z in the columns given by "
+                              f"{option('columns')}")
     pts, log = check_points(points, eps_z=eps_z) if check else (points.reset_index(drop=True), pd.DataFrame())
     level = split_levels(pts["z"].to_numpy(), eps_z)
     if level.max() + 1 < 3:
@@ -83,7 +86,9 @@ def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 
         return _reconstruct_levels(pts, log, level, h=h, d=d, t=t, eps_z=eps_z, progress=progress)
     except QhullError as err:
         raise InputError(f"a level's points are degenerate (all on one line or one point): {str(err).splitlines()[0]}",
-                         path=source, hint="Check the cloud (--columns, --scales) or remove the stray level") from None
+                         path=source,
+                         hint=f"Check the cloud ({option('columns')}, {option('scales')}) or remove the stray "
+                              "level") from None
 
 
 def _reconstruct_levels(pts, log, level, *, h, d, t, eps_z, progress) -> Structure:
@@ -186,26 +191,32 @@ def _figure(s: Structure, out: Path) -> Path:
     return target
 
 
+def _check_options(h, d, t, scales, rotations, loop_mode) -> None:
+    """structure_model's options (gistools.parameters.structure), before anything is read or written."""
+    check_parameter("loop_mode", loop_mode)
+    for name, value in (("h", h), ("d", d), ("t", t)):
+        if value is not None:
+            check_number(value, name, low=0, low_open=True, example="8")
+    if len(scales) != 3 or any(not np.isfinite(v) or v == 0 for v in map(float, scales)):
+        raise InputError(f"{option('scales')} {','.join(map(str, scales))}: three finite, non-zero factors",
+                         hint=f"e.g. {option('scales', '1,1,1')} (-1 flips an axis)")
+    if len(rotations) != 3 or any(not np.isfinite(float(v)) for v in rotations):
+        raise InputError(f"{option('rotations')} {','.join(map(str, rotations))}: three finite angles in degrees",
+                         hint=f"e.g. {option('rotations', '0,0,90')}")
+
+
 def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scales=(1, 1, 1), rotations=(0, 0, 0),
                     loop_mode: str = "classic", overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json.
 
     ``loop_mode``: "classic" (loops through the points as they are, the mesh's) or "catmull-rom" (also the
     dissertation's piecewise Catmull-Rom loops: the new points and the lines through each vertex)."""
-    if loop_mode not in ("classic", "catmull-rom"):
-        raise InputError(f"loop mode {loop_mode!r} is not classic or catmull-rom")
-    for value, option in ((h, "--height-interval"), (d, "--distance"), (t, "--tolerance")):
-        if value is not None:
-            check_number(value, option, low=0, low_open=True, example="8")
-    if len(scales) != 3 or any(not np.isfinite(v) or v == 0 for v in map(float, scales)):
-        raise InputError(f"--scales {','.join(map(str, scales))}: three finite, non-zero factors",
-                         hint="e.g. --scales 1,1,1 (-1 flips an axis)")
-    if len(rotations) != 3 or any(not np.isfinite(float(v)) for v in rotations):
-        raise InputError(f"--rotations {','.join(map(str, rotations))}: three finite angles in degrees", hint="e.g. --rotations 0,0,90")
+    _check_options(h, d, t, scales, rotations, loop_mode)
     started = time.time()
-    out = Path(out)
+    out = output_folder(out)
     if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("a structure is already there", path=out, hint="Pass --overwrite, or choose another --out")
+        raise OutputExistsError("a structure is already there", path=out,
+                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
     pts = read_points(source, columns=columns, scales=scales, rotations=rotations)
     s = reconstruct(pts, h=h, d=d, t=t, progress=progress, source=source)
     stats = _mesh_stats(s.vertices, s.faces)

@@ -18,8 +18,10 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError, OutputExistsError
+from ..io.outdir import output_folder
 from ..io.atomic import atomic_path
 from ..lidar.shrub import CLASS_STYLE
+from ..parameters import option
 from ..web.page import web_map_html
 from .record import read_folder_report
 
@@ -35,13 +37,15 @@ def _leaflet() -> tuple[str, str]:
 
 
 def check_options(basemap=None, split_mb=40.0) -> None:
-    """--basemap (an XYZ tile URL) and --split-mb (> 0), before anything is read or written."""
+    """``basemap`` (an XYZ tile URL) and ``split_mb`` (> 0), before anything is read or written."""
     if basemap is not None and (not str(basemap).startswith(("https://", "http://")) or
                                 not all(k in str(basemap) for k in ("{z}", "{x}", "{y}"))):
-        raise InputError(f"--basemap {basemap!r} is not an XYZ tile URL", hint="e.g. --basemap "
-                         "'https://tile.openstreetmap.org/{z}/{x}/{y}.png' (the page then needs the network)")
+        raise InputError(f"{option('basemap')} {basemap!r} is not an XYZ tile URL",
+                         hint=f"e.g. {option('basemap', 'https://tile.openstreetmap.org/{z}/{x}/{y}.png')} (the page "
+                              "then needs the network)")
     if not (isinstance(split_mb, (int, float)) and split_mb > 0):
-        raise InputError(f"--split-mb {split_mb!r} must be a positive number of megabytes", hint="e.g. --split-mb 40")
+        raise InputError(f"{option('split_mb')} {split_mb!r} must be a positive number of megabytes",
+                         hint=f"e.g. {option('split_mb', '40')}")
 
 
 def _rounded(coords):
@@ -116,7 +120,7 @@ def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None 
     import geopandas as gpd
 
     check_options(basemap, split_mb)
-    out = Path(out)
+    out = output_folder(out)
     gpkg = out / "shrub_classes.gpkg"
     report = read_folder_report(out) or {}
     if not gpkg.exists() or report.get("cell_size") is None:

@@ -2,26 +2,26 @@
 
 from __future__ import annotations
 
+import inspect
 from pathlib import Path
 
 from qgis.core import (
     QgsProcessingOutputFile,
     QgsProcessingOutputString,
     QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterBoolean,
-    QgsProcessingParameterEnum,
     QgsProcessingParameterFile,
     QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterNumber,
-    QgsProcessingParameterString,
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import labels, GistoolsAlgorithm, AQUIFER
-from ..compat import DOUBLE, FOLDER, VECTOR_POINT, VECTOR_POLYGON
+from gistools.tasks.aquifer import aquifer_query
+
+from .base import GistoolsAlgorithm, AQUIFER
+from ..compat import FOLDER, VECTOR_POINT
 
 
 GROUP_AQUIFER = ("Aquifer", "aquifer")
+QUERY_K = inspect.signature(aquifer_query).parameters["k"].default  # the library's default, never a copy
 
 
 CONTACT_FIELDS = {"ID_FIELD": ("Contact id field", "id"), "Z_FIELD": ("Height field (z; empty: the point's z)", "z"),
@@ -38,21 +38,11 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points with a layer name field)",
                                                    [VECTOR_POINT]))
         self.add_fields("INPUT", CONTACT_FIELDS)
-        self.add(QgsProcessingParameterString("LAYERS", "Layer names, top to bottom (comma-separated)",
-                                              defaultValue="LS,AU,AD,AQ"))
-        self.add(QgsProcessingParameterVectorLayer("WITHIN", "Volumes inside this polygon (default: common footprint)",
-                                                   [VECTOR_POLYGON], optional=True))
-        self.add(QgsProcessingParameterVectorLayer("CLIP", "Cut the surfaces to this polygon", [VECTOR_POLYGON],
-                                                   optional=True), advanced=True)
-        self.add(QgsProcessingParameterBoolean("SWAP_XY", "Swap x and y", defaultValue=False), advanced=True)
-        self.add_length("XY_TOL", "Duplicates: same position within", AQUIFER.xy_tol, advanced=True)
-        self.add_length("ABS_THR", "Outliers: smallest residual threshold", AQUIFER.abs_thr, advanced=True)
-        self.add(QgsProcessingParameterEnum("ORDER", "Where the TINs of a unit's top and base cross",
-                                            options=["Stratigraphic: thickness from the boreholes (isopach), never below 0",
-                                                     "Raw: the two TINs as they are (thickness can go negative)"],
-                                            defaultValue=["stratigraphic", "raw"].index(AQUIFER.order)), advanced=True)
-        self.add(QgsProcessingParameterEnum("MESH", "Mesh format", options=labels(["ply", "obj"]),
-                                            defaultValue=["ply", "obj"].index(AQUIFER.mesh_format)), advanced=True)
+        # the command line's settings (gistools.parameters.aquifer) but the CRS (the layer's) and --no-figures
+        self.add_spec("layers", "within", "clip", "swap_xy", "xy_tol", "abs_thr", "order", "mesh_format",
+                      "concave_ratio", "k", "c", "f_nn", "order_tol", "n_per_edge", "densify", "thickness_cell_size",
+                      "matching", labels={"k": f"Neighbours of the outlier plane fit (at least 3; empty: {AQUIFER.k})"},
+                      defaults={"layers": "LS,AU,AD,AQ"})  # the dissertation's Milan layers, as the dialog offered
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputVectorLayer("GPKG", "Aquifer GeoPackage"))
         self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
@@ -64,17 +54,15 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.aquifer import AquiferSettings, aquifer_model
 
         out = Path(self.output_folder(parameters, context))
-        layers = [x.strip() for x in self.parameterAsString(parameters, "LAYERS", context).split(",") if x.strip()]
-        settings = AquiferSettings(xy_tol=self.text(parameters, "XY_TOL", context),
-                                   abs_thr=self.text(parameters, "ABS_THR", context),
-                                   mesh_format=["ply", "obj"][self.parameterAsEnum(parameters, "MESH", context)],
-                                   order=["stratigraphic", "raw"][self.parameterAsEnum(parameters, "ORDER", context)])
+        values = self.spec_values(parameters, context, feedback)
+        layers = [x.strip() for x in (values.pop("layers") or "").split(",") if x.strip()]
+        run = {k: values.pop(k) for k in ("within", "clip", "swap_xy")}
+        values["cell_size"] = values.pop("thickness_cell_size")
+        settings = AquiferSettings(**{k: v for k, v in values.items() if v is not None})
         source = self.layer_spec(parameters, "INPUT", context, feedback)
         crs = self.layer_crs(parameters, "INPUT", context)
-        rep = aquifer_model(source, layers, out, crs=crs, swap_xy=self.parameterAsBool(parameters, "SWAP_XY", context),
-                            settings=settings, within=self.layer_spec(parameters, "WITHIN", context, feedback),
-                            clip=self.layer_spec(parameters, "CLIP", context, feedback), overwrite=True,
-                            progress=self.progress(feedback),
+        rep = aquifer_model(source, layers, out, crs=crs, settings=settings, overwrite=True,
+                            progress=self.progress(feedback), **run,
                             fields=self.chosen_fields(parameters, context, "INPUT", CONTACT_FIELDS))
         for name, u in rep["units"].items():
             feedback.pushInfo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / "
@@ -94,21 +82,15 @@ class AquiferQueryAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterFile("MODEL", "Aquifer model folder", behavior=FOLDER))
-        self.add(QgsProcessingParameterNumber("X", "x (model CRS)", type=DOUBLE))
-        self.add(QgsProcessingParameterNumber("Y", "y (model CRS)", type=DOUBLE))
-        self.add(QgsProcessingParameterEnum("METHOD", "Method", options=labels(["tin", "knn", "idw"], tin="TIN of each surface (nothing outside its boundary)", knn="Mean of the k nearest contacts", idw="Inverse-distance weighted contacts"), defaultValue=0))
-        self.add(QgsProcessingParameterNumber("K", "Neighbours (knn, idw)", defaultValue=10, minValue=1), advanced=True)
+        self.add_spec(command="aquifer query", labels={"k": f"Neighbours (knn, idw; empty: {QUERY_K})"})
         self.addOutput(QgsProcessingOutputString("RESULT", "Heights and thickness (JSON)"))
 
     def run_gistools(self, parameters, context, feedback):
         import json
 
-        from gistools.tasks.aquifer import aquifer_query
-
-        result = aquifer_query(self.text(parameters, "MODEL", context), self.parameterAsDouble(parameters, "X", context),
-                               self.parameterAsDouble(parameters, "Y", context),
-                               ["tin", "knn", "idw"][self.parameterAsEnum(parameters, "METHOD", context)],
-                               k=self.parameterAsInt(parameters, "K", context))
+        v = self.spec_values(parameters, context, feedback)
+        result = aquifer_query(self.text(parameters, "MODEL", context), v["x"], v["y"], v["height_method"],
+                               k=QUERY_K if v["k"] is None else v["k"])
         for layer, h in result["heights"].items():
             feedback.pushInfo(f"{layer}: {h['z']} ({'inside' if h['inside'] else 'outside'} the boundary)")
         for name, t in result["thickness"].items():

@@ -1,39 +1,23 @@
-"""Shared plumbing of the gistools Processing algorithms: parameter helpers, progress and cancel through the
-feedback object, gistools errors as QgsProcessingException, and the library's choices and defaults.
-
-Lengths are text with a unit ("5ft", "0.1m"; a bare number is in the data's CRS units), as
-in the CLI: QGIS distance widgets hold a number in the layer's units, and the dissertation's
-defaults (25 ft, 0.2 ft, ...) must not turn into 25 m on metre data.
+"""Shared plumbing of the gistools Processing algorithms: the parameters made from their one declaration
+(``add_spec``, ``spec_values``: gistools.parameters through ``spec.py``), the tile inputs, progress and cancel through
+the feedback object, and gistools errors as QgsProcessingException naming the dialog's labels.
 """
 
 from __future__ import annotations
 
-import inspect
 from pathlib import Path
 
 from qgis.core import (
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
-    QgsProcessingParameterCrs,
     QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterMultipleLayers,
-    QgsProcessingParameterNumber,
-    QgsProcessingParameterString,
 )
 from qgis.PyQt.QtGui import QIcon
 
-from gistools.lidar import bands as _bands
-from gistools.lidar import gridding as _gridding
-from gistools.lidar import shrub as _shrub
-from gistools.tasks import points as _points
-from gistools.lidar import ground as _ground
-from gistools.lidar import noise as _noise
-from gistools.tasks import ground as _ground_task
 from gistools.tasks.aquifer import AquiferSettings
-from gistools.tasks.runway import RunwaySettings
-from gistools.tasks.settings import ShrubSettings
 from ..compat import ADVANCED, FOLDER, POINT_CLOUD
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
@@ -57,109 +41,7 @@ README_SECTIONS = {"lidar": "command-line", "shrub": "the-shrub-chain", "deliver
                    "structure": "structure-reconstruction"}
 GROUP_SHRUB = ("Shrub chain", "shrub")
 GROUP_DELIVER = ("Field deliverables", "deliverables")
-
-# choices are the library's own (the provider loads only once gistools imports)
-DEM_METHODS = list(_gridding.DEM_METHODS)
-RETURNS = list(_points.RETURNS)
-PRESETS = list(_bands.PRESETS)
-CLASSIFY = list(_shrub.CLASS_METHODS)
-Z_UNITS = ["from the raster", "m", "ft", "ftUS"]
-BANDS = ["B1 (0-1 m)", "B2 (1-2 m)", "B3 (2-6 m)"]
-
-# defaults are the library's own too: the settings objects' defaults, never copies
-GROUND_METHODS = list(_ground.GROUND_METHODS)
-NOISE_METHODS = list(_noise.NOISE_METHODS)
-POINT_FORMATS = list(_ground_task.FORMATS)
-GROUND = _ground_task.GroundSettings()
-SHRUB = ShrubSettings()
-RASTER = SHRUB.raster
-AQUIFER = AquiferSettings()
-RUNWAY = RunwaySettings()
-POINTS = {k: v.default for k, v in inspect.signature(_points.points_from_tiles).parameters.items()}
-
-
-# what the dialogs show for the library's choices (the enum index is the library's order, so values do not change)
-LABELS = {
-    "exact": "Exact metres: 1 / 2 / 6 m", "text_literal": "As printed in the dissertation: 3.28 / 6.56 / 19.658 ft",
-    "breaks": "The cover breaks below", "quantile": "Quantiles of the cover (ignores the breaks below)",
-    "jenks": "Jenks natural breaks of the cover (ignores the breaks below)",
-    "tin": "TIN of the ground points (fills gaps)", "max": "Highest ground point of each cell (the dissertation's)",
-    "min": "Lowest ground point of each cell", "mean": "Mean of the ground points of each cell",
-    "idw": "Inverse-distance weighted ground points",
-    "smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Cloth Simulation Filter)",
-    "ivf": "Isolated points in voxels (IVF)", "sor": "Statistical outliers (SOR)", "none": "None",
-    "laz": "LAZ (compressed LAS)", "las": "LAS", "copc": "COPC (cloud-optimised LAZ)",
-    "first": "First returns", "last": "Last returns", "any": "Every return",
-    "precision": "Precision approach", "non_precision": "Non-precision approach", "non_instrument": "Non-instrument",
-    "icao": "ICAO Annex 14 strip", "dissertation": "The dissertation's section", "ply": "PLY", "obj": "OBJ (Wavefront)",
-    "gpkg": "GeoPackage", "parquet": "GeoParquet",
-}
-LENGTH_HELP = ("A length with its unit, the same rules in every gistools algorithm and on the command line: m; ft is the "
-               "CRS's own foot on a CRS in feet (international or US survey), else the international foot; ftUS is the "
-               "US survey foot; a bare number is in the CRS's unit.")
-# each parameter's help (the dialog's tooltips and the help panel), by name where a name means one thing everywhere
-HELP_BY_NAME = {
-    "CELL_SIZE": "Side of the raster cells; the cells snap to multiples of it, so tiles line up.",
-    "RADIUS": "Radius of the circle around each vegetation cell whose vegetated share is the cover (25 ft in the "
-              "dissertation).",
-    "NOISE_FLOOR": "Heights above ground up to this are bare ground (band B0), not low vegetation.",
-    "MAX_ROAD_WIDTH": "A face between road breaklines wider than this is a block between roads, not road.",
-    "SNAP": "Breakline ends closer than this are joined (the dissertation's 0.2 ft cluster tolerance).",
-    "DEM_MAX_DISTANCE": "DEM cells farther than this from every ground point stay nodata.",
-    "DENSITY_BANDS": "The height bands whose vegetation counts toward the cover (the dissertation counted B1 only).",
-    "JOBS": "Tiles processed at once, each in its own process.",
-    "SCHEDULER": "For runs past one machine: the address of a Dask scheduler (tcp://host:8786), or 'local'.",
-    "CRS": "The tiles' CRS where their headers carry none (or a wrong one); it replaces the headers' CRS.",
-}
-BREAKS_LABEL = "Cover breaks light / medium, medium / heavy (fractions 0-1, e.g. 0.3,0.7)"
-CLASS_METHOD_LABEL = "How the class breaks are chosen"
-PRESET_LABEL = "Height band limits"
-HELP_BY_LABEL = {
-    BREAKS_LABEL: "Cover fractions (0-1) between light and medium and between medium and heavy shrub. Used only when "
-                  "the class breaks are 'the cover breaks below'.",
-    CLASS_METHOD_LABEL: "The cover breaks below, or breaks found in the data: quantiles (equal areas) or Jenks natural "
-                        "breaks (both ignore the breaks below).",
-    PRESET_LABEL: "The limits of the height bands B1 (low shrub), B2 (medium) and B3 (tall): exact metres, or the "
-                  "values printed in the dissertation.",
-}
-
-
-def labels(values, **override) -> list[str]:
-    """The dialog's words for the library's choices ``values``, in their order."""
-    return [override.get(v, LABELS.get(v, v)) for v in values]
-
-
-def band_choices(bands) -> list[int]:
-    """The BANDS enum indices of density bands (1-3)."""
-    return [b - 1 for b in bands]
-
-
-def text_list(values) -> str:
-    """A tuple of numbers as the comma-separated text of a string parameter."""
-    return ",".join(f"{v:g}" for v in values)
-
-
-def int_list(text: str, name: str):
-    text = (text or "").strip()
-    if not text:
-        return None
-    try:
-        return tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise QgsProcessingException(f"{name}: {text!r} is not a comma-separated list of integers, e.g. 1,2") from None
-
-
-def float_list(text: str, name: str, count: int):
-    text = (text or "").strip()
-    if not text:
-        return None
-    try:
-        values = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        values = ()
-    if len(values) != count:
-        raise QgsProcessingException(f"{name}: {text!r} must be {count} comma-separated numbers")
-    return values
+AQUIFER = AquiferSettings()  # the aquifer model's defaults, for the labels that state them
 
 
 class GistoolsAlgorithm(QgsProcessingAlgorithm):
@@ -206,15 +88,46 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     def createInstance(self):  # noqa: N802
         return type(self)()
 
+    def __init__(self):
+        super().__init__()
+        self._spec = {}  # the declared parameters added, by Python name
+        self._orders = {}  # the order of a choice's values where saved models number them otherwise
+
     # --- parameter helpers
     def add(self, param, advanced: bool = False, help: str | None = None):  # noqa: A002 - QGIS's word
         if advanced:
             param.setFlags(param.flags() | ADVANCED)
-        help = help or HELP_BY_LABEL.get(param.description()) or HELP_BY_NAME.get(param.name())  # noqa: A001
         if help and hasattr(param, "setHelp"):
             param.setHelp(help)
         self.addParameter(param)
         return param
+
+    def add_spec(self, *names, command: str | None = None, skip=(), defaults: dict | None = None,
+                 labels: dict | None = None, orders: dict | None = None):
+        """Parameters made from their one declaration (gistools.parameters): ``names``, or every parameter of
+        ``command`` but ``skip`` (the command line's own: overwrite). ``defaults``: this algorithm's own;
+        ``orders``: {name: choices in the order this algorithm's saved models number them}."""
+        from gistools.parameters import COMMANDS, PARAMETERS
+
+        from .spec import qgis_help, qgis_parameter
+
+        defaults, labels, orders = defaults or {}, labels or {}, orders or {}
+        names = [n for n in (COMMANDS[command] if command else ()) + names if n not in skip and n != "overwrite"]
+        for name in names:
+            p = PARAMETERS[name]
+            self._spec[name] = p
+            if name in orders:
+                self._orders[name] = tuple(orders[name])
+            self.add(qgis_parameter(p, defaults.get(name), label=labels.get(name), order=orders.get(name)),
+                     advanced=p.advanced, help=qgis_help(p, defaults.get(name)))
+        return names
+
+    def spec_values(self, parameters, context, feedback, names=None) -> dict:
+        """{Python name: value} of the declared parameters this algorithm added (``names``: some of them)."""
+        from .spec import read_value
+
+        return {name: read_value(self, p, parameters, context, feedback, self._orders.get(name))
+                for name, p in self._spec.items() if names is None or name in names}
 
     def add_tiles(self):
         """The tiles: a folder, and / or LAS/LAZ files (the layer list's file button) or point cloud layers. QGIS has
@@ -223,7 +136,15 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_FILES_LABEL, layerType=POINT_CLOUD,
                                                       optional=True))
 
+    # parameters renamed when one name came to mean one thing in every algorithm: a saved model or script that
+    # still gives the old name is refused with the new one (QGIS would otherwise ignore it and run the default)
+    _renamed: dict = {}
+
     def checkParameterValues(self, parameters, context):  # noqa: N802
+        for old, new in self._renamed.items():
+            if parameters.get(old) not in (None, "") and parameters.get(new) in (None, ""):
+                return False, (f"{old} is now {new} ('{self.parameterDefinition(new).description()}'): "
+                               f"give {new} instead of {old}")
         if self.parameterDefinition("POINT_CLOUDS") is not None and not parameters.get("INPUT") \
                 and not parameters.get("POINT_CLOUDS"):
             return False, NO_TILES
@@ -241,22 +162,6 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         if not inputs:
             raise QgsProcessingException(NO_TILES)
         return inputs
-
-    def add_crs(self):
-        self.add(QgsProcessingParameterCrs("CRS", "Input CRS (overrides the tiles' own; needed for tiles that carry none)",
-                                           optional=True), advanced=True)
-
-    def add_parallel(self):
-        self.add(QgsProcessingParameterNumber("JOBS", "Tiles in parallel (local processes)", defaultValue=1, minValue=1),
-                 advanced=True)
-        self.add(QgsProcessingParameterString("SCHEDULER", "Dask scheduler address (tcp://host:8786), or 'local'",
-                                              optional=True), advanced=True)
-
-    def add_length(self, name, description, default, optional=False, advanced=False, help=None):  # noqa: A002
-        help = help or HELP_BY_NAME.get(name)  # noqa: A001
-        self.add(QgsProcessingParameterString(name, f"{description} (with unit: m, ft, ftUS)", defaultValue=default,
-                                              optional=optional), advanced=advanced,
-                 help=(help + " " if help else "") + LENGTH_HELP)
 
     def add_fields(self, layer: str, fields: dict):
         """Field pickers on ``layer`` ({NAME: (label, usual column)}), as QGIS's own algorithms offer them; left
@@ -281,10 +186,10 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         value = self.parameterAsString(parameters, name, context)
         return value.strip() if value else None
 
-    def crs_text(self, parameters, context):
-        if not parameters.get("CRS"):
+    def crs_text(self, parameters, context, name="CRS"):
+        if not parameters.get(name):
             return None
-        crs = self.parameterAsCrs(parameters, "CRS", context)
+        crs = self.parameterAsCrs(parameters, name, context)
         if not crs.isValid():
             return None
         return crs.authid() or crs.toWkt()
@@ -344,14 +249,18 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
 
     def processAlgorithm(self, parameters, context, feedback):  # noqa: N802
         from gistools.errors import Cancelled, GistoolsError
+        from gistools.parameters import speaks
 
-        try:
-            return self.run_gistools(parameters, context, feedback)
-        except Cancelled:
-            feedback.reportError("gistools: cancelled; no partial output was written")
-            raise QgsProcessingException("cancelled by the user; no partial output was written") from None
-        except GistoolsError as err:
-            raise QgsProcessingException(self.labelled(str(err))) from None
+        labels = {name: self.parameterDefinition(p.qgis_name).description() for name, p in self._spec.items()
+                  if self.parameterDefinition(p.qgis_name) is not None}
+        with speaks("qgis", labels):  # library messages name the parameters by this dialog's labels
+            try:
+                return self.run_gistools(parameters, context, feedback)
+            except Cancelled:
+                feedback.reportError("gistools: cancelled; no partial output was written")
+                raise QgsProcessingException("cancelled by the user; no partial output was written") from None
+            except GistoolsError as err:
+                raise QgsProcessingException(self.labelled(str(err))) from None
 
     def labelled(self, message: str) -> str:
         """A library message with its command-line option names (--cell-size) as this dialog's labels."""

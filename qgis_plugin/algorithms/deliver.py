@@ -4,17 +4,13 @@ from __future__ import annotations
 
 from qgis.core import (
     QgsProcessingOutputFile,
-    QgsProcessingParameterEnum,
     QgsProcessingOutputHtml,
     QgsProcessingOutputNumber,
     QgsProcessingParameterFile,
-    QgsProcessingParameterVectorLayer,
-    QgsProcessingParameterNumber,
-    QgsProcessingParameterString,
 )
 
 from .base import GROUP_DELIVER, GistoolsAlgorithm
-from ..compat import DOUBLE, FOLDER, VECTOR_POLYGON
+from ..compat import FOLDER
 
 
 class _DeliverableAlgorithm(GistoolsAlgorithm):
@@ -40,12 +36,7 @@ class WebMapAlgorithm(_DeliverableAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_folder("shrub_classes.gpkg")
-        self.add(QgsProcessingParameterString("BASEMAP", "Basemap tile URL for users who are online (empty: none)",
-                                              optional=True),
-                 help="An XYZ URL such as https://tile.openstreetmap.org/{z}/{x}/{y}.png; with it the page needs the "
-                      "network for the basemap (the polygons still work without).")
-        self.add(QgsProcessingParameterNumber("SPLIT_MB", "Split the map by tile above (MB of polygons)", type=DOUBLE,
-                                              defaultValue=40.0, minValue=0.001), advanced=True)
+        self.add_spec(command="webmap")
         self.addOutput(QgsProcessingOutputHtml("HTML", "Offline web map"))
         self.addOutput(QgsProcessingOutputFile("HTML_FILE", "Offline web map (file)"))
         self.addOutput(QgsProcessingOutputNumber("MEGABYTES", "Size of the page (MB)"))
@@ -53,8 +44,7 @@ class WebMapAlgorithm(_DeliverableAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.webmap import web_map
 
-        result = web_map(self.text(parameters, "FOLDER", context), basemap=self.text(parameters, "BASEMAP", context),
-                         split_mb=self.parameterAsDouble(parameters, "SPLIT_MB", context))
+        result = web_map(self.text(parameters, "FOLDER", context), **self.spec_values(parameters, context, feedback))
         feedback.pushInfo(f"wrote {result['html']} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons"
                           + (f", {len(result['parts'])} parts" if result["parts"] else "") + ")")
         return {"HTML": result["html"], "HTML_FILE": result["html"], "MEGABYTES": result["bytes"] / 1e6}
@@ -70,22 +60,14 @@ class SceneAlgorithm(_DeliverableAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_folder("dsm.vrt, classes.vrt")
-        self.add(QgsProcessingParameterEnum("SURFACE", "Surface", options=["DSM (the DEM where it has no value)",
-                                                                          "DEM (bare ground)"], defaultValue=0))
-        self.add(QgsProcessingParameterNumber("EXAGGERATION", "Vertical exaggeration", type=DOUBLE, defaultValue=1.0,
-                                              minValue=0.01))
-        self.add(QgsProcessingParameterNumber("MAX_MB", "Largest file (MB): the mesh is decimated to fit", type=DOUBLE,
-                                              defaultValue=50.0, minValue=0.01), advanced=True)
+        self.add_spec("surface", "exaggeration", "max_mb")
         self.addOutput(QgsProcessingOutputFile("GLB", "3D scene (.glb)"))
         self.addOutput(QgsProcessingOutputNumber("STEP", "Decimation step (every k-th cell)"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.scene import SCENE_SURFACES, scene_glb
+        from gistools.tasks.scene import scene_glb
 
-        r = scene_glb(self.text(parameters, "FOLDER", context),
-                      exaggeration=self.parameterAsDouble(parameters, "EXAGGERATION", context),
-                      max_mb=self.parameterAsDouble(parameters, "MAX_MB", context),
-                      surface=SCENE_SURFACES[self.parameterAsEnum(parameters, "SURFACE", context)])
+        r = scene_glb(self.text(parameters, "FOLDER", context), **self.spec_values(parameters, context, feedback))
         feedback.pushInfo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every "
                           f"{r['step']} cell(s)); open it in QGIS 3D (a mesh or 3D model), Cesium or Blender")
         return {"GLB": r["glb"], "STEP": r["step"]}
@@ -97,28 +79,18 @@ class MapBookAlgorithm(_DeliverableAlgorithm):
              "the tile index (each fitted to the page), or per sheet of a grid at a scale, each with the classes, "
              "roads and water, a coordinate grid, a locator map, the legend, a scale bar, a north arrow and the "
              "parameters. The PDF opens from the Results Viewer.")
-    PAPERS = ["letter", "a4", "tabloid"]
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_folder("classes.vrt")
-        self.add(QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (a page per tile; empty: a grid of sheets)",
-                                                   [VECTOR_POLYGON], optional=True))
-        self.add(QgsProcessingParameterString("TILE_FIELD", "Tile index field naming the tile", defaultValue="TILE_ID"),
-                 advanced=True)
-        self.add(QgsProcessingParameterNumber("SCALE", "Scale of the grid of sheets (the n of 1:n)", type=DOUBLE,
-                                              defaultValue=10000.0, minValue=1.0))
-        self.add(QgsProcessingParameterEnum("PAPER", "Paper (landscape)", options=["Letter", "A4", "Tabloid"],
-                                            defaultValue=0), advanced=True)
+        self.add_spec(command="mapbook",
+                      labels={"tile_index": "Tile index (footprints): a page per tile; empty: a grid of sheets"})
         self.addOutput(QgsProcessingOutputFile("PDF", "Map book (PDF)"))
         self.addOutput(QgsProcessingOutputNumber("PAGES", "Pages"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.tasks.mapbook import map_book
 
-        r = map_book(self.text(parameters, "FOLDER", context),
-                     tile_index=self.layer_spec(parameters, "TILE_INDEX", context, feedback),
-                     tile_field=self.text(parameters, "TILE_FIELD", context) or "TILE_ID",
-                     scale=self.parameterAsDouble(parameters, "SCALE", context),
-                     paper=self.PAPERS[self.parameterAsEnum(parameters, "PAPER", context)])
+        values = self.spec_values(parameters, context, feedback)
+        r = map_book(self.text(parameters, "FOLDER", context), **{k: v for k, v in values.items() if v is not None})
         feedback.pushInfo(f"wrote {r['pdf']} ({r['pages']} pages)")
         return {"PDF": r["pdf"], "PAGES": r["pages"]}

@@ -2,18 +2,11 @@
 
 from __future__ import annotations
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputNumber,
-    QgsProcessingParameterBoolean,
-    QgsProcessingParameterEnum,
-    QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterNumber,
-)
+from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputNumber,
+                       QgsProcessingParameterFolderDestination)
 
-from .base import labels, GistoolsAlgorithm, GROUND, GROUND_METHODS, NOISE_METHODS, POINT_FORMATS
-from ..compat import DOUBLE
-
+from .base import GistoolsAlgorithm
+from .spec import method_labelled, own_default_text
 
 class GroundAlgorithm(GistoolsAlgorithm):
     _name, _display = "ground", "Classify ground and noise"
@@ -26,28 +19,11 @@ class GroundAlgorithm(GistoolsAlgorithm):
              "tile and a virtual point cloud (ground.vpc) indexing them; lengths take a unit (m, ft, ftUS).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
+        from gistools.parameters.lidar import COMMAND_DEFAULTS, DEFAULT_TEXTS
+
         self.add_tiles()
-        self.add(QgsProcessingParameterEnum("METHOD", "Ground filter", options=labels(GROUND_METHODS),
-                                            defaultValue=GROUND_METHODS.index(GROUND.method)))
-        self.add(QgsProcessingParameterEnum("NOISE", "Noise filter", options=labels(NOISE_METHODS),
-                                            defaultValue=NOISE_METHODS.index(GROUND.noise)))
-        self.add_length("CELL", "SMRF cell size", GROUND.cell, advanced=True)
-        self.add(QgsProcessingParameterNumber("SLOPE", "SMRF slope (rise over run)", type=DOUBLE,
-                                              defaultValue=GROUND.slope, minValue=0.0), advanced=True)
-        self.add_length("WINDOW", "SMRF largest window radius", GROUND.window, advanced=True)
-        self.add_length("THRESHOLD", "SMRF elevation threshold", GROUND.threshold, advanced=True)
-        self.add_length("SCALAR", "SMRF elevation scalar (threshold per unit of slope)", GROUND.scalar, advanced=True)
-        self.add_length("CSF_RESOLUTION", "CSF cloth resolution", GROUND.csf_resolution, advanced=True)
-        self.add_length("CSF_THRESHOLD", "CSF class threshold", GROUND.csf_threshold, advanced=True)
-        self.add_length("IVF_RES", "IVF voxel size", GROUND.ivf_res, advanced=True)
-        self.add(QgsProcessingParameterNumber("IVF_N", "IVF: noise with at most this many other points in 27 voxels",
-                                              defaultValue=GROUND.ivf_n, minValue=0), advanced=True)
-        self.add(QgsProcessingParameterBoolean("KEEP_CLASSES", "Points no longer ground or noise keep their class (else 1)",
-                                               defaultValue=GROUND.keep_classes), advanced=True)
-        self.add(QgsProcessingParameterEnum("FORMAT", "Output format", options=labels(POINT_FORMATS),
-                                            defaultValue=POINT_FORMATS.index(GROUND.format)), advanced=True)
-        self.add_crs()
-        self.add_parallel()
+        self.add_spec(command="ground", defaults=COMMAND_DEFAULTS["ground"])
+        own_default_text(self, DEFAULT_TEXTS["ground"])
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (classified tiles + ground.vpc)"))
         self.addOutput(QgsProcessingOutputFile("VPC", "Virtual point cloud of the classified tiles"))
         self.addOutput(QgsProcessingOutputNumber("CHANGED", "Points whose class changed"))
@@ -56,20 +32,13 @@ class GroundAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.ground import GroundSettings, ground_from_tiles
 
         out = self.output_folder(parameters, context)
-        settings = GroundSettings(
-            method=GROUND_METHODS[self.parameterAsEnum(parameters, "METHOD", context)],
-            noise=NOISE_METHODS[self.parameterAsEnum(parameters, "NOISE", context)],
-            cell=self.text(parameters, "CELL", context), slope=self.parameterAsDouble(parameters, "SLOPE", context),
-            window=self.text(parameters, "WINDOW", context), threshold=self.text(parameters, "THRESHOLD", context),
-            scalar=self.text(parameters, "SCALAR", context),
-            csf_resolution=self.text(parameters, "CSF_RESOLUTION", context),
-            csf_threshold=self.text(parameters, "CSF_THRESHOLD", context),
-            ivf_res=self.text(parameters, "IVF_RES", context), ivf_n=self.parameterAsInt(parameters, "IVF_N", context),
-            keep_classes=self.parameterAsBool(parameters, "KEEP_CLASSES", context),
-            format=POINT_FORMATS[self.parameterAsEnum(parameters, "FORMAT", context)], crs=self.crs_text(parameters, context))
-        result = ground_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
-                                   jobs=self.parameterAsInt(parameters, "JOBS", context),
-                                   scheduler=self.text(parameters, "SCHEDULER", context), progress=self.progress(feedback))
+        values = self.spec_values(parameters, context, feedback)
+        run = {k: values.pop(k) for k in ("jobs", "scheduler")}
+        values["method"] = values.pop("ground_method")
+        settings = GroundSettings(**{k: v for k, v in values.items() if v is not None})
+        with method_labelled(self, "ground_method"):
+            result = ground_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+                                       progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         changed = sum(t.get("changed") or 0 for t in result["tiles"])
         feedback.pushInfo(f"{changed:,} points changed class; virtual point cloud: {result['vpc']}")

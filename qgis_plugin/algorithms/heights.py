@@ -7,31 +7,20 @@ from qgis.core import (
     QgsProcessingOutputFolder,
     QgsProcessingOutputNumber,
     QgsProcessingOutputRasterLayer,
-    QgsProcessingParameterBoolean,
-    QgsProcessingParameterEnum,
     QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterString,
-    QgsProcessingParameterVectorLayer,
 )
 
+from gistools.parameters.lidar import COMMAND_DEFAULTS
 from gistools.tasks import chm as _chm
 from gistools.tasks import metrics as _metrics
 from gistools.tasks import normalize as _normalize
 
-from .base import POINT_FORMATS, PRESET_LABEL, PRESETS, GistoolsAlgorithm, int_list, labels
-from ..compat import VECTOR_LINE, VECTOR_POLYGON
+from .base import GistoolsAlgorithm
+from ..compat import OPTIONAL
+from .spec import flag_parameters, method_labelled
+from ..compat import ADVANCED
 
-NORMALIZE = _normalize.NormalizeSettings()
-METRICS = _metrics.MetricsSettings()
-CHM = _chm.ChmSettings()
-CHM_METHODS = list(_chm.CHM_METHODS)
-CHM_LABELS = {"p2r": "Highest first return per cell (p2r)", "pitfree": "Pit-free (Khosravipour et al. 2014)",
-              "tin": "TIN of the first returns"}
-METRIC_RETURNS = list(_metrics.RETURNS)
-# the metrics offered as a checklist (any other name goes in "More metrics")
-COMMON_METRICS = ["count", "density", "z_min", "z_max", "z_mean", "z_median", "z_sd", "z_cv", "z_p25", "z_p50", "z_p75",
-                  "z_p95", "i_mean", "i_max", "hag_p95", "cover_above2m", "fhd", "vci", "fuel_0_1m", "fuel_1_3m",
-                  "fuel_3_6m"]
+BREAKLINES = ("roads", "hydro", "waterbodies")  # read only when vegetation is classified
 METRICS_HELP = ("Names as lasR spells them: z_ (elevation), i_ (intensity) or hag_ (height above ground) followed by "
                 "min, max, mean, median, sum, sd, cv, pNN (percentile) or aboveX (share of points above X); count, "
                 "density (points per square metre), cover_aboveX (share of first returns above X over the ground), "
@@ -40,7 +29,12 @@ METRICS_HELP = ("Names as lasR spells them: z_ (elevation), i_ (intensity) or ha
                 "tiles' vertical unit.")
 
 
+def _lengths(text) -> tuple:
+    return tuple(v.strip() for v in (text or "").split(",") if v.strip())
+
+
 class NormalizeAlgorithm(GistoolsAlgorithm):
+    _renamed = {"BANDS": "PRESET"}  # the height band limits are PRESET in every algorithm
     _name, _display = "normalize", "Heights above ground (normalize)"
     _readme_section = "heights-above-ground"
     _help = ("Height above ground of every point (gistools normalize): z minus the TIN of the ground points (classes 2 "
@@ -52,45 +46,19 @@ class NormalizeAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
-        self.add(QgsProcessingParameterBoolean("REPLACE_Z", "Write the heights as z (no extra dimension)",
-                                               defaultValue=NORMALIZE.replace_z))
-        self.add(QgsProcessingParameterBoolean("CLASSIFY_VEGETATION", "Classify vegetation 3 / 4 / 5 by height (and "
-                                               "roads 11, water 9)", defaultValue=NORMALIZE.classify_vegetation),
-                 help="Unclassified points (0, 1) become low (up to band B1's top, 1 m), medium (to B3's top, 6 m) or "
-                      "high vegetation; with breaklines, points of classes 0-2 at the ground inside roads become road "
-                      "surface (11) and inside water water (9).")
-        self.add(QgsProcessingParameterEnum("BANDS", PRESET_LABEL, options=labels(PRESETS),
-                                            defaultValue=PRESETS.index(NORMALIZE.bands)), advanced=True)
-        self.add_length("NOISE_FLOOR", "Height above ground that is still ground", NORMALIZE.noise_floor, advanced=True)
-        self.add(QgsProcessingParameterVectorLayer("ROADS", "Road breaklines (edge of pavement)", [VECTOR_LINE],
-                                                   optional=True))
-        self.add(QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [VECTOR_LINE], optional=True))
-        self.add(QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [VECTOR_POLYGON], optional=True))
-        self.add(QgsProcessingParameterBoolean("REPROJECT", "Reproject layers in another CRS (else refuse)",
-                                               defaultValue=False), advanced=True)
-        self.add_length("BUFFER", "Neighbours' ground read within", NORMALIZE.buffer, advanced=True)
-        self.add(QgsProcessingParameterEnum("FORMAT", "Output format", options=labels(POINT_FORMATS),
-                                            defaultValue=POINT_FORMATS.index(NORMALIZE.format)), advanced=True)
-        self.add_crs()
-        self.add_parallel()
+        self.add_spec(command="normalize", defaults=COMMAND_DEFAULTS["normalize"])
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (tiles + normalized.vpc)"))
         self.addOutput(QgsProcessingOutputFile("VPC", "Virtual point cloud of the normalized tiles"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
-        classify = self.parameterAsBool(parameters, "CLASSIFY_VEGETATION", context)
-        settings = _normalize.NormalizeSettings(
-            buffer=self.text(parameters, "BUFFER", context), replace_z=self.parameterAsBool(parameters, "REPLACE_Z", context),
-            classify_vegetation=classify, bands=PRESETS[self.parameterAsEnum(parameters, "BANDS", context)],
-            noise_floor=self.text(parameters, "NOISE_FLOOR", context),
-            format=POINT_FORMATS[self.parameterAsEnum(parameters, "FORMAT", context)], crs=self.crs_text(parameters, context))
-        layers = {k.lower(): self.layer_spec(parameters, k, context, feedback) if classify else None
-                  for k in ("ROADS", "HYDRO", "WATERBODIES")}
-        result = _normalize.normalize_from_tiles(
-            self.tiles(parameters, context), out, settings, **layers,
-            reproject_vectors=self.parameterAsBool(parameters, "REPROJECT", context),
-            jobs=self.parameterAsInt(parameters, "JOBS", context), scheduler=self.text(parameters, "SCHEDULER", context),
-            overwrite=True, progress=self.progress(feedback))
+        values = self.spec_values(parameters, context, feedback, names=[n for n in self._spec if n not in BREAKLINES])
+        classify = values["classify_vegetation"]
+        layers = self.spec_values(parameters, context, feedback, names=BREAKLINES) if classify else {}
+        run = {k: values.pop(k) for k in ("jobs", "scheduler", "reproject_vectors")}
+        settings = _normalize.NormalizeSettings(**{k: v for k, v in values.items() if v is not None})
+        result = _normalize.normalize_from_tiles(self.tiles(parameters, context), out, settings, **layers, overwrite=True,
+                                                 progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         feedback.pushInfo(f"virtual point cloud: {result['vpc']}")
         if result["vpc"]:
@@ -107,38 +75,23 @@ class MetricsAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
-        self.add_length("CELL_SIZE", "Cell size", METRICS.cell_size)
-        self.add(QgsProcessingParameterEnum("METRICS", "Metrics", options=COMMON_METRICS, allowMultiple=True,
-                                            defaultValue=[COMMON_METRICS.index(m) for m in METRICS.metrics],
-                                            optional=True), help=METRICS_HELP)
-        self.add(QgsProcessingParameterString("MORE_METRICS", "More metrics (comma-separated names, e.g. z_p99,"
-                                              "hag_above6ft,cover_above5m)", optional=True), help=METRICS_HELP)
-        self.add(QgsProcessingParameterBoolean("NORMALIZED", "z metrics on heights above ground (hag_*)",
-                                               defaultValue=METRICS.normalized))
-        self.add(QgsProcessingParameterString("CLASSES", "Classes whose points count (comma-separated; empty: all but "
-                                              "noise 7, 18)", optional=True), advanced=True)
-        self.add(QgsProcessingParameterEnum("RETURNS", "Returns", options=labels(METRIC_RETURNS, all="Every return"),
-                                            defaultValue=METRIC_RETURNS.index(METRICS.returns)), advanced=True)
-        self.add_length("BUFFER", "Neighbours' ground read within (heights above ground)", METRICS.buffer, advanced=True)
-        self.add_crs()
-        self.add_parallel()
+        self.add_spec(command="metrics", defaults=COMMAND_DEFAULTS["metrics"],
+                      labels={"classes": "ASPRS classes whose points count (comma-separated; empty: all but noise 7, 18)"},
+                      orders={"returns": ("all", "first", "last")})  # the numbers saved models use
+        flag_parameters(self, OPTIONAL, "METRICS")  # unchecked: only the names typed in MORE_METRICS
+        flag_parameters(self, ADVANCED, "CLASSES", "RETURNS")
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (a folder and a VRT per metric)"))
         self.addOutput(QgsProcessingOutputFolder("METRICS_FOLDER", "Folder of the metric rasters"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
-        chosen = [COMMON_METRICS[i] for i in self.parameterAsEnums(parameters, "METRICS", context)]
-        more = [m.strip() for m in (self.text(parameters, "MORE_METRICS", context) or "").split(",") if m.strip()]
-        settings = _metrics.MetricsSettings(
-            cell_size=self.text(parameters, "CELL_SIZE", context), metrics=tuple(dict.fromkeys(chosen + more)),
-            normalized=self.parameterAsBool(parameters, "NORMALIZED", context),
-            classes=int_list(self.text(parameters, "CLASSES", context), "Classes"),
-            returns=METRIC_RETURNS[self.parameterAsEnum(parameters, "RETURNS", context)],
-            buffer=self.text(parameters, "BUFFER", context), crs=self.crs_text(parameters, context))
+        values = self.spec_values(parameters, context, feedback)
+        more = tuple(m.strip() for m in (values.pop("more_metrics") or "").split(",") if m.strip())
+        values["metrics"] = tuple(dict.fromkeys(values["metrics"] + more))
+        run = {k: values.pop(k) for k in ("jobs", "scheduler")}
+        settings = _metrics.MetricsSettings(**{k: v for k, v in values.items() if v is not None})
         result = _metrics.metrics_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
-                                             jobs=self.parameterAsInt(parameters, "JOBS", context),
-                                             scheduler=self.text(parameters, "SCHEDULER", context),
-                                             progress=self.progress(feedback))
+                                             progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         for name, vrt in result["mosaics"].items():
             self.load_on_completion(context, vrt, name, name)
@@ -157,38 +110,21 @@ class ChmAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
-        self.add(QgsProcessingParameterEnum("METHOD", "Method", options=[CHM_LABELS[m] for m in CHM_METHODS],
-                                            defaultValue=CHM_METHODS.index(CHM.method)))
-        self.add_length("CELL_SIZE", "Cell size", CHM.cell_size)
-        self.add(QgsProcessingParameterString("THRESHOLDS", "Pit-free height thresholds (comma-separated, with unit)",
-                                              defaultValue=",".join(CHM.thresholds)), advanced=True)
-        self.add_length("THRESHOLD_STEP", "Pit-free: a threshold every (0: only those given)", CHM.threshold_step,
-                        advanced=True)
-        self.add(QgsProcessingParameterString("MAX_EDGE", "Pit-free longest triangle edge: first layer, upper layers "
-                                              "(0: no limit)", defaultValue=",".join(CHM.max_edge)), advanced=True)
-        self.add_length("TIN_MAX_EDGE", "TIN longest triangle edge (0: no limit)", CHM.tin_max_edge, advanced=True)
-        self.add_length("BUFFER", "Neighbours' points read within", CHM.buffer, advanced=True)
-        self.add_crs()
-        self.add_parallel()
+        self.add_spec(command="chm", defaults=COMMAND_DEFAULTS["chm"])
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (chm/ and chm.vrt)"))
         self.addOutput(QgsProcessingOutputRasterLayer("CHM", "Canopy height model"))
         self.addOutput(QgsProcessingOutputNumber("PITS", "Pits left (cells more than 1 m below all 8 neighbours)"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
-
-        def lengths(name):
-            return tuple(v.strip() for v in (self.text(parameters, name, context) or "").split(",") if v.strip())
-
-        settings = _chm.ChmSettings(
-            cell_size=self.text(parameters, "CELL_SIZE", context),
-            method=CHM_METHODS[self.parameterAsEnum(parameters, "METHOD", context)], thresholds=lengths("THRESHOLDS"),
-            threshold_step=self.text(parameters, "THRESHOLD_STEP", context), max_edge=lengths("MAX_EDGE"),
-            tin_max_edge=self.text(parameters, "TIN_MAX_EDGE", context), buffer=self.text(parameters, "BUFFER", context),
-            crs=self.crs_text(parameters, context))
-        result = _chm.chm_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
-                                     jobs=self.parameterAsInt(parameters, "JOBS", context),
-                                     scheduler=self.text(parameters, "SCHEDULER", context), progress=self.progress(feedback))
+        values = self.spec_values(parameters, context, feedback)
+        values["thresholds"], values["max_edge"] = _lengths(values["thresholds"]), _lengths(values["max_edge"])
+        run = {k: values.pop(k) for k in ("jobs", "scheduler")}
+        values["method"] = values.pop("chm_method")
+        settings = _chm.ChmSettings(**{k: v for k, v in values.items() if v is not None})
+        with method_labelled(self, "chm_method"):
+            result = _chm.chm_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+                                         progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         feedback.pushInfo(f"{result['pits']:,} pits left")
         self.load_on_completion(context, result["mosaic"], "Canopy height model", "CHM")

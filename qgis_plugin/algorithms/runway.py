@@ -9,14 +9,13 @@ from qgis.core import (
     QgsProcessingOutputNumber,
     QgsProcessingOutputRasterLayer,
     QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterEnum,
     QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterNumber,
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import labels, GistoolsAlgorithm, RUNWAY
-from ..compat import DOUBLE, VECTOR_POINT
+
+from .base import GistoolsAlgorithm
+from ..compat import VECTOR_POINT
 
 
 GROUP_RUNWAY = ("Runway", "runway")
@@ -33,24 +32,13 @@ class RunwayAlgorithm(GistoolsAlgorithm):
              "the area diagram and the Brückner (mass-haul) curve with balance points (gistools runway).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        from gistools.runway.icao import RUNWAY_TYPES, TEMPLATES, VALID_CODES
-
-        self._codes, self._types, self._templates = list(VALID_CODES), list(RUNWAY_TYPES), list(TEMPLATES)
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Survey points (with a point type field)", [VECTOR_POINT]))
         self.add_fields("INPUT", SURVEY_FIELDS)
-        self.add(QgsProcessingParameterEnum("CODE", "Aerodrome reference code", options=self._codes,
-                                            defaultValue=self._codes.index(RUNWAY.code)))
-        self.add(QgsProcessingParameterEnum("RUNWAY_TYPE", "Runway type", options=labels(self._types),
-                                            defaultValue=self._types.index(RUNWAY.runway_type)))
-        self.add(QgsProcessingParameterEnum("TEMPLATE", "Template", options=labels(self._templates),
-                                            defaultValue=self._templates.index(RUNWAY.template)))
-        self.add_length("SPACING", "Station spacing (empty: from the survey)", None, optional=True)
-        self.add(QgsProcessingParameterNumber("SWELL", "Swell factor of cut", type=DOUBLE,
-                                              defaultValue=RUNWAY.f_cut, minValue=0.01), advanced=True)
-        self.add(QgsProcessingParameterNumber("COMPACTION", "Compaction factor of fill",
-                                              type=DOUBLE, defaultValue=RUNWAY.f_fill, minValue=0.01),
-                 advanced=True)
-        self.add_length("FREE_HAUL", "Free-haul distance (empty: no overhaul)", None, optional=True, advanced=True)
+        # the code: a text on the command line (the library's refusal lists the valid ones), a list here
+        self.add_spec("code")
+        # the command line's settings (gistools.parameters.runway) but the CRS (the layer's)
+        self.add_spec("runway_type", "template", "spacing", "f_cut", "f_fill", "free_haul", "origin", "profile_window",
+                      "area_method", "max_offset", "min_offset", "z_max")
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputRasterLayer("DESIGN", "Design surface"))
         self.addOutput(QgsProcessingOutputVectorLayer("GPKG", "Runway GeoPackage"))
@@ -58,26 +46,19 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("FILL", "Fill (m3)"))
         self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
 
-    def metres(self, parameters, name, context):
-        """A length parameter in metres (the ICAO template's unit; a bare number is metres), None when empty or 0."""
-        from gistools.units import METRE, LinearUnit, length_to_crs_units
-
-        text = self.text(parameters, name, context)
-        if not text or text in ("0", "0.0"):
-            return None
-        return length_to_crs_units(text, LinearUnit("metre", METRE), name=self.parameterDefinition(name).description())
-
     def run_gistools(self, parameters, context, feedback):
-        from gistools.runway.icao import RUNWAY_TYPES, TEMPLATES, VALID_CODES
-        from gistools.tasks.runway import RunwaySettings, runway_earthworks
+        from gistools.runway.survey import SurveyChecks
+        from gistools.tasks.runway import RunwaySettings, runway_earthworks, runway_metres
 
         out = Path(self.output_folder(parameters, context))
-        spacing, free = (self.metres(parameters, name, context) for name in ("SPACING", "FREE_HAUL"))
-        settings = RunwaySettings(code=VALID_CODES[self.parameterAsEnum(parameters, "CODE", context)],
-                                  runway_type=RUNWAY_TYPES[self.parameterAsEnum(parameters, "RUNWAY_TYPE", context)],
-                                  template=TEMPLATES[self.parameterAsEnum(parameters, "TEMPLATE", context)],
-                                  spacing=spacing or None, f_cut=self.parameterAsDouble(parameters, "SWELL", context),
-                                  f_fill=self.parameterAsDouble(parameters, "COMPACTION", context), free_haul=free or None)
+        values = self.spec_values(parameters, context, feedback)
+        for name in ("spacing", "free_haul"):  # in metres (the ICAO template's unit); empty or 0: none
+            text = values.pop(name)
+            values[name] = runway_metres(text, name) if text and text not in ("0", "0.0") else None
+        checks = {name: values.pop(name) for name in ("z_max", "max_offset", "min_offset")}
+        checks = SurveyChecks(**{name: value if name == "z_max" else runway_metres(value, name)
+                                 for name, value in checks.items() if value is not None})
+        settings = RunwaySettings(checks=checks, **values)
         crs = self.layer_crs(parameters, "INPUT", context)
         rep = runway_earthworks(self.layer_spec(parameters, "INPUT", context, feedback), out, settings, crs=crs,
                                 overwrite=True, progress=self.progress(feedback),

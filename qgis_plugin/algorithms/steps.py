@@ -3,19 +3,36 @@
 from __future__ import annotations
 
 from qgis.core import (
-    QgsProcessingParameterBoolean,
-    QgsProcessingParameterEnum,
     QgsProcessingParameterField,
     QgsProcessingParameterRasterDestination,
     QgsProcessingParameterRasterLayer,
-    QgsProcessingParameterString,
     QgsProcessingParameterVectorDestination,
     QgsProcessingParameterVectorLayer,
 )
 
-from .base import (labels, PRESET_LABEL, CLASS_METHOD_LABEL, BREAKS_LABEL, GistoolsAlgorithm, GROUP_LIDAR,
-                   GROUP_SHRUB, PRESETS, CLASSIFY, Z_UNITS, BANDS, float_list, SHRUB, band_choices, text_list)
-from ..compat import VECTOR_LINE, VECTOR_POINT, VECTOR_POLYGON
+from .base import GistoolsAlgorithm, GROUP_LIDAR, GROUP_SHRUB
+from ..compat import VECTOR_POINT, VECTOR_POLYGON
+
+
+def add_tile_field(alg: GistoolsAlgorithm) -> None:
+    """tile_field as declared (gistools.parameters), offered as QGIS's field picker on the tile index layer; read
+    back as the field's name, as the declared text is."""
+    from gistools.parameters import PARAMETERS
+
+    from .spec import qgis_help
+
+    (name,) = alg.add_spec("tile_field")  # registered as declared, then shown as a field picker
+    p = PARAMETERS[name]
+    label = alg.parameterDefinition(p.qgis_name).description()
+    alg.removeParameter(p.qgis_name)
+    alg.add(QgsProcessingParameterField(p.qgis_name, label, defaultValue=p.default,
+                                        parentLayerParameterName=PARAMETERS["tile_index"].qgis_name, optional=True),
+            advanced=p.advanced, help=qgis_help(p))
+
+
+def given(values: dict) -> dict:
+    """The declared parameters' values a run gave (those left empty take the library's default)."""
+    return {k: v for k, v in values.items() if v is not None and v != ()}
 
 
 class NdsmAlgorithm(GistoolsAlgorithm):
@@ -37,6 +54,7 @@ class NdsmAlgorithm(GistoolsAlgorithm):
 
 
 class BandsAlgorithm(GistoolsAlgorithm):
+    _renamed = {"BREAKS": "BAND_BREAKS"}  # BREAKS is the class breaks, in the classify step and the chain
     _name, _display, _group = "bands", "Step 1: height bands", GROUP_SHRUB
     _help = ("Height bands of an nDSM: 0 = B0 ground (h <= noise floor, or topped by a ground / water return), "
              "1 = B1 0-1 m, 2 = B2 1-2 m, 3 = B3 2-6 m, 4 = above, 255 = nodata. Thresholds are in metres and converted "
@@ -46,12 +64,7 @@ class BandsAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterRasterLayer("NDSM", "nDSM"))
         self.add(QgsProcessingParameterRasterLayer("TOP_CLASS", "Class of the highest first return (from the DSM step)",
                                                    optional=True))
-        self.add(QgsProcessingParameterEnum("PRESET", PRESET_LABEL, options=labels(PRESETS), defaultValue=PRESETS.index(SHRUB.bands)))
-        self.add(QgsProcessingParameterString("BREAKS", "Or three band limits in metres (e.g. 1,2,6)", optional=True),
-                 advanced=True)
-        self.add_length("NOISE_FLOOR", "Heights up to this are bare ground", SHRUB.noise_floor)
-        self.add(QgsProcessingParameterEnum("Z_UNIT", "Vertical unit of the nDSM", options=Z_UNITS, defaultValue=0),
-                 advanced=True)
+        self.add_spec("bands", "band_breaks_m", "noise_floor", "z_unit")
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Height bands"))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_POINTS", "Cell-centre points per band (Raster To Point)",
                                                          type=VECTOR_POINT, optional=True,
@@ -62,13 +75,13 @@ class BandsAlgorithm(GistoolsAlgorithm):
 
         out = self.output_path(parameters, "OUTPUT", context)
         points = self.output_path(parameters, "OUTPUT_POINTS", context, optional=True)
-        z = self.parameterAsEnum(parameters, "Z_UNIT", context)
+        v = given(self.spec_values(parameters, context, feedback))
+        z = v.pop("z_unit", "raster")
+        steps = {"bands": "preset", "band_breaks_m": "breaks_m", "noise_floor": "noise_floor"}  # the step's words
         result = bands_from_ndsm(self.raster_path(parameters, "NDSM", context), out,
                                  top_class=self.raster_path(parameters, "TOP_CLASS", context),
-                                 preset=PRESETS[self.parameterAsEnum(parameters, "PRESET", context)],
-                                 breaks_m=float_list(self.parameterAsString(parameters, "BREAKS", context), "Band limits", 3),
-                                 noise_floor=self.text(parameters, "NOISE_FLOOR", context),
-                                 z_unit=None if z == 0 else Z_UNITS[z], points_out=points, progress=self.progress(feedback))
+                                 **{steps[k]: value for k, value in v.items()},
+                                 z_unit=None if z == "raster" else z, points_out=points, progress=self.progress(feedback))
         feedback.pushInfo(f"band limits T1, T2, T3 = {', '.join(f'{t:.4f}' for t in result['thresholds'])} "
                           f"{result['z_unit']}")
         return {"OUTPUT": out, **({"OUTPUT_POINTS": points} if points else {})}
@@ -82,20 +95,9 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
              "(islands stay holes) and buffered single-line hydro features join the water polygons.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        line = [VECTOR_LINE]
-        poly = [VECTOR_POLYGON]
-        self.add(QgsProcessingParameterVectorLayer("ROADS", "Road breaklines (edge of pavement)", line, optional=True))
-        self.add(QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", line, optional=True))
-        self.add(QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", poly, optional=True))
-        self.add(QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", poly, optional=True))
-        self.add(QgsProcessingParameterField("TILE_FIELD", "Tile number field", defaultValue=SHRUB.tile_field,
-                                             parentLayerParameterName="TILE_INDEX", optional=True))
-        self.add_length("SNAP", "Snapping tolerance", SHRUB.snap)
-        self.add_length("MAX_ROAD_WIDTH", "Widest road face", SHRUB.max_road_width)
-        self.add_length("MAX_HYDRO_WIDTH", "Widest river face", SHRUB.max_hydro_width, advanced=True)
-        self.add_length("SINGLE_LINE_WIDTH", "Width given to single-line hydro features", SHRUB.single_line_width, advanced=True)
-        self.add(QgsProcessingParameterBoolean("REPROJECT", "Reproject layers in another CRS (else refuse)",
-                                               defaultValue=False), advanced=True)
+        self.add_spec("roads", "hydro", "waterbodies", "tile_index")
+        add_tile_field(self)
+        self.add_spec("snap", "max_road_width", "max_hydro_width", "single_line_width", "reproject_vectors")
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_ROADS", "Road polygons", type=VECTOR_POLYGON))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_WATER", "Water polygons", type=VECTOR_POLYGON))
 
@@ -104,17 +106,9 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
 
         roads_out = self.output_path(parameters, "OUTPUT_ROADS", context)
         water_out = self.output_path(parameters, "OUTPUT_WATER", context)
-        result = breakline_polygons(
-            roads=self.layer_spec(parameters, "ROADS", context, feedback),
-            hydro=self.layer_spec(parameters, "HYDRO", context, feedback),
-            waterbodies=self.layer_spec(parameters, "WATERBODIES", context, feedback),
-            tile_index=self.layer_spec(parameters, "TILE_INDEX", context, feedback),
-            tile_field=self.parameterAsString(parameters, "TILE_FIELD", context) or SHRUB.tile_field,
-            road_out=roads_out, water_out=water_out,
-            reproject=self.parameterAsBool(parameters, "REPROJECT", context),
-            snap=self.text(parameters, "SNAP", context), max_road_width=self.text(parameters, "MAX_ROAD_WIDTH", context),
-            max_hydro_width=self.text(parameters, "MAX_HYDRO_WIDTH", context),
-            single_line_width=self.text(parameters, "SINGLE_LINE_WIDTH", context), progress=self.progress(feedback))
+        v = given(self.spec_values(parameters, context, feedback))
+        v["reproject"] = v.pop("reproject_vectors", False)  # the step's word
+        result = breakline_polygons(road_out=roads_out, water_out=water_out, progress=self.progress(feedback), **v)
         feedback.pushInfo(f"{result.get('road_count', 0)} road and {result.get('water_count', 0)} water polygons")
         return {"OUTPUT_ROADS": roads_out, "OUTPUT_WATER": water_out}
 
@@ -130,9 +124,7 @@ class ClipAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterRasterLayer("BANDS", "Height bands"))
         self.add(QgsProcessingParameterVectorLayer("ROAD_POLYGONS", "Road polygons", poly, optional=True))
         self.add(QgsProcessingParameterVectorLayer("WATER_POLYGONS", "Water polygons", poly, optional=True))
-        self.add(QgsProcessingParameterVectorLayer("WETLANDS", "Wetland polygons", poly, optional=True))
-        self.add(QgsProcessingParameterBoolean("REPROJECT", "Reproject layers in another CRS (else refuse)",
-                                               defaultValue=False), advanced=True)
+        self.add_spec("wetlands", "reproject_vectors")
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Vegetation"))
         self.add(QgsProcessingParameterRasterDestination("OUTPUT_WETLAND", "Vegetation in wetlands", optional=True,
                                                          createByDefault=False))
@@ -142,11 +134,12 @@ class ClipAlgorithm(GistoolsAlgorithm):
 
         out = self.output_path(parameters, "OUTPUT", context)
         wet = self.output_path(parameters, "OUTPUT_WETLAND", context, optional=True)
+        v = self.spec_values(parameters, context, feedback)
         clip_bands(self.raster_path(parameters, "BANDS", context), out,
                    road_polygons=self.layer_spec(parameters, "ROAD_POLYGONS", context, feedback),
                    water_polygons=self.layer_spec(parameters, "WATER_POLYGONS", context, feedback),
-                   wetlands=self.layer_spec(parameters, "WETLANDS", context, feedback), wetland_out=wet,
-                   reproject=self.parameterAsBool(parameters, "REPROJECT", context), progress=self.progress(feedback))
+                   wetlands=v["wetlands"], wetland_out=wet, reproject=v["reproject_vectors"],
+                   progress=self.progress(feedback))
         return {"OUTPUT": out, **({"OUTPUT_WETLAND": wet} if wet else {})}
 
 
@@ -158,23 +151,21 @@ class DensityAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("VEGETATION", "Vegetation (from the clip step)"))
-        self.add_length("RADIUS", "Neighbourhood radius", SHRUB.radius)
-        self.add(QgsProcessingParameterEnum("DENSITY_BANDS", "Bands whose vegetation counts", options=BANDS,
-                                            allowMultiple=True, defaultValue=band_choices(SHRUB.density_bands)))
+        self.add_spec("radius", "density_bands")
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Cover (0-1)"))
         self.add(QgsProcessingParameterRasterDestination("OUTPUT_DENSITY", "Point density", optional=True,
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
+        from gistools.tasks.settings import DEFAULTS
         from gistools.tasks.steps import density_from_vegetation
 
         out = self.output_path(parameters, "OUTPUT", context)
         dens = self.output_path(parameters, "OUTPUT_DENSITY", context, optional=True)
-        bands = tuple(i + 1 for i in self.parameterAsEnums(parameters, "DENSITY_BANDS", context)) or SHRUB.density_bands
+        v = {"density_bands": DEFAULTS.density_bands, **given(self.spec_values(parameters, context, feedback))}
         result = density_from_vegetation(self.raster_path(parameters, "VEGETATION", context), out, density_out=dens,
-                                         radius=self.text(parameters, "RADIUS", context), density_bands=bands,
-                                         progress=self.progress(feedback))
-        feedback.pushInfo(f"radius {result['radius']:.4f} CRS units, bands {bands}")
+                                         progress=self.progress(feedback), **v)
+        feedback.pushInfo(f"radius {result['radius']:.4f} CRS units, bands {v['density_bands']}")
         return {"OUTPUT": out, **({"OUTPUT_DENSITY": dens} if dens else {})}
 
 
@@ -186,9 +177,7 @@ class ClassifyAlgorithm(GistoolsAlgorithm):
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("COVER", "Cover (from the density step)"))
         self.add(QgsProcessingParameterRasterLayer("VEGETATION", "Vegetation (marks road and water)", optional=True))
-        self.add(QgsProcessingParameterEnum("METHOD", CLASS_METHOD_LABEL, options=labels(CLASSIFY), defaultValue=CLASSIFY.index(SHRUB.classify)))
-        self.add(QgsProcessingParameterString("BREAKS", BREAKS_LABEL, 
-                                              defaultValue=text_list(SHRUB.class_breaks)))
+        self.add_spec("classify", "class_breaks")
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "Shrub classes"))
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_POLYGONS", "Shrub class polygons",
                                                          type=VECTOR_POLYGON, optional=True,
@@ -199,11 +188,11 @@ class ClassifyAlgorithm(GistoolsAlgorithm):
 
         out = self.output_path(parameters, "OUTPUT", context)
         polys = self.output_path(parameters, "OUTPUT_POLYGONS", context, optional=True)
+        v = given(self.spec_values(parameters, context, feedback))
+        steps = {"classify": "method", "class_breaks": "breaks"}  # the step's words
         result = classes_from_cover(self.raster_path(parameters, "COVER", context), out,
                                     veg=self.raster_path(parameters, "VEGETATION", context), polygons_out=polys,
-                                    method=CLASSIFY[self.parameterAsEnum(parameters, "METHOD", context)],
-                                    breaks=float_list(self.parameterAsString(parameters, "BREAKS", context), "Breaks", 2)
-                                    or SHRUB.class_breaks, progress=self.progress(feedback))
+                                    progress=self.progress(feedback), **{steps[k]: value for k, value in v.items()})
         feedback.pushInfo(f"breaks {result['breaks']}; class area (CRS units squared): "
                           + ", ".join(f"{k} {v:,.0f}" for k, v in result["class_area"].items()))
         return {"OUTPUT": out, **({"OUTPUT_POLYGONS": polys} if polys else {})}

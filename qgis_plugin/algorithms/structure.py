@@ -11,11 +11,9 @@ from qgis.core import (
     QgsProcessingOutputVectorLayer,
     QgsProcessingParameterFile,
     QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterNumber,
 )
 
 from .base import GistoolsAlgorithm
-from ..compat import DOUBLE
 
 
 class StructureAlgorithm(GistoolsAlgorithm):
@@ -26,11 +24,8 @@ class StructureAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterFile("INPUT", "Point cloud (ID X Y Z text, or LAS/LAZ)"))
-        for name, text in (("HEIGHT_INTERVAL", "Height interval h, m (0: estimated)"),
-                           ("DISTANCE", "Planimetric distance d, m (0: estimated)"),
-                           ("TOLERANCE", "Tolerance t, m (0: 4 m)")):
-            self.add(QgsProcessingParameterNumber(name, text, type=DOUBLE, defaultValue=0.0,
-                                                  minValue=0.0))
+        # the command line's settings (gistools.parameters.structure); h, d, t: 0 is "estimated" (4 m for t)
+        self.add_spec(command="structure", defaults={"h": 0.0, "d": 0.0, "t": 0.0})
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputFile("MESH", "Mesh (PLY)"))
         self.addOutput(QgsProcessingOutputVectorLayer("LOOPS", "Loops (GeoPackage)"))
@@ -41,9 +36,10 @@ class StructureAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.structure import structure_model
 
         out = Path(self.output_folder(parameters, context))
-        value = {k: self.parameterAsDouble(parameters, k, context) or None for k in ("HEIGHT_INTERVAL", "DISTANCE", "TOLERANCE")}
-        rep = structure_model(self.parameterAsFile(parameters, "INPUT", context), out, h=value["HEIGHT_INTERVAL"],
-                              d=value["DISTANCE"], t=value["TOLERANCE"], overwrite=True, progress=self.progress(feedback))
+        values = self.spec_values(parameters, context, feedback)
+        values.update({k: values[k] or None for k in ("h", "d", "t")})  # 0 (or empty): estimated
+        rep = structure_model(self.parameterAsFile(parameters, "INPUT", context), out, overwrite=True,
+                              progress=self.progress(feedback), **{k: v for k, v in values.items() if v is not None})
         feedback.pushInfo(f"{rep['levels']} levels, {rep['clusters']} clusters, {rep['triangles']} triangles, volume "
                           f"{rep['volume']:,.1f} m3, watertight {rep['watertight']}, Euler {rep['euler']}")
         return {"OUTPUT_FOLDER": str(out), "MESH": rep["outputs"]["ply"], "LOOPS": rep["outputs"]["gpkg"],

@@ -5,13 +5,13 @@ from __future__ import annotations
 from qgis.core import (
     QgsProcessingOutputNumber,
     QgsProcessingOutputString,
-    QgsProcessingParameterEnum,
     QgsProcessingParameterFileDestination,
     QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterString,
 )
 
-from .base import labels, GistoolsAlgorithm, RETURNS, int_list, POINTS, text_list
+from .base import GistoolsAlgorithm
+from ..compat import OPTIONAL
+from .spec import flag_parameters
 
 
 class InfoAlgorithm(GistoolsAlgorithm):
@@ -21,7 +21,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
-        self.add_crs()
+        self.add_spec(command="info")
         self.add(QgsProcessingParameterFileDestination("OUTPUT", "Summary (JSON)", "JSON files (*.json)", optional=True,
                                                        createByDefault=False))
         self.addOutput(QgsProcessingOutputNumber("POINTS", "Points"))
@@ -32,8 +32,8 @@ class InfoAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.info import tiles_summary
 
         path = self.parameterAsFileOutput(parameters, "OUTPUT", context) if parameters.get("OUTPUT") else None
-        result = tiles_summary(self.tiles(parameters, context), crs=self.crs_text(parameters, context), out=path,
-                               progress=self.progress(feedback))
+        result = tiles_summary(self.tiles(parameters, context), out=path, progress=self.progress(feedback),
+                               **self.spec_values(parameters, context, feedback))
         for t in result["tiles"]:
             if t["status"] == "ok":
                 feedback.pushInfo(f"{t['file']}: LAS {t['las_version']} PF {t['point_format']}, {t['points']:,} points, "
@@ -50,15 +50,15 @@ class PointsAlgorithm(GistoolsAlgorithm):
     _name, _display = "points", "LAS to points (by class)"
     _help = ("The dissertation's LAS To Multipoint: per tile, a point layer (GeoPackage, or GeoParquet) with x, y, z, "
              "class, return number and intensity of the chosen classes and returns, streamed in chunks. "
-             "Non-ground: classes 1,2 first returns; ground: class 2, any return.")
+             "Non-ground: classes 1,2 first returns; ground: class 2, every return.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
+        from gistools.parameters.lidar import COMMAND_DEFAULTS
+
         self.add_tiles()
-        self.add(QgsProcessingParameterString("CLASSES", "ASPRS classes (comma-separated; empty = all)", defaultValue=text_list(POINTS["classes"]),
-                                              optional=True))
-        self.add(QgsProcessingParameterEnum("RETURNS", "Returns", options=labels(RETURNS), defaultValue=RETURNS.index(POINTS["returns"])))
-        self.add(QgsProcessingParameterEnum("FORMAT", "Format", options=labels(["gpkg", "parquet"]), defaultValue=0), advanced=True)
-        self.add_crs()
+        self.add_spec(command="points", defaults=COMMAND_DEFAULTS["points"],
+                      labels={"classes": "ASPRS classes (comma-separated; empty = all)"})
+        flag_parameters(self, OPTIONAL, "CLASSES")  # empty: every class
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Point layers folder"))
         self.addOutput(QgsProcessingOutputNumber("POINTS", "Points written"))
 
@@ -66,10 +66,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
         from gistools.tasks.points import points_from_tiles
 
         out = self.output_folder(parameters, context)
-        result = points_from_tiles(self.tiles(parameters, context), out,
-                                   classes=int_list(self.parameterAsString(parameters, "CLASSES", context), "Classes"),
-                                   returns=RETURNS[self.parameterAsEnum(parameters, "RETURNS", context)],
-                                   fmt=["gpkg", "parquet"][self.parameterAsEnum(parameters, "FORMAT", context)],
-                                   crs=self.crs_text(parameters, context), overwrite=True, progress=self.progress(feedback))
+        result = points_from_tiles(self.tiles(parameters, context), out, overwrite=True, progress=self.progress(feedback),
+                                   **self.spec_values(parameters, context, feedback))
         self.report_tiles(result, feedback)
         return {"OUTPUT_FOLDER": out, "POINTS": sum(t["points"] for t in result["tiles"])}

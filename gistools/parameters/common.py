@@ -1,0 +1,21 @@
+"""Parameters every batch command takes: the tiles' CRS, the run (jobs, scheduler, chunk size), resume."""
+
+from .core import Parameter, declare
+
+declare(
+    Parameter("out", "folder", "Output folder.", "Output folder", flag="--out", short="-o", qgis="OUTPUT_FOLDER",
+              required=True),
+    Parameter("crs", "crs", "CRS of the input (EPSG:2882, WKT): needed where the data carry none (a LAS header, a CSV); "
+              "it replaces the data's own CRS otherwise.", "Input CRS (overrides the data's own; needed where they carry none)",
+              advanced=True),
+    Parameter("jobs", "int", "Tiles processed in parallel, each in its own process.",
+              "Tiles in parallel (local processes)", default=1, minimum=1, short="-j", advanced=True),
+    Parameter("scheduler", "text", "Run the tiles on a Dask cluster: its scheduler address (tcp://host:8786), or "
+              "'local' for a LocalCluster of as many workers as jobs. Workers must see the tiles and the output "
+              "folder at the same paths.", "Dask scheduler address (tcp://host:8786), or 'local'", metavar="ADDRESS",
+              advanced=True),
+    Parameter("chunk_size", "int", "Points read at a time; memory grows with it (about 60 bytes per point).",
+              "Points read at a time", default=2_000_000, minimum=1, advanced=True),
+    Parameter("overwrite", "flag", "Replace existing outputs (default: keep complete outputs of an earlier or killed "
+              "run and do the rest).", "Replace existing outputs", default=False),
+)

@@ -1,0 +1,113 @@
+"""Runs bounded by the machine: never more workers than tiles or CPUs, none past what the memory holds, and a run
+that meets the machine's limits says so in one line with the fix instead of blaming a tile."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+
+import pytest
+
+from conftest import SAMPLE
+from gistools.machine import available_memory, free_memory, usable_cpus
+from gistools.tasks.batch import worker_count
+
+GISTOOLS = [sys.executable, "-m", "gistools.cli.main"]
+
+
+def test_workers_are_capped_by_the_tasks_the_cpus_and_the_memory():
+    said = []
+    assert worker_count(1000, 4, warn=said.append) == min(4, usable_cpus())
+    assert worker_count(3, 1, warn=said.append) == 1  # one task, one worker, without a word
+    if usable_cpus() < 4:
+        assert f"1000 jobs asked for, {usable_cpus()} CPUs here" in said[0]
+    said.clear()
+    memory = free_memory()
+    assert memory is not None and memory > 0
+    # tasks of half the free memory each: at most one at a time fits, said with the numbers
+    assert worker_count(2, 8, task_bytes=memory // 2, warn=said.append) == 1
+    if usable_cpus() >= 2:
+        assert "do not fit in the" in said[-1] and "GB of memory available" in said[-1]
+
+
+def _run(args, limit_bytes=None, timeout=600):
+    def limit():
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_AS, (limit_bytes, limit_bytes))
+
+    return subprocess.run(GISTOOLS + [str(a) for a in args], capture_output=True, text=True, timeout=timeout,
+                          preexec_fn=limit if limit_bytes else None)
+
+
+def test_jobs_1000_runs_as_many_workers_as_tiles_and_cpus_allow(tmp_path):
+    start = time.perf_counter()
+    run = _run(["rasters", SAMPLE, "--out", tmp_path / "a", "-q", "--jobs", 1000])
+    seconds = time.perf_counter() - start
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr
+    workers = min(4, usable_cpus())
+    if usable_cpus() < 4:
+        assert f"1000 jobs asked for, {usable_cpus()} CPUs here: running {workers} at a time" in run.stderr
+    assert seconds < 120, seconds  # not 1000 interpreters starting (which took minutes and the machine's memory)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="ulimit -v")
+def test_a_grid_past_the_memory_is_refused_with_the_numbers_before_any_allocation(tmp_path):
+    """Under ``ulimit -v 3G`` a 0.06 ft grid of a sample tile (about 2.6 billion cells) is refused by the memory it
+    would need, naming the memory and the fix, not a MemoryError blamed on the tile."""
+    run = _run(["rasters", SAMPLE / "35712.las", "--out", tmp_path / "b", "-q", "--cell-size", "0.06ft"], 3 * 2**30)
+    assert run.returncode == 1, run.stderr
+    assert "Traceback" not in run.stderr and "MemoryError" not in run.stderr
+    assert "cell size 0.06" in run.stderr and "--cell-size" in run.stderr
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="ulimit -v")
+def test_the_import_under_a_tight_memory_limit_is_one_line_or_works(tmp_path):
+    run = _run(["info", SAMPLE / "35712.las"], 600 * 2**20)
+    assert "Traceback" not in run.stderr, run.stderr[-2000:]
+    assert run.returncode in (0, 1)
+    if run.returncode:
+        assert run.stderr.strip().count("\n") == 0 and run.stderr.startswith("gistools:")
+
+
+def test_available_memory_reads_the_process_limit(tmp_path):
+    code = ("import resource; resource.setrlimit(resource.RLIMIT_AS, (2**31, 2**31)); "
+            "from gistools.machine import available_memory; print(available_memory())")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert 0 < int(out.stdout) < 2**31
+    assert available_memory() is not None
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="ulimit -v")
+def test_a_run_under_a_tight_memory_limit_completes_or_says_so_in_one_line(tmp_path):
+    """Under ``ulimit -v 600M`` the run either completes or stops with one line saying the machine ran out of memory
+    under that limit, with the fix: no traceback, no tile blamed ("FAILED")."""
+    run = _run(["rasters", SAMPLE, "--out", tmp_path / "c", "-q"], 600 * 2**20)
+    assert "Traceback" not in run.stderr and "FAILED" not in run.stderr, run.stderr[-2000:]
+    if run.returncode:
+        line = run.stderr.strip()
+        assert run.returncode == 1 and line.count("\n") == 0, line
+        assert line.startswith("gistools: error: the machine ran out of memory") and "ulimit -v" in line, line
+
+
+def test_memory_errors_are_the_runs_not_a_tiles():
+    """A tile's MemoryError, or a worker the system killed (BrokenProcessPool), stops the run with the machine's
+    error and the fix, instead of marking the tile failed while the others go on."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from gistools.errors import OutOfMemoryError
+    from gistools.parameters import speaks
+    from gistools.tasks.batch import fail
+    from gistools.tasks.rasters import TileResult
+
+    for err in (MemoryError(), BrokenProcessPool("A process in the process pool was terminated abruptly")):
+        result = TileResult(name="35712", path="35712.las")
+        with pytest.raises(OutOfMemoryError) as raised, speaks("cli"):
+            fail(result, err)
+        with speaks("cli"):
+            text = str(raised.value)
+        assert "35712" in text and "--jobs" in text and "--cell-size" in text
+        assert result.status == "ok"  # the tile is not blamed
