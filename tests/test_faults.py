@@ -975,3 +975,56 @@ def test_a_legal_long_tile_name_is_made(tmp_path):
     code, text = invoke(["rasters", tmp_path / "tiles", "--out", tmp_path / "out", "-q", "--cell-size", "10ft"])
     assert code == 0, text
     assert (tmp_path / "out" / "dem" / f"{name}.tif").exists()
+
+
+def test_ground_whose_every_tile_fails_is_one_line_per_tile_not_a_traceback(tmp_path, sample_tiles):
+    """--out the folder of the LAZ tiles themselves: every output would overwrite its input, so every tile fails,
+    each with its line, and the run exits 1 (it was AttributeError: 'NoneType' object has no attribute 'buffer')."""
+    folder = tmp_path / "tiles"
+    folder.mkdir()
+    laz = [p for p in sample_tiles if p.suffix == ".laz"]
+    for p in laz:
+        shutil.copy(p, folder / p.name)
+    before = snapshot(folder)
+    code, text = invoke(["ground", folder, "--out", folder, "-q"])
+    assert code == 1, text
+    assert "Traceback" not in text and "the output would overwrite this input" in text
+    assert {k: v for k, v in snapshot(folder).items() if k.endswith(".laz")} == before
+
+
+def test_degenerate_tiles_are_refused_not_gridded_empty(tmp_path):
+    """A tile whose ground points are one point (or many at one spot) gave an empty DEM with "ok"; a tile without
+    first returns an empty DSM; coordinates in degrees read with a CRS in feet a 1 x 1 grid without a word."""
+    one = las12(tmp_path / "one" / "t.las", n=2000, cls=1) if (tmp_path / "one").mkdir() is None else None
+    las = laspy.read(one)
+    las.classification[:] = 1
+    las.classification[0] = 2  # one ground point
+    las.write(one)
+    code, text = invoke(["rasters", one, "--out", tmp_path / "o1", "-q"])
+    assert code == 1, text
+    assert "ground (class 2) points span no area" in text and "--dem-method max" in text
+    las.return_number[:] = 2  # no first return
+    las.number_of_returns[:] = 2
+    las.classification[:] = 2
+    las.write(one)
+    code, text = invoke(["rasters", one, "--out", tmp_path / "o2", "-q"])
+    assert code == 1, text
+    assert "no first return of the DSM's classes" in text and "--dsm-classes" in text
+
+
+def test_coordinates_outside_the_crs_area_of_use_are_a_warning(tmp_path, caplog):
+    h = laspy.LasHeader(point_format=1, version="1.2")
+    h.scales, h.offsets = np.array([1e-7, 1e-7, 0.01]), np.array([-82.0, 28.0, 0.0])
+    las = laspy.LasData(h)
+    rng = np.random.default_rng(1)
+    las.x, las.y = -82.5 + rng.uniform(0, 0.01, 500), 28.1 + rng.uniform(0, 0.01, 500)  # degrees
+    las.z = rng.uniform(0, 10, 500)
+    las.classification = np.full(500, 2, np.uint8)
+    las.write(tmp_path / "deg.las")
+    code, text = invoke(["rasters", tmp_path / "deg.las", "--crs", "EPSG:2882", "--out", tmp_path / "o", "-q",
+                         "--dem-method", "max"])
+    assert "lies far outside the area of use of its CRS EPSG:2882" in caplog.text
+    report = json.loads((tmp_path / "o" / "report.json").read_text())
+    assert any("area of use" in w for w in report["tiles"][0]["warnings"])
+    text = (tmp_path / "o" / "report.json").read_text()
+    assert "\ue000" not in text and "\\ue000" not in text  # no parameter mark left unrendered in the record

@@ -260,8 +260,11 @@ def test_the_same_run_in_metres_gives_the_same_areas(sample_tiles, shrub_run, tm
     out, feet = shrub_run
     vectors = _metre_copy(sample_tiles, tmp_path / "m")
     s = ShrubSettings()
-    metres = shrub_from_tiles(sorted((tmp_path / "m").glob("*.la[sz]")), tmp_path / "out",
-                              ShrubSettings(raster=s.raster.__class__(cell_size="5ftUS")), make_map=False, **vectors)
+    # the feet run's lengths, given (on metre data the defaults are round metres: 1.5 m, 7.5 m, 18 m ...)
+    same = ShrubSettings(raster=s.raster.__class__(cell_size="5ftUS"), radius="25ftUS", max_road_width="60ftUS",
+                         snap="0.2ftUS", max_hydro_width="500ftUS", single_line_width="8ftUS")
+    metres = shrub_from_tiles(sorted((tmp_path / "m").glob("*.la[sz]")), tmp_path / "out", same, make_map=False,
+                              **vectors)
     assert metres["horizontal_unit"] == "metre" and metres["vertical_unit"] == "metre"
     assert metres["band_thresholds"] == pytest.approx([1.0, 2.0, 6.0])
     ft2 = (1200 / 3937) ** 2

@@ -76,16 +76,21 @@ def test_vertical_unit_from_geotiff_keys(tmp_path):
         common_crs([read_tile_info(tmp_path / "f.las"), read_tile_info(tmp_path / "m.las")])
 
 
-def _shrub(args, tmp_path, name):
+def _shrub(args, tmp_path, name, crs=None):
+    import geopandas as gpd
     from click.testing import CliRunner
 
     from conftest import SAMPLE
     from gistools.cli.main import cli
 
-    b = SAMPLE / "breaklines.gpkg"
+    roads = f"{SAMPLE / 'breaklines.gpkg'}:ROADBREAKLINE"
+    if crs is not None:  # the same lines, their coordinates read in the tiles' other CRS
+        gdf = gpd.read_file(SAMPLE / "breaklines.gpkg", layer="ROADBREAKLINE").set_crs(crs, allow_override=True)
+        gdf.to_file(tmp_path / f"roads_{name}.gpkg", layer="ROADS", driver="GPKG")
+        roads = f"{tmp_path / f'roads_{name}.gpkg'}:ROADS"
+        args = [*args, "--crs", crs]
     out = tmp_path / name
-    run = CliRunner().invoke(cli, ["shrub", str(SAMPLE), "--out", str(out), "-q", "--no-map",
-                                   "--roads", f"{b}:ROADBREAKLINE", *args])
+    run = CliRunner().invoke(cli, ["shrub", str(SAMPLE), "--out", str(out), "-q", "--no-map", "--roads", roads, *args])
     assert run.exit_code == 0, run.output
     import json
 
@@ -99,13 +104,12 @@ def test_defaults_read_naturally_in_the_datas_unit(tmp_path):
     assert feet["cell_size"] == 5.0 and feet["horizontal_unit"] == "US survey foot"
     assert feet["density_radius"] == 25.0
     assert "cell size 5 ftUS" in said and "radius 25 ftUS" in said
-    metres, said = _shrub(["--crs", "EPSG:32617"], tmp_path, "metres")
+    metres, said = _shrub([], tmp_path, "metres", crs="EPSG:32617")
     assert metres["cell_size"] == 1.5 and metres["horizontal_unit"] == "metre"
     assert metres["density_radius"] == 7.5
     settings = metres["settings"]
     assert (settings["max_road_width"], settings["snap"], settings["radius"]) == ("18m", "0.06m", "7.5m")
-    assert settings["raster"]["cell_size"] == "1.5m"
     assert "cell size 1.5 m" in said and "radius 7.5 m" in said
     # a length given keeps its value whatever the unit
-    given, _ = _shrub(["--crs", "EPSG:32617", "--cell-size", "5ft", "--radius", "25ft"], tmp_path, "given")
+    given, _ = _shrub(["--cell-size", "5ft", "--radius", "25ft"], tmp_path, "given", crs="EPSG:32617")
     assert given["cell_size"] == pytest.approx(1.524) and given["density_radius"] == pytest.approx(7.62)

@@ -45,6 +45,7 @@ def build():
     from gistools.lidar.dsmfill import DSM_FILLS
     from gistools.lidar.gridding import DEM_METHODS
     from gistools.lidar.shrub import CLASS_METHODS
+    from gistools.parameters import default_for
     from gistools.tasks.settings import DEFAULTS as D
 
     R = D.raster  # the values the model passes are the library's defaults, as the algorithms' own
@@ -63,8 +64,10 @@ def build():
         (QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", [QgsProcessing.TypeVectorPolygon],
                                            optional=True), 5),
         (QgsProcessingParameterString("TILE_FIELD", "Tile number field", defaultValue=D.tile_field), 6),
-        (QgsProcessingParameterString("CELL_SIZE", "Cell size (with unit)", defaultValue=R.cell_size), 7),
-        (QgsProcessingParameterString("RADIUS", "Density radius (with unit)", defaultValue=D.radius), 8),
+        # the dissertation's chain on its data in feet: its 5 ft cells and 25 ft radius (the command line and the
+        # chain's algorithm take 1.5 m and 7.5 m on metre data; the model's form shows its values)
+        (QgsProcessingParameterString("CELL_SIZE", "Cell size (with unit)", defaultValue=default_for("cell_size", True)), 7),
+        (QgsProcessingParameterString("RADIUS", "Density radius (with unit)", defaultValue=default_for("radius", True)), 8),
     ]
     for definition, row in inputs:
         component = QgsProcessingModelParameter(definition.name())

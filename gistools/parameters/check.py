@@ -7,7 +7,7 @@ import math
 
 from .core import PARAMETERS, ByUnits, option
 
-__all__ = ["check", "check_all", "choices", "default_for"]
+__all__ = ["check", "check_all", "choices", "default_for", "setting_default", "in_data_units"]
 
 
 def choices(name: str) -> tuple:
@@ -21,6 +21,29 @@ def default_for(name: str, unit_is_foot: bool | None = None):
     if isinstance(default, ByUnits):
         return default.ft if unit_is_foot or unit_is_foot is None else default.m
     return default
+
+
+def setting_default(name: str):
+    """A settings field's default: the declared one, or None for a length that follows the data's unit (set once
+    the data's unit is known: :func:`in_data_units`)."""
+    default = PARAMETERS[name].default
+    return None if isinstance(default, ByUnits) else default
+
+
+def in_data_units(settings, unit_is_foot: bool):
+    """``settings`` (a settings dataclass; nested ones too) with each length left to the data's unit (None where
+    the declaration's default is :class:`ByUnits`) set to its default in that unit: 5ft on a CRS in feet, 1.5m
+    on a metre CRS."""
+    import dataclasses
+
+    changes = {}
+    for f in dataclasses.fields(settings):
+        value = getattr(settings, f.name)
+        if dataclasses.is_dataclass(value) and not isinstance(value, type):
+            changes[f.name] = in_data_units(value, unit_is_foot)
+        elif value is None and f.name in PARAMETERS and isinstance(PARAMETERS[f.name].default, ByUnits):
+            changes[f.name] = default_for(f.name, unit_is_foot)
+    return dataclasses.replace(settings, **changes) if changes else settings
 
 
 def canonical(name: str, value):

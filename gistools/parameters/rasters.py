@@ -1,6 +1,6 @@
 """Parameters of the DSM, DEM and nDSM (gistools rasters, and the shrub chain's first stage)."""
 
-from .core import Parameter, command, declare, option
+from .core import ByUnits, Parameter, command, declare, option
 
 DEM_METHODS = {"tin": "TIN of the ground points (fills gaps)", "max": "Highest ground point of each cell (the dissertation's)",
                "min": "Lowest ground point of each cell", "mean": "Mean of the ground points of each cell",
@@ -14,7 +14,8 @@ GROUND_METHODS = {"smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Clo
 
 declare(
     Parameter("cell_size", "length", "Side of the raster cells, with its unit (5ft, 1.5m; a bare number is in CRS "
-              "units). The cells snap to multiples of it, so tiles line up.", "Cell size", default="5ft", example="5ft"),
+              "units). The cells snap to multiples of it, so tiles line up.", "Cell size", example="5ft",
+              default=ByUnits("5ft", "1.5m", "the dissertation's 5 ft cell; 1.5 m is its round metre value")),
     Parameter("dsm_classes", "classes", "Classes in the DSM (first returns), e.g. 1,2 as in the dissertation.",
               "Classes in the DSM", default_text="every class but noise (7, 18)", advanced=True, example="1,2"),
     Parameter("dem_method", "choice", "tin: Delaunay of the ground points, at cell centres (fills gaps); max / min / "

@@ -7,7 +7,7 @@ The Python names are the fields of ``gistools.tasks.settings.ShrubSettings`` and
 breaklines gistools normalize takes too in ``lidar``, the tile index and the web map's basemap in ``deliver``.
 """
 
-from .core import Parameter, command, declare, option
+from .core import ByUnits, Parameter, command, declare, option
 from . import common, deliver, lidar, rasters  # noqa: F401  (declared there, see below)
 
 # Declared elsewhere and taken as they are: cell_size, dsm_classes, dem_method, dem_max_distance, dsm_fill,
@@ -29,20 +29,21 @@ declare(
     Parameter("wetlands", "layer", "Wetland polygons: the vegetation inside them is written apart (wetveg/).",
               "Wetland polygons", geometry="polygon", metavar="LAYER"),
     Parameter("snap", "length", "Breakline ends closer than this are joined (the dissertation's 0.2 ft cluster "
-              "tolerance).", "Breakline snapping tolerance", default="0.2ft", minimum=0.0, example="0.2ft",
+              "tolerance).", "Breakline snapping tolerance", default=ByUnits("0.2ft", "0.06m"), minimum=0.0, example="0.2ft",
               advanced=True),
     Parameter("max_road_width", "length", "A face between road breaklines wider than this is a block between roads, "
-              "not road.", "Widest road face", default="60ft", example="60ft", advanced=True),
+              "not road.", "Widest road face", default=ByUnits("60ft", "18m"), example="60ft", advanced=True),
     Parameter("max_hydro_width", "length", "A face between hydrographic breaklines wider than this is land between "
-              "rivers, not river.", "Widest river face", default="500ft", example="500ft", advanced=True),
+              "rivers, not river.", "Widest river face", default=ByUnits("500ft", "150m"), example="500ft", advanced=True),
     Parameter("single_line_width", "length", "The width given to single-line hydrographic features (streams drawn as "
-              "one line).", "Width given to single-line hydro features", default="8ft", example="8ft", advanced=True),
+              "one line).", "Width given to single-line hydro features", default=ByUnits("8ft", "2.5m"), example="8ft",
+              advanced=True),
     # the height bands
     Parameter("band_breaks_m", "numbers", f"Three band limits in metres, e.g. 1,2,6, instead of {option('bands')}.",
               "Or three band limits in metres (e.g. 1,2,6)", flag="--band-breaks", count=3, minimum=0.0,
               example="1,2,6", default_text=f"those of {option('bands')}", advanced=True, qgis="BAND_BREAKS"),
     Parameter("radius", "length", "Radius of the circle around each vegetation cell whose vegetated share is the cover "
-              "(25 ft in the dissertation).", "Density radius", default="25ft", example="25ft"),
+              "(25 ft in the dissertation).", "Density radius", default=ByUnits("25ft", "7.5m"), example="25ft"),
     Parameter("density_bands", "choices", "The height bands whose vegetation counts toward the cover (the dissertation "
               "counted B1 only).", "Bands whose vegetation counts", default=(1, 2, 3), choices=DENSITY_BAND_LABELS,
               aliases={str(b): b for b in DENSITY_BAND_LABELS}, example="1,2,3"),

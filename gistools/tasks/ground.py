@@ -256,6 +256,8 @@ def _near(water, bounds, margin: float) -> list:
 
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
     """Each tile with its neighbours' edge strips (tasks.buffered), inline, on local processes or on Dask."""
+    if not todo:  # every tile kept, or none whose header reads (their errors are in ``states``)
+        return
 
     def args(n, sources):
         return (str(infos[n].path), sources, crs_text, p, str(targets[n]), _near(water, infos[n].bounds, p.buffer))

@@ -48,7 +48,7 @@ from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
 from .schedule import TwoPassSchedule, neighbour_pairs
 from ..units import length_to_crs_units
-from ..parameters import check_all, choices, default_for, option
+from ..parameters import check_all, choices, default_for, in_data_units, option, render, setting_default
 from ..validation import check_scheduler, check_count, check_grid_size, check_length, grid_shape
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
@@ -82,7 +82,7 @@ class RasterSettings:
     at 8 points of a circle of radius subcircle, default half a cell: lidR's p2r(subcircle)); counted per tile.
     """
 
-    cell_size: str | float = "5ft"
+    cell_size: str | float | None = setting_default("cell_size")  # None: 5ft on data in feet, 1.5m in metres
     dem_method: str = "tin"
     dsm_classes: tuple[int, ...] | None = None
     dem_max_distance: str | float = "15m"
@@ -364,6 +364,10 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     dsm_filled = 0
     if run.dsm_fill != "none":
         dsm, dsm_filled = fill_tile_dsm(info, neighbours, run, grid, dsm, lambda i: _tile_grid(i, run))
+    if "dsm" in run.products and not np.isfinite(dsm).any():
+        raise DataFileError("no first return of the DSM's classes in the tile, so its DSM would be empty",
+                            path=info.path, hint=f"Check the tile's classes and returns (gistools info), and "
+                                                 f"{option('dsm_classes')}")
     arrays = {"dsm": dsm, "topclass": top_class}
     t1 = time.perf_counter()
     return_bands = None
@@ -371,6 +375,10 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
         dem, filled = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
         if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
             warnings.append(_no_ground(info, dem, own_water))
+        elif {"dem", "ndsm"} & set(run.products) and own_water == 0 and not np.isfinite(dem).any():
+            raise DataFileError(f"its {own_ground:,} ground (class 2) points span no area (all at one spot or on one "
+                                f"line), so its {run.dem_method} DEM and its nDSM would be empty", path=info.path,
+                                hint=f"Classify ground again, or grid the points one by one: {option('dem_method', 'max')}")
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
         if run.return_breaks is not None:
@@ -574,6 +582,7 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
     scratch_peak = 0
     if infos:
         crs = common_crs(infos)
+        settings = in_data_units(settings, infos[0].unit.is_foot)  # 5ft cells on data in feet, 1.5m in metres
         scratch = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX, dir=out))
         try:
             run = _run_parameters(infos[0], crs, settings, out, scratch)
@@ -589,6 +598,38 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
     return summary
 
 
+_AREAS: dict = {}  # CRS WKT -> (its area of use in degrees, a transformer to degrees), worked out once
+
+
+def outside_area_of_use(info: TileInfo) -> str | None:
+    """A warning when a tile lies far outside its CRS's area of use (coordinates in degrees read as feet, a wrong
+    --crs): the grid would come out, wrong, without a word."""
+    import pyproj
+
+    key = info.crs.to_wkt()
+    if key not in _AREAS:  # the area of use in the CRS's own coordinates, a tenth of its size around it
+        area, box = info.crs.area_of_use, None
+        horizontal = info.crs.sub_crs_list[0] if info.crs.is_compound else info.crs
+        if area is not None:
+            try:
+                to_crs = pyproj.Transformer.from_crs(horizontal.geodetic_crs, horizontal, always_xy=True)
+                x0, y0, x1, y1 = to_crs.transform_bounds(area.west, area.south, area.east, area.north)
+                if all(map(np.isfinite, (x0, y0, x1, y1))):
+                    mx, my = 0.1 * (x1 - x0), 0.1 * (y1 - y0)
+                    box = (x0 - mx, y0 - my, x1 + mx, y1 + my)
+            except pyproj.exceptions.ProjError:
+                box = None
+        _AREAS[key] = (area, box)
+    area, box = _AREAS[key]
+    if box is None:
+        return None
+    w, s, e, n = info.bounds
+    if e < box[0] or w > box[2] or n < box[1] or s > box[3]:
+        return render(f"{info.path}: the tile lies far outside the area of use of its CRS {crs_label(info.crs)} "
+                      f"({area.name[:70].rstrip(' .;')}): are its coordinates in another CRS (degrees?), or is {option('crs')} wrong?")
+    return None
+
+
 def _readable_tiles(paths, override, results) -> list[TileInfo]:
     """The headers that read; the others are marked failed."""
     infos = []
@@ -597,6 +638,11 @@ def _readable_tiles(paths, override, results) -> list[TileInfo]:
             infos.append(read_tile_info(p, override))
         except GistoolsError as err:
             fail(results[p.stem], err)
+            continue
+        where = outside_area_of_use(infos[-1])
+        if where:
+            results[p.stem].warnings.append(where)
+            log.warning("%s", where)
     return infos
 
 
@@ -785,8 +831,9 @@ def _scan_done(r: TileResult, value: dict, seconds: float) -> None:
     r.points_outside_header_bounds = value["points_outside_header_bounds"]
     r.shore_minima = value.get("shore_minima", {})
     r.shore_profile = value.get("shore_profile", {})
-    r.warnings = list(value.get("warnings", []))
-    for w in r.warnings:
+    new = list(value.get("warnings", []))
+    r.warnings = [*r.warnings, *new]  # after the header's (a tile outside its CRS's area of use)
+    for w in new:
         log.warning("%s", w)
     r.seconds += seconds
 

@@ -9,7 +9,7 @@ import math
 from dataclasses import dataclass, field
 
 from ..errors import InputError
-from ..parameters import check_all, choices, default_for, option
+from ..parameters import check_all, choices, default_for, option, setting_default
 from ..validation import check_breaks
 from .rasters import RasterSettings
 
@@ -39,11 +39,13 @@ class ShrubSettings:
     bands: str = default_for("bands")
     band_breaks_m: tuple[float, float, float] | None = default_for("band_breaks_m")
     noise_floor: str | float = default_for("noise_floor")
-    snap: str | float = default_for("snap")
-    max_road_width: str | float = default_for("max_road_width")
-    max_hydro_width: str | float = default_for("max_hydro_width")
-    single_line_width: str | float = default_for("single_line_width")
-    radius: str | float = default_for("radius")
+    # lengths that follow the data's unit (None: 0.2 ft / 0.06 m, 60 ft / 18 m, 500 ft / 150 m, 8 ft / 2.5 m,
+    # 25 ft / 7.5 m), set once the tiles' CRS is known (gistools.parameters.in_data_units)
+    snap: str | float | None = setting_default("snap")
+    max_road_width: str | float | None = setting_default("max_road_width")
+    max_hydro_width: str | float | None = setting_default("max_hydro_width")
+    single_line_width: str | float | None = setting_default("single_line_width")
+    radius: str | float | None = setting_default("radius")
     density_bands: tuple[int, ...] = default_for("density_bands")
     classify: str = default_for("classify")
     class_breaks: tuple[float, float] = default_for("class_breaks")

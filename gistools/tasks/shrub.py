@@ -40,7 +40,7 @@ from ..lidar.vegetation import VEG_ROAD, VEG_WATER
 from ..io.styles import write_polygon_style
 from ..lidar.shrub import CLASS_NAMES, CLASS_STYLE, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
-from ..parameters import option, render
+from ..parameters import in_data_units, option, render
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
@@ -190,6 +190,7 @@ def _water_for_ground(inputs, rs: RasterSettings, early, settings: ShrubSettings
         return None
     crs, vec = early
     unit = horizontal_unit(crs)
+    settings = in_data_units(settings, unit.is_foot)
     override = parse_crs_text(rs.crs) if rs.crs else None
     frames = vec["footprints"]
     if frames is None:
@@ -209,6 +210,7 @@ def _water_for_ground(inputs, rs: RasterSettings, early, settings: ShrubSettings
 
 
 def _vectors(roads, hydro, waterbodies, wetlands, tile_index, crs, settings, reproject):
+    settings = in_data_units(settings, horizontal_unit(crs).is_foot)  # 0.2 ft snap on data in feet, 0.06 m in metres
     def load(spec, name, kinds):
         if spec is None:
             return None
@@ -339,6 +341,7 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         if summary["crs_wkt"] is None:
             return summary
         crs = pyproj.CRS.from_wkt(summary["crs_wkt"])
+        settings = in_data_units(settings, horizontal_unit(crs).is_foot)  # 25 ft radius on data in feet, 7.5 m in metres
         params = _step_params(summary, settings, overwrite, from_stage, band_points)
         vec = early[1] if early is not None and early[0] == crs else _vectors(*layers, crs, settings, reproject_vectors)
         base = {t["name"]: t for t in summary["tiles"]}

@@ -22,6 +22,7 @@ import numpy as np
 import pyproj
 import shapely
 
+from ..parameters import default_for
 from ..errors import InputError
 from ..io.atomic import atomic_path
 from ..io.blocks import (BLOCK, PolygonMask, check_outputs_are_not_inputs, open_raster, raster_crs, read_window,
@@ -178,13 +179,20 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
     Writes one polygon per tile and kind, with the tile number in ``tile_field``
     (GeoPackages ``road_out`` / ``water_out``). Returns {"road": path, "water": path, "crs": wkt}.
     """
-    check_length(snap, "snap", allow_equal=True, example="0.2ft")
+    if snap is not None:
+        check_length(snap, "snap", allow_equal=True, example="0.2ft")
     for value, name in ((max_road_width, "max road width"), (max_hydro_width, "max hydro width"),
                         (single_line_width, "single-line hydro width")):
-        check_length(value, name, example="60ft")
+        if value is not None:
+            check_length(value, name, example="60ft")
     layers = {"roads": roads, "hydro": hydro, "waterbodies": waterbodies, "tile index": tile_index}
     loaded, target = _breakline_layers(layers, crs, reproject)
     unit = horizontal_unit(target)
+    feet = unit.is_foot  # the lengths left to the data's unit: their default in it
+    snap, max_road_width, max_hydro_width, single_line_width = (
+        default_for(name, feet) if value is None else value
+        for name, value in (("snap", snap), ("max_road_width", max_road_width), ("max_hydro_width", max_hydro_width),
+                            ("single_line_width", single_line_width)))
     length = lambda v, n: length_to_crs_units(v, unit, name=n)  # noqa: E731
     p = dict(snap=length(snap, "snap"), max_road=length(max_road_width, "max road width"),
              max_hydro=length(max_hydro_width, "max hydro width"), single=length(single_line_width, "single-line hydro width"))
@@ -348,7 +356,8 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
     holds its neighbours, so tile edges do not show either.
     Returns {"cover": path, "density": path?, "radius": radius in CRS units}.
     """
-    check_length(radius, "density radius", example="25ft")
+    if radius is not None:
+        check_length(radius, "density radius", example="25ft")
     check_outputs_are_not_inputs({"out": out, "density": density_out}, [veg, like])
     if not density_bands or any(b not in (1, 2, 3) for b in density_bands):
         raise InputError(f"density bands {tuple(density_bands)} must be among 1, 2, 3", hint="e.g. 1,2,3")
@@ -358,6 +367,7 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
         if like:
             same_grid(src, veg, base, like)
         unit = horizontal_unit(raster_crs(src, veg))
+        radius = default_for("radius", unit.is_foot) if radius is None else radius  # 25 ft, or 7.5 m
         r = length_to_crs_units(radius, unit, name="density radius")
         cs = src.transform.a
         halo = halo_cells(r, cs)
