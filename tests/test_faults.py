@@ -1028,3 +1028,36 @@ def test_coordinates_outside_the_crs_area_of_use_are_a_warning(tmp_path, caplog)
     assert any("area of use" in w for w in report["tiles"][0]["warnings"])
     text = (tmp_path / "o" / "report.json").read_text()
     assert "\ue000" not in text and "\\ue000" not in text  # no parameter mark left unrendered in the record
+
+
+# ------------------------------------------------------------------ commands sharing a folder
+
+@pytest.mark.parametrize("command", [["metrics", "-q"], ["ground", "-q"], ["chm", "-q"], ["normalize", "-q"],
+                                     ["points"]])
+def test_another_command_into_a_chains_folder_changes_no_byte(shrub_out, tiles, command):
+    """gistools metrics into a chain's folder rewrote its density/ and report.json, after which the chain's steps
+    refused the folder as damaged: now every other command is refused in one line naming the folder's owner."""
+    before = snapshot(shrub_out)
+    code, text = invoke([command[0], tiles, "--out", shrub_out, *command[1:]])
+    assert code == 1, text
+    one_line(text, "this folder holds the outputs of gistools", f"gistools {command[0]} would rewrite them")
+    assert snapshot(shrub_out) == before
+
+
+def test_the_chains_own_rasters_rerun_into_its_folder_change_no_product(shrub_out, tiles):
+    before = {k: v for k, v in snapshot(shrub_out).items() if k != "report.json" and not k.startswith("tile_reports")}
+    code, text = invoke(["rasters", SAMPLE, "--out", shrub_out, "-q"])
+    assert code == 0, text
+    after = {k: v for k, v in snapshot(shrub_out).items() if k != "report.json" and not k.startswith("tile_reports")}
+    assert after == before
+    runs = json.loads((shrub_out / "report.json").read_text())["runs"]
+    assert [r["tool"] for r in runs][-2:] == ["gistools shrub", "gistools rasters"]
+
+
+def test_a_rerun_of_a_batch_command_keeps_the_folders_runs(tiles, tmp_path):
+    out = tmp_path / "out"
+    for _ in range(2):
+        code, text = invoke(["metrics", tiles, "--out", out, "-q"])
+        assert code == 0, text
+    runs = json.loads((out / "report.json").read_text())["runs"]
+    assert [r["tool"] for r in runs] == ["gistools metrics", "gistools metrics"]

@@ -173,13 +173,44 @@ def is_our_record(path) -> bool:
     return isinstance(value, dict) and str(value.get("tool") or "").startswith("gistools")
 
 
-def check_record(out) -> None:
-    """Refuse a folder whose ``report.json`` gistools did not write (a user's own file of that name), before
-    anything is written: the record of the run would replace it."""
+# the commands that make and remake one kind of folder: the shrub chain's (its rasters, each step, its map), and
+# each other command's own; a command is refused a folder another kind of command made (it would rewrite that
+# command's products and record: gistools metrics into a chain's folder rewrote its density/)
+FOLDER_KINDS = {
+    "shrub chain": ("gistools shrub", "gistools rasters", "gistools bands", "gistools clip", "gistools density",
+                    "gistools classes", "gistools classify", "gistools map"),
+}
+
+
+def folder_kind(command: str) -> str:
+    """The kind of folder ``command`` makes ("shrub chain" for the chain's commands, else the command itself)."""
+    for kind, commands in FOLDER_KINDS.items():
+        if command in commands:
+            return kind
+    return command
+
+
+def _record_tool(record: Path) -> str | None:
+    try:
+        value = json.loads(record.read_text(encoding="utf-8"))
+    except (OSError, ValueError, UnicodeDecodeError):
+        return None
+    return str(value.get("tool") or "") if isinstance(value, dict) else None
+
+
+def check_record(out, command: str | None = None) -> None:
+    """Refuse, before anything is written, a folder whose ``report.json`` gistools did not write (a user's own file
+    of that name: the record of the run would replace it), and a folder another kind of command made
+    (``command`` would rewrite its products)."""
     record = Path(out) / RECORD_NAME
     if record.is_dir() or (record.exists() and not is_our_record(record)):
         raise OutputExistsError(f"a {RECORD_NAME} gistools did not write is in the way", path=record,
                                 hint="Move or rename it, or choose another output folder")
+    owner = _record_tool(record) if record.exists() else None
+    if command and command.startswith("gistools ") and owner and folder_kind(owner) != folder_kind(command):
+        raise OutputExistsError(f"this folder holds the outputs of {owner}; {command} would rewrite them",
+                                path=Path(out), hint=f"Give {command} another output folder "
+                                                     f"(e.g. {Path(out).name}_{command.split()[1]})")
 
 
 @contextlib.contextmanager
@@ -195,7 +226,7 @@ def claim_output(out, command: str = "gistools"):
     with _HELD_LOCK:
         nested = _HELD.get(key, 0) > 0
         if not nested:
-            check_record(out)
+            check_record(out, command)
             _make_folder(out)
             _take_lock(out, command)
             remove_leftovers(out)

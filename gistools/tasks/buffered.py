@@ -53,10 +53,15 @@ def write_batch_report(out: Path, tool: str, crs_label_text, settings, states: d
 
     from ..io.atomic import atomic_path
 
+    from .record import MAX_RUNS, read_folder_report, run_record
+
     result = {"tool": tool, "crs": crs_label_text, "settings": asdict(settings), **extra,
               "tiles": [asdict(st) for st in states.values()],
               "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
               "seconds": round(time.time() - started, 3)}
+    previous = read_folder_report(out) or {}  # the folder's earlier runs (of this command: others are refused)
+    runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
+    result["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(result)]
     with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(result, indent=2, default=str))
     return result
