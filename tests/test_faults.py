@@ -1061,3 +1061,25 @@ def test_a_rerun_of_a_batch_command_keeps_the_folders_runs(tiles, tmp_path):
         assert code == 0, text
     runs = json.loads((out / "report.json").read_text())["runs"]
     assert [r["tool"] for r in runs] == ["gistools metrics", "gistools metrics"]
+
+
+def test_the_deliverables_lock_the_folder_add_their_run_and_clear_a_killed_runs_partial(shrub_out):
+    """webmap, scene and mapbook take the folder's lock (a kill -9 of mapbook left a partial file its rerun never
+    removed: now the claim removes this program's leftovers first) and add their line to the record's runs."""
+    from gistools.io.atomic import partial_name
+
+    leftover = partial_name(shrub_out / "map_book.pdf", keep_suffix=True)
+    leftover.write_bytes(b"%PDF-1.4 cut short")
+    for command in (["webmap"], ["scene"], ["mapbook"]):
+        code, text = invoke([*command, shrub_out])
+        assert code == 0, text
+    assert not leftover.exists() and (shrub_out / "map_book.pdf").exists()
+    assert not (shrub_out / ".gistools.lock").exists()
+    runs = [r["tool"] for r in json.loads((shrub_out / "report.json").read_text())["runs"]]
+    assert runs[-3:] == ["gistools webmap", "gistools scene", "gistools mapbook"]
+    from gistools.errors import InputError
+    from gistools.tasks.webmap import web_map
+
+    with pytest.raises(InputError, match="no such folder"):  # from Python: refused, no folder made
+        web_map(shrub_out.parent / "nowhere")
+    assert not (shrub_out.parent / "nowhere").exists()

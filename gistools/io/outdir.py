@@ -178,7 +178,8 @@ def is_our_record(path) -> bool:
 # command's products and record: gistools metrics into a chain's folder rewrote its density/)
 FOLDER_KINDS = {
     "shrub chain": ("gistools shrub", "gistools rasters", "gistools bands", "gistools clip", "gistools density",
-                    "gistools classes", "gistools classify", "gistools map"),
+                    "gistools classes", "gistools classify", "gistools map", "gistools webmap", "gistools scene",
+                    "gistools mapbook"),
 }
 
 

@@ -7,7 +7,6 @@ scale bar, north arrow and the parameters (gistools.plot.mapbook_page).
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import rasterio
@@ -15,11 +14,11 @@ from rasterio.enums import Resampling
 from rasterio.windows import from_bounds
 
 from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
+from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
 from ..parameters import check, choices, default_for, option, render
 from ..units import LinearUnit
-from .record import read_folder_report
+from .record import add_run, read_folder_report
 
 __all__ = ["map_book", "PAPERS"]
 
@@ -86,6 +85,23 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tupl
 
 
 def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
+             max_pages: int = MAX_PAGES) -> dict:
+    """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
+    per sheet of a grid at 1:``scale``; returns {"pdf", "pages", "scales"}."""
+    import time
+
+    started = time.time()
+    _check(scale, paper, max_pages)  # every option before the folder is touched
+    out = output_folder(out)
+    if not out.is_dir():
+        raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
+    with claim_output(out, "gistools mapbook"):  # the folder's lock; a killed run's partial file is removed first
+        result = _map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper, max_pages=max_pages)
+        add_run(out, {"tool": "gistools mapbook", "seconds": round(time.time() - started, 3), "settings": {"tile_index": tile_index, "tile_field": tile_field, "scale": scale, "paper": paper}})
+    return result
+
+
+def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
              max_pages: int = MAX_PAGES) -> dict:
     """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
     per sheet of a grid at 1:``scale``; returns {"pdf", "pages", "scales"}."""

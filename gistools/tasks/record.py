@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..io.raster import atomic_path
 
-__all__ = ["run_record", "write_folder_report", "read_folder_report", "MAX_RUNS"]
+__all__ = ["run_record", "write_folder_report", "read_folder_report", "add_run", "MAX_RUNS"]
 
 MAX_RUNS = 50  # the lines kept in report.json["runs"], newest last
 
@@ -57,3 +57,15 @@ def write_folder_report(out, report: dict, *, partial: bool = False) -> dict:
     with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
         tmp.write_text(json.dumps(merged, indent=2, default=str))
     return merged
+
+
+def add_run(out, report: dict) -> None:
+    """Add one command's line to ``out/report.json``'s ``runs``, the rest of the record as it was (the field
+    deliverables: a web map, a scene, a map book made from the chain's folder)."""
+    previous = read_folder_report(out)
+    if previous is None:
+        return
+    runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
+    previous["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(report)]
+    with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(previous, indent=2, default=str))

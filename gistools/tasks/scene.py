@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
+from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
 from ..io.raster import read_raster
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import check, choices, option
 from ..scene import decimation_step, grid_mesh
-from .record import read_folder_report
+from .record import add_run, read_folder_report
 
 __all__ = ["scene_glb", "read_extras", "SCENE_SURFACES", "GROUND_COLOUR"]
 
@@ -63,6 +63,22 @@ def _surface(out: Path, surface: str):
 
 
 def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: str = "dsm") -> dict:
+    """Write ``out/scene.glb`` (+ ``scene.prj``, ``scene.wld``) from the chain's mosaics in ``out``; returns
+    {"glb", "bytes", "vertices", "faces", "step", "height_range_m"}."""
+    import time
+
+    started = time.time()
+    _check(exaggeration, max_mb, surface)  # every option before the folder is touched
+    out = output_folder(out)
+    if not out.is_dir():
+        raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
+    with claim_output(out, "gistools scene"):  # the folder's lock; a killed run's partial file is removed first
+        result = _scene_glb(out, exaggeration=exaggeration, max_mb=max_mb, surface=surface)
+        add_run(out, {"tool": "gistools scene", "seconds": round(time.time() - started, 3), "settings": {"exaggeration": exaggeration, "max_mb": max_mb, "surface": surface}})
+    return result
+
+
+def _scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: str = "dsm") -> dict:
     """Write ``out/scene.glb`` (+ ``scene.prj``, ``scene.wld``) from the chain's mosaics in ``out``; returns
     {"glb", "bytes", "vertices", "faces", "step", "height_range_m"}."""
     _check(exaggeration, max_mb, surface)

@@ -18,12 +18,12 @@ import numpy as np
 
 from .. import __version__
 from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
+from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import option
 from ..web.page import web_map_html
-from .record import read_folder_report
+from .record import add_run, read_folder_report
 
 __all__ = ["web_map", "check_options", "GENERATOR"]
 
@@ -114,6 +114,23 @@ def _parts(features: list[dict], limit: int) -> list[list[dict]]:
 
 
 def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
+    """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
+    ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
+    (off by default: the page then makes no request to any network address)."""
+    import time
+
+    started = time.time()
+    check_options(basemap, split_mb)  # every option before the folder is touched
+    out = output_folder(out)
+    if not out.is_dir():
+        raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
+    with claim_output(out, "gistools webmap"):  # the folder's lock; a killed run's partial file is removed first
+        result = _web_map(out, basemap=basemap, basemap_attribution=basemap_attribution, split_mb=split_mb)
+        add_run(out, {"tool": "gistools webmap", "seconds": round(time.time() - started, 3), "settings": {"basemap": basemap, "split_mb": split_mb}})
+    return result
+
+
+def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
     """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
     ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
     (off by default: the page then makes no request to any network address)."""
