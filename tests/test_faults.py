@@ -1083,3 +1083,28 @@ def test_the_deliverables_lock_the_folder_add_their_run_and_clear_a_killed_runs_
     with pytest.raises(InputError, match="no such folder"):  # from Python: refused, no folder made
         web_map(shrub_out.parent / "nowhere")
     assert not (shrub_out.parent / "nowhere").exists()
+
+
+def test_a_tile_whose_every_point_is_withheld_says_so(tmp_path):
+    (tmp_path / "t").mkdir()
+    tile = las12(tmp_path / "t" / "w.las")
+    las = laspy.read(tile)
+    las.withheld = np.ones(len(las.points), bool)
+    las.write(tile)
+    code, text = invoke(["rasters", tile, "--out", tmp_path / "o", "-q"])
+    assert code == 1, text
+    assert "all 2,000 points carry the withheld flag" in text and "no ground" not in text
+
+
+def test_a_laz_file_named_las_is_read_as_laz(tmp_path, sample_tiles):
+    """It was refused as "truncated ... re-copy the tile", a harmful hint: laspy and PDAL read it by its header."""
+    laz = next(p for p in sample_tiles if p.suffix == ".laz")
+    (tmp_path / "t").mkdir()
+    named = tmp_path / "t" / f"{laz.stem}.las"
+    shutil.copy(laz, named)
+    code, text = invoke(["rasters", named, "--out", tmp_path / "o", "-q"])
+    assert code == 0, text
+    a, _, _ = read_raster(tmp_path / "o" / "dem" / f"{laz.stem}.tif")
+    code, text = invoke(["rasters", laz, "--out", tmp_path / "o2", "-q"])
+    b, _, _ = read_raster(tmp_path / "o2" / "dem" / f"{laz.stem}.tif")
+    assert np.array_equal(a, b, equal_nan=True)

@@ -253,7 +253,10 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
     except Exception as err:
         raise _open_error(path, err) from None
     count = int(header.point_count)
-    compressed = path.suffix.lower() == ".laz" or header.point_format.id >= 128
+    # compressed whatever its name says (a LAZ file named .las is read as LAZ, not refused as truncated)
+    compressed = (path.suffix.lower() == ".laz" or header.point_format.id >= 128
+                  or bool(getattr(header, "are_points_compressed", False))
+                  or any(getattr(v, "user_id", "") == "laszip encoded" for v in header.vlrs))
     if count == 0:
         raise EmptyTileError("the tile holds no points", path=path, hint="Remove it from the input or re-export it")
     if not compressed:

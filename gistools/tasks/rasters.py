@@ -181,7 +181,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     grids = ScanGrids.empty(grid.width * grid.height, track_top="topclass" in run.products,
                             keep_first=run.return_breaks is not None, keep_ground=need_dem, nodata_class=TOPCLASS_NODATA)
     outside = 0
-    done = 0
+    done = withheld = 0
     first_path = Path(run.scratch) / f"{info.name}.first.f8"
     sides = {k: Extent() for k in ("ground", *HALO_SIDES)}
     out_box = Extent()
@@ -216,7 +216,12 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
                 scale_offset = ([float(v) for v in raw.scales], [float(v) for v in raw.offsets])
                 _write_ground(chunk, scan, ground_out, halo_out, sides, shore)
             done += len(chunk)
+            withheld += int(np.count_nonzero(chunk.withheld))
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
+    if done and withheld == done:  # not "no ground": nothing is used at all
+        raise DataFileError(f"all {done:,} points carry the withheld flag, so nothing of the tile is gridded",
+                            path=info.path, hint="Clear the flag if the points are good (PDAL filters.assign, las2las), "
+                                                 "or leave the tile out")
     warnings = _outside_bounds(info, outside, done, out_box)
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
