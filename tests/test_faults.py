@@ -1108,3 +1108,37 @@ def test_a_laz_file_named_las_is_read_as_laz(tmp_path, sample_tiles):
     code, text = invoke(["rasters", laz, "--out", tmp_path / "o2", "-q"])
     b, _, _ = read_raster(tmp_path / "o2" / "dem" / f"{laz.stem}.tif")
     assert np.array_equal(a, b, equal_nan=True)
+
+
+@pytest.mark.parametrize("case", ["zero_padding", "internal_waveform"])
+def test_valid_files_are_not_refused_as_header_lies(tmp_path, case):
+    """4 KB of zeros after the points, and a LAS 1.3 file whose waveform packets follow its points (global encoding
+    bit 1), were refused as headers that count too few points, with the hint lasinfo -repair, which would corrupt
+    them; PDAL and laspy read both."""
+    (tmp_path / "t").mkdir()
+    tile = tmp_path / "t" / "t.las"
+    if case == "zero_padding":
+        las12(tile)
+        with open(tile, "ab") as f:
+            f.write(b"\0" * 4096)
+    else:
+        rng = np.random.default_rng(3)
+        header = laspy.LasHeader(point_format=4, version="1.3")
+        header.scales, header.offsets = np.array([0.01, 0.01, 0.01]), np.array([500000.0, 1700000.0, 0.0])
+        import pyproj
+
+        header.add_crs(pyproj.CRS(2882))
+        las = laspy.LasData(header)
+        las.x, las.y = 500000 + rng.uniform(0, 500, 2000), 1700000 + rng.uniform(0, 500, 2000)
+        las.z = rng.uniform(10, 20, 2000)
+        las.classification = np.where(np.arange(2000) % 2 == 0, 2, 1).astype(np.uint8)
+        las.return_number, las.number_of_returns = np.ones(2000, np.uint8), np.ones(2000, np.uint8)
+        las.write(tile)
+        size = tile.stat().st_size
+        with open(tile, "ab") as f:
+            f.write(bytes(rng.integers(1, 255, 3000, dtype=np.uint8)))  # the waveform packets
+        patch(tile, 6, "<H", 2)  # global encoding: waveform data packets internal
+        patch(tile, 227, "<Q", size)  # start of the waveform data packet record
+    code, text = invoke(["rasters", tile, "--out", tmp_path / "o", "-q", "--cell-size", "10ft"])
+    assert code == 0, text
+    assert "lasinfo -repair" not in text

@@ -221,9 +221,14 @@ def _check_record_count(path: Path, header, count: int) -> None:
             path=path,
             hint="Re-copy or re-export the tile",
         )
-    evlrs = _evlr_start(header)
-    end = evlrs if evlrs and evlrs >= needed else size
+    # what follows the point records: extended VLRs (LAS 1.4) or waveform packets kept in the file (LAS 1.3)
+    after = [o for o in (_evlr_start(header), _internal_waveform_start(header)) if o and o >= needed]
+    end = min(after) if after else size
     held = (end - header.offset_to_point_data) // record
+    if held > count and _only_zeros(path, needed, end):
+        log.warning("%s: %s bytes of zeros after the %s point records (padding), left out", path, f"{end - needed:,}",
+                    f"{count:,}")
+        return
     if held > count:  # a header that counts fewer points than the file holds: laspy would read only those
         raise DataFileError(
             f"the header counts {count:,} points but the file holds {held:,} point records",
@@ -290,6 +295,35 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
         geokey_z_unit=geokey_z,
         crs_note=None if crs is not None else crs_note,
     )
+
+
+def _internal_waveform_start(header) -> int | None:
+    """Offset of the waveform data packets a LAS 1.3 / 1.4 file holds after its points (global encoding bit 1), or
+    None."""
+    start = getattr(header, "start_of_waveform_data_packet_record", None)
+    encoding = getattr(header, "global_encoding", None)
+    internal = getattr(encoding, "waveform_data_packets_internal", None)
+    if internal is None:
+        try:
+            internal = bool(int(getattr(encoding, "value", encoding) or 0) & 2)
+        except (TypeError, ValueError):
+            internal = False
+    return int(start) if start and internal else None
+
+
+def _only_zeros(path: Path, start: int, end: int, limit: int = 64 * 2**20) -> bool:
+    """Whether bytes ``start`` to ``end`` of a file are all zero (read by blocks, up to ``limit`` bytes)."""
+    if end - start > limit:
+        return False
+    with open(path, "rb") as f:
+        f.seek(start)
+        left = end - start
+        while left > 0:
+            block = f.read(min(left, 1 << 20))
+            if not block or block.count(0) != len(block):
+                return bool(not block and left)  # a file shorter than said is not padding
+            left -= len(block)
+    return True
 
 
 def _evlr_start(header) -> int | None:
