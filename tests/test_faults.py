@@ -1142,3 +1142,19 @@ def test_valid_files_are_not_refused_as_header_lies(tmp_path, case):
     code, text = invoke(["rasters", tile, "--out", tmp_path / "o", "-q", "--cell-size", "10ft"])
     assert code == 0, text
     assert "lasinfo -repair" not in text
+
+
+@pytest.mark.parametrize("command", ["ground", "normalize"])
+def test_copc_inputs_are_written_as_laz(tmp_path, command):
+    """ground / normalize on *.copc.laz failed every tile with NotImplementedError: Writing COPC is not supported
+    (laspy keeps the COPC records of what it reads, and cannot write them): now a plain LAZ of every point."""
+    from conftest import SHARED_DATA, need_shared
+
+    copc = SHARED_DATA / "lidar" / "lasr" / "example.copc.laz"
+    need_shared(copc)
+    code, text = invoke([command, copc, "--out", tmp_path / "o", "-q"])
+    assert code == 0, text
+    written = tmp_path / "o" / "example.laz"
+    with laspy.open(written) as got, laspy.open(copc) as src:
+        assert got.header.point_count == src.header.point_count
+        assert not any(v.user_id == "copc" for v in got.header.vlrs)

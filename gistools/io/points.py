@@ -549,5 +549,17 @@ def write_all_points(las, path, *, overwrite: bool = False, copc_wkt: str | None
 
             write_copc(las, tmp, crs_wkt=copc_wkt)
         else:
+            _drop_copc_records(las)  # a tile read from a COPC file is written as a plain LAS / LAZ
             las.write(tmp)
     return path
+
+
+def _drop_copc_records(las) -> None:
+    """Remove the COPC info VLR and hierarchy EVLR (laspy reads but does not write them): without its octree the
+    file is a plain LAZ, which every reader takes."""
+    for records in (las.header.vlrs, getattr(las, "evlrs", None), getattr(las.header, "evlrs", None)):
+        if records is None:
+            continue
+        for record in list(records):
+            if getattr(record, "user_id", "") == "copc":
+                records.remove(record)
