@@ -1158,3 +1158,23 @@ def test_copc_inputs_are_written_as_laz(tmp_path, command):
     with laspy.open(written) as got, laspy.open(copc) as src:
         assert got.header.point_count == src.header.point_count
         assert not any(v.user_id == "copc" for v in got.header.vlrs)
+
+
+@pytest.mark.parametrize("edit", ["missing_key", "text_for_a_number", "bad_setting"])
+def test_a_damaged_record_is_one_line_for_a_step_rerun(shrub_out, edit):
+    """A report.json missing a key or holding "abc" as a number gave KeyError / ValueError; a bad recorded value
+    was reported as an option the user never gave (--radius {'a': 1})."""
+    record = json.loads((shrub_out / "report.json").read_text())
+    if edit == "missing_key":
+        del record["horizontal_unit_m"]
+    elif edit == "text_for_a_number":
+        record["cell_size"] = "abc"
+    else:
+        record["settings"]["radius"] = {"a": 1}
+    (shrub_out / "report.json").write_text(json.dumps(record))
+    before = snapshot(shrub_out)
+    code, text = invoke(["density", shrub_out, "--density-bands", "1,2"])
+    assert code == 1, text
+    line = one_line(text, "report.json")
+    assert "damaged or edited" in line and "--radius" not in line
+    assert snapshot(shrub_out) == before

@@ -556,6 +556,26 @@ def settings_record(settings: ShrubSettings, layers: dict, reproject_vectors: bo
     return {k: list(v) if isinstance(v, tuple) else v for k, v in record.items()}
 
 
+def _recorded_settings(out: Path) -> dict:
+    """The settings report.json records, each checked against its declaration: a damaged or edited value is the
+    record's fault, named as such (not an option the user never gave)."""
+    from ..parameters import PARAMETERS, check
+
+    recorded = _previous_run(out).get("settings") or {}
+    if not isinstance(recorded, dict):
+        raise DataFileError("report.json records no settings (damaged or edited)", path=out / "report.json",
+                            hint="Rerun gistools shrub on the tiles")
+    for key, value in recorded.items():
+        if key in PARAMETERS and key in ShrubSettings.__dataclass_fields__ and value is not None:
+            try:
+                check(key, tuple(value) if isinstance(value, list) else value)
+            except (GistoolsError, TypeError, ValueError):
+                shown = repr(value) if len(repr(value)) <= 40 else repr(value)[:37] + "..."
+                raise DataFileError(f"report.json records {key} = {shown}, which is not a valid value (damaged or "
+                                    "edited)", path=out / "report.json", hint="Rerun gistools shrub on the tiles") from None
+    return dict(recorded)
+
+
 def step_settings(out, stage: str, **changes) -> tuple[ShrubSettings, dict]:
     """(settings, layers) for rerunning ``stage`` on ``out``: what report.json records the earlier run used, with
     ``changes`` (names of ShrubSettings fields, of the layers or ``reproject_vectors``) to the settings of ``stage``
@@ -566,7 +586,7 @@ def step_settings(out, stage: str, **changes) -> tuple[ShrubSettings, dict]:
     if wrong:
         raise InputError(f"{', '.join(wrong)}: not a setting of the {stage} step",
                          hint=f"The {stage} step takes {', '.join(STAGE_SETTINGS[stage])}")
-    recorded = dict(_previous_run(Path(out)).get("settings") or {})
+    recorded = _recorded_settings(Path(out))
     recorded.update(changes)
     fields = {k: tuple(v) if isinstance(v, list) else v for k, v in recorded.items() if k in ShrubSettings.__dataclass_fields__}
     layers = {k: recorded.get(k) for k in LAYERS}
@@ -627,8 +647,16 @@ def _previous_run(out: Path) -> dict:
         raise InputError(f"{out}: no report.json of an earlier run", hint="Run gistools shrub (or gistools rasters) on the tiles first")
     try:
         summary = json.loads(path.read_text())
-        summary["crs_wkt"], summary["tiles"]  # noqa: B018 - the keys a step rerun needs
-    except (ValueError, KeyError, TypeError):
+        pyproj.CRS.from_wkt(summary["crs_wkt"])  # the keys a step rerun needs, of the types it needs
+        if not all(isinstance(t, dict) and isinstance(t.get("name"), str) and isinstance(t.get("status"), str)
+                   for t in summary["tiles"]):
+            raise TypeError("tiles")
+        for key in ("horizontal_unit_m", "vertical_unit_m", "cell_size"):
+            if not (isinstance(summary[key], (int, float)) and not isinstance(summary[key], bool) and summary[key] > 0):
+                raise ValueError(key)
+        if not isinstance(summary["horizontal_unit"], str) or not isinstance(summary["vertical_unit"], str):
+            raise TypeError("units")
+    except (ValueError, KeyError, TypeError, pyproj.exceptions.CRSError):
         raise DataFileError("report.json is not the report of a gistools run (damaged or edited)", path=path,
                             hint="Rerun gistools shrub on the tiles") from None
     if "topclass" not in summary.get("mosaics", {}) and not (out / "topclass").is_dir():
