@@ -237,6 +237,13 @@ def _check_record_count(path: Path, header, count: int) -> None:
         )
 
 
+def _is_compressed(path: Path, header) -> bool:
+    """Whether the points are LAZ, whatever the file's name says (a LAZ file named .las is read as LAZ)."""
+    return (path.suffix.lower() == ".laz" or header.point_format.id >= 128
+            or bool(getattr(header, "are_points_compressed", False))
+            or any(getattr(v, "user_id", "") == "laszip encoded" for v in header.vlrs))
+
+
 def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bool = True) -> TileInfo:
     """Header facts of one tile, reading no points.
 
@@ -258,10 +265,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
     except Exception as err:
         raise _open_error(path, err) from None
     count = int(header.point_count)
-    # compressed whatever its name says (a LAZ file named .las is read as LAZ, not refused as truncated)
-    compressed = (path.suffix.lower() == ".laz" or header.point_format.id >= 128
-                  or bool(getattr(header, "are_points_compressed", False))
-                  or any(getattr(v, "user_id", "") == "laszip encoded" for v in header.vlrs))
+    compressed = _is_compressed(path, header)
     if count == 0:
         raise EmptyTileError("the tile holds no points", path=path, hint="Remove it from the input or re-export it")
     if not compressed:

@@ -171,6 +171,14 @@ def _tile_grid(info: TileInfo, run: _Run, crs=None) -> Grid:
     return snapped_grid(info.bounds, run.cell_size, crs)
 
 
+def _not_all_withheld(info: TileInfo, done: int, withheld: int) -> None:
+    """Refuse a tile whose every point is withheld: nothing of it is used (not "no ground")."""
+    if done and withheld == done:
+        raise DataFileError(f"all {done:,} points carry the withheld flag, so nothing of the tile is gridded",
+                            path=info.path, hint="Clear the flag if the points are good (PDAL filters.assign, las2las), "
+                                                 "or leave the tile out")
+
+
 def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = None) -> dict:
     """Pass 1: stream a tile; keep its partial grids, and append its ground points to a scratch file.
 
@@ -218,10 +226,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
             done += len(chunk)
             withheld += int(np.count_nonzero(chunk.withheld))
             report(progress, done / max(info.point_count, 1), f"{info.name}: {done:,} points read")
-    if done and withheld == done:  # not "no ground": nothing is used at all
-        raise DataFileError(f"all {done:,} points carry the withheld flag, so nothing of the tile is gridded",
-                            path=info.path, hint="Clear the flag if the points are good (PDAL filters.assign, las2las), "
-                                                 "or leave the tile out")
+    _not_all_withheld(info, done, withheld)
     warnings = _outside_bounds(info, outside, done, out_box)
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
