@@ -90,31 +90,35 @@ def grid_shape(bounds, cell_size: float) -> tuple[int, int]:
     return int(cols), int(rows)
 
 
+def _cells_held(max_cells: int | None, bytes_per_cell: int) -> tuple[int, float | None]:
+    """(the cells a tile's grid may have, the process's available memory in bytes where that sets the limit)."""
+    from .machine import available_memory
+
+    if max_cells is not None:
+        return max_cells, None
+    memory = available_memory()
+    if memory is not None and int(0.8 * memory // bytes_per_cell) < MAX_GRID_CELLS:
+        return int(0.8 * memory // bytes_per_cell), memory
+    return MAX_GRID_CELLS, None
+
+
 def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_cells: int | None = None,
                     bytes_per_cell: int = 40) -> tuple[int, int]:
     """Refuse a grid of more than ``max_cells`` cells (default: :data:`MAX_GRID_CELLS`, or fewer where this
     process's memory holds fewer at ``bytes_per_cell``) before anything is allocated, with the numbers."""
-    from .machine import available_memory
-
     if not all(math.isfinite(b) for b in bounds) or not math.isfinite(cell_size) or cell_size <= 0:
         raise InputError(f"{what}: bounds {bounds} at cell size {cell_size!r} give no grid",
                          hint=f"Check the header's bounds and {option('cell_size')}")
     cols, rows = grid_shape(bounds, cell_size)
-    cells = cols * rows
-    memory = available_memory() if max_cells is None else None
-    held = MAX_GRID_CELLS if max_cells is None else max_cells
-    by_memory = memory is not None and int(0.8 * memory // bytes_per_cell) < held
-    if by_memory:
-        held = int(0.8 * memory // bytes_per_cell)
-    if cells > held:
-        gb = cells * bytes_per_cell / 1e9
+    held, memory = _cells_held(max_cells, bytes_per_cell)
+    if cols * rows > held:
         w, s, e, n = bounds
         limit = (f"more than this process's {memory / 1e9:.1f} GB of available memory holds ({held:,} cells)"
-                 if by_memory else f"more than the {held:,} cells a tile may have")
+                 if memory else f"more than the {held:,} cells a tile may have")
         raise InputError(
             f"{what}: {e - w:.6g} x {n - s:.6g} {unit} at cell size {cell_size:g} {unit} is a grid of "
-            f"{cols:,} x {rows:,} cells (about {gb:,.1f} GB), {limit}",
-            hint=f"Give a larger {option('cell_size')}" + (", run on a machine with more memory" if by_memory else "")
+            f"{cols:,} x {rows:,} cells (about {cols * rows * bytes_per_cell / 1e9:,.1f} GB), {limit}",
+            hint=f"Give a larger {option('cell_size')}" + (", run on a machine with more memory" if memory else "")
             + ", or check the tile's header bounds (lasinfo)")
     return cols, rows
 

@@ -31,6 +31,25 @@ def aquifer():
     """Aquifer model from borehole layer contacts (dissertation ch. 8)."""
 
 
+def _print_model(rep: dict) -> None:
+    """The model's summary: each layer's points and surface, each unit's volume and thickness."""
+    for layer, info in rep["layers"].items():
+        click.echo(f"{layer}: {info['points']} points ({info['flagged']} flagged), {info['triangles']} triangles, "
+                   f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f} square "
+                   f"{rep['length_unit']}")
+    for name, u in rep["units"].items():
+        click.echo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / {u['volume_negative']:,.0f}) "
+                   f"{rep['volume_unit']}; thickness min / mean / max {u['thickness_min']:.2f} / {u['thickness_mean']:.2f} / "
+                   f"{u['thickness_max']:.2f} {rep['length_unit']}")
+        if u["crossing_area"] > 0 or u["crossing_volume"] > 0:
+            click.echo(f"  the {u['lower']} surface is above {u['upper']} on {u['crossing_area']:,.0f} square "
+                       f"{rep['length_unit']} ({u['crossing_volume']:,.0f} {rep['volume_unit']}): "
+                       + {"isopach": "the unit's thickness is its boreholes' (isopach), never below 0 "
+                                     f"({render(option('order', 'stratigraphic'))})",
+                          "clipped": f"thickness 0 there ({render(option('order', 'stratigraphic'))})",
+                          "raw": f"counted negative ({render(option('order', 'raw'))})"}[u["thickness_method"]])
+
+
 @aquifer.command()
 @click.argument("inputs", nargs=-1, required=True)
 @out_opt()
@@ -57,21 +76,7 @@ def model(inputs, out, overwrite, quiet, layers, crs, swap_xy, within, clip, fie
     with progress_bar(quiet) as progress:
         rep = aquifer_model(source, names, out, crs=crs, swap_xy=swap_xy, settings=settings, within=within, clip=clip,
                             overwrite=overwrite, progress=progress, fields=fields)
-    for layer, info in rep["layers"].items():
-        click.echo(f"{layer}: {info['points']} points ({info['flagged']} flagged), {info['triangles']} triangles, "
-                   f"boundary {info['boundary_vertices']} vertices, area {info['boundary_area']:,.0f} square "
-                   f"{rep['length_unit']}")
-    for name, u in rep["units"].items():
-        click.echo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / {u['volume_negative']:,.0f}) "
-                   f"{rep['volume_unit']}; thickness min / mean / max {u['thickness_min']:.2f} / {u['thickness_mean']:.2f} / "
-                   f"{u['thickness_max']:.2f} {rep['length_unit']}")
-        if u["crossing_area"] > 0 or u["crossing_volume"] > 0:
-            click.echo(f"  the {u['lower']} surface is above {u['upper']} on {u['crossing_area']:,.0f} square "
-                       f"{rep['length_unit']} ({u['crossing_volume']:,.0f} {rep['volume_unit']}): "
-                       + {"isopach": "the unit's thickness is its boreholes' (isopach), never below 0 "
-                                     f"({render(option('order', 'stratigraphic'))})",
-                          "clipped": f"thickness 0 there ({render(option('order', 'stratigraphic'))})",
-                          "raw": f"counted negative ({render(option('order', 'raw'))})"}[u["thickness_method"]])
+    _print_model(rep)
     click.echo(f"report: {out}/report.json")
 
 

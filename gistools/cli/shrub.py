@@ -72,12 +72,7 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
     counts = report.get("counts", {})
     unit = report.get("area_unit", "")
     click.echo(f"{counts.get('ok', 0)} tiles ok, {counts.get('failed', 0)} failed; report: {out}/report.json")
-    if report.get("cell_size") is not None and report.get("horizontal_unit_m"):
-        from ..units import LinearUnit
-
-        u = LinearUnit(report.get("horizontal_unit") or "", float(report["horizontal_unit_m"])).short
-        click.echo(f"cell size {report['cell_size']:g} {u}, density radius {report.get('density_radius', 0):g} {u} "
-                   "(the defaults follow the data's unit: --help)")
+    _settings_line(report)
     if "class_area" in report:
         click.echo("class area (" + unit + "): " + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
         click.echo(_breaks_line(report))
@@ -91,6 +86,17 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
             click.echo(f"  FAILED {tile['error']}", err=True)
     if counts.get("failed"):
         raise SystemExit(1)
+
+
+def _settings_line(report: dict) -> None:
+    """The cell size and density radius the chain used, in the data's unit (the defaults follow it)."""
+    if report.get("cell_size") is None or not report.get("horizontal_unit_m"):
+        return
+    from ..units import LinearUnit
+
+    u = LinearUnit(report.get("horizontal_unit") or "", float(report["horizontal_unit_m"])).short
+    click.echo(f"cell size {report['cell_size']:g} {u}, density radius {report.get('density_radius', 0):g} {u} "
+               "(the defaults follow the data's unit: --help)")
 
 
 def _breaks_line(report: dict) -> str:

@@ -68,25 +68,38 @@ def _default_shown(p: Parameter, default=None):
     return default
 
 
+def _help(p: Parameter, default) -> str:
+    """The option's help: the declaration's, and the default where --help cannot show it."""
+    text = p.help_text("cli")
+    if isinstance(default, ByUnits):
+        return text + f" Default: {default.text()}" + (f" ({default.why})" if default.why else "") + "."
+    if default is None and p.default_text:
+        return text + f" Default: {p.default_help('cli')}."
+    return text
+
+
+def _click_type(p: Parameter):
+    """The click type of a parameter's value (None: text)."""
+    if p.kind == "int":
+        return click.IntRange(None if p.minimum is None else int(p.minimum), None if p.maximum is None else int(p.maximum))
+    if p.kind == "float":
+        return float if p.minimum is None and p.maximum is None else click.FloatRange(p.minimum, p.maximum)
+    if p.kind == "choice":
+        return click.Choice(list(p.choices) + list(p.aliases))
+    return None
+
+
 def click_option(p: Parameter, *, default=None, help_extra: str = ""):
     """The click option of one parameter (``default`` replaces the declared one, e.g. a command's own)."""
     default = p.default if default is None else default
     names = [p.cli_flag] + ([p.short] if p.short else [])
-    kwargs: dict = {"help": p.help_text("cli") + help_extra}
+    kwargs: dict = {"help": _help(p, default) + help_extra}
     if isinstance(default, ByUnits):
-        kwargs["help"] += f" Default: {default.text()}" + (f" ({default.why})" if default.why else "") + "."
         default = None
-    elif default is None and p.default_text:
-        kwargs["help"] += f" Default: {p.default_help('cli')}."
     if p.kind == "flag":  # a setting on by default has a flag that turns it off (--no-map)
         return click.option(*names, p.name, is_flag=True, default=bool(default), flag_value=not bool(default), **kwargs)
-    if p.kind == "int":
-        kwargs["type"] = click.IntRange(None if p.minimum is None else int(p.minimum),
-                                        None if p.maximum is None else int(p.maximum))
-    elif p.kind == "float":
-        kwargs["type"] = float if p.minimum is None and p.maximum is None else click.FloatRange(p.minimum, p.maximum)
-    elif p.kind == "choice":
-        kwargs["type"] = click.Choice(list(p.choices) + list(p.aliases))
+    if _click_type(p) is not None:
+        kwargs["type"] = _click_type(p)
     if p.kind in ("classes", "numbers", "choices", "choice"):
         kwargs["callback"] = _callback(p)
     if p.metavar:

@@ -22,6 +22,14 @@ __all__ = ["absolute_spec", "read_layer", "check_crs", "write_layer", "write_lay
 VECTOR_SUFFIXES = (".gpkg", ".shp", ".geojson", ".json", ".fgb", ".gml", ".kml", ".sqlite", ".gdb", ".parquet", ".tab")
 
 
+def _qgis_layer_spec(text: str) -> tuple[Path, str | None]:
+    """``file.gpkg|layername=LAYER`` (QGIS's form; other ``|key=value`` options are left out)."""
+    path, _, options = text.partition("|")
+    names = [value for key, _, value in (item.partition("=") for item in options.split("|"))
+             if key.strip().lower() == "layername"]
+    return Path(path), (names[-1] if names else None)
+
+
 def split_layer_spec(spec) -> tuple[Path, str | None]:
     """(file, layer) of a layer as the user names it: ``file.gpkg:LAYER`` (the command line's form),
     ``file.gpkg|layername=LAYER`` (QGIS's), or a file alone. A Windows drive (``C:\\data\\b.gpkg``) is part of the
@@ -29,20 +37,14 @@ def split_layer_spec(spec) -> tuple[Path, str | None]:
     file's suffix (or naming a file that exists), the layer all after it."""
     text = str(spec)
     if "|" in text:
-        path, _, options = text.partition("|")
-        layer = None
-        for item in options.split("|"):
-            key, _, value = item.partition("=")
-            if key.strip().lower() == "layername":
-                layer = value
-        return Path(path), layer
+        return _qgis_layer_spec(text)
     if Path(text).exists():
         return Path(text), None
-    for i, c in enumerate(text):
-        if c == ":" and i > 0:
-            left = text[:i]
-            if left.lower().endswith(VECTOR_SUFFIXES) or Path(left).is_file():
-                return Path(left), text[i + 1:] or None
+    cuts = [i for i, c in enumerate(text) if c == ":" and i > 0]
+    for i in cuts:
+        left = text[:i]
+        if left.lower().endswith(VECTOR_SUFFIXES) or Path(left).is_file():
+            return Path(left), text[i + 1:] or None
     return Path(text), None
 
 

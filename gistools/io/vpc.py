@@ -85,27 +85,35 @@ def write_vpc(path, tiles, *, overwrite: bool = True) -> Path:
 MAX_VPC_BYTES = 512 * 2**20  # a VPC lists files: half a gigabyte of JSON is not one
 
 
+def _local_href(path: Path, href: str) -> str:
+    """An item's file as a local path; a remote one (https://, s3://) is refused: gistools reads local files."""
+    if "://" in href and not href.lower().startswith("file://"):
+        raise DataFileError(f"lists a remote file ({href}); gistools reads local files only", path=path,
+                            hint="Download the tiles and give their folder (or a VPC of the local copies)")
+    return href[len("file://"):] if href.lower().startswith("file://") else href
+
+
+def _item_wkt(path: Path, props: dict):
+    """An item's CRS as WKT: its proj:wkt2, else its proj:epsg (an unknown code is refused), else None."""
+    if props.get("proj:wkt2") or not props.get("proj:epsg"):
+        return props.get("proj:wkt2")
+    try:
+        return pyproj.CRS.from_epsg(int(props["proj:epsg"])).to_wkt()
+    except (pyproj.exceptions.CRSError, ValueError, TypeError):
+        raise DataFileError(f"an item's proj:epsg {props['proj:epsg']!r} is not a known EPSG code", path=path,
+                            hint="Fix the item's proj:epsg, or give its proj:wkt2") from None
+
+
 def _vpc_item(path: Path, it) -> dict:
     """One item of a VPC as gistools reads it; DataFileError naming what is wrong."""
     if not isinstance(it, dict):
         raise ValueError(f"an item is a {type(it).__name__}, not an object")
     props = it.get("properties") or {}
-    href = str(it["assets"]["data"]["href"])
-    if "://" in href and not href.lower().startswith("file://"):
-        raise DataFileError(f"lists a remote file ({href}); gistools reads local files only", path=path,
-                            hint="Download the tiles and give their folder (or a VPC of the local copies)")
-    href = href[len("file://"):] if href.lower().startswith("file://") else href
+    href = _local_href(path, str(it["assets"]["data"]["href"]))
     bbox = props.get("proj:bbox")
     bounds = (bbox[0], bbox[1], bbox[3], bbox[4]) if bbox and len(bbox) == 6 else (tuple(bbox) if bbox else None)
-    wkt = props.get("proj:wkt2")
-    if not wkt and props.get("proj:epsg"):
-        try:
-            wkt = pyproj.CRS.from_epsg(int(props["proj:epsg"])).to_wkt()
-        except (pyproj.exceptions.CRSError, ValueError, TypeError):
-            raise DataFileError(f"an item's proj:epsg {props['proj:epsg']!r} is not a known EPSG code", path=path,
-                                hint="Fix the item's proj:epsg, or give its proj:wkt2") from None
     return {"path": (path.parent / href).resolve() if not Path(href).is_absolute() else Path(href),
-            "bounds": bounds, "count": props.get("pc:count"), "crs_wkt": wkt}
+            "bounds": bounds, "count": props.get("pc:count"), "crs_wkt": _item_wkt(path, props)}
 
 
 def read_vpc(path) -> list[dict]:

@@ -361,6 +361,19 @@ def csf_ground(x, y, z, candidates: np.ndarray, p: CsfParams) -> np.ndarray:
     return ground
 
 
+def _noise_points(x, y, z, noise: NoiseParams) -> np.ndarray:
+    """Where the noise filter (IVF, SOR or none) finds noise."""
+    if noise.method == "ivf":
+        from .noise import isolated_points
+
+        return isolated_points(x, y, z, res=noise.res, n=noise.n)
+    if noise.method == "sor":
+        from .noise import statistical_outliers
+
+        return statistical_outliers(x, y, z, k=noise.k, multiplier=noise.multiplier)
+    return np.zeros(len(x), bool)
+
+
 def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
                               smrf: SmrfParams | None = None, csf: CsfParams | None = None,
                               noise: NoiseParams = NoiseParams(), keep_classes: bool = False) -> np.ndarray:
@@ -373,16 +386,7 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     rn, nr = np.asarray(return_number), np.asarray(number_of_returns)
     old = np.asarray(classification)
-    if noise.method == "ivf":
-        from .noise import isolated_points
-
-        is_noise = isolated_points(x, y, z, res=noise.res, n=noise.n)
-    elif noise.method == "sor":
-        from .noise import statistical_outliers
-
-        is_noise = statistical_outliers(x, y, z, k=noise.k, multiplier=noise.multiplier)
-    else:
-        is_noise = np.zeros(len(x), bool)
+    is_noise = _noise_points(x, y, z, noise)
     open_ = np.isin(old, RECLASSIFIED)
     is_noise &= open_
     candidates = open_ & (rn >= nr) & ~is_noise  # last and only returns (return number 0 = not recorded: only)

@@ -374,21 +374,13 @@ def _grid_tile(info: TileInfo, neighbours: list[TileInfo], run: _Run) -> dict:
     dsm_filled = 0
     if run.dsm_fill != "none":
         dsm, dsm_filled = fill_tile_dsm(info, neighbours, run, grid, dsm, lambda i: _tile_grid(i, run))
-    if "dsm" in run.products and not np.isfinite(dsm).any():
-        raise DataFileError("no first return of the DSM's classes in the tile, so its DSM would be empty",
-                            path=info.path, hint=f"Check the tile's classes and returns (gistools info), and "
-                                                 f"{option('dsm_classes')}")
+    _refuse_empty_dsm(info, run, dsm)
     arrays = {"dsm": dsm, "topclass": top_class}
     t1 = time.perf_counter()
     return_bands = None
     if run.products != ("dsm",):
         dem, filled = _tile_dem(info, neighbours, run, grid, ground_count, (water_count > 0) & (ground_count == 0))
-        if own_ground == 0 and {"dem", "ndsm"} & set(run.products):
-            warnings.append(_no_ground(info, dem, own_water))
-        elif {"dem", "ndsm"} & set(run.products) and own_water == 0 and not np.isfinite(dem).any():
-            raise DataFileError(f"its {own_ground:,} ground (class 2) points span no area (all at one spot or on one "
-                                f"line), so its {run.dem_method} DEM and its nDSM would be empty", path=info.path,
-                                hint=f"Classify ground again, or grid the points one by one: {option('dem_method', 'max')}")
+        warnings += _dem_warnings(info, run, dem, own_ground, own_water)
         arrays["dem"] = dem
         arrays["ndsm"] = ndsm_from(dsm, dem)
         if run.return_breaks is not None:
@@ -493,6 +485,28 @@ def _tin_dem_in_strips(x, y, z, grid: Grid, counts_per_row, run: _Run, water) ->
         dem[r0:r1] = tin_dem_with_halo(x[near], y[near], z[near], strip, halo=b, max_distance=run.max_distance,
                                        water=water[r0:r1])
     return dem
+
+
+def _refuse_empty_dsm(info, run: _Run, dsm) -> None:
+    """A tile without one first return of the DSM's classes fails: its DSM would be empty, not "ok"."""
+    if "dsm" in run.products and not np.isfinite(dsm).any():
+        raise DataFileError("no first return of the DSM's classes in the tile, so its DSM would be empty",
+                            path=info.path, hint=f"Check the tile's classes and returns (gistools info), and "
+                                                 f"{option('dsm_classes')}")
+
+
+def _dem_warnings(info, run: _Run, dem, own_ground: int, own_water: int) -> list[str]:
+    """The warning of a tile without ground points (its DEM from the neighbours'), or its failure when its DEM
+    would be empty: no ground and no water, or ground points spanning no area (one, or all at one spot)."""
+    if not {"dem", "ndsm"} & set(run.products):
+        return []
+    if own_ground == 0:
+        return [_no_ground(info, dem, own_water)]
+    if own_water == 0 and not np.isfinite(dem).any():
+        raise DataFileError(f"its {own_ground:,} ground (class 2) points span no area (all at one spot or on one "
+                            f"line), so its {run.dem_method} DEM and its nDSM would be empty", path=info.path,
+                            hint=f"Classify ground again, or grid the points one by one: {option('dem_method', 'max')}")
+    return []
 
 
 def _no_ground(info, dem, own_water: int) -> str:
@@ -611,32 +625,39 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
 _AREAS: dict = {}  # CRS WKT -> (its area of use in degrees, a transformer to degrees), worked out once
 
 
+def _area_box(crs) -> tuple:
+    """(the CRS's area of use, that area in the CRS's own coordinates grown by a tenth of its size, or None)."""
+    import pyproj
+
+    area = crs.area_of_use
+    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+    if area is None:
+        return None, None
+    try:
+        to_crs = pyproj.Transformer.from_crs(horizontal.geodetic_crs, horizontal, always_xy=True)
+        x0, y0, x1, y1 = to_crs.transform_bounds(area.west, area.south, area.east, area.north)
+    except pyproj.exceptions.ProjError:
+        return area, None
+    if not all(map(np.isfinite, (x0, y0, x1, y1))):
+        return area, None
+    mx, my = 0.1 * (x1 - x0), 0.1 * (y1 - y0)
+    return area, (x0 - mx, y0 - my, x1 + mx, y1 + my)
+
+
 def outside_area_of_use(info: TileInfo) -> str | None:
     """A warning when a tile lies far outside its CRS's area of use (coordinates in degrees read as feet, a wrong
     --crs): the grid would come out, wrong, without a word."""
-    import pyproj
-
     key = info.crs.to_wkt()
-    if key not in _AREAS:  # the area of use in the CRS's own coordinates, a tenth of its size around it
-        area, box = info.crs.area_of_use, None
-        horizontal = info.crs.sub_crs_list[0] if info.crs.is_compound else info.crs
-        if area is not None:
-            try:
-                to_crs = pyproj.Transformer.from_crs(horizontal.geodetic_crs, horizontal, always_xy=True)
-                x0, y0, x1, y1 = to_crs.transform_bounds(area.west, area.south, area.east, area.north)
-                if all(map(np.isfinite, (x0, y0, x1, y1))):
-                    mx, my = 0.1 * (x1 - x0), 0.1 * (y1 - y0)
-                    box = (x0 - mx, y0 - my, x1 + mx, y1 + my)
-            except pyproj.exceptions.ProjError:
-                box = None
-        _AREAS[key] = (area, box)
+    if key not in _AREAS:
+        _AREAS[key] = _area_box(info.crs)
     area, box = _AREAS[key]
     if box is None:
         return None
     w, s, e, n = info.bounds
     if e < box[0] or w > box[2] or n < box[1] or s > box[3]:
         return render(f"{info.path}: the tile lies far outside the area of use of its CRS {crs_label(info.crs)} "
-                      f"({area.name[:70].rstrip(' .;')}): are its coordinates in another CRS (degrees?), or is {option('crs')} wrong?")
+                      f"({area.name[:70].rstrip(' .;')}): are its coordinates in another CRS (degrees?), or is "
+                      f"{option('crs')} wrong?")
     return None
 
 
@@ -711,12 +732,21 @@ def _mosaics(out: Path, products, results) -> dict:
     for product in products:
         tifs = sorted((out / product).glob("*.tif")) if (out / product).is_dir() else []
         mine = [t for t in tifs if t.stem in results and results[t.stem].status in ("ok", "skipped")]
-        known = {str(t): (Affine(*results[t.stem].grid[:6]), *results[t.stem].grid[6:8]) for t in mine
-                 if isinstance(results[t.stem].grid, list) and len(results[t.stem].grid) == 8}
         if mine:
             vrts[product] = str(write_vrt(out / f"{product}.vrt", mine, categories=ASPRS_STYLE if product == "topclass" else None,
-                                          geometry=known))
+                                          geometry=_known_grids(mine, results)))
     return vrts
+
+
+def _known_grids(tifs, results) -> dict:
+    """{raster: (transform, width, height)} of the tiles whose report gives their grid (the mosaic need not open
+    them)."""
+    known = {}
+    for t in tifs:
+        grid = results[t.stem].grid
+        if isinstance(grid, list) and len(grid) == 8:
+            known[str(t)] = (Affine(*grid[:6]), int(grid[6]), int(grid[7]))
+    return known
 
 
 def _summary(infos, run, settings: RasterSettings, results, vrts: dict, scratch_peak: int, started: float) -> dict:

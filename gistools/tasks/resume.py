@@ -96,19 +96,25 @@ def check_same_settings(out: Path, name: str, earlier: dict | None, now: dict) -
                 hint=f"Pass {option('overwrite')} to redo the tiles with the new settings, or choose another {option('out')}")
 
 
+def _kept_raster_whole(path: Path, stamp) -> bool:
+    """A kept raster is whole: untouched since gistools wrote and checked it (its recorded size and time), or
+    opening and reading whole now; a damaged one is recomputed."""
+    if stamp == file_stamp(path):
+        return True
+    if raster_is_readable(path):
+        return True
+    log.warning("%s: damaged, recomputing the tile", path)
+    return False
+
+
 def complete_tile(out: Path, name: str, rep: dict | None, products, return_breaks=None) -> dict | None:
     """The tile report ``rep`` of a tile whose outputs are all written (with first-return counts at
     ``return_breaks`` when those are asked for), else None: the tile is (re)computed."""
     if rep is None or not all((out / p / f"{name}.tif").exists() for p in products):
         return None
     stamps = rep.get("stamps") if isinstance(rep.get("stamps"), dict) else {}
-    for p in products:  # a kept raster must open and read whole: a damaged one is recomputed
-        path = out / p / f"{name}.tif"
-        if stamps.get(p) == file_stamp(path):
-            continue  # the file gistools wrote and checked, untouched since (same size and time)
-        if not raster_is_readable(path):
-            log.warning("%s: damaged, recomputing the tile", out / p / f"{name}.tif")
-            return None
+    if not all(_kept_raster_whole(out / p / f"{name}.tif", stamps.get(p)) for p in products):
+        return None
     if return_breaks is not None and (rep.get("first_return_bands") or {}).get("breaks") != list(return_breaks):
         return None
     return rep

@@ -35,6 +35,15 @@ def neighbour_pairs(bounds, distance: float) -> list[list[int]]:
     return [sorted(o) for o in out]
 
 
+def _users(scan_order, todo, deps) -> dict[str, set[str]]:
+    """{tile: the tiles to grid that read it}, the inverse of ``deps``."""
+    users: dict[str, set[str]] = {v: set() for v in scan_order}
+    for n in todo:
+        for v in deps[n]:
+            users.setdefault(v, set()).add(n)
+    return users
+
+
 class TwoPassSchedule:
     """``scan_order``: the tiles to read, in order; ``todo``: those to grid; ``deps[name]``: the tiles a tile to grid
     reads (itself and its neighbours)."""
@@ -43,10 +52,7 @@ class TwoPassSchedule:
         self.scan_order = list(scan_order)
         self.grid_order = [n for n in scan_order if n in todo]
         self.deps = deps
-        self.users: dict[str, set[str]] = {v: set() for v in scan_order}
-        for n in todo:
-            for v in deps[n]:
-                self.users.setdefault(v, set()).add(n)
+        self.users = _users(scan_order, todo, deps)
         self.scanned: set[str] = set()
         self.gridded: set[str] = set()
         self._rank = {n: k for k, n in enumerate(self.grid_order)}

@@ -641,21 +641,25 @@ def _returns_band_area(tiles) -> dict | None:
     return {name: float(total[i]) for i, name in enumerate(BAND_NAMES)} | {"above": float(total[4])}
 
 
+def _check_run_keys(summary: dict) -> None:
+    """The keys a step rerun needs, of the types it needs (KeyError, TypeError, ValueError or CRSError else)."""
+    pyproj.CRS.from_wkt(summary["crs_wkt"])
+    tiles_ok = [isinstance(t, dict) and isinstance(t.get("name"), str) and isinstance(t.get("status"), str)
+                for t in summary["tiles"]]
+    numbers_ok = [type(summary[k]) in (int, float) and summary[k] > 0
+                  for k in ("horizontal_unit_m", "vertical_unit_m", "cell_size")]
+    texts_ok = [isinstance(summary[k], str) for k in ("horizontal_unit", "vertical_unit")]
+    if not all(tiles_ok + numbers_ok + texts_ok):
+        raise ValueError("a key of the wrong type")
+
+
 def _previous_run(out: Path) -> dict:
     path = out / "report.json"
     if not path.exists():
         raise InputError(f"{out}: no report.json of an earlier run", hint="Run gistools shrub (or gistools rasters) on the tiles first")
     try:
         summary = json.loads(path.read_text())
-        pyproj.CRS.from_wkt(summary["crs_wkt"])  # the keys a step rerun needs, of the types it needs
-        if not all(isinstance(t, dict) and isinstance(t.get("name"), str) and isinstance(t.get("status"), str)
-                   for t in summary["tiles"]):
-            raise TypeError("tiles")
-        for key in ("horizontal_unit_m", "vertical_unit_m", "cell_size"):
-            if not (isinstance(summary[key], (int, float)) and not isinstance(summary[key], bool) and summary[key] > 0):
-                raise ValueError(key)
-        if not isinstance(summary["horizontal_unit"], str) or not isinstance(summary["vertical_unit"], str):
-            raise TypeError("units")
+        _check_run_keys(summary)
     except (ValueError, KeyError, TypeError, pyproj.exceptions.CRSError):
         raise DataFileError("report.json is not the report of a gistools run (damaged or edited)", path=path,
                             hint="Rerun gistools shrub on the tiles") from None

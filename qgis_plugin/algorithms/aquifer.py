@@ -48,17 +48,23 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
         self.addOutput(QgsProcessingOutputString("VOLUMES", "Volumes per unit (JSON)"))
 
-    def run_gistools(self, parameters, context, feedback):
-        import json
+    def _model_settings(self, parameters, context, feedback):
+        """(the layers top to bottom, the run's inputs, the AquiferSettings) of the dialog's values."""
+        from gistools.tasks.aquifer import AquiferSettings
 
-        from gistools.tasks.aquifer import AquiferSettings, aquifer_model
-
-        out = Path(self.output_folder(parameters, context))
         values = self.spec_values(parameters, context, feedback)
         layers = [x.strip() for x in (values.pop("layers") or "").split(",") if x.strip()]
         run = {k: values.pop(k) for k in ("within", "clip", "swap_xy")}
         values["cell_size"] = values.pop("thickness_cell_size")
-        settings = AquiferSettings(**{k: v for k, v in values.items() if v is not None})
+        return layers, run, AquiferSettings(**{k: v for k, v in values.items() if v is not None})
+
+    def run_gistools(self, parameters, context, feedback):
+        import json
+
+        from gistools.tasks.aquifer import aquifer_model
+
+        out = Path(self.output_folder(parameters, context))
+        layers, run, settings = self._model_settings(parameters, context, feedback)
         source = self.layer_spec(parameters, "INPUT", context, feedback)
         crs = self.layer_crs(parameters, "INPUT", context)
         rep = aquifer_model(source, layers, out, crs=crs, settings=settings, overwrite=True,

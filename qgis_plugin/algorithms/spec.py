@@ -91,12 +91,16 @@ def qgis_parameter(p: Parameter, default=None, *, label: str | None = None, orde
     """The QGIS parameter definition of ``p`` (``default`` replaces the declared one, e.g. an algorithm's own;
     ``order``: a choice's values in the order this algorithm numbers them)."""
     default = p.default if default is None else default
-    optional = not p.required and (default is None or isinstance(default, ByUnits) or p.kind in ("layer", "raster"))
-    if isinstance(default, ByUnits):
-        default = None
+    optional = _optional(p, default)
+    default = None if isinstance(default, ByUnits) else default
     if order is not None or (p.kind == "text" and p.choices):  # a text with choices: a list in the dialog
         return _enum(p, p.qgis_name, label or p.label, default, optional, order)
     return _BY_KIND.get(p.kind, _text)(p, p.qgis_name, label or p.label, default, optional)
+
+
+def _optional(p: Parameter, default) -> bool:
+    """A parameter the dialog may leave empty: not required, and without a default there (or a layer)."""
+    return not p.required and (default is None or isinstance(default, ByUnits) or p.kind in ("layer", "raster"))
 
 
 def _numbers(text: str, p: Parameter, cast):
@@ -105,6 +109,25 @@ def _numbers(text: str, p: Parameter, cast):
     except ValueError:
         raise QgsProcessingException(f"{p.label}: {text!r} is not a comma-separated list of numbers, e.g. "
                                      f"{p.example or '1,2'}") from None
+
+
+# how each kind's value is read back, as the library takes it (``v``: the algorithm's order of a choice's values)
+_READERS = {
+    "int": lambda alg, p, ps, ctx, fb, v: alg.parameterAsInt(ps, p.qgis_name, ctx),
+    "float": lambda alg, p, ps, ctx, fb, v: alg.parameterAsDouble(ps, p.qgis_name, ctx),
+    "choice": lambda alg, p, ps, ctx, fb, v: v[alg.parameterAsEnum(ps, p.qgis_name, ctx)],
+    "choices": lambda alg, p, ps, ctx, fb, v: tuple(v[i] for i in alg.parameterAsEnums(ps, p.qgis_name, ctx)),
+    "layer": lambda alg, p, ps, ctx, fb, v: alg.layer_spec(ps, p.qgis_name, ctx, fb),
+    "raster": lambda alg, p, ps, ctx, fb, v: alg.raster_path(ps, p.qgis_name, ctx),
+    "crs": lambda alg, p, ps, ctx, fb, v: alg.crs_text(ps, ctx, p.qgis_name),
+}
+
+
+def _read_text(alg, p: Parameter, parameters, context):
+    text = alg.text(parameters, p.qgis_name, context)
+    if text is None or p.kind not in ("classes", "numbers"):
+        return text
+    return _numbers(text, p, int if p.kind == "classes" else float)
 
 
 def read_value(alg, p: Parameter, parameters, context, feedback, order=None):
@@ -116,29 +139,10 @@ def read_value(alg, p: Parameter, parameters, context, feedback, order=None):
     missing = parameters.get(name) is None or parameters.get(name) == ""
     if missing and alg.parameterDefinition(name).defaultValue() in (None, ""):
         return None  # left empty, no default in the dialog: the library's default applies
-    if p.kind == "int":
-        return alg.parameterAsInt(parameters, name, context)
-    if p.kind == "float":
-        return alg.parameterAsDouble(parameters, name, context)
-    values = list(order or p.choices)
-    if p.kind == "choice" or (p.kind == "text" and p.choices):
-        return values[alg.parameterAsEnum(parameters, name, context)]
-    if p.kind == "choices":
-        return tuple(values[i] for i in alg.parameterAsEnums(parameters, name, context))
-    if p.kind == "layer":
-        return alg.layer_spec(parameters, name, context, feedback)
-    if p.kind == "raster":
-        return alg.raster_path(parameters, name, context)
-    if p.kind == "crs":
-        return alg.crs_text(parameters, context, name)
-    text = alg.text(parameters, name, context)
-    if text is None:
-        return None
-    if p.kind == "classes":
-        return _numbers(text, p, int)
-    if p.kind == "numbers":
-        return _numbers(text, p, float)
-    return text
+    kind = "choice" if p.kind == "text" and p.choices else p.kind  # a text with choices: a list in the dialog
+    if kind in _READERS:
+        return _READERS[kind](alg, p, parameters, context, feedback, list(order or p.choices))
+    return _read_text(alg, p, parameters, context)
 
 
 def flag_parameters(alg, flag, *names) -> None:
