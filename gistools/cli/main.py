@@ -69,6 +69,15 @@ class GistoolsGroup(click.Group):
                 click.echo(INTERRUPTED, err=True)
                 sys.exit(_status())
             raise
+        except MemoryError as err:  # outside a tile loop (which names the tile): the machine's error, in one line
+            if isinstance(err, GistoolsError):
+                raise
+            from ..tasks.batch import out_of_memory
+
+            error = out_of_memory(f"in gistools {ctx.invoked_subcommand}",
+                                  fix="Raise the limit (ulimit -v) or run on a machine with more memory")
+            click.echo(f"gistools: error: {error}", err=True)
+            sys.exit(1)
         except OSError as err:  # an output that cannot be written, met outside the checked writes
             from ..io.atomic import output_error
 

@@ -17,6 +17,7 @@ import numpy as np
 import pyproj
 
 from ..errors import CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
+from ..machine import address_space_left
 from ..parameters import option
 from ..units import LinearUnit, horizontal_unit, vertical_unit
 
@@ -394,16 +395,43 @@ def iter_chunks(
     selection = decoded_layers(fields, intensity) if only_fields else laspy.DecompressionSelection.all()
     try:
         with laspy.open(path, decompression_selection=selection) as reader:
+            need = min(chunk_size, reader.header.point_count) * reader.header.point_format.size
+            room_to_decode(reader, need)
             for points in reader.chunk_iterator(chunk_size):
                 if len(points) == 0:
                     continue
                 yield _chunk_from(points, intensity, fields)
-    except DataFileError:
+                room_to_decode(reader, need)
+    except (DataFileError, MemoryError, GeneratorExit, KeyboardInterrupt):
         raise
-    except (GeneratorExit, KeyboardInterrupt):
-        raise
-    except Exception as err:
-        raise _open_error(path, err) from None
+    except BaseException as err:  # laspy / lazrs raise many types for damaged files; lazrs panics are BaseExceptions
+        raise _decoder_error(path, err) from None
+
+
+# What a decoder needs beyond its arrays (LAZ chunk buffers, a thread's stack and heap arena), in bytes
+DECODER_MARGIN = 32 * 2**20
+
+
+def room_to_decode(reader, need: int) -> None:
+    """Under an address-space limit (``ulimit -v``), raise MemoryError before a LAZ decoder fills ``need`` bytes
+    of points where it would then be left without room: lazrs (Rust) aborts the whole process on a failed
+    allocation, which no handler can catch (numpy's failures are MemoryErrors, and LAS files need no decoder)."""
+    if not reader.header.are_points_compressed:
+        return
+    left = address_space_left()
+    if left is not None and left < need + DECODER_MARGIN:
+        raise MemoryError(f"{(need + DECODER_MARGIN) / 2**20:.0f} MiB needed to decode, "
+                          f"{left / 2**20:.0f} MiB left under the address-space limit")
+
+
+def _decoder_error(path: Path, err: BaseException) -> Exception:
+    """A decoder's failure as MemoryError (lazrs panics when it cannot start its threads) or DataFileError."""
+    if not isinstance(err, Exception):
+        text = str(err)
+        if "thread" in text.lower() or "memory" in text.lower():
+            return MemoryError(f"{path.name}: the LAZ decoder could not get memory or threads ({text[:120]})")
+        err = RuntimeError(text)
+    return _open_error(path, err)
 
 
 def decoded_layers(fields, intensity: bool = False) -> "laspy.DecompressionSelection":
@@ -473,9 +501,17 @@ def write_tile(path, points: dict, crs: pyproj.CRS, *, version: str = "1.4", poi
 
 def read_all_points(path):
     """The whole tile as a laspy LasData (every dimension, extra bytes and VLR kept), or DataFileError."""
+    path = Path(path)
     try:
-        return laspy.read(path)
-    except Exception as err:  # laspy / lazrs raise many types for damaged files
+        with laspy.open(path) as reader:
+            room_to_decode(reader, reader.header.point_count * reader.header.point_format.size)
+            return reader.read()
+    except (DataFileError, MemoryError, KeyboardInterrupt):
+        raise
+    except BaseException as err:  # laspy / lazrs raise many types for damaged files
+        err = _decoder_error(path, err)
+        if isinstance(err, MemoryError):
+            raise err from None
         raise DataFileError(f"cannot read the points ({type(err).__name__}: {err})", path=path,
                             hint="Check the file (a truncated copy?), or leave it out") from None
 

@@ -49,18 +49,26 @@ def machine_error(err: BaseException, tile) -> None:
 
     if isinstance(err, GistoolsError):
         return
+    if isinstance(err, MemoryError):
+        raise out_of_memory(f"while making tile {tile}") from None
+    if isinstance(err, BrokenProcessPool):
+        raise out_of_memory(f"while making tile {tile}", killed=True) from None
+
+
+def out_of_memory(where: str, killed: bool = False, fix: str | None = None) -> OutOfMemoryError:
+    """The run's error when the machine's memory (or the process's ``ulimit -v``) ran out ``where``, with the
+    numbers and the fix."""
     limit, memory = address_space_limit(), free_memory()
     if limit is not None:
         have = f" (this process may map {limit / 1e9:.1f} GB: ulimit -v)"
     else:
         have = f" ({memory / 1e9:.1f} GB available now)" if memory is not None else ""
-    fix = (f"Run with fewer {option('jobs')}, a smaller {option('chunk_size')} or a larger {option('cell_size')}, "
-           "or on a machine with more memory")
-    if isinstance(err, MemoryError):
-        raise OutOfMemoryError(f"the machine ran out of memory while making tile {tile}{have}", hint=fix) from None
-    if isinstance(err, BrokenProcessPool):
-        raise OutOfMemoryError(f"a worker process was killed by the system while making tile {tile} (most often: "
-                               f"out of memory{have})", hint=fix) from None
+    fix = fix or (f"Run with fewer {option('jobs')}, a smaller {option('chunk_size')} or a larger "
+                  f"{option('cell_size')}, or on a machine with more memory")
+    if killed:
+        return OutOfMemoryError(f"a worker process was killed by the system {where} (most often: out of memory{have})",
+                                hint=fix)
+    return OutOfMemoryError(f"the machine ran out of memory {where}{have}", hint=fix)
 
 
 def python_executable() -> str:
@@ -154,6 +162,8 @@ def keep_freed_memory() -> bool:
     global _MEMORY_KEPT
     if _MEMORY_KEPT or not sys.platform.startswith("linux"):
         return _MEMORY_KEPT
+    if address_space_limit() is not None:
+        return _lean_address_space()
     _MEMORY_KEPT = True
     try:
         libc = ctypes.CDLL("libc.so.6")
@@ -161,6 +171,18 @@ def keep_freed_memory() -> bool:
         return bool(libc.mallopt(m_mmap_max, 0)) and bool(libc.mallopt(m_trim_threshold, 2**31 - 1))
     except (OSError, AttributeError):  # not glibc
         return False
+
+
+def _lean_address_space() -> bool:
+    """Under an address-space limit (``ulimit -v``) memory is mapped sparingly instead: the freed heap goes back to
+    the system, glibc keeps one heap arena (each thread's arena reserves 64 MiB of address space) and LAZ decodes on
+    one thread (no pool of thread stacks), so the limit holds the run's arrays, not reservations."""
+    os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    try:
+        ctypes.CDLL("libc.so.6").mallopt(-8, 1)  # M_ARENA_MAX
+    except (OSError, AttributeError):
+        pass
+    return False
 
 
 def _worker_start(parent: int, main_thread: bool) -> None:
