@@ -29,6 +29,7 @@ HELP = (
 
 def build():
     from qgis.core import (
+        QgsApplication,
         QgsProcessing,
         QgsProcessingModelAlgorithm,
         QgsProcessingModelChildAlgorithm,
@@ -40,6 +41,8 @@ def build():
         QgsProcessingParameterVectorLayer,
     )
     from qgis.PyQt.QtCore import QPointF
+
+    from gistools_qgis.compat import OPTIONAL  # the plugin as load_plugin() imported it
 
     from gistools.lidar.bands import PRESETS
     from gistools.lidar.dsmfill import DSM_FILLS
@@ -80,6 +83,10 @@ def build():
         c.setChildId(cid)
         c.setDescription(description)
         c.setPosition(QPointF(x, y))
+        for d in QgsApplication.processingRegistry().algorithmById(alg).parameterDefinitions():
+            # every other mandatory parameter at its declared default, so the Model Designer validates the model
+            if not d.isDestination() and not d.flags() & OPTIONAL and d.name() not in sources:
+                sources[d.name()] = V(d.defaultValue())
         for name, src in sources.items():
             c.addParameterSources(name, [src])
         if outputs:
@@ -157,7 +164,8 @@ def main() -> int:
 
     app = QgsApplication([], False)
     app.initQgis()
-    load_plugin().initProcessing()  # the children's algorithms must resolve for the model outputs to become parameters
+    plugin = load_plugin()  # kept: its provider holds the algorithms the children resolve to
+    plugin.initProcessing()  # the children's algorithms must resolve for the model outputs to become parameters
     model = build()
     TARGET.parent.mkdir(parents=True, exist_ok=True)
     tmp = TARGET.with_name(TARGET.name + ".partial")
