@@ -28,6 +28,7 @@ sys.path.insert(0, str(ROOT))
 from gistools.tasks.schedule import TwoPassSchedule, neighbour_pairs  # noqa: E402
 
 TILE = 5000.0  # ft
+X0, Y0 = 500_000.0, 1_300_000.0  # ft: inside EPSG:2882 (Florida West, US survey feet), Citrus County
 
 
 def block(n: int, seed: int = 0):
@@ -71,11 +72,11 @@ def resume(n: int, workdir: Path) -> None:
         for k in range(n):
             c, r = k % side, k // side
             header = laspy.LasHeader(point_format=1, version="1.2")
-            header.scales, header.offsets = [0.01] * 3, [0, 0, 0]
+            header.scales, header.offsets = [0.01] * 3, [X0, Y0, 0]
             header.add_crs(__import__("pyproj").CRS(2882))
             las = laspy.LasData(header)
-            xs = c * 100.0 + np.array([1.0, 50.0, 99.0, 50.0])
-            ys = r * 100.0 + np.array([1.0, 50.0, 1.0, 99.0])
+            xs = X0 + c * 100.0 + np.array([1.0, 50.0, 99.0, 50.0])
+            ys = Y0 + r * 100.0 + np.array([1.0, 50.0, 1.0, 99.0])
             las.x, las.y, las.z = xs, ys, np.full(4, 10.0)
             las.classification = np.full(4, 2, np.uint8)
             las.write(tiles / f"{k:06d}.las")
