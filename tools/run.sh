@@ -39,7 +39,8 @@ fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
     echo "gistools setup: installing ${need_apt[*]} (apt-get)"
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
+    apt-get update -qq  # (on its own line: set -e does not stop on the left side of &&)
+    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need_apt[@]}" >/dev/null
   else
     echo "gistools setup: missing ${need_apt[*]}; run: sudo apt-get install --no-install-recommends ${need_apt[*]}" >&2
     exit 1

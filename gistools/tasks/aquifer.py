@@ -18,6 +18,7 @@ import pandas as pd
 import pyproj
 import shapely
 
+from .record import write_folder_report
 from ..io.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges
@@ -433,8 +434,7 @@ def _write_model(model, s: "AquiferSettings", out: Path, started: float, progres
             "mesh_closed": is_closed(u["mesh"][1]),
         }
     rep["seconds"] = round(time.time() - started, 3)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(rep, indent=2, default=float))
+    rep = write_folder_report(out, rep)
     report(progress, 1.0, "done")
     return rep
 

@@ -47,24 +47,16 @@ def batch_inputs(inputs, settings, jobs: int, scheduler) -> tuple[list, object]:
 
 def write_batch_report(out: Path, tool: str, crs_label_text, settings, states: dict, started: float, **extra) -> dict:
     """report.json of a batch command (atomic): tool, crs, settings, ``extra``, the tiles, their counts and the time."""
-    import json
     import time
     from dataclasses import asdict
 
-    from ..io.atomic import atomic_path
-
-    from .record import MAX_RUNS, read_folder_report, run_record
+    from .record import write_folder_report
 
     result = {"tool": tool, "crs": crs_label_text, "settings": asdict(settings), **extra,
               "tiles": [asdict(st) for st in states.values()],
               "counts": {k: sum(st.status == k for st in states.values()) for k in ("ok", "skipped", "failed")},
               "seconds": round(time.time() - started, 3)}
-    previous = read_folder_report(out) or {}  # the folder's earlier runs (of this command: others are refused)
-    runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
-    result["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(result)]
-    with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(result, indent=2, default=str))
-    return result
+    return write_folder_report(out, result)  # the folder's earlier runs kept (of this command: others are refused)
 
 
 def read_headers(paths, override, make_state, output_name=None, out: Path | None = None) -> tuple[dict, dict]:

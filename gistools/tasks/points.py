@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .record import write_folder_report
 from ..errors import GistoolsError, InputError, OutputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
@@ -92,9 +93,12 @@ def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classe
     out = output_folder(out)
     override = parse_crs_text(crs) if crs else None
     paths = find_tiles(inputs)
+    started = time.time()
     with claim_output(out, "gistools points"):
-        return raise_if_every_tile_failed(_points_in(paths, out, override, classes, returns, fmt, overwrite, chunk_size,
-                                                     progress))
+        rep = _points_in(paths, out, override, classes, returns, fmt, overwrite, chunk_size, progress)
+        rep["settings"] = {"classes": rep["classes"], "returns": returns, "fmt": fmt, "crs": crs, "chunk_size": chunk_size}
+        rep["seconds"] = round(time.time() - started, 3)
+        return raise_if_every_tile_failed(write_folder_report(out, rep))
 
 
 def _points_in(paths, out: Path, override, classes, returns, fmt, overwrite, chunk_size, progress) -> dict:

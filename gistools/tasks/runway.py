@@ -18,6 +18,7 @@ import pyproj
 import shapely
 from scipy.interpolate import LinearNDInterpolator
 
+from .record import write_folder_report
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import output_folder
 from ..grid import evaluate_on_grid, snapped_grid
@@ -356,8 +357,8 @@ def _write_runway(ew, points, crs_obj, out: Path, st, started) -> dict:
                     "by_reason": {k: int(v) for k, v in counts.items()}},
         "points": {"lights": int((ew.points["type"] == 1).sum()), "other": int((ew.points["type"] == 2).sum())},
         "outputs": files,
+        "settings": dict(vars(st)),
     }
     rep["seconds"] = round(time.time() - started, 3)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(rep, indent=2))
+    rep = write_folder_report(out, rep)
     return rep

@@ -528,7 +528,7 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
         "nodata_by_cause": _mean_causes([states[n].nodata_by_cause for n in good]),
         "tiles": [{**{k: v for k, v in base[n].items() if k not in states[n].__dict__}, **states[n].__dict__,
                    "outputs": {**base[n].get("outputs", {}), **states[n].outputs}} for n in states],
-        "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "failed")},
+        "counts": {s: sum(st.status == s for st in states.values()) for s in ("ok", "skipped", "failed")},
         "mosaics": {k: str(v) for k, v in {**summary.get("mosaics", {}), **mosaic}.items() if v},
         "seconds": round(time.time() - started, 3),
     }

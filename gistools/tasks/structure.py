@@ -13,6 +13,7 @@ import numpy as np
 import pandas as pd
 import shapely
 
+from .record import write_folder_report
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import output_folder
 from ..io.outdir import claim_output
@@ -221,7 +222,10 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
     s = reconstruct(pts, h=h, d=d, t=t, progress=progress, source=source)
     stats = _mesh_stats(s.vertices, s.faces)
     with claim_output(out, "gistools structure"):
-        return _write_structure(s, stats, out, loop_mode, started)
+        rep = _write_structure(s, stats, out, loop_mode, started)
+        rep["settings"] = {"h": h, "d": d, "t": t, "columns": columns, "scales": list(scales),
+                           "rotations": list(rotations), "loop_mode": loop_mode}
+        return write_folder_report(out, rep)
 
 
 def _write_structure(s: "Structure", stats: dict, out: Path, loop_mode: str, started: float) -> dict:
@@ -286,6 +290,4 @@ def _write_structure(s: "Structure", stats: dict, out: Path, loop_mode: str, sta
     except ImportError:
         pass
     rep["seconds"] = round(time.time() - started, 3)
-    with atomic_path(out / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(rep, indent=2, default=float))
     return rep
