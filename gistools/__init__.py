@@ -5,7 +5,7 @@ The library is a set of small functions over numpy arrays (``gistools.lidar``,
 (``gistools.tasks``) that the CLI and the QGIS plugin both call.
 """
 
-__version__ = "0.1.0"
+from ._version import __version__  # noqa: F401
 
 from .errors import *  # noqa: F401,F403
 from .grid import Grid, cell_centres, cell_index, snapped_grid  # noqa: F401

@@ -12,13 +12,13 @@ avoided in favour of ``[y1 - cs, y1)``; the cell of a point is
 
 from __future__ import annotations
 
-import ctypes
 from dataclasses import dataclass
 
 import numpy as np
 import pyproj
 from affine import Affine
 
+from . import kernel
 from .errors import InputError
 from .parameters import option
 
@@ -100,22 +100,10 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     return Grid(transform, c1 - c0, r1 - r0, crs)
 
 
-_CELL_INDEX_ARGS = (ctypes.c_int64, np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS"),
-                    np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS"), ctypes.c_double, ctypes.c_int64,
-                    ctypes.c_int64, ctypes.c_int64, ctypes.c_int64, np.ctypeslib.ndpointer(np.int64, flags="C_CONTIGUOUS"))
-
-
-def _cell_index_kernel():
-    """The compiled kernel's gt_cell_index (lidar/_tinkernel.c), or None where it is not built."""
-    from .lidar.tin import kernel_function  # here: lidar.tin imports this module
-
-    return kernel_function("gt_cell_index", _CELL_INDEX_ARGS)
-
-
 def cell_index(grid: Grid, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """Flat cell index (row * width + col) of each point, -1 outside the grid. One compiled pass where the kernel
     is built (a fifth of the numpy form's time on a tile), else numpy: the same float64 operations either way."""
-    fn = _cell_index_kernel()
+    fn = kernel.function("gt_cell_index")
     x, y = np.asarray(x), np.asarray(y)
     if fn is not None and x.shape == y.shape and x.ndim == 1:
         x = np.ascontiguousarray(x, np.float64)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import pyproj
 
 from .errors import InputError
-from .parameters import option
+from .parameters.core import option
 
 __all__ = [
     "METRE",

@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from .errors import InputError
-from .parameters import PARAMETERS, option
+from .parameters.core import PARAMETERS, option
 from .units import parse_length
 
 __all__ = ["check_scheduler", "check_length", "check_number", "check_breaks", "check_count", "grid_shape", "check_grid_size",

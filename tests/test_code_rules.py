@@ -75,3 +75,60 @@ def test_no_function_is_rated_d_or_worse_by_radon():
                     found.append(f"{path.relative_to(ROOT)}:{block.lineno} {block.name} {cc_rank(block.complexity)} "
                                  f"({block.complexity})")
     assert not found, "\n".join(found)
+
+
+def _import_graph() -> dict:
+    """{module: the gistools modules it imports}, every import statement counted (those inside functions too);
+    ``from pkg import name`` is an import of ``pkg.name`` where that is a module, else of ``pkg``."""
+    package = ROOT / "gistools"
+    modules = {}
+    for path in package.rglob("*.py"):
+        parts = list(path.relative_to(ROOT).with_suffix("").parts)
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    graph = {}
+    for name, path in modules.items():
+        base = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
+        edges = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom):
+                where = ".".join(base[:len(base) - node.level + 1] + [node.module or ""]).strip(".") if node.level \
+                    else node.module or ""
+                edges.update(f"{where}.{a.name}" if f"{where}.{a.name}" in modules else where for a in node.names)
+            elif isinstance(node, ast.Import):
+                edges.update(a.name for a in node.names)
+        graph[name] = {e for e in edges if e in modules and e != name}
+    return graph
+
+
+def test_the_package_has_no_import_cycle():
+    """No module imports, directly or through others, a module that imports it (a package's __init__ running
+    before its modules is Python's order, not an edge here)."""
+    graph = _import_graph()
+    state: dict = {}
+    cycles = []
+
+    def visit(module, path):
+        state[module] = "open"
+        for dep in sorted(graph[module]):
+            if state.get(dep) == "open":
+                cycles.append(path[path.index(dep):] + [dep])
+            elif dep not in state:
+                visit(dep, path + [dep])
+        state[module] = "done"
+
+    for module in sorted(graph):
+        if module not in state:
+            visit(module, [module])
+    assert not cycles, cycles
+
+
+def test_the_version_is_written_in_one_place():
+    """gistools/_version.py holds it; pyproject.toml reads it from there (dynamic), the plugin's zip is given it by
+    tools/build_plugin.py, and the source metadata.txt (QGIS loading the plugin from a checkout) agrees."""
+    from gistools import __version__
+
+    pyproject = (ROOT / "pyproject.toml").read_text()
+    assert 'dynamic = ["version"]' in pyproject and 'attr = "gistools._version.__version__"' in pyproject
+    assert not re.search(r'^version = "', pyproject, re.M)
+    metadata = (ROOT / "qgis_plugin" / "metadata.txt").read_text()
+    assert f"\nversion={__version__}\n" in metadata

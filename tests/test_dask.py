@@ -80,7 +80,7 @@ def test_shrub_chain_on_dask_equals_local(sample_tiles, tmp_path, dask_cluster):
                    wetlands=f"{b}:WETLAND", tile_index=f"{b}:FOOTPRINT")
     local = shrub_from_tiles(sample_tiles, tmp_path / "local", make_map=False, **vectors)
     remote = shrub_from_tiles(sample_tiles, tmp_path / "dask", make_map=False, scheduler=dask_cluster, **vectors)
-    assert remote["counts"] == {"ok": 4, "failed": 0}
+    assert remote["counts"] == {"ok": 4, "skipped": 0, "failed": 0}
     assert remote["class_area"] == local["class_area"] and remote["band_area"] == local["band_area"]
     for product in ("bands", "veg", "classes", "cover"):
         a, _, _ = read_raster(tmp_path / "local" / f"{product}.vrt")

@@ -41,7 +41,7 @@ def centres(grid):
 
 def test_report_has_areas_by_band_and_class(shrub_run):
     out, report = shrub_run
-    assert report["counts"] == {"ok": 4, "failed": 0}
+    assert report["counts"] == {"ok": 4, "skipped": 0, "failed": 0}
     assert set(report["class_area"]) == {"none", "light", "medium", "heavy", "road", "water"}
     assert set(report["band_area"]) == {"B0", "B1", "B2", "B3"}
     assert report["area_unit"] == "US survey foot squared"

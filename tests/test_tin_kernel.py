@@ -1,6 +1,7 @@
 """gistools' compiled Delaunay kernel against Triangle, scipy and the empty-circle property."""
 
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,6 +23,52 @@ def test_the_kernel_is_built_where_ci_runs():
         assert tin_engine() == "kernel"
     elif tin_engine() != "kernel":
         pytest.skip("the compiled TIN kernel is not built here (no C compiler at install): Triangle is used")
+
+
+def _c_prototypes() -> dict:
+    """{name: (result code, argument codes)} of the kernel's exported functions, read from its C source (every
+    definition or declaration of a gt_ function that is not static), in gistools.kernel's codes."""
+    import re
+
+    from gistools import kernel
+
+    source = (Path(kernel.__file__).parent / "lidar" / "_tinkernel.c").read_text()
+    source = re.sub(r"/\*.*?\*/", " ", source, flags=re.S)
+    scalars = {"int64_t": "l", "int32_t": "i", "double": "d", "void": "v"}
+    arrays = {"double": "*d", "int64_t": "*l", "int32_t": "*i", "uint8_t": "*b", "float": "*f", "char": "p"}
+    found = {}
+    for m in re.finditer(r"^(?:SIMD_CLONES\s+)?(int64_t|void|double)\s+(gt_\w+)\(([^)]*)\)", source, re.M):
+        args = []
+        for arg in (a.strip() for a in m.group(3).split(",")):
+            base = arg.replace("const ", "").split()[0]
+            args.append(arrays[base] if "*" in arg else scalars[base])
+        found[m.group(2)] = (scalars[m.group(1)], tuple(args))
+    return found
+
+
+def test_the_declared_signatures_are_the_c_prototypes():
+    """gistools.kernel declares each entry point once; it must say what the C says (a pointer the Python side
+    passes by reference or as an address, '&l' and 'p', is any C pointer; a wrong count or type fails here)."""
+    from gistools import kernel
+
+    c = _c_prototypes()
+    assert set(c) == set(kernel.SIGNATURES), set(c) ^ set(kernel.SIGNATURES)
+    for name, (result, args) in kernel.SIGNATURES.items():
+        c_result, c_args = c[name]
+        assert result == c_result and len(args) == len(c_args), name
+        for k, (ours, theirs) in enumerate(zip(args, c_args)):
+            assert ours == theirs or (ours in ("p", "&l") and (theirs.startswith("*") or theirs == "p")), (name, k)
+
+
+def test_the_version_line_says_which_engine_runs():
+    from click.testing import CliRunner
+
+    from gistools import kernel
+    from gistools.cli.main import cli
+
+    text = CliRunner().invoke(cli, ["--version"]).output
+    assert "gistools, version" in text and kernel.engine() in text
+    assert ("compiled C kernel" in text) == kernel.loaded()
 
 
 pytestmark_kernel = pytest.mark.skipif(tin.tin_engine() != "kernel", reason="the compiled TIN kernel is not built")

@@ -22,10 +22,20 @@ PLUGIN = "gistools_qgis"
 
 
 def version() -> str:
-    for line in (SOURCE / "metadata.txt").read_text().splitlines():
-        if line.startswith("version="):
-            return line.split("=", 1)[1].strip()
-    raise SystemExit("qgis_plugin/metadata.txt has no version=")
+    """The gistools version, from gistools/_version.py (the one place it is written): the zip's metadata.txt
+    carries it."""
+    import re
+
+    found = re.search(r'^__version__ = "([^"]+)"', (ROOT / "gistools" / "_version.py").read_text(), re.M)
+    if not found:
+        raise SystemExit("gistools/_version.py has no __version__")
+    return found.group(1)
+
+
+def metadata() -> str:
+    """qgis_plugin/metadata.txt with version= set to the gistools version."""
+    lines = (SOURCE / "metadata.txt").read_text().splitlines()
+    return "\n".join(f"version={version()}" if line.startswith("version=") else line for line in lines) + "\n"
 
 
 def build(dist: Path) -> Path:
@@ -36,7 +46,11 @@ def build(dist: Path) -> Path:
         for path in sorted(SOURCE.rglob("*")):
             if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
                 continue
-            zf.write(path, f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}")
+            name = f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}"
+            if path == SOURCE / "metadata.txt":
+                zf.writestr(name, metadata())
+            else:
+                zf.write(path, name)
     tmp.replace(target)
     return target
 

@@ -92,8 +92,18 @@ class GistoolsGroup(click.Group):
         return value
 
 
+def _version_line() -> str:
+    """What ``gistools --version`` prints: the version and the engine that runs (a failed kernel build shows)."""
+    from .. import kernel
+
+    return f"%(prog)s, version %(version)s\nengine: {kernel.engine()}"
+
+
+VERSION_LINE = _version_line()
+
+
 @click.group(cls=GistoolsGroup)
-@click.version_option(__version__, prog_name="gistools")
+@click.version_option(__version__, prog_name="gistools", message=VERSION_LINE)
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose):
     """Open tools for LiDAR (ground and noise classes, DSM / DEM / nDSM, the shrub density chain), aquifer models,

@@ -47,13 +47,9 @@ def max_into(dsm: np.ndarray, cell: np.ndarray, z: np.ndarray) -> None:
 
 def _max_with_class_kernel():
     """The compiled kernel's gt_max_with_class (lidar/_tinkernel.c), or None where it is not built."""
-    import ctypes
+    from .. import kernel
 
-    from .tin import kernel_function  # here: the kernel loads with lidar.tin
-
-    f64, i64, u8 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.float64, np.int64, np.uint8))
-    n = ctypes.c_int64
-    return kernel_function("gt_max_with_class", (n, i64, f64, u8, u8, n, f64, u8, f64, u8))
+    return kernel.function("gt_max_with_class")
 
 
 def max_with_class(dsm, top_class, cell, z, cls) -> None:

@@ -18,13 +18,13 @@ the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
 
 from __future__ import annotations
 
-import ctypes
 import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy import ndimage
 
+from .. import kernel
 from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
@@ -136,24 +136,14 @@ def _box3_sum(a: np.ndarray) -> np.ndarray:
     return rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]
 
 
-def _kernel_function(name: str, *argtypes):
-    """tin.kernel_function with this module's result types."""
-    from .tin import kernel_function
-
-    return kernel_function(name, tuple(argtypes), ctypes.c_int64 if name in ("gt_fill_rings", "gt_fill_front") else None)
-
-
-_F64 = np.ctypeslib.ndpointer(np.float64, flags="C_CONTIGUOUS")
-_I64, _U8 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.uint8))
-_N, _I32, _D = ctypes.c_int64, ctypes.c_int32, ctypes.c_double
-_CROSS = _kernel_function("gt_cross_filter", _F64, _F64, _F64, _N, _N, _I32, _I32)
-_FILL = _kernel_function("gt_fill_rings", _F64, _F64, _N, _N, _I32)
-_PROGRESSIVE = _kernel_function("gt_progressive", _F64, _U8, _F64, _N, _N, _D, _D, _I32)
-_CELL_MIN = _kernel_function("gt_cell_min", _N, _I64, _F64, _F64)
-_FILL_FRONT = _kernel_function("gt_fill_front", _F64, _N, _N, _I32, _N, _I64, _U8, _F64)
-_BILINEAR = _kernel_function("gt_bilinear", _F64, _N, _N, _N, _F64, _F64, _D, _N, _N, _F64)
-_SLOPE_THRESHOLD = _kernel_function("gt_slope_threshold", _F64, _N, _N, _D, _D, _D, _D, _F64)
-_CELL_MEAN = _kernel_function("gt_cell_mean", _N, _I64, _F64, _U8, _N, _F64, _I64, _F64)
+_CROSS = kernel.function("gt_cross_filter")
+_FILL = kernel.function("gt_fill_rings")
+_PROGRESSIVE = kernel.function("gt_progressive")
+_CELL_MIN = kernel.function("gt_cell_min")
+_FILL_FRONT = kernel.function("gt_fill_front")
+_BILINEAR = kernel.function("gt_bilinear")
+_SLOPE_THRESHOLD = kernel.function("gt_slope_threshold")
+_CELL_MEAN = kernel.function("gt_cell_mean")
 
 
 def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:

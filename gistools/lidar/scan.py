@@ -10,7 +10,6 @@ the same values either way (tests/test_scan.py).
 
 from __future__ import annotations
 
-import ctypes
 from dataclasses import dataclass
 
 import numpy as np
@@ -80,17 +79,9 @@ def surface_mask(cell, cls, return_number, withheld, surface: np.ndarray) -> np.
 
 def _kernel():
     """The compiled kernel's gt_scan_chunk (lidar/_tinkernel.c), or None where it is not built."""
-    from .tin import kernel_function  # here: the kernel loads with lidar.tin
+    from .. import kernel
 
-    def arr(t):
-        return np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS")
-
-    ptr = ctypes.c_void_p  # an array's address, or None
-    n, d = ctypes.c_int64, ctypes.c_double
-    f64, i64, i32, u8, f32 = arr(np.float64), arr(np.int64), arr(np.int32), arr(np.uint8), arr(np.float32)
-    return kernel_function("gt_scan_chunk", (
-        n, ptr, n, ptr, n, ptr, n, f64, f64, i64, u8, u8, u8, u8, u8, n, f64, ptr, f64, u8, i64, i64, ptr, i32, f32,
-        n, n, ptr, ptr, f64, i32, ptr, i32, u8, f64, i64))
+    return kernel.function("gt_scan_chunk")
 
 
 def _strided_int32(a) -> np.ndarray:

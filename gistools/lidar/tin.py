@@ -15,7 +15,6 @@ proportion to the cells, not to points x cells.
 from __future__ import annotations
 
 import ctypes
-import functools
 import os
 
 import numpy as np
@@ -25,43 +24,12 @@ try:
 except ImportError:  # optional (no wheel or build for Python 3.14): scipy's Qhull then
     _triangle = None
 
+from .. import kernel
 from ..grid import Grid
 
 __all__ = ["delaunay_triangles", "merge_repeats", "tin_at_points", "tin_to_grid", "tin_to_grid_exact", "tin_engine", "ENGINES", "DEFAULT_ENGINE"]
 
 
-def _load_kernel():
-    try:
-        from . import _tinkernel
-    except ImportError:
-        return None
-    lib = ctypes.CDLL(_tinkernel.__file__)
-    i64, f64, i32 = (np.ctypeslib.ndpointer(t, flags="C_CONTIGUOUS") for t in (np.int64, np.float64, np.int32))
-    lib.gt_delaunay.argtypes = [ctypes.c_int64, i64, i64, i32, ctypes.POINTER(ctypes.c_int64)]
-    lib.gt_delaunay.restype = ctypes.c_int64
-    lib.gt_quantise.argtypes = [ctypes.c_int64, f64, ctypes.c_double, ctypes.c_double, i64]
-    lib.gt_quantise.restype = ctypes.c_double
-    lib.gt_tin_grid.argtypes = [ctypes.c_int64, i64, i64, f64, f64, f64, ctypes.c_int32, ctypes.c_int32, ctypes.c_double, f64,
-                                ctypes.POINTER(ctypes.c_int64), ctypes.c_void_p, ctypes.c_void_p]
-    lib.gt_tin_grid.restype = ctypes.c_int64
-    lib.gt_tin_at.argtypes = [ctypes.c_int64, i32, f64, f64, f64, ctypes.c_int64, ctypes.c_int64, f64, f64, f64]
-    lib.gt_tin_at.restype = ctypes.c_int64
-    return lib
-
-
-_KERNEL = _load_kernel()
-
-
-@functools.cache
-def kernel_function(name: str, argtypes: tuple, restype=None):
-    """A function of gistools' compiled kernel (lidar/_tinkernel.c) with its argument and result types, or None
-    where the kernel is not built (or predates it): the caller's numpy code then runs, with the same values. Looked
-    up once per name (cached), so callers may ask for it on every call."""
-    fn = getattr(_KERNEL, name, None) if _KERNEL is not None else None
-    if fn is not None:
-        fn.argtypes = list(argtypes)
-        fn.restype = restype
-    return fn
 _QUANTUM_STEPS = 2**30  # the kernel's integer coordinates span at most this many steps (its exact predicates allow 2^30)
 
 
@@ -70,7 +38,7 @@ ENGINES = ("kernel", "triangle", "qhull")
 
 def _default_engine() -> str:
     asked = os.environ.get("GISTOOLS_TIN", "").lower()
-    available = [e for e, ok in zip(ENGINES, (_KERNEL is not None, _triangle is not None, True)) if ok]
+    available = [e for e, ok in zip(ENGINES, (kernel.loaded(), _triangle is not None, True)) if ok]
     return asked if asked in available else available[0]
 
 
@@ -84,7 +52,7 @@ def tin_engine(engine: str | None = None) -> str:
         return DEFAULT_ENGINE
     if engine not in ENGINES:
         raise ValueError(f"TIN engine {engine!r} is not one of {', '.join(ENGINES)}")
-    if engine == "kernel" and _KERNEL is None:
+    if engine == "kernel" and not kernel.loaded():
         raise RuntimeError("the compiled TIN kernel is not built (reinstall gistools with a C compiler)")
     if engine == "triangle" and _triangle is None:
         raise RuntimeError("the triangle package is not installed (pip install triangle), use engine='qhull'")
@@ -174,7 +142,7 @@ def _lattice_step(x: np.ndarray, y: np.ndarray, x0: float, y0: float, extent: fl
 def _to_integers(v: np.ndarray, v0: float, scale: float) -> tuple[np.ndarray, float]:
     """(rint((v - v0) * scale) as int64, the largest distance of (v - v0) * scale to an integer)."""
     out = np.empty(len(v), np.int64)
-    worst = _KERNEL.gt_quantise(len(v), np.ascontiguousarray(v, np.float64), v0, scale, out)
+    worst = kernel.function("gt_quantise")(len(v), np.ascontiguousarray(v, np.float64), v0, scale, out)
     return out, worst
 
 
@@ -213,7 +181,7 @@ def _kernel_triangles(x: np.ndarray, y: np.ndarray, count_repeats: bool = False)
         return (none, 0) if count_repeats else none
     tris = np.empty(6 * len(x), np.int32)
     repeats = ctypes.c_int64(0)
-    m = _KERNEL.gt_delaunay(len(x), coords[0], coords[1], tris, ctypes.byref(repeats))
+    m = kernel.function("gt_delaunay")(len(x), coords[0], coords[1], tris, ctypes.byref(repeats))
     if m < 0:
         raise MemoryError(f"not enough memory to triangulate {len(x)} points")
     tris = tris[: 3 * m].reshape(-1, 3)
@@ -241,7 +209,7 @@ def tin_at_points(x, y, z, qx, qy, *, vertex=None, engine: str | None = None) ->
         if not ask.all():
             out[~ask] = z[np.asarray(vertex)[~ask]]
         part = np.full(int(np.count_nonzero(ask)), np.nan)
-        if _KERNEL.gt_tin_at(len(tris), tris, x - x0, y - y0, z, len(x), len(part), np.ascontiguousarray(qx[ask] - x0),
+        if kernel.function("gt_tin_at")(len(tris), tris, x - x0, y - y0, z, len(x), len(part), np.ascontiguousarray(qx[ask] - x0),
                              np.ascontiguousarray(qy[ask] - y0), part) < 0:
             raise MemoryError(f"not enough memory to locate {len(qx)} points in a TIN of {len(x)}")
         out[ask] = part
@@ -315,7 +283,7 @@ def tin_to_grid(
             w, s, e, n = exact_box
             box_cells = np.array([w / cs - grid.col0, grid.row_top - n / cs, e / cs - grid.col0, grid.row_top - s / cs])
             exact_ptr = exact.ctypes.data
-        m = _KERNEL.gt_tin_grid(len(x), coords[0], coords[1], u, v, z, grid.width, grid.height,
+        m = kernel.function("gt_tin_grid")(len(x), coords[0], coords[1], u, v, z, grid.width, grid.height,
                                 -1.0 if max_edge_cells is None else max_edge_cells**2, out, ctypes.byref(repeats),
                                 None if box_cells is None else box_cells.ctypes.data, exact_ptr)
         if m < 0:

@@ -30,7 +30,7 @@ CHAIN_KEYS = ("area_unit", "band_thresholds", "band_unit", "density_radius", "de
 
 def run_record(report: dict) -> dict:
     """One command's line in report.json["runs"]: what ran, when, how long, with what, and how it went."""
-    from .. import __version__
+    from .._version import __version__
 
     return {"tool": report.get("tool"), "version": __version__, "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
             "seconds": report.get("seconds"), "counts": report.get("counts"),
@@ -41,7 +41,7 @@ def run_record(report: dict) -> dict:
 def envelope(report: dict) -> dict:
     """``report`` with the keys every record has: schema, version, counts (one input made where a command has no
     tiles), each tile's warnings as a list, and ``warnings``: the run's own and each tile's, named by tile."""
-    from .. import __version__
+    from .._version import __version__
 
     rep = {"schema": SCHEMA, "tool": report.get("tool"), "version": __version__}
     rep.update((k, v) for k, v in report.items() if k not in ("schema", "version"))

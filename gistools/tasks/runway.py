@@ -7,7 +7,6 @@ in metres, and a feet CRS is refused unless its lengths are converted first).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path

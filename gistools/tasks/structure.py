@@ -4,7 +4,6 @@ walls and a closed 3D mesh. ``reconstruct`` works in memory; ``structure_model``
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
 from pathlib import Path

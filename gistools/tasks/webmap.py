@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
