@@ -97,12 +97,22 @@ class PointChunk:
         )
 
 
+_LABELS: dict = {}  # id(crs) -> (crs, label): the tiles of a delivery share one CRS object (see _file_crs)
+
+
 def crs_label(crs: pyproj.CRS | None) -> str:
     """Short human label for a CRS: 'EPSG:2882 (NAD83(HARN) / Florida West (ftUS))'."""
     if crs is None:
         return "no CRS"
+    known = _LABELS.get(id(crs))
+    if known is not None and known[0] is crs:
+        return known[1]
     code = crs.to_epsg(min_confidence=70)
-    return f"EPSG:{code} ({crs.name})" if code else crs.name
+    label = f"EPSG:{code} ({crs.name})" if code else crs.name
+    if len(_LABELS) >= 256:
+        _LABELS.clear()
+    _LABELS[id(crs)] = (crs, label)  # the CRS kept with it: its id is not reused while here
+    return label
 
 
 def parse_crs_text(text: str) -> pyproj.CRS:
@@ -199,10 +209,33 @@ def _horizontal_from_wkt(header):
     return None
 
 
+_CRS_CACHE: dict = {}  # the CRS records' bytes -> CRS: a delivery's tiles share one CRS, which PROJ builds once
+_CRS_CACHE_SIZE = 64
+
+
+def _crs_key(header):
+    """The bytes of the header's CRS records (GeoTIFF keys, OGC WKT), or None where they cannot be had."""
+    try:
+        records = [v for v in [*header.vlrs, *(getattr(header, "evlrs", None) or [])]
+                   if getattr(v, "user_id", "") == "LASF_Projection"]
+        return tuple((v.record_id, bytes(v.record_data) if hasattr(v, "record_data") else v.record_data_bytes())
+                     for v in records)
+    except Exception:  # a record laspy cannot write back: no cache
+        return None
+
+
 def _file_crs(header, path):
     """(the file's CRS or None, a note on a CRS record that does not parse)."""
+    key = _crs_key(header)
+    if key is not None and key in _CRS_CACHE:
+        return _CRS_CACHE[key], None
     try:
-        return header.parse_crs(), None
+        crs = header.parse_crs()
+        if key is not None:
+            if len(_CRS_CACHE) >= _CRS_CACHE_SIZE:
+                _CRS_CACHE.clear()
+            _CRS_CACHE[key] = crs
+        return crs, None
     except Exception as err:  # malformed CRS VLRs
         file_crs = _horizontal_from_wkt(header)
         note = f"the CRS record cannot be parsed ({_proj_reason(err)})" + (

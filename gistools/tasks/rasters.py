@@ -644,13 +644,27 @@ def _area_box(crs) -> tuple:
     return area, (x0 - mx, y0 - my, x1 + mx, y1 + my)
 
 
+_AREAS_BY_OBJECT: dict = {}  # id(crs) -> (crs, area, box): the tiles' shared CRS object, its WKT written once
+
+
+def _area_of(crs):
+    """(the CRS's area of use, the box in its coordinates that counts as inside it, or None), worked out once."""
+    known = _AREAS_BY_OBJECT.get(id(crs))
+    if known is not None and known[0] is crs:
+        return known[1:]
+    key = crs.to_wkt()
+    if key not in _AREAS:
+        _AREAS[key] = _area_box(crs)
+    if len(_AREAS_BY_OBJECT) >= 256:
+        _AREAS_BY_OBJECT.clear()
+    _AREAS_BY_OBJECT[id(crs)] = (crs, *_AREAS[key])  # the CRS kept: its id is not reused while here
+    return _AREAS[key]
+
+
 def outside_area_of_use(info: TileInfo) -> str | None:
     """A warning when a tile lies far outside its CRS's area of use (coordinates in degrees read as feet, a wrong
     --crs): the grid would come out, wrong, without a word."""
-    key = info.crs.to_wkt()
-    if key not in _AREAS:
-        _AREAS[key] = _area_box(info.crs)
-    area, box = _AREAS[key]
+    area, box = _area_of(info.crs)
     if box is None:
         return None
     w, s, e, n = info.bounds
