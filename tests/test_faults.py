@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import json
+import re
 import os
 import resource
 import shutil
@@ -677,6 +678,23 @@ def test_workers_die_with_a_killed_parent(tiles, tmp_path):
     again = run(["rasters", tiles, "--out", out, "-q"])  # the stale lock and the leftovers are handled
     assert again.returncode == 0, again.stderr
     no_partial_under_final_names(out)
+
+
+@pytest.mark.parametrize("command", ["rasters", "ground", "normalize"])
+def test_a_neighbour_warning_reaches_the_console_and_the_record_in_every_command(command, tiles, tmp_path):
+    """The same path for every tile command: a neighbour that does not read is a warning on the console (stderr,
+    as it happens) and in report.json (the tile's line and the record's warnings, named by tile)."""
+    good = (tiles / "35813.laz").read_bytes()
+    (tiles / "35813.laz").write_bytes(good[: int(len(good) * 0.6)])  # the header reads, the points do not
+    proc = run([command, tiles, "--out", tmp_path / "out", "-q"])
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr  # the broken tile failed; the others were made
+    record = json.loads((tmp_path / "out" / "report.json").read_text())
+    for name in ("35712", "35713", "35812"):
+        line = next(t for t in record["tiles"] if t["name"] == name)
+        assert any("35813" in w and "could not be read" in w for w in line["warnings"]), (name, line["warnings"])
+        assert any(w.startswith(f"{name}: ") and "35813" in w for w in record["warnings"]), record["warnings"]
+        assert re.search(rf"{name}\.la[sz]: .*35813.* could not be read", proc.stderr), proc.stderr[-2000:]
+    assert "laspy" not in proc.stderr  # the reader's own log lines of the broken file: gistools says it once
 
 
 def test_a_tile_made_without_a_neighbour_is_recomputed_once_the_neighbour_reads(tiles, tmp_path):

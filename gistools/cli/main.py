@@ -110,6 +110,8 @@ def cli(verbose):
     runway earthworks and structure reconstruction."""
     logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
                         format="%(levelname)s %(name)s: %(message)s")
+    if verbose < 2:  # laspy logs a broken file's decoding error before raising it; gistools reports it, once
+        logging.getLogger("laspy").setLevel(logging.CRITICAL)
 
 
 from . import ground as _ground  # noqa: E402

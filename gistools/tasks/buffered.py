@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from ..parameters import option, render
 
+import logging
 import shutil
 import tempfile
 from dataclasses import dataclass
@@ -23,6 +24,8 @@ from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool, run_each
 from .schedule import neighbour_pairs
+
+log = logging.getLogger(__name__)
 
 __all__ = ["TileState", "gridded_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
            "write_batch_report"]
@@ -218,6 +221,8 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         for n in left:
             sources, warnings = _sources(infos, n, strips, buffer, table)
             states[n].warnings = warnings
+            for w in warnings:  # on the console and in QGIS as they happen, as gistools rasters does; also in the record
+                log.warning("%s: %s", infos[n].path, w)
             arglist.append((n, tile_fn, *tile_args(n, sources)))
         run_each(_named, arglist, pool, states, left, on_done, tick, verb, out)
     finally:
