@@ -163,14 +163,14 @@ def test_the_shipped_model_validates_as_the_model_designer_checks_it(qgis, tmp_p
     import xml.etree.ElementTree as ET
 
     tree = ET.parse(path)
-    dem = tree.find(".//Option[@name='children']/Option[@name='dem']/Option[@name='params']")
-    dem.remove(dem.find("Option[@name='INPUT']"))
+    ndsm = tree.find(".//Option[@name='children']/Option[@name='ndsm']/Option[@name='params']")
+    ndsm.remove(ndsm.find("Option[@name='DSM']"))
     broken = tmp_path / "broken.model3"
     tree.write(broken)
     model = QgsProcessingModelAlgorithm()
     assert model.fromFile(str(broken))
     ok, issues = model.validate()
-    assert not ok and any("INPUT" in i for i in issues), issues
+    assert not ok and any("DSM" in i for i in issues), issues
 
 
 def test_the_toolbox_reads_as_an_analyst_expects(qgis):
