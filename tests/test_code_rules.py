@@ -85,6 +85,8 @@ def _import_graph() -> dict:
     for path in package.rglob("*.py"):
         parts = list(path.relative_to(ROOT).with_suffix("").parts)
         modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = path
+    compiled = {".".join(p.relative_to(ROOT).parts[:-1] + (p.name.split(".")[0],))
+                for p in [*package.rglob("*.so"), *package.rglob("*.pyd")]}  # extension modules: leaves
     graph = {}
     for name, path in modules.items():
         base = name.split(".") if path.name == "__init__.py" else name.split(".")[:-1]
@@ -93,7 +95,8 @@ def _import_graph() -> dict:
             if isinstance(node, ast.ImportFrom):
                 where = ".".join(base[:len(base) - node.level + 1] + [node.module or ""]).strip(".") if node.level \
                     else node.module or ""
-                edges.update(f"{where}.{a.name}" if f"{where}.{a.name}" in modules else where for a in node.names)
+                edges.update(f"{where}.{a.name}" if f"{where}.{a.name}" in modules.keys() | compiled else where
+                             for a in node.names)
             elif isinstance(node, ast.Import):
                 edges.update(a.name for a in node.names)
         graph[name] = {e for e in edges if e in modules and e != name}

@@ -1,11 +1,12 @@
 """gistools' compiled Delaunay kernel against Triangle, scipy and the empty-circle property."""
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.spatial import ConvexHull, cKDTree
+
+from conftest import ROOT
 
 from gistools.grid import cell_centres, snapped_grid
 from gistools.lidar import tin
@@ -25,39 +26,86 @@ def test_the_kernel_is_built_where_ci_runs():
         pytest.skip("the compiled TIN kernel is not built here (no C compiler at install): Triangle is used")
 
 
-def _c_prototypes() -> dict:
-    """{name: (result code, argument codes)} of the kernel's exported functions, read from its C source (every
-    definition or declaration of a gt_ function that is not static), in gistools.kernel's codes."""
+def test_every_declared_entry_point_is_in_the_built_kernel():
+    """csrc/gistools_kernel.h declares the kernel once; the built module exports each of its functions."""
     import re
 
     from gistools import kernel
 
-    source = (Path(kernel.__file__).parent / "lidar" / "_tinkernel.c").read_text()
-    source = re.sub(r"/\*.*?\*/", " ", source, flags=re.S)
-    scalars = {"int64_t": "l", "int32_t": "i", "double": "d", "void": "v"}
-    arrays = {"double": "*d", "int64_t": "*l", "int32_t": "*i", "uint8_t": "*b", "float": "*f", "char": "p"}
-    found = {}
-    for m in re.finditer(r"^(?:SIMD_CLONES\s+)?(int64_t|void|double)\s+(gt_\w+)\(([^)]*)\)", source, re.M):
-        args = []
-        for arg in (a.strip() for a in m.group(3).split(",")):
-            base = arg.replace("const ", "").split()[0]
-            args.append(arrays[base] if "*" in arg else scalars[base])
-        found[m.group(2)] = (scalars[m.group(1)], tuple(args))
-    return found
+    if not kernel.loaded():
+        pytest.skip("the compiled kernel is not built here")
+    header = (ROOT / "csrc" / "gistools_kernel.h").read_text()
+    declared = sorted(re.findall(r"^(?:int64_t|void|double) (gt_\w+)\(", header, re.M))
+    assert len(declared) == 16 and kernel.names() == declared
 
 
-def test_the_declared_signatures_are_the_c_prototypes():
-    """gistools.kernel declares each entry point once; it must say what the C says (a pointer the Python side
-    passes by reference or as an address, '&l' and 'p', is any C pointer; a wrong count or type fails here)."""
+def test_a_wrong_call_is_a_type_error_not_corrupted_memory():
     from gistools import kernel
 
-    c = _c_prototypes()
-    assert set(c) == set(kernel.SIGNATURES), set(c) ^ set(kernel.SIGNATURES)
-    for name, (result, args) in kernel.SIGNATURES.items():
-        c_result, c_args = c[name]
-        assert result == c_result and len(args) == len(c_args), name
-        for k, (ours, theirs) in enumerate(zip(args, c_args)):
-            assert ours == theirs or (ours in ("p", "&l") and (theirs.startswith("*") or theirs == "p")), (name, k)
+    fn = kernel.function("gt_cell_min")
+    if fn is None:
+        pytest.skip("the compiled kernel is not built here")
+    flat, z, out = np.zeros(3, np.int64), np.ones(3), np.full(1, np.inf)
+    fn(3, flat, z, out)
+    assert out[0] == 1.0
+    with pytest.raises(TypeError, match="int64_t array needed, got int32"):
+        fn(3, flat.astype(np.int32), z, out)
+    with pytest.raises(TypeError, match="C-contiguous"):
+        fn(3, flat, np.ones(6)[::2], out)
+    with pytest.raises(TypeError, match="takes 4 arguments"):
+        fn(3, flat, z)
+    with pytest.raises(TypeError):
+        fn("3", flat, z, out)
+
+
+def test_the_portable_128_bit_predicate_equals_the_compilers_and_exact_integers(tmp_path):
+    """csrc/int128.h: the two-word form (for compilers without __int128, MSVC) and the __int128 form give the sign
+    of the in-circle determinant that Python's exact integers give, on random, extreme and cocircular inputs."""
+    import shutil
+    import subprocess
+
+    cc = shutil.which("cc") or shutil.which("gcc")
+    if cc is None:
+        pytest.skip("no C compiler here")
+    driver = """#include <stdio.h>
+#include "int128.h"
+int SIGN(int64_t a, int64_t b, int64_t c, int64_t d, int64_t e, int64_t f) { return incircle_exact_sign(a, b, c, d, e, f); }
+"""
+    (tmp_path / "native.c").write_text(driver.replace("SIGN", "native_sign"))
+    (tmp_path / "portable.c").write_text("#define GISTOOLS_PORTABLE_INT128\n" + driver.replace("SIGN", "portable_sign"))
+    (tmp_path / "main.c").write_text("""#include <stdio.h>
+#include <stdint.h>
+int native_sign(int64_t, int64_t, int64_t, int64_t, int64_t, int64_t);
+int portable_sign(int64_t, int64_t, int64_t, int64_t, int64_t, int64_t);
+int main(void) {
+    long long v[6];
+    while (scanf("%lld %lld %lld %lld %lld %lld", v, v + 1, v + 2, v + 3, v + 4, v + 5) == 6)
+        printf("%d %d\\n", native_sign(v[0], v[1], v[2], v[3], v[4], v[5]), portable_sign(v[0], v[1], v[2], v[3], v[4], v[5]));
+    return 0;
+}
+""")
+    exe = tmp_path / "check"
+    subprocess.run([cc, "-O2", "-std=c99", f"-I{ROOT / 'csrc'}", "native.c", "portable.c", "main.c", "-o", str(exe)],
+                   cwd=tmp_path, check=True)
+    rng = np.random.default_rng(11)
+    top = 2**30
+    cases = [rng.integers(-top, top + 1, 6) for _ in range(3000)]
+    cases += [rng.choice([-top, top, 0, 1, -1, top - 1], 6) for _ in range(1000)]
+    for _ in range(1000):  # cocircular: a, b, c, p on one circle about the origin (Pythagorean points)
+        r = int(rng.integers(1, 2**14))
+        pts = [(r * 5, 0), (r * 3, r * 4), (-r * 4, r * 3), (0, -r * 5), (r * 4, -r * 3)]
+        k = rng.permutation(5)[:4]
+        (ax, ay), (bx, by), (cx, cy), (px, py) = (pts[i] for i in k)
+        cases.append(np.array([ax - px, ay - py, bx - px, by - py, cx - px, cy - py]))
+    text = "\n".join(" ".join(str(int(v)) for v in c) for c in cases) + "\n"
+    got = subprocess.run([str(exe)], input=text, capture_output=True, text=True, check=True).stdout.split("\n")
+    for case, line in zip(cases, got):
+        dx, dy, ex, ey, fx, fy = (int(v) for v in case)
+        ap, bp, cp = dx * dx + dy * dy, ex * ex + ey * ey, fx * fx + fy * fy
+        det = dx * (ey * cp - bp * fy) - dy * (ex * cp - bp * fx) + ap * (ex * fy - ey * fx)
+        want = (det > 0) - (det < 0)
+        assert line.split() == [str(want), str(want)], (case.tolist(), line, want)
+    assert any(line.split()[0] == "0" for line in got[-1000:])  # the cocircular cases reach the exact path
 
 
 def test_the_version_line_says_which_engine_runs():

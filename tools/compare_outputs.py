@@ -43,7 +43,7 @@ def gistools(*args) -> None:
 
 def _scrub(value, root: str):
     if isinstance(value, dict):
-        return {k: _scrub(v, root) for k, v in value.items() if k not in ("seconds", "scratch_peak_tiles")}
+        return {k: _scrub(v, root) for k, v in value.items() if k not in ("seconds", "scratch_peak_tiles", "finished", "stamps", "stage_seconds")}
     if isinstance(value, list):
         return [_scrub(v, root) for v in value]
     if isinstance(value, str):

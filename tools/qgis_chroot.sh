@@ -6,7 +6,7 @@
 #   bash tools/qgis_chroot.sh [DIR]      (default /var/tmp/gistools-qgis-forky; prints DIR when ready)
 set -euo pipefail
 DIR=${1:-/var/tmp/gistools-qgis-forky}
-STAGE=4  # what a ready chroot holds (4: trimesh, for gistools:scene); a chroot of an earlier stage is completed, not rebuilt
+STAGE=5  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding); a chroot of an earlier stage is completed, not rebuilt
 ready() { [ -x "$DIR/usr/bin/python3" ] && [ "$(cat "$DIR/.gistools-qgis-ready" 2>/dev/null)" = "$STAGE" ]; }
 if ready; then echo "$DIR"; exit 0; fi
 [ "$(id -u)" = 0 ] || { echo "qgis_chroot: needs root (debootstrap, chroot)" >&2; exit 1; }
@@ -35,7 +35,7 @@ APT=(apt-get -o Acquire::Check-Valid-Until=false)
 chroot "$DIR" "${APT[@]}" update -qq
 chroot "$DIR" env DEBIAN_FRONTEND=noninteractive "${APT[@]}" install -y -qq --no-install-recommends \
   python3-qgis qgis-providers qgis python3-venv python3-pip python3-setuptools python3-dev gcc \
-  python3-numpy python3-scipy python3-rasterio python3-pyogrio python3-geopandas python3-pyproj python3-shapely \
+  python3-numpy python3-cffi python3-scipy python3-rasterio python3-pyogrio python3-geopandas python3-pyproj python3-shapely \
   python3-laspy python3-matplotlib python3-click python3-tqdm python3-threadpoolctl python3-pytest proj-bin >/dev/null
 # pip inside: the host's own CAs (a proxy's) added to the chroot's store, so that pip (and its truststore) trusts
 # what the host trusts; else the host's whole bundle in place of the chroot's

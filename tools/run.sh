@@ -57,7 +57,7 @@ if grep -q '^12' /etc/debian_version 2>/dev/null && [ "$PY" = /usr/bin/python3 ]
   export PIP_CONSTRAINT="$ROOT/tools/constraints-debian12.txt"
 fi
 STAMP="$VENV/.gistools-installed"
-WANT=$( (cat pyproject.toml setup.py gistools/lidar/_tinkernel.c tools/constraints-debian12.txt; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)  # a changed kernel is rebuilt
+WANT=$( (cat pyproject.toml setup.py csrc/*.h csrc/*.c csrc/*.py tools/constraints-debian12.txt; echo "wheels=$WHEELS") | sha256sum | cut -c1-16)  # a changed kernel is rebuilt
 pipq() {  # pip install, quiet on success, the whole log on failure
   local log; log=$(mktemp)
   if ! "$VENV/bin/python" -m pip install -q "$@" >"$log" 2>&1; then cat "$log" >&2; rm -f "$log"; return 1; fi

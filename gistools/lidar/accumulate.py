@@ -46,7 +46,7 @@ def max_into(dsm: np.ndarray, cell: np.ndarray, z: np.ndarray) -> None:
 
 
 def _max_with_class_kernel():
-    """The compiled kernel's gt_max_with_class (lidar/_tinkernel.c), or None where it is not built."""
+    """The compiled kernel's gt_max_with_class (csrc/grid.c), or None where it is not built."""
     from .. import kernel
 
     return kernel.function("gt_max_with_class")

@@ -78,7 +78,7 @@ def surface_mask(cell, cls, return_number, withheld, surface: np.ndarray) -> np.
 
 
 def _kernel():
-    """The compiled kernel's gt_scan_chunk (lidar/_tinkernel.c), or None where it is not built."""
+    """The compiled kernel's gt_scan_chunk (csrc/scan.c), or None where it is not built."""
     from .. import kernel
 
     return kernel.function("gt_scan_chunk")

@@ -1,7 +1,7 @@
 """Delaunay TIN of points, evaluated by linear interpolation at grid cell centres.
 
 Two engines give the same Delaunay triangulation (up to the choice between equally valid
-triangles of cocircular points): gistools' compiled kernel (``_tinkernel.c``: the sweep-hull
+triangles of cocircular points): gistools' compiled kernel (``csrc/tin.c``: the sweep-hull
 algorithm of Delaunator with exact integer predicates, plus a rasteriser; 2.3x faster than
 Triangle and the numpy evaluation on a 2 M point tile, README "Performance"), built when the package
 is installed with a C compiler; Shewchuk's Triangle (``triangle`` on PyPI, optional: it has no build for
@@ -14,7 +14,6 @@ proportion to the cells, not to points x cells.
 
 from __future__ import annotations
 
-import ctypes
 import os
 
 import numpy as np
@@ -180,12 +179,12 @@ def _kernel_triangles(x: np.ndarray, y: np.ndarray, count_repeats: bool = False)
         none = np.empty((0, 3), np.int32)
         return (none, 0) if count_repeats else none
     tris = np.empty(6 * len(x), np.int32)
-    repeats = ctypes.c_int64(0)
-    m = kernel.function("gt_delaunay")(len(x), coords[0], coords[1], tris, ctypes.byref(repeats))
+    repeats = np.zeros(1, np.int64)
+    m = kernel.function("gt_delaunay")(len(x), coords[0], coords[1], tris, repeats)
     if m < 0:
         raise MemoryError(f"not enough memory to triangulate {len(x)} points")
     tris = tris[: 3 * m].reshape(-1, 3)
-    return (tris, int(repeats.value)) if count_repeats else tris
+    return (tris, int(repeats[0])) if count_repeats else tris
 
 
 def tin_at_points(x, y, z, qx, qy, *, vertex=None, engine: str | None = None) -> np.ndarray:
@@ -277,15 +276,14 @@ def tin_to_grid(
             return out
         if out.dtype != np.float64 or not out.flags.c_contiguous or out.shape != grid.shape:
             raise ValueError("out must be a C-contiguous float64 array of the grid's shape")
-        repeats = ctypes.c_int64(0)
-        box_cells = exact_ptr = None
+        repeats = np.zeros(1, np.int64)
+        box_cells = None
         if exact is not None:
             w, s, e, n = exact_box
             box_cells = np.array([w / cs - grid.col0, grid.row_top - n / cs, e / cs - grid.col0, grid.row_top - s / cs])
-            exact_ptr = exact.ctypes.data
         m = kernel.function("gt_tin_grid")(len(x), coords[0], coords[1], u, v, z, grid.width, grid.height,
-                                -1.0 if max_edge_cells is None else max_edge_cells**2, out, ctypes.byref(repeats),
-                                None if box_cells is None else box_cells.ctypes.data, exact_ptr)
+                                           -1.0 if max_edge_cells is None else max_edge_cells**2, out, repeats,
+                                           box_cells, exact)
         if m < 0:
             raise MemoryError(f"not enough memory to triangulate {len(x)} points")
         return out

@@ -1,0 +1,44 @@
+/* Points to grid cells: the cell of each point, per-cell minimum, mean, and maximum with its class. */
+#include "cells.h"
+
+/* Mean z of the points with on[k] per cell (NaN where none), summed in point order as numpy.bincount does. */
+void gt_cell_mean(int64_t n, const int64_t *flat, const double *z, const uint8_t *on, int64_t ncells, double *sum,
+                  int64_t *count, double *out) {
+    memset(sum, 0, (size_t)ncells * sizeof(double));
+    memset(count, 0, (size_t)ncells * sizeof(int64_t));
+    for (int64_t k = 0; k < n; k++) {
+        if (!on[k]) continue;
+        sum[flat[k]] += z[k];
+        count[flat[k]]++;
+    }
+    for (int64_t i = 0; i < ncells; i++) out[i] = count[i] > 0 ? sum[i] / (double)count[i] : NAN;
+}
+
+
+/* Flat cell index (row * width + col) of each point, -1 outside the grid (grid.cell_index): the same float64
+ * operations as its numpy form, in one pass. */
+SIMD_CLONES void gt_cell_index(int64_t n, const double *x, const double *y, double cell, int64_t col0, int64_t row_top,
+                               int64_t width, int64_t height, int64_t *out) {
+    const double c0 = (double)col0, top = (double)(row_top - 1), w = (double)width, h = (double)height;
+    for (int64_t i = 0; i < n; i++) out[i] = cell_of(x[i], y[i], cell, c0, top, w, h);
+}
+
+
+/* The DSM's per-cell maximum of z and the class of the point giving it (lidar/accumulate.py max_with_class, the
+ * same result): the points (flat cell, z, class) of one call first make the call's own maxima `cm` and top classes
+ * `tc` (ties among the call's points: the last bare one, i.e. bare[class], else the last one), then these are merged
+ * into `dsm` / `top` (higher, or equal and bare: the call's class). cm (doubles) and tc (bytes) are caller-owned
+ * scratch of ncells, filled here. */
+void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const uint8_t *cls, const uint8_t *bare,
+                       int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc) {
+    for (int64_t c = 0; c < ncells; c++) cm[c] = -INFINITY;
+    for (int64_t i = 0; i < n; i++) top_add(cm, tc, bare, cell[i], z[i], cls[i]);
+    top_merge(ncells, cm, tc, bare, dsm, top);
+}
+
+/* Per-cell minimum of z into out (which holds +inf where no point is yet), flat cell index per point. */
+void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
+    for (int64_t i = 0; i < n; i++) {
+        if (z[i] < out[flat[i]]) out[flat[i]] = z[i];
+    }
+}
