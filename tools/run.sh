@@ -35,6 +35,7 @@ if [ "${1:-}" = test ]; then
   [ -x /usr/bin/qgis_process.bin ] || need_apt+=(qgis)
   command -v chromium >/dev/null || need_apt+=(chromium)  # the web map tests render the page in headless Chromium
   command -v pdftoppm >/dev/null || need_apt+=(poppler-utils)  # the map book test renders its pages
+  command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64)  # the kernel's Windows build is checked
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
