@@ -22,7 +22,8 @@ import numpy as np
 from ..io.outdir import SCRATCH_PREFIX
 from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
-from .batch import make_pool, run_each
+from .batch import make_pool
+from .engine import Passes, run_two_passes, scan_order
 from .schedule import neighbour_pairs
 
 log = logging.getLogger(__name__)
@@ -162,6 +163,7 @@ def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwr
 @dataclass
 class _StripState:
     name: str
+    path: str = ""
     status: str = "ok"
     error: str | None = None
     strip: str | None = None
@@ -189,15 +191,18 @@ def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -
 
 def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs: int,
                     scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str) -> None:
-    """Pass 1 (the edge strips of the tiles of ``todo`` and of their neighbours), then pass 2: ``tile_fn(name,
-    *tile_args(name, sources))`` per tile, ``sources`` being what ``points_around`` reads. ``states``: name ->
-    an object with ``status`` / ``error`` / ``warnings`` (failures are marked there); ``on_done(name, value,
-    seconds)`` takes each result. A failed write to ``out`` stops the run; a failed tile does not."""
+    """The tiles of ``todo`` through the tile engine (tasks.engine): pass 1 keeps the edge strips of each tile and
+    its neighbours in a scratch folder, pass 2 runs ``tile_fn(name, *tile_args(name, sources))`` per tile as soon
+    as its neighbours' strips are there, ``sources`` being what ``points_around`` reads; a strip no tile still
+    needs is deleted. ``states``: name -> an object with ``status`` / ``error`` / ``warnings`` (failures are marked
+    there); ``on_done(name, value, seconds)`` takes each result. A failed write to ``out`` stops the run; a failed
+    tile does not."""
     if not todo:
         return
     table = neighbour_table(infos, buffer)
-    need = list(dict.fromkeys([*todo, *(Path(q).stem for n in todo for q in table[n])]))
-    strips = {n: _StripState(n) for n in need}
+    need = set(todo).union(Path(q).stem for n in todo for q in table[n])
+    strips = {n: _StripState(n, str(infos[n].path)) for n in need}
+    order = scan_order({n: infos[n].bounds for n in infos if n in need})
     done = [0]
     total = len(need) + len(todo)
 
@@ -205,29 +210,32 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         done[0] += 1
         report(progress, done[0] / max(total, 1), message)
 
-    def strip_done(name, value, seconds):
+    def read_done(name, value, seconds):
         strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
+
+    def make(name):
+        sources, warnings = _sources(infos, name, strips, buffer, table)
+        states[name].warnings = warnings
+        for w in warnings:  # on the console and in QGIS as they happen, as gistools rasters does; also in the record
+            log.warning("%s: %s", infos[name].path, w)
+        return _named, (name, tile_fn, *tile_args(name, sources))
+
+    def release(names):
+        for n in names:
+            if strips[n].strip:
+                Path(strips[n].strip).unlink(missing_ok=True)
 
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
     pool = make_pool(jobs, scheduler, len(todo))
+    passes = Passes(read=lambda name, inline: (_strip_tile, (name, str(infos[name].path), crs_text, buffer,
+                                                             str(scratch))),
+                    make=make, on_read=read_done, on_made=on_done, results=states, read_results=strips, release=release,
+                    tick=tick,
+                    verbs=("read", verb))
     try:
-        run_each(_strip_tile, [(n, str(infos[n].path), crs_text, buffer, str(scratch)) for n in need], pool, strips, need,
-                 strip_done, tick, "read", out)
-        for n in todo:
-            if strips[n].status == "failed":
-                states[n].status, states[n].error = "failed", strips[n].error
-        left = [n for n in todo if states[n].status != "failed"]
-        arglist = []
-        for n in left:
-            sources, warnings = _sources(infos, n, strips, buffer, table)
-            states[n].warnings = warnings
-            for w in warnings:  # on the console and in QGIS as they happen, as gistools rasters does; also in the record
-                log.warning("%s: %s", infos[n].path, w)
-            arglist.append((n, tile_fn, *tile_args(n, sources)))
-        run_each(_named, arglist, pool, states, left, on_done, tick, verb, out)
+        run_two_passes(order, set(todo), {n: {n} | {Path(q).stem for q in table[n]} for n in todo}, passes, pool,
+                       owned=True, out=out)
     finally:
-        if pool is not None:
-            pool.close()
         shutil.rmtree(scratch, ignore_errors=True)
 
 

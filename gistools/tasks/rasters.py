@@ -40,13 +40,14 @@ from ..lidar.scan import GROUND_CLASS, WATER_CLASS, ScanGrids, scan_chunk, surfa
 from ..lidar.gridding import dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
-from .batch import drive, fail, make_pool, timed, worker_timed
+from .batch import fail, make_pool
+from .engine import Passes, run_two_passes, scan_order
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
 from .dsmfill import DsmFillScan, fill_tile_dsm
 from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
 from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
-from .schedule import TwoPassSchedule, neighbour_pairs
+from .schedule import neighbour_pairs
 from ..units import length_to_crs_units
 from ..parameters import check_all, choices, default_for, in_data_units, option, render, setting_default
 from ..validation import check_scheduler, check_count, check_grid_size, check_length, grid_shape
@@ -811,48 +812,25 @@ def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress,
         if rep is not None:
             _take_kept(results[name], rep)
     needed = set(todo).union(*({n.name for n in neighbours[name]} for name in todo))
-    scan = sorted((i for i in infos if i.name in needed), key=lambda i: (-i.bounds[3], i.bounds[0]))
-    schedule = TwoPassSchedule([i.name for i in scan], todo,
-                               {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo})
     by_name = {i.name: i for i in infos}
-    ticker = _Ticker(progress, max(len(scan) + len(todo), 1), results, len(todo))
-    pending: dict = {}
+    order = scan_order({i.name: i.bounds for i in infos if i.name in needed})
+    ticker = _Ticker(progress, max(len(order) + len(todo), 1), results, len(todo))
 
-    def finish(kind, name, value, seconds, err):
-        if err is not None:
-            raise_output_error(err, run.out)  # a full disk or a read-only --out stops the run: it is no tile's fault
-            fail(results[name], err)
-        elif kind == "scan":
-            _scan_done(results[name], value, seconds)
-        else:
-            _grid_done(results[name], value, seconds)
-            write_tile_report(out, results[name], settings)
-        schedule.done(kind, name)
-        _release(run.scratch, schedule.releasable())
-        ticker.tick(f"{name} {'read' if kind == 'scan' else 'gridded'}")
+    def read(name, inline):
+        return _scan_tile, (by_name[name], run, *((ticker.within_tile,) if inline and progress else ()))
 
-    def start(kind, name):
-        fn, args = (_scan_tile, (by_name[name], run)) if kind == "scan" else (_grid_tile, (by_name[name], neighbours[name], run))
-        if pool is not None:
-            pending[pool.submit(worker_timed, fn, args)] = (kind, name)
-            return
-        try:
-            value, seconds = timed(fn, (*args, *((ticker.within_tile,) if kind == "scan" and progress else ())))
-        except Cancelled:
-            raise
-        except Exception as err:  # one bad tile never stops the batch; it is reported
-            return finish(kind, name, None, 0.0, err)
-        finish(kind, name, value, seconds, None)
+    def made(name, value, seconds):
+        _grid_done(results[name], value, seconds)
+        write_tile_report(out, results[name], settings)
 
-    def next_task():
-        task = schedule.next_task(lambda name: results[name].status == "failed")
-        _release(run.scratch, schedule.releasable())
-        return task
-
-    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(scan), _task_bytes(scan, run))
-    drive(pool, pool is not shared_pool, 1 if pool is None else 2 * max(getattr(pool, "workers", jobs), 1), next_task, start,
-          pending, finish)
-    return schedule.scratch_peak
+    passes = Passes(read=read, make=lambda name: (_grid_tile, (by_name[name], neighbours[name], run)),
+                    on_read=lambda name, value, seconds: _scan_done(results[name], value, seconds), on_made=made,
+                    results=results, release=lambda names: _release(run.scratch, names), tick=ticker.tick,
+                    verbs=("read", "gridded"))
+    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(order),
+                                                                 _task_bytes([by_name[n] for n in order], run))
+    return run_two_passes(order, todo, {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo}, passes,
+                          pool, owned=pool is not shared_pool, out=out)
 
 
 class _Ticker:
