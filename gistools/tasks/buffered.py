@@ -24,6 +24,7 @@ from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool
 from .engine import Passes, run_two_passes, scan_order
+from .engine import TileState as EngineTileState
 from .schedule import neighbour_pairs
 
 log = logging.getLogger(__name__)
@@ -125,15 +126,10 @@ def points_around(sources: list, box, crs_text=None) -> list[dict]:
 
 
 @dataclass
-class TileState:
-    """A tile's line in a batch command's report.json (each command adds its own fields)."""
+class TileState(EngineTileState):
+    """A tile's line in a buffered command's report.json (each command adds its own fields)."""
 
-    name: str
-    path: str
-    status: str = "ok"  # ok / failed / skipped
-    error: str | None = None
     neighbours: list | None = None  # the neighbours whose points it read
-    warnings: list | None = None
     seconds: float = 0.0
 
 

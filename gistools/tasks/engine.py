@@ -12,14 +12,25 @@ Ctrl-C and cancellation stop it with the pool. ``gistools rasters`` and the buff
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable
 
 from ..errors import Cancelled
 from .batch import drive, fail, timed, worker_timed
 from .schedule import TwoPassSchedule
 
-__all__ = ["Passes", "run_two_passes", "scan_order"]
+__all__ = ["Passes", "TileState", "run_two_passes", "scan_order"]
+
+
+@dataclass
+class TileState:
+    """A tile's line in report.json, as every tile command has it; each command's state adds its own fields."""
+
+    name: str
+    path: str
+    status: str = "ok"  # ok / failed / skipped (kept from an earlier run)
+    error: str | None = None  # one line: the file, the problem, the fix
+    warnings: list = field(default_factory=list)
 
 
 def scan_order(bounds: dict) -> list[str]:

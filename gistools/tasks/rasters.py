@@ -41,7 +41,7 @@ from ..lidar.gridding import dem_from_ground_points, fill_voids, ndsm_from, tin_
 from ..progress import ProgressCallback, report, sub_progress
 from .record import write_folder_report
 from .batch import fail, make_pool
-from .engine import Passes, run_two_passes, scan_order
+from .engine import Passes, TileState, run_two_passes, scan_order
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
 from .dsmfill import DsmFillScan, fill_tile_dsm
@@ -118,13 +118,9 @@ class RasterSettings:
 
 
 @dataclass
-class TileResult:
+class TileResult(TileState):
     """One tile's line in report.json."""
 
-    name: str
-    path: str
-    status: str = "ok"  # ok / failed / skipped
-    error: str | None = None
     points: int = 0
     points_by_class: dict = field(default_factory=dict)
     points_by_return: dict = field(default_factory=dict)
@@ -138,7 +134,6 @@ class TileResult:
     grid: list | None = None  # the tile's grid: transform (a, b, c, d, e, f), width, height
     nodata_by_cause: dict | None = None  # why cells have no height band (lidar.bands), where dsm, dem, topclass are made
     stage_seconds: dict = field(default_factory=dict)  # the tile's time by stage: read (pass 1), merge, dem, write
-    warnings: list = field(default_factory=list)
     neighbours: list = field(default_factory=list)  # the neighbours whose points the tile's rasters used
     seconds: float = 0.0
 

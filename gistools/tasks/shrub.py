@@ -45,6 +45,7 @@ from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
 from .batch import make_pool, run_each
+from .engine import TileState
 from .rasters import RasterSettings, rasters_from_tiles
 from .record import write_folder_report
 from .settings import ShrubSettings
@@ -58,11 +59,7 @@ HECTARE_M2 = 10000.0
 
 
 @dataclass
-class _TileState:
-    name: str
-    path: str
-    status: str = "ok"
-    error: str | None = None
+class _TileState(TileState):
     outputs: dict = field(default_factory=dict)
     band_area: dict = field(default_factory=dict)
     class_area: dict = field(default_factory=dict)
