@@ -51,7 +51,7 @@ def missing_message(missing: list[str]) -> str:
     pure = [m for m in missing if m.split(">")[0] not in _BOUND | {"numpy", "scipy", "geopandas", "gistools"}]
     bound = [m for m in missing if m.split(">")[0] in _BOUND]
     text = ("gistools: the Processing algorithms are not available because QGIS's Python cannot import "
-            + ", ".join(missing) + ". On Debian / Ubuntu, follow the README's route (section QGIS): "
+            + ", ".join(missing) + ". On Debian / Ubuntu, follow the route of the documentation's QGIS page (docs/qgis.md): "
             "it builds rasterio, pyogrio, pyproj and shapely against the GDAL / PROJ / GEOS QGIS links (binary wheels "
             "carry their own copies, which crash QGIS) with `pip install --user --break-system-packages` "
             "(Debian's system pip is externally managed)")
@@ -111,7 +111,7 @@ def library_mismatches() -> list[str]:
 
 def mismatch_message(found: list[str]) -> str:
     return ("gistools: the Processing algorithms are not available: " + "; ".join(found) + ". Rebuild them against "
-            "the libraries QGIS links, as the README's section QGIS shows (Debian: `PIP_NO_BINARY=rasterio,pyogrio,"
+            "the libraries QGIS links, as the documentation's QGIS page (docs/qgis.md) shows (Debian: `PIP_NO_BINARY=rasterio,pyogrio,"
             "shapely,pyproj pip install --user --break-system-packages --force-reinstall --no-deps rasterio pyogrio "
             "shapely pyproj`, after the build packages it lists), or use Debian's python3-rasterio / python3-pyproj / "
             "python3-shapely / python3-pyogrio. Then restart QGIS.")

@@ -1,53 +1,120 @@
-"""The README's Python example runs as printed, as a script, in a folder holding a copy of sample_tiles/."""
+"""Every command and Python block of the README and of the documentation pages (docs/, in the order of mkdocs.yml's
+nav) runs as printed, in order, in one folder: a copy of the checkout to which `gistools examples .` added the
+example inputs. Every fenced block is either run or listed here as not run, with the reason."""
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
 import sys
+import textwrap
 
 import pytest
 
 from conftest import ROOT, SAMPLE
 
-
-def test_the_readme_python_example_runs_as_a_script(tmp_path):
-    text = (ROOT / "README.md").read_text()
-    section = text[text.index("## Python\n"):]
-    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
-    shutil.copytree(SAMPLE, tmp_path / "sample_tiles")
-    (tmp_path / "example.py").write_text(code)
-    proc = subprocess.run([sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    assert "{'ok': 4, 'failed': 0, 'skipped': 0}" in proc.stdout
-    assert "Traceback" not in proc.stderr and "forked" not in proc.stderr  # the guard lets the workers spawn
-
-
-_COPY_SKIP = shutil.ignore_patterns(".venv", ".git", "out", "dist", "build", "__pycache__", "*.egg-info")
-# the one README command not run here: it is the test suite itself (.ci/run runs it)
+# blocks not run here, by (page, first line): the reason. A reason starting with "repeats" names the page whose
+# block of the same text is run.
+_NOT_RUN = {
+    ("docs/install.md", "python3 -m venv ~/gistools-venv"):
+        "makes a second environment and downloads every dependency (minutes, network); the blocks run in the one "
+        "`bash tools/run.sh` made",
+    ("docs/install.md", r"py -m venv %USERPROFILE%\gistools-venv"): "Windows commands",
+    ("docs/install.md", "bash tools/run.sh sample   # set up .venv and run the shrub chain on sample_tiles/: map, "
+                        "polygons and rasters in out/"): "repeats README.md",
+    ("docs/quickstart.md", "gistools info tiles                              # CRS, units, points by class and "
+                           "return: check before a long run"): "repeats README.md",
+    ("docs/performance.md", "python benchmarks/bench_rasters.py --repeat 3"):
+        "benchmark: generates 20 M points and runs WhiteboxTools (several minutes)",
+    ("docs/performance.md", "python benchmarks/bench_rasters.py --density levy --repeat 3 --laz14"):
+        "benchmark: generates four 5,000 ft tiles and runs WhiteboxTools (minutes)",
+    ("docs/performance.md", "python benchmarks/bench_shrub.py --repeat 3"): "benchmark: 40.8 M points (many minutes)",
+    ("docs/performance.md", "python benchmarks/bench_shrub.py --levy --repeat 5"):
+        "benchmark: 26 M points, five rounds (many minutes)",
+    ("docs/performance.md", "python benchmarks/bench_ground.py            # quality and classification speed on two "
+                            "real surveys"): "benchmark: needs the real surveys of the test data (minutes)",
+    ("docs/performance.md", "python benchmarks/bench_schedule.py"): "benchmark: schedules 100,000 tiles",
+    ("docs/performance.md", "python benchmarks/bench_aquifer.py"): "benchmark: 400,000 contacts (half a minute)",
+    ("docs/performance.md", "python benchmarks/bench_runway.py"): "benchmark: 452,605 survey points (20 s)",
+    ("docs/performance.md", "python benchmarks/bench_structure.py"): "benchmark: 93,860 points (10 s)",
+}
+# lines of run blocks not run here: the test suite itself (this test is part of it)
 _NOT_HERE = ("bash tools/run.sh test",)
+_RUN = ("bash", "python")  # ```text blocks are console output or commands shown, never run
+_FENCE = re.compile(r"^( *)```([\w+-]*)[^\n]*\n(.*?)^\1```[ \t]*$", re.S | re.M)
+_COPY_SKIP = shutil.ignore_patterns(".venv", ".git", "out", "dist", "build", "site", "__pycache__", "*.egg-info")
 
 
-def _bash_blocks(text: str) -> list[str]:
-    """The ```bash blocks, list-item indented ones dedented."""
-    import textwrap
+def _pages() -> list[str]:
+    """README.md, then the pages of mkdocs.yml's nav in their order (paths from the checkout's root)."""
+    import yaml
 
-    return [textwrap.dedent(body) for _, body in re.findall(r"^( *)```bash\n(.*?)^\1```", text, re.S | re.M)]
+    def walk(node):
+        if isinstance(node, str):
+            yield node
+        elif isinstance(node, list):
+            for item in node:
+                yield from walk(item)
+        elif isinstance(node, dict):
+            for value in node.values():
+                yield from walk(value)
+
+    nav = yaml.safe_load((ROOT / "mkdocs.yml").read_text())["nav"]
+    return ["README.md"] + [f"docs/{page}" for page in walk(nav) if page.endswith(".md")]
 
 
-def test_every_readme_command_block_runs_as_printed(tmp_path):
-    """Each ```bash block of the README, in order, in a copy of this checkout (its .venv linked, so run.sh finds
-    it set up) to which `gistools examples .` added the example inputs; HOME is a fresh folder (the plugin
-    block installs into ~/.local/share/QGIS). A block that fails names itself and its output."""
-    import os
+def _blocks() -> list[tuple[str, int, str, str]]:
+    """Every fenced block of the pages in order: (page, its number on the page, language, text; list items
+    dedented)."""
+    found = []
+    for page in _pages():
+        for n, (_, lang, body) in enumerate(_FENCE.findall((ROOT / page).read_text()), 1):
+            found.append((page, n, lang, textwrap.dedent(body)))
+    return found
 
+
+def _first_line(text: str) -> str:
+    return next((ln for ln in text.splitlines() if ln.strip()), "")
+
+
+def _to_run() -> list[tuple[str, int, str, str]]:
+    return [b for b in _blocks() if b[2] in _RUN and (b[0], _first_line(b[3])) not in _NOT_RUN]
+
+
+def test_every_fenced_block_is_run_or_listed_with_a_reason():
+    blocks = _blocks()
+    assert {p for p, *_ in blocks} >= {"README.md", "docs/quickstart.md", "docs/commands/shrub.md", "docs/python.md"}
+    ran = {text for _, _, lang, text in _to_run()}
+    unlisted = []
+    for page, n, lang, text in blocks:
+        key = (page, _first_line(text))
+        if key in _NOT_RUN:
+            reason = _NOT_RUN[key]
+            if reason.startswith("repeats"):  # the same text must run where it is said to
+                assert text in ran and any(t == text for p, _, _, t in _to_run() if p == reason.split()[1]), (
+                    f"{page} block {n} is not the same as a block run in {reason.split()[1]}")
+        elif lang not in _RUN and lang != "text":
+            unlisted.append(f"{page} block {n} (```{lang or 'no language'}): {key[1]!r}")
+    assert not unlisted, "blocks neither run nor listed in _NOT_RUN with a reason:\n" + "\n".join(unlisted)
+    stale = set(_NOT_RUN) - {(p, _first_line(t)) for p, _, _, t in blocks}
+    assert not stale, f"_NOT_RUN lists blocks no page holds: {sorted(stale)}"
+
+
+def _install_stamp() -> str:
+    """The stamp tools/run.sh writes into .venv once it installed this checkout (its own WANT= line, evaluated)."""
+    line = next(ln for ln in (ROOT / "tools" / "run.sh").read_text().splitlines() if ln.startswith("WANT="))
+    proc = subprocess.run(["bash", "-c", f'WHEELS=0\n{line}\necho "$WANT"'], cwd=ROOT, capture_output=True, text=True)
+    return proc.stdout.strip()
+
+
+def _checkout(tmp_path):
+    """A copy of this checkout with its .venv linked (run.sh finds it set up) and the example inputs added, and the
+    environment the blocks run in: a fresh HOME (the plugin block installs into ~/.local/share/QGIS), the venv first
+    on the PATH."""
     stamp = ROOT / ".venv" / ".gistools-installed"
-    inputs = b"".join((ROOT / f).read_bytes() for f in ("pyproject.toml", "setup.py", "gistools/lidar/_tinkernel.c",
-                                                         "tools/constraints-debian12.txt")) + b"wheels=0\n"
-    import hashlib
-
-    if not stamp.exists() or stamp.read_text().strip() != hashlib.sha256(inputs).hexdigest()[:16]:
+    if not stamp.exists() or stamp.read_text().strip() != _install_stamp():
         pytest.fail("the .venv is not set up for this checkout: run `bash tools/run.sh test` (the README's command), "
                     "so that the copy's run.sh does not reinstall gistools into it")
     work = tmp_path / "checkout"
@@ -55,26 +122,38 @@ def test_every_readme_command_block_runs_as_printed(tmp_path):
     (work / ".venv").symlink_to(ROOT / ".venv")
     home = tmp_path / "home"
     home.mkdir()
-    venv_bin = ROOT / ".venv" / "bin"
-    shims = tmp_path / "shims"  # the README is written for a user with sudo; as root without it, sudo runs the command
+    shims = tmp_path / "shims"  # the docs are written for a user with sudo; as root without it, sudo runs the command
     shims.mkdir()
     if os.geteuid() == 0 and not shutil.which("sudo"):
         (shims / "sudo").write_text('#!/bin/sh\nexec "$@"\n')
         (shims / "sudo").chmod(0o755)
-    env = {**os.environ, "HOME": str(home), "PATH": f"{venv_bin}:{shims}:{os.environ['PATH']}", "QT_QPA_PLATFORM": "offscreen"}
+    path = f"{ROOT / '.venv' / 'bin'}:{shims}:{os.environ['PATH']}"
+    env = {**os.environ, "HOME": str(home), "PATH": path, "QT_QPA_PLATFORM": "offscreen"}
     env.pop("PIP_CONSTRAINT", None)  # run.sh's: the blocks say which constraints they use
     prep = subprocess.run(["gistools", "examples", "."], cwd=work, env=env, capture_output=True, text=True, timeout=600)
     assert prep.returncode == 0, prep.stderr[-2000:]
-    blocks = _bash_blocks((ROOT / "README.md").read_text())
-    assert len(blocks) >= 9
-    for i, block in enumerate(blocks, 1):
+    return work, env
+
+
+def _run_block(work, env, i: int, page: str, n: int, lang: str, block: str) -> subprocess.CompletedProcess:
+    """One block in `work`: bash with -euo pipefail (less the lines of _NOT_HERE), or Python as a script."""
+    if lang == "bash":
         lines = [ln for ln in block.splitlines() if not any(ln.strip().startswith(s) for s in _NOT_HERE)]
-        proc = subprocess.run(["bash", "-euo", "pipefail", "-c", "\n".join(lines)], cwd=work, env=env,
-                              capture_output=True, text=True, timeout=1800)
-        assert proc.returncode == 0, f"README bash block {i} failed:\n{block}\n{proc.stdout[-1500:]}\n{proc.stderr[-2500:]}"
-        assert "Traceback" not in proc.stderr, f"README bash block {i}:\n{proc.stderr[-2500:]}"
-    # the model example as printed: every output where it was given, with the CLI's road and water classes (the
-    # cell-by-cell equality with gistools shrub is tests/test_qgis.py's) and its class polygons
+        cmd = ["bash", "-euo", "pipefail", "-c", "\n".join(lines)]
+    else:
+        script = work / f".doc_block_{i}.py"
+        script.write_text(block)
+        cmd = [sys.executable, script.name]
+    proc = subprocess.run(cmd, cwd=work, env=env, capture_output=True, text=True, timeout=1800)
+    where = f"{page} block {n} (```{lang})"
+    assert proc.returncode == 0, f"{where} failed:\n{block}\n{proc.stdout[-1500:]}\n{proc.stderr[-2500:]}"
+    assert "Traceback" not in proc.stderr, f"{where}:\n{proc.stderr[-2500:]}"
+    return proc
+
+
+def _check_the_model_outputs(work):
+    """The QGIS model example as printed: every output where it was given, with the CLI's road and water classes
+    (the cell-by-cell equality with gistools shrub is tests/test_qgis.py's) and its class polygons."""
     import geopandas as gpd
     import numpy as np
     import rasterio
@@ -88,18 +167,42 @@ def test_every_readme_command_block_runs_as_printed(tmp_path):
     assert len(gpd.read_file(model / "shrub_classes.gpkg")) > 0
 
 
-def test_the_python_example_after_the_command_blocks_speaks_python(tmp_path):
-    """Run after the command blocks (which made out/ with 5 ft cells), the example's 1 m call into the same folder
-    is refused by the library, and its message names the Python argument (overwrite=True), never a flag."""
+def test_every_command_and_python_block_runs_as_printed(tmp_path):
+    """Each ```bash block of the README and the docs, in order, in one copy of this checkout to which `gistools
+    examples .` added the example inputs; each ```python block as a script in the same folder, after the blocks
+    before it. A block that fails names its page, its number and its output."""
+    work, env = _checkout(tmp_path)
+    blocks = _to_run()
+    assert sum(b[2] == "bash" for b in blocks) >= 20 and sum(b[2] == "python" for b in blocks) >= 3
+    readme_py = None
+    for i, (page, n, lang, block) in enumerate(blocks):
+        proc = _run_block(work, env, i, page, n, lang, block)
+        if page == "README.md" and lang == "python" and readme_py is None:
+            readme_py = proc
+    # the README's Python example as printed: its counts, and the guard lets the workers spawn (no fork warning)
+    assert readme_py is not None, "the README has no Python block run here"
+    assert "{'ok': 4, 'failed': 0, 'skipped': 0}" in readme_py.stdout
+    assert "forked" not in readme_py.stderr
+    _check_the_model_outputs(work)
+
+
+def _readme_python() -> str:
     text = (ROOT / "README.md").read_text()
     section = text[text.index("## Python\n"):]
-    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def test_the_readme_python_example_into_a_folder_of_other_settings_speaks_python(tmp_path):
+    """Run after the command line made its output folder with 5 ft cells, the example's 1 m call into the same
+    folder is refused by the library, and its message names the Python argument (overwrite=True), never a flag."""
+    code = _readme_python()
+    folder = re.search(r'rasters_from_tiles\(\["sample_tiles"\], "([^"]+)"', code).group(1)
     shutil.copytree(SAMPLE, tmp_path / "sample_tiles")
-    first = subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", "sample_tiles", "--out", "out", "-q"],
+    first = subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", "sample_tiles", "--out", folder, "-q"],
                            cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert first.returncode == 0, first.stderr
     (tmp_path / "example.py").write_text(code)
     proc = subprocess.run([sys.executable, "example.py"], cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    if proc.returncode != 0:
-        last = proc.stderr.strip().splitlines()[-1]
-        assert "overwrite=True" in last and "--" not in last, last
+    assert proc.returncode != 0, "a 1 m run into a folder of 5 ft rasters must be refused"
+    last = proc.stderr.strip().splitlines()[-1]
+    assert "overwrite=True" in last and "--" not in last, last

@@ -3,7 +3,7 @@
 Two engines give the same Delaunay triangulation (up to the choice between equally valid
 triangles of cocircular points): gistools' compiled kernel (``csrc/tin.c``: the sweep-hull
 algorithm of Delaunator with exact integer predicates, plus a rasteriser; 2.3x faster than
-Triangle and the numpy evaluation on a 2 M point tile, README "Performance"), built when the package
+Triangle and the numpy evaluation on a 2 M point tile, docs/performance.md), built when the package
 is installed with a C compiler; Shewchuk's Triangle (``triangle`` on PyPI, optional: it has no build for
 Python 3.14) with a numpy evaluation; and scipy's Qhull (always there) with the same numpy evaluation.
 Every function takes ``engine`` ("kernel", "triangle" or "qhull"); None is ``DEFAULT_ENGINE``: the

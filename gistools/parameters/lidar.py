@@ -96,7 +96,7 @@ declare(
 # --- gistools metrics and gistools points ---------------------------------------------------------------------
 declare(
     Parameter("metrics", "choices", "Comma-separated names: count, density; z_ / i_ / hag_ + min, max, mean, median, "
-              "sum, sd, cv, pNN, aboveX; cover_aboveX; fhd; vci; fuel_A_B (README \"Cell metrics\"). Any such name is "
+              "sum, sd, cv, pNN, aboveX; cover_aboveX; fhd; vci; fuel_A_B (the documentation's metrics page). Any such name is "
               "taken; the choices are the dialog's checklist.", "Metrics", choices={m: m for m in COMMON_METRICS},
               default=DEFAULT_METRICS, example="count,z_max,z_p95"),
     Parameter("more_metrics", "text", f"More metric names, comma-separated, added to {option('metrics')} (in QGIS, "

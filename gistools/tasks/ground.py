@@ -55,7 +55,7 @@ class GroundSettings:
 
     SMRF (Pingel et al. 2013; PDAL's names): ``cell``, ``slope`` (rise over run), ``window`` (largest opening
     radius), ``threshold`` and ``scalar`` (a point within threshold + scalar x local slope of the surface is
-    ground). The defaults were chosen on the real files of ../shared/data (README "Ground"): PDAL's own are
+    ground). The defaults were chosen on the real files of ../shared/data (docs/commands/ground.md): PDAL's own are
     cell 1 m, slope 0.15, window 18 m, threshold 0.5 m, scalar 1.25 m. CSF (lidR ``csf()`` defaults):
     ``csf_resolution``, ``csf_threshold``, ``csf_rigidness``, ``csf_time_step``, ``csf_iterations``,
     ``csf_slope_smooth``. Noise: ``noise`` ivf (lasR ``classify_with_ivf``: ``ivf_res`` 5 m, ``ivf_n`` 6),

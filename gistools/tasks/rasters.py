@@ -68,7 +68,7 @@ class RasterSettings:
     The dissertation's set is (1, 2). products: any of dsm, dem, ndsm, topclass (the ASPRS
     class of each cell's highest first return, uint8; a DSM-only run keeps no ground points).
     tin_block_points: the DEM is built in strips of about this many ground points, bounding
-    memory (about 110 bytes per point in the TIN kernel, README "Performance"). dem_max_distance:
+    memory (about 110 bytes per point in the TIN kernel, docs/performance.md). dem_max_distance:
     cells farther than this from every ground point stay nodata (TIN, IDW). buffer: how far
     into neighbouring tiles ground points are read (default: 2 x dem_max_distance, at least 20
     cells). return_band_breaks: heights
@@ -461,7 +461,7 @@ def _tile_dem(info, neighbours, run: _Run, grid: Grid, ground_count, water) -> t
 
 # Ground points one TIN is built on at most: the sweep's time a point grows with the points (0.34 µs at 250,000,
 # 0.42 at 1 M, 0.52 at 4.5 M on this project's machine: its arrays outgrow the caches), so a tile's DEM in strips of
-# 1 M (each with its halo) takes a tenth less time than in one piece, the same values (README "Performance").
+# 1 M (each with its halo) takes a tenth less time than in one piece, the same values (docs/performance.md).
 TIN_STRIP_POINTS = 1_000_000
 
 

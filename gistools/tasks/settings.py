@@ -32,7 +32,7 @@ class ShrubSettings:
     single_line_width: width given to single-line hydro features. radius: density circle.
     density_bands: the bands whose vegetation counts (default B1-B3; the dissertation used B1).
     classify: "breaks" (class_breaks on cover), "quantile" or "jenks". raster: the rasters' settings (the DSM's
-    pinholes are left by default: filling them raises the cover of sparse data, README "The shrub chain").
+    pinholes are left by default: filling them raises the cover of sparse data, docs/commands/shrub.md).
     """
 
     raster: RasterSettings = field(default_factory=RasterSettings)
