@@ -64,7 +64,7 @@ def quality(path: Path, rng) -> list[dict]:
     from gistools.io.points import read_tile_info
     from gistools.lidar.ground import CsfParams, csf_ground, classify_ground_and_noise
     from gistools.lidar.gridding import dem_from_ground_points
-    from gistools.tasks.ground import GroundSettings, _params
+    from gistools.products.ground import GroundSettings, _params
 
     las = laspy.read(path)
     info = read_tile_info(path)

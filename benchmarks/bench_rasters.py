@@ -186,7 +186,7 @@ def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
     return run_child(f"""
         import shutil
         from gistools import rasters_from_tiles, RasterSettings
-        from gistools.tasks.batch import worker_thread_environment
+        from gistools.engine.batch import worker_thread_environment
         worker_thread_environment()  # as the command line does for its workers
         shutil.rmtree({str(out)!r}, ignore_errors=True)
         t = time.perf_counter()
@@ -200,15 +200,15 @@ def gistools_run(folder, out, jobs, products=("dsm", "dem", "ndsm")) -> dict:
 def heights_run(kind, folder, out, jobs, **settings) -> dict:
     """gistools normalize (LAS out) or gistools metrics on the block."""
     if kind == "normalize":
-        call = (f"from gistools.tasks.normalize import NormalizeSettings as S, normalize_from_tiles as run\n"
+        call = (f"from gistools.products.normalize import NormalizeSettings as S, normalize_from_tiles as run\n"
                 f"        settings = S(format='las', **{settings!r})")
     else:
-        call = (f"from gistools.tasks.metrics import MetricsSettings as S, metrics_from_tiles as run\n"
+        call = (f"from gistools.products.metrics import MetricsSettings as S, metrics_from_tiles as run\n"
                 f"        settings = S(cell_size='5ft', **{settings!r})")
     return run_child(f"""
         import shutil
         {call}
-        from gistools.tasks.batch import worker_thread_environment
+        from gistools.engine.batch import worker_thread_environment
         worker_thread_environment()  # as the command line does for its workers
         shutil.rmtree({str(out)!r}, ignore_errors=True)
         t = time.perf_counter()

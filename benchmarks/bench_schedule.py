@@ -25,7 +25,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gistools.tasks.schedule import TwoPassSchedule, neighbour_pairs  # noqa: E402
+from gistools.engine.schedule import TwoPassSchedule, neighbour_pairs  # noqa: E402
 
 TILE = 5000.0  # ft
 X0, Y0 = 500_000.0, 1_300_000.0  # ft: inside EPSG:2882 (Florida West, US survey feet), Citrus County

@@ -86,10 +86,10 @@ def run_child(code: str) -> dict:
 def chain_run(kind: str, inputs: list, out: Path, jobs: int, vectors: dict) -> dict:
     """``gistools rasters`` or ``gistools shrub`` in a fresh process: seconds and the report's stage_seconds."""
     call = ("from gistools import rasters_from_tiles as run\n        kw = {}" if kind == "rasters" else
-            f"from gistools.tasks.shrub import shrub_from_tiles as run\n        kw = {vectors!r}")
+            f"from gistools.products.shrub import shrub_from_tiles as run\n        kw = {vectors!r}")
     return run_child(f"""
         {call}
-        from gistools.tasks.batch import worker_thread_environment
+        from gistools.engine.batch import worker_thread_environment
         worker_thread_environment()  # as the command line does for its workers
         t = time.perf_counter()
         s = run({[str(i) for i in inputs]!r}, {str(out)!r}, jobs={jobs}, overwrite=True, **kw)

@@ -1,13 +1,60 @@
 """gistools: open tools for LiDAR shrub mapping, aquifer models, runway earthworks and structure meshes.
 
-The library is a set of small functions over numpy arrays (``gistools.lidar``,
-``gistools.grid``), I/O at the edges (``gistools.io``) and one task per product
-(``gistools.tasks``) that the CLI and the QGIS plugin both call.
+The library is small functions over numpy arrays (``gistools.lidar``, ``gistools.grid``, and the pure packages
+``aquifer``, ``runway``, ``structure``, ``vector``), I/O at the edges (``gistools.io``), one read -> compute ->
+write function per product (``gistools.products``), the field deliverables (``gistools.deliver``), all run tile by
+tile by one engine (``gistools.engine``). The CLI and the QGIS plugin call the same functions, exported here::
+
+    >>> import gistools
+    >>> callable(gistools.rasters_from_tiles) and callable(gistools.shrub_from_tiles)
+    True
+
+The product functions and their settings are imported when first used (``import gistools`` stays quick).
 """
+
+import importlib
 
 from ._version import __version__  # noqa: F401
 
 from .errors import *  # noqa: F401,F403
+from .errors import __all__ as _errors
 from .grid import Grid, cell_centres, cell_index, snapped_grid  # noqa: F401
 from .lidar import dem_from_ground_points, dsm_from_points, ndsm_from, tin_to_grid  # noqa: F401
-from .tasks import RasterSettings, rasters_from_tiles  # noqa: F401
+
+# name -> the module that defines it (imported on first use)
+_PRODUCTS = {
+    "products.rasters": ("RasterSettings", "rasters_from_tiles"),
+    "products.ground": ("GroundSettings", "ground_from_tiles"),
+    "products.normalize": ("NormalizeSettings", "normalize_from_tiles"),
+    "products.metrics": ("MetricsSettings", "metrics_from_tiles"),
+    "products.chm": ("ChmSettings", "chm_from_tiles"),
+    "products.points": ("points_from_tiles",),
+    "products.info": ("tile_summary", "tiles_summary"),
+    "products.shrub": ("ShrubSettings", "shrub_from_tiles", "map_from_classes"),
+    "products.steps": ("ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands",
+                       "density_from_vegetation", "classes_from_cover"),
+    "products.aquifer": ("AquiferSettings", "aquifer_model", "aquifer_query"),
+    "products.runway": ("RunwaySettings", "runway_earthworks"),
+    "products.structure": ("structure_model", "reconstruct"),
+    "deliver.webmap": ("web_map",),
+    "deliver.scene": ("scene_glb",),
+    "deliver.mapbook": ("map_book",),
+    "datasets.examples": ("write_examples",),
+}
+_LAZY = {name: module for module, names in _PRODUCTS.items() for name in names}
+
+__all__ = ["__version__", *_errors, "Grid", "cell_centres", "cell_index", "snapped_grid", "dem_from_ground_points",
+           "dsm_from_points", "ndsm_from", "tin_to_grid", *_LAZY]
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        raise AttributeError(f"module 'gistools' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))

@@ -1,4 +1,4 @@
-"""A surface grid as a triangle mesh with a colour per vertex: the 3D scene of the shrub map (tasks.scene).
+"""A surface grid as a triangle mesh with a colour per vertex: the 3D scene of the shrub map (deliver.scene).
 
 Pure: heights and class codes on a grid in, vertices (metres, glTF's axes: x east, y up, z south), faces and RGBA
 colours out.

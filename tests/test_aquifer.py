@@ -21,7 +21,7 @@ from gistools.aquifer.walls import unit_mesh
 from gistools.mesh import match_rings, mesh_volume
 from gistools.cli.main import cli
 from gistools.errors import InputError
-from gistools.tasks.aquifer import (AquiferSettings, aquifer_model, aquifer_query, build_model, compute_units, load_model,
+from gistools.products.aquifer import (AquiferSettings, aquifer_model, aquifer_query, build_model, compute_units, load_model,
                                     query_model)
 
 DESIGN = SHARED_DATA.parent / "design"

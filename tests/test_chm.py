@@ -12,7 +12,7 @@ import rasterio
 from gistools.errors import InputError
 from gistools.io.points import write_tile
 from gistools.lidar.chm import pits
-from gistools.tasks.chm import ChmSettings, chm_from_tiles
+from gistools.products.chm import ChmSettings, chm_from_tiles
 
 SIZE = 80.0  # m
 X0, Y0 = 500_000.0, 4_900_000.0

@@ -35,7 +35,7 @@ def test_breaks_do_not_depend_on_tiles_or_blocks(tmp_path, method):
     from gistools.grid import snapped_grid
     from gistools.io.raster import read_raster, write_raster, write_vrt
     from gistools.lidar.shrub import breaks_from_sample, lattice_sample, sample_step
-    from gistools.tasks.steps import class_breaks
+    from gistools.products.steps import class_breaks
 
     rng = np.random.default_rng(7)
     cs, n = 5.0, 1200

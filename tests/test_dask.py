@@ -73,7 +73,7 @@ def test_unreachable_scheduler_is_a_clear_error(sample_tiles, tmp_path):
 
 def test_shrub_chain_on_dask_equals_local(sample_tiles, tmp_path, dask_cluster):
     from conftest import SAMPLE
-    from gistools.tasks.shrub import shrub_from_tiles
+    from gistools.products.shrub import shrub_from_tiles
 
     b = SAMPLE / "breaklines.gpkg"
     vectors = dict(roads=f"{b}:ROADBREAKLINE", hydro=f"{b}:HYDROGRAPHICFEATURE", waterbodies=f"{b}:WATERBODY",

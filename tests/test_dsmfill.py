@@ -11,7 +11,7 @@ import rasterio
 
 from gistools.errors import InputError
 from gistools.io.points import write_tile
-from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
 CS = 1.0  # m
 X0, Y0, SIZE = 300_000.0, 4_100_000.0, 120.0

@@ -233,7 +233,7 @@ def test_a_damaged_report_is_one_line_for_the_steps_and_the_map(shrub_out):
 
 
 def test_a_step_rerun_interrupted_leaves_the_folder_as_it_was(shrub_out, monkeypatch):
-    import gistools.tasks.shrub as shrub
+    import gistools.products.shrub as shrub
 
     before = snapshot(shrub_out)
     real = shrub._classes_tile
@@ -325,7 +325,7 @@ def test_out_under_a_file_is_one_line(tiles, tmp_path):
     one_line(text, "under a file", "another --out")
     code, text = invoke(["rasters", tiles, "--out", tmp_path / "a_file", "-q"])
     assert code == 2 and "is a file" in text and "Traceback" not in text  # click's own check of --out
-    from gistools.tasks.rasters import rasters_from_tiles
+    from gistools.products.rasters import rasters_from_tiles
     from gistools.errors import OutputError
 
     with pytest.raises(OutputError, match="is a file, not a folder"):  # the library call, and QGIS, get it too
@@ -479,7 +479,7 @@ def test_bom_csvs_keep_their_first_column(tmp_path):
     text = "\n".join(f"{i} {x} {y} {z}" for i, x, y, z in b.itertuples(index=False))
     (tmp_path / "s.txt").write_text(text)
     (tmp_path / "s_bom.txt").write_bytes(b"\xef\xbb\xbf" + text.encode())
-    from gistools.tasks.structure import read_points
+    from gistools.products.structure import read_points
 
     assert len(read_points(tmp_path / "s_bom.txt")) == len(read_points(tmp_path / "s.txt")) == len(b)
 
@@ -724,7 +724,7 @@ def test_a_tile_made_without_a_neighbour_is_recomputed_once_the_neighbour_reads(
 def test_an_interrupt_that_a_library_turned_into_another_error_stops_the_run(tiles, tmp_path, monkeypatch):
     """numpy was seen turning a Ctrl-C inside tofile() into a TypeError; the run must stop, not go on with the
     tile marked failed (its neighbours were then kept without its points)."""
-    import gistools.tasks.rasters as rasters
+    import gistools.products.rasters as rasters
     from gistools.progress import _INTERRUPT
 
     real = rasters._scan_tile
@@ -752,7 +752,7 @@ def _blas_threads() -> int:
 
 def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(monkeypatch):
     """The pool's initializer limits BLAS in each worker (threadpoolctl); the parent's os.environ is not edited."""
-    from gistools.tasks.batch import WORKER_THREAD_ENV, ProcessPool
+    from gistools.engine.batch import WORKER_THREAD_ENV, ProcessPool
 
     for k in WORKER_THREAD_ENV:
         monkeypatch.delenv(k, raising=False)
@@ -774,7 +774,7 @@ def test_workers_run_one_blas_thread_and_the_parent_environment_is_untouched(mon
 def test_the_command_line_gives_its_workers_one_blas_thread_unless_the_user_chose(monkeypatch):
     """The command line (not the library: QGIS's threads read the environment) sets WORKER_THREAD_ENV to 1 for the
     workers it spawns; a variable the user set keeps every one of them as it is."""
-    from gistools.tasks.batch import WORKER_THREAD_ENV, worker_thread_environment
+    from gistools.engine.batch import WORKER_THREAD_ENV, worker_thread_environment
 
     for k in WORKER_THREAD_ENV:
         monkeypatch.delenv(k, raising=False)
@@ -794,7 +794,7 @@ def _rayon_threads():
 def test_workers_decode_laz_on_one_thread_unless_the_user_chose(monkeypatch):
     """lazrs's rayon pool: one thread in each worker (RAYON_NUM_THREADS, read when the pool starts), the parent's
     environment untouched, and a value the user set is kept."""
-    from gistools.tasks.batch import ProcessPool, worker_timed
+    from gistools.engine.batch import ProcessPool, worker_timed
 
     monkeypatch.delenv("RAYON_NUM_THREADS", raising=False)
     before = dict(os.environ)
@@ -817,7 +817,7 @@ def test_jobs_2_works_from_a_plain_script_and_from_stdin(tmp_path, how):
     """spawn would re-run such a script in every worker (or cannot re-read stdin): the workers are forked instead,
     with a warning, and every tile is made."""
     script = tmp_path / "plain.py"
-    script.write_text("from gistools.tasks.rasters import rasters_from_tiles\n"
+    script.write_text("from gistools.products.rasters import rasters_from_tiles\n"
                       f"r = rasters_from_tiles({str(SAMPLE)!r}, {str(tmp_path / 'out')!r}, jobs=2)\n"
                       "print('COUNTS', r['counts'])\n")
     if how == "standard input":
@@ -832,7 +832,7 @@ def test_jobs_2_works_from_a_plain_script_and_from_stdin(tmp_path, how):
 
 def test_a_library_call_whose_every_tile_failed_raises_with_the_report(tmp_path):
     from gistools.errors import TilesFailed
-    from gistools.tasks.rasters import rasters_from_tiles
+    from gistools.products.rasters import rasters_from_tiles
 
     bad = tmp_path / "tiles"
     bad.mkdir()
@@ -1096,7 +1096,7 @@ def test_the_deliverables_lock_the_folder_add_their_run_and_clear_a_killed_runs_
     runs = [r["tool"] for r in json.loads((shrub_out / "report.json").read_text())["runs"]]
     assert runs[-3:] == ["gistools webmap", "gistools scene", "gistools mapbook"]
     from gistools.errors import InputError
-    from gistools.tasks.webmap import web_map
+    from gistools.deliver.webmap import web_map
 
     with pytest.raises(InputError, match="no such folder"):  # from Python: refused, no folder made
         web_map(shrub_out.parent / "nowhere")

@@ -15,7 +15,7 @@ from conftest import AUTZEN, MEGAPLOT, SHARED_DATA, need_shared
 from gistools.cli.main import cli
 from gistools.io.points import read_tile_info, write_tile
 from gistools.lidar.ground import SmrfParams, classify_ground_and_noise, smrf_ground
-from gistools.tasks.ground import GroundSettings, ground_from_tiles
+from gistools.products.ground import GroundSettings, ground_from_tiles
 
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_tiles"
 LASR = SHARED_DATA / "lidar" / "lasr"

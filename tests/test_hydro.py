@@ -13,7 +13,7 @@ import shapely
 
 from conftest import SAMPLE
 from gistools.errors import InputError
-from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
 WATER = f"{SAMPLE / 'breaklines.gpkg'}:WATERBODY"
 

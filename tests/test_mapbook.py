@@ -13,7 +13,7 @@ import rasterio
 from conftest import SAMPLE
 from gistools.errors import InputError
 from gistools.lidar.shrub import CLASS_STYLE
-from gistools.tasks.mapbook import map_book
+from gistools.deliver.mapbook import map_book
 
 FOOTPRINT = f"{SAMPLE / 'breaklines.gpkg'}:FOOTPRINT"
 if shutil.which("pdftoppm") is None:  # pragma: no cover - depends on the machine
@@ -26,7 +26,7 @@ if shutil.which("pdftoppm") is None:  # pragma: no cover - depends on the machin
 
 @pytest.fixture(scope="module")
 def chain(tmp_path_factory):
-    from gistools.tasks.shrub import shrub_from_tiles
+    from gistools.products.shrub import shrub_from_tiles
 
     out = tmp_path_factory.mktemp("chain")
     b = SAMPLE / "breaklines.gpkg"

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from conftest import SAMPLE, need_shared, reference_tin_heights
 from gistools.cli.main import cli
 from gistools.errors import InputError
-from gistools.tasks.metrics import MetricsSettings, metrics_from_tiles
+from gistools.products.metrics import MetricsSettings, metrics_from_tiles
 
 FT = 1200 / 3937  # the sample's US survey foot, in metres
 

@@ -15,7 +15,7 @@ import shapely
 from conftest import SAMPLE, reference_tin_heights
 from gistools.errors import TilesFailed
 from gistools.io.points import write_tile
-from gistools.tasks.normalize import HAG_DIMENSION, NormalizeSettings, normalize_from_tiles
+from gistools.products.normalize import HAG_DIMENSION, NormalizeSettings, normalize_from_tiles
 
 B = SAMPLE / "breaklines.gpkg"
 

@@ -59,7 +59,7 @@ def test_a_message_names_the_parameter_as_its_reader_speaks():
 def test_a_library_error_names_the_python_argument_and_the_command_line_the_flag(tmp_path):
     from click.testing import CliRunner
 
-    from gistools.tasks.rasters import RasterSettings
+    from gistools.products.rasters import RasterSettings
 
     with pytest.raises(InputError) as err:
         RasterSettings(cell_size="-5ft").validate()

@@ -120,7 +120,7 @@ def qgis(plugin_zip, tmp_path_factory):
 @pytest.fixture(scope="module")
 def reference(tmp_path_factory):
     """The library's (= the CLI's) whole chain on sample_tiles/, the oracle of every algorithm."""
-    from gistools.tasks.shrub import shrub_from_tiles
+    from gistools.products.shrub import shrub_from_tiles
 
     out = tmp_path_factory.mktemp("reference")
     report = shrub_from_tiles(SAMPLE, out, roads=spec("ROADBREAKLINE"), hydro=spec("HYDROGRAPHICFEATURE"),
@@ -216,7 +216,7 @@ def test_info_counts_every_point(qgis, sample_tiles):
 def test_points_equal_the_library(qgis, tmp_path):
     import geopandas as gpd
 
-    from gistools.tasks.points import points_from_tiles
+    from gistools.products.points import points_from_tiles
 
     result = qgis.run("gistools:points", {"INPUT": str(SAMPLE), "CLASSES": "2", "RETURNS": 2,
                                           "OUTPUT_FOLDER": str(tmp_path / "q")})
@@ -269,7 +269,7 @@ def test_band_clip_density_classify_steps_equal_the_chain(qgis, reference, tmp_p
     lines = qgis.run("gistools:breaklines", {**{k: layer(v) for k, v in LAYERS.items() if k != "WETLANDS"},
                                              "TILE_FIELD": "TILE_ID", "OUTPUT_ROADS": str(tmp_path / "road.gpkg"),
                                              "OUTPUT_WATER": str(tmp_path / "water.gpkg")})
-    from gistools.tasks.steps import breakline_polygons
+    from gistools.products.steps import breakline_polygons
 
     lib = breakline_polygons(roads=spec("ROADBREAKLINE"), hydro=spec("HYDROGRAPHICFEATURE"), waterbodies=spec("WATERBODY"),
                              tile_index=spec("FOOTPRINT"), road_out=tmp_path / "lib_road.gpkg",
@@ -523,7 +523,7 @@ def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
     import shapely as shp
 
     from gistools.aquifer.synthetic import E0, N0, synthetic_aquifer
-    from gistools.tasks.aquifer import AquiferSettings, aquifer_model
+    from gistools.products.aquifer import AquiferSettings, aquifer_model
 
     points, _ = synthetic_aquifer(2012)
     gdf = gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003)
@@ -553,7 +553,7 @@ def test_runway_algorithm_equals_the_library(qgis, tmp_path):
     import shapely as shp
 
     from gistools.runway.synthetic import synthetic_runway
-    from gistools.tasks.runway import RunwaySettings, runway_earthworks
+    from gistools.products.runway import RunwaySettings, runway_earthworks
 
     points, _ = synthetic_runway(8)
     gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003).to_file(tmp_path / "s.gpkg",
@@ -569,7 +569,7 @@ def test_runway_algorithm_equals_the_library(qgis, tmp_path):
 
 def test_structure_algorithm_equals_the_library(qgis, tmp_path):
     from gistools.structure.fixtures import building
-    from gistools.tasks.structure import structure_model
+    from gistools.products.structure import structure_model
 
     pts, _ = building("F3")
     src = tmp_path / "f3.txt"
@@ -648,7 +648,7 @@ def test_ground_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:ground writes the classes the library writes, and a VPC of them (loaded as its output)."""
     import laspy
 
-    from gistools.tasks.ground import ground_from_tiles
+    from gistools.products.ground import ground_from_tiles
 
     lib = ground_from_tiles(SAMPLE, tmp_path / "lib")
     res = qgis.run("gistools:ground", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "q")})
@@ -663,7 +663,7 @@ def test_normalize_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:normalize writes the heights and classes the library writes, and loads its VPC."""
     import laspy
 
-    from gistools.tasks.normalize import NormalizeSettings, normalize_from_tiles
+    from gistools.products.normalize import NormalizeSettings, normalize_from_tiles
 
     lib = normalize_from_tiles(SAMPLE, tmp_path / "lib", NormalizeSettings(classify_vegetation=True),
                                roads=spec("ROADBREAKLINE"), waterbodies=spec("WATERBODY"))
@@ -679,7 +679,7 @@ def test_normalize_in_processing_equals_the_library(qgis, tmp_path):
 
 def test_metrics_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:metrics: the checklist and the free names together, the same cells as the library's."""
-    from gistools.tasks.metrics import MetricsSettings, metrics_from_tiles
+    from gistools.products.metrics import MetricsSettings, metrics_from_tiles
 
     names = ("count", "z_p95", "cover_above2m", "hag_above1m")
     lib = metrics_from_tiles(SAMPLE, tmp_path / "lib", MetricsSettings(cell_size="10m", metrics=names))
@@ -695,7 +695,7 @@ def test_metrics_in_processing_equals_the_library(qgis, tmp_path):
 
 def test_chm_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:chm (p2r and pit-free) gives the library's cells and its pit count, and loads the CHM."""
-    from gistools.tasks.chm import ChmSettings, chm_from_tiles
+    from gistools.products.chm import ChmSettings, chm_from_tiles
 
     for index, method in enumerate(("p2r", "pitfree")):
         lib = chm_from_tiles(SAMPLE, tmp_path / f"lib{index}", ChmSettings(cell_size="5ft", method=method))
@@ -708,7 +708,7 @@ def test_chm_in_processing_equals_the_library(qgis, tmp_path):
 
 def test_dem_hydro_flattened_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:rasters with the water polygons and a void fill: the library's DEM, cell for cell."""
-    from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+    from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
     lib = rasters_from_tiles(SAMPLE, tmp_path / "lib", RasterSettings(hydro_flatten=spec("WATERBODY"), dem_fill="tin",
                                                                       products=("dsm", "dem", "ndsm", "topclass")))
@@ -724,7 +724,7 @@ def test_webmap_in_processing_writes_the_librarys_page(qgis, reference, tmp_path
     """gistools:webmap on the chain's folder: the page the library writes (same polygons), listed as HTML."""
     import re
 
-    from gistools.tasks.webmap import web_map
+    from gistools.deliver.webmap import web_map
 
     copy = tmp_path / "chain"
     shutil.copytree(reference, copy)
@@ -739,7 +739,7 @@ def test_scene_in_processing_writes_the_librarys_glb(qgis, reference, tmp_path):
     """gistools:scene on the chain's folder: the library's mesh (same vertices and colours)."""
     import trimesh
 
-    from gistools.tasks.scene import scene_glb
+    from gistools.deliver.scene import scene_glb
 
     copy = tmp_path / "chain"
     shutil.copytree(reference, copy)

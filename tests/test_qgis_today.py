@@ -46,7 +46,7 @@ def _in_qgis(root: Path, code: str) -> dict:
 
 
 def test_qgis_344_opens_the_vpc_and_the_copc_files_gistools_ground_writes(qgis_today):
-    from gistools.tasks.ground import GroundSettings, ground_from_tiles
+    from gistools.products.ground import GroundSettings, ground_from_tiles
 
     work = qgis_today / "tmp" / "gistools-test"
     shutil.rmtree(work, ignore_errors=True)

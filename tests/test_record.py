@@ -38,10 +38,10 @@ def test_the_schema_rejects_a_record_without_its_envelope():
 
 def test_the_chain_and_its_deliverables_share_one_record(tmp_path):
     """The shrub chain, then a web map, a scene and a map book into its folder: one valid record, four runs."""
-    from gistools.tasks.mapbook import map_book
-    from gistools.tasks.scene import scene_glb
-    from gistools.tasks.shrub import shrub_from_tiles
-    from gistools.tasks.webmap import web_map
+    from gistools.deliver.mapbook import map_book
+    from gistools.deliver.scene import scene_glb
+    from gistools.products.shrub import shrub_from_tiles
+    from gistools.deliver.webmap import web_map
 
     out = tmp_path / "chain"
     shrub_from_tiles(SAMPLE, out, roads=f"{BREAKLINES}:ROADBREAKLINE", hydro=f"{BREAKLINES}:HYDROGRAPHICFEATURE",
@@ -58,12 +58,12 @@ def test_the_chain_and_its_deliverables_share_one_record(tmp_path):
 
 @pytest.mark.parametrize("command", ["rasters", "ground", "normalize", "metrics", "chm", "points"])
 def test_every_tile_command_writes_the_one_record(command, tmp_path):
-    from gistools.tasks.chm import ChmSettings, chm_from_tiles
-    from gistools.tasks.ground import ground_from_tiles
-    from gistools.tasks.metrics import MetricsSettings, metrics_from_tiles
-    from gistools.tasks.normalize import normalize_from_tiles
-    from gistools.tasks.points import points_from_tiles
-    from gistools.tasks.rasters import rasters_from_tiles
+    from gistools.products.chm import ChmSettings, chm_from_tiles
+    from gistools.products.ground import ground_from_tiles
+    from gistools.products.metrics import MetricsSettings, metrics_from_tiles
+    from gistools.products.normalize import normalize_from_tiles
+    from gistools.products.points import points_from_tiles
+    from gistools.products.rasters import rasters_from_tiles
 
     run = {"rasters": lambda o, **kw: rasters_from_tiles(SAMPLE, o, **kw),
            "ground": lambda o, **kw: ground_from_tiles(SAMPLE, o, **kw),
@@ -89,9 +89,9 @@ def test_aquifer_runway_and_structure_write_the_one_record(tmp_path):
     from gistools.aquifer.synthetic import synthetic_aquifer
     from gistools.runway.synthetic import synthetic_runway
     from gistools.structure.fixtures import building
-    from gistools.tasks.aquifer import AquiferSettings, aquifer_model
-    from gistools.tasks.runway import RunwaySettings, runway_earthworks
-    from gistools.tasks.structure import structure_model
+    from gistools.products.aquifer import AquiferSettings, aquifer_model
+    from gistools.products.runway import RunwaySettings, runway_earthworks
+    from gistools.products.structure import structure_model
 
     points, _ = synthetic_aquifer(2012)
     gpd.GeoDataFrame(points, geometry=shapely.points(points["x"], points["y"]), crs=3003).to_file(

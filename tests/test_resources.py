@@ -11,7 +11,7 @@ import pytest
 
 from conftest import SAMPLE
 from gistools.machine import available_memory, free_memory, usable_cpus
-from gistools.tasks.batch import worker_count
+from gistools.engine.batch import worker_count
 
 GISTOOLS = [sys.executable, "-m", "gistools.cli.main"]
 
@@ -102,8 +102,8 @@ def test_memory_errors_are_the_runs_not_a_tiles():
 
     from gistools.errors import OutOfMemoryError
     from gistools.parameters import speaks
-    from gistools.tasks.batch import fail
-    from gistools.tasks.rasters import TileResult
+    from gistools.engine.batch import fail
+    from gistools.products.rasters import TileResult
 
     for err in (MemoryError(), BrokenProcessPool("A process in the process pool was terminated abruptly")):
         result = TileResult(name="35712", path="35712.las")

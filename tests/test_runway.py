@@ -17,7 +17,7 @@ from gistools.runway.earthworks import (balance_points, brueckner, compensate, d
                                         section_areas, station_volumes, strip_areas)
 from gistools.runway.icao import VALID_CODES, template
 from gistools.runway.synthetic import BEARING, synthetic_runway, to_world
-from gistools.tasks.runway import RunwaySettings, area_diagram, brueckner_diagram, compute_earthworks
+from gistools.products.runway import RunwaySettings, area_diagram, brueckner_diagram, compute_earthworks
 
 
 def exact_area(a: float, b: float, c: float) -> float:

@@ -78,7 +78,7 @@ def test_gistools_examples_writes_the_committed_sample_block(tmp_path):
     import laspy
     import numpy as np
 
-    from gistools.tasks.examples import write_sample_block
+    from gistools.datasets.examples import write_sample_block
 
     write_sample_block(tmp_path, breaklines=False)
     for tile in ("35712.las", "35713.las", "35812.las", "35813.laz"):

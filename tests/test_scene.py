@@ -12,14 +12,14 @@ import trimesh
 from conftest import SAMPLE
 from gistools.errors import InputError
 from gistools.lidar.shrub import CLASS_STYLE
-from gistools.tasks.scene import GROUND_COLOUR, read_extras, scene_glb
+from gistools.deliver.scene import GROUND_COLOUR, read_extras, scene_glb
 
 FT = 1200 / 3937
 
 
 @pytest.fixture(scope="module")
 def chain(tmp_path_factory):
-    from gistools.tasks.shrub import shrub_from_tiles
+    from gistools.products.shrub import shrub_from_tiles
 
     out = tmp_path_factory.mktemp("chain")
     b = SAMPLE / "breaklines.gpkg"

@@ -7,7 +7,7 @@ import random
 
 import pytest
 
-from gistools.tasks.schedule import TwoPassSchedule, neighbour_pairs
+from gistools.engine.schedule import TwoPassSchedule, neighbour_pairs
 
 
 def pairs_by_brute_force(bounds, d):

@@ -19,7 +19,7 @@ from gistools.grid import cell_centres
 from gistools.io.points import write_tile
 from gistools.io.raster import read_raster
 from gistools.synthetic import Scene, scene_points
-from gistools.tasks.shrub import ShrubSettings, shrub_from_tiles
+from gistools.products.shrub import ShrubSettings, shrub_from_tiles
 
 B = SAMPLE / "breaklines.gpkg"
 VECTORS = dict(roads=f"{B}:ROADBREAKLINE", hydro=f"{B}:HYDROGRAPHICFEATURE", waterbodies=f"{B}:WATERBODY",
@@ -416,7 +416,7 @@ def test_breaks_from_the_data_are_the_same_per_tile_and_per_block_of_a_mosaic(sh
     gistools:classify) sample the same lattice cells, so they choose the same breaks and give the same classes."""
     import shutil
 
-    from gistools.tasks.steps import classes_from_cover
+    from gistools.products.steps import classes_from_cover
 
     ref_out, _ = shrub_run
     out = tmp_path / "out"
@@ -478,7 +478,7 @@ def test_the_map_keeps_the_chains_title(shrub_run, tmp_path, monkeypatch):
     import shutil
 
     import gistools.plot as plot
-    from gistools.tasks.shrub import map_from_classes
+    from gistools.products.shrub import map_from_classes
 
     out = tmp_path / "out"
     shutil.copytree(shrub_run[0], out)
@@ -500,7 +500,7 @@ def test_each_step_help_shows_its_own_options(step, own, others):
 
 
 def test_a_step_refuses_another_steps_setting(shrub_run):
-    from gistools.tasks.shrub import step_settings
+    from gistools.products.shrub import step_settings
 
     with pytest.raises(InputError, match="radius: not a setting of the bands step"):
         step_settings(shrub_run[0], "bands", radius="50ft")

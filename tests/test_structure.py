@@ -14,7 +14,7 @@ from gistools.cli.main import cli
 from gistools.structure.analysis import check_points, estimate_parameters, voxel_orders
 from gistools.structure.envelope import sown_footprint, winding_number
 from gistools.structure.fixtures import EULER, VOLUMES, building
-from gistools.tasks.structure import reconstruct
+from gistools.products.structure import reconstruct
 
 ADOPTED = dict(h=8.0, d=15.0, t=4.0)
 

@@ -75,7 +75,7 @@ def test_dem_in_strips_equals_dem_in_one_piece(sample_tiles, sample_run, tmp_pat
 def test_dem_tins_in_small_strips_equal_the_dem_of_one_tin(sample_tiles, sample_run, tmp_path, monkeypatch):
     """The DEM's TINs built on strips of at most 5,000 ground points each (TIN_STRIP_POINTS, within one read
     strip) give the same DEM as one TIN a tile, cell for cell."""
-    import gistools.tasks.rasters as rasters
+    import gistools.products.rasters as rasters
 
     monkeypatch.setattr(rasters, "TIN_STRIP_POINTS", 5_000)
     assert max(rasters._strips(np.full(200, 100), 5_000), key=lambda s: s[1] - s[0]) == (0, 50)

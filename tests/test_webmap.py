@@ -19,7 +19,7 @@ import shapely
 from conftest import SAMPLE
 from gistools.errors import InputError, OutputExistsError
 from gistools.lidar.shrub import CLASS_STYLE
-from gistools.tasks.webmap import web_map
+from gistools.deliver.webmap import web_map
 
 CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
 if CHROMIUM is None:  # pragma: no cover - depends on the machine
@@ -45,7 +45,7 @@ def chromium(*args, home, size=SIZE):
 
 @pytest.fixture(scope="module")
 def chain(tmp_path_factory):
-    from gistools.tasks.shrub import shrub_from_tiles
+    from gistools.products.shrub import shrub_from_tiles
 
     out = tmp_path_factory.mktemp("chain")
     b = SAMPLE / "breaklines.gpkg"

@@ -49,7 +49,7 @@ def build():
     from gistools.lidar.gridding import DEM_METHODS
     from gistools.lidar.shrub import CLASS_METHODS
     from gistools.parameters import default_for
-    from gistools.tasks.settings import DEFAULTS as D
+    from gistools.products.settings import DEFAULTS as D
 
     R = D.raster  # the values the model passes are the library's defaults, as the algorithms' own
     model = QgsProcessingModelAlgorithm("shrub_density", "Models")

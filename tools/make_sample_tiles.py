@@ -26,10 +26,10 @@ from shapely.geometry import box
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from gistools.synthetic import COVER  # noqa: E402
-from gistools.tasks.examples import SAMPLE_TILE_IDS, write_sample_block  # noqa: E402
+from gistools.datasets.examples import SAMPLE_TILE_IDS, write_sample_block  # noqa: E402
 
 CRS = pyproj.CRS.from_epsg(2882)
-LAZ_TILE = 35813  # the one LAZ tile (the block: gistools/tasks/examples.py write_sample_block)
+LAZ_TILE = 35813  # the one LAZ tile (the block: gistools/datasets/examples.py write_sample_block)
 TILES = tuple(SAMPLE_TILE_IDS.values())
 
 

@@ -7,7 +7,7 @@ from json import dumps
 import click
 
 from ..parameters import option, render
-from ..tasks.aquifer import AquiferSettings, aquifer_model, aquifer_query
+from ..products.aquifer import AquiferSettings, aquifer_model, aquifer_query
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
 

@@ -21,7 +21,7 @@ def webmap(out, basemap, split_mb):
       $ gistools webmap out
       $ gistools webmap out --basemap 'https://tile.openstreetmap.org/{z}/{x}/{y}.png'
     """
-    from ..tasks.webmap import web_map
+    from ..deliver.webmap import web_map
 
     result = web_map(out, basemap=basemap, split_mb=split_mb)
     parts = f" and {len(result['parts'])} parts" if result["parts"] else ""
@@ -41,7 +41,7 @@ def scene(out, exaggeration, max_mb, surface):
       $ gistools scene out
       $ gistools scene out --exaggeration 3 --max-mb 20
     """
-    from ..tasks.scene import scene_glb
+    from ..deliver.scene import scene_glb
 
     r = scene_glb(out, exaggeration=exaggeration, max_mb=max_mb, surface=surface)
     click.echo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every {r['step']} cell(s); "
@@ -61,7 +61,7 @@ def mapbook(out, tile_index, tile_field, scale, paper, max_pages):
       $ gistools mapbook out --tile-index sample_tiles/breaklines.gpkg:FOOTPRINT
       $ gistools mapbook out --scale 5000 --paper a4
     """
-    from ..tasks.mapbook import map_book
+    from ..deliver.mapbook import map_book
 
     r = map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper, max_pages=max_pages)
     click.echo(f"wrote {r['pdf']} ({r['pages']} pages, 1:{min(r['scales']):,.0f} to 1:{max(r['scales']):,.0f})")

@@ -16,7 +16,7 @@ def examples(folder):
     Example:
       $ gistools examples try && cd try && gistools info sample_tiles
     """
-    from ..tasks.examples import write_examples
+    from ..datasets.examples import write_examples
 
     written = write_examples(folder)
     click.echo(f"example inputs in {folder}: {', '.join(written)}")

@@ -6,7 +6,7 @@ import click
 
 from ..parameters import PARAMETERS, render
 from ..parameters.lidar import DEFAULT_TEXTS
-from ..tasks.ground import GroundSettings, ground_from_tiles
+from ..products.ground import GroundSettings, ground_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 

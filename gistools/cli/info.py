@@ -8,7 +8,7 @@ import click
 
 from ..errors import GistoolsError
 from ..io.tiles import find_tiles
-from ..tasks.info import tile_summary
+from ..products.info import tile_summary
 from .spec import spec_options
 
 

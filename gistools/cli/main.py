@@ -72,7 +72,7 @@ class GistoolsGroup(click.Group):
         except MemoryError as err:  # outside a tile loop (which names the tile): the machine's error, in one line
             if isinstance(err, GistoolsError):
                 raise
-            from ..tasks.batch import out_of_memory
+            from ..engine.batch import out_of_memory
 
             error = out_of_memory(f"in gistools {ctx.invoked_subcommand}",
                                   fix="Raise the limit (ulimit -v) or run on a machine with more memory")
@@ -146,10 +146,10 @@ for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub
 
 
 def main():  # console_scripts entry point
-    from ..tasks.batch import keep_freed_memory, worker_thread_environment
+    from ..engine.batch import keep_freed_memory, worker_thread_environment
 
     os.environ.setdefault(ENV, "cli")  # the workers this process starts name parameters by their flags too
-    keep_freed_memory()  # tile after tile in this process: reuse the freed arrays (tasks/batch.py)
+    keep_freed_memory()  # tile after tile in this process: reuse the freed arrays (engine/batch.py)
     worker_thread_environment()  # the workers this process spawns start with one BLAS thread
     if threading.current_thread() is threading.main_thread():
         for signum in STOP_SIGNALS:  # each cleans up as Ctrl-C does: the folder as it was, the lock and scratch gone

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..tasks.metrics import MetricsSettings, metrics_from_tiles
+from ..products.metrics import MetricsSettings, metrics_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 

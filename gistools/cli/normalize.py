@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..tasks.normalize import NormalizeSettings, normalize_from_tiles
+from ..products.normalize import NormalizeSettings, normalize_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 

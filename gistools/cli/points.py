@@ -22,7 +22,7 @@ def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
       $ gistools points tiles --classes 1,2 --returns first --out non-ground
       $ gistools points tiles --classes 2 --returns all --out ground
     """
-    from ..tasks.points import points_from_tiles
+    from ..products.points import points_from_tiles
 
     summary = batch_report(lambda: points_from_tiles(inputs, out, classes=classes, returns=returns, fmt=fmt, crs=crs,
                                                      overwrite=overwrite, chunk_size=chunk_size))

@@ -7,7 +7,7 @@ import click
 from ..errors import GistoolsError
 from ..parameters import flag_of
 from ..runway.survey import SurveyChecks
-from ..tasks.runway import RunwaySettings, runway_earthworks, runway_metres
+from ..products.runway import RunwaySettings, runway_earthworks, runway_metres
 from .aquifer import parse_fields
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options

@@ -6,8 +6,8 @@ import click
 from click.core import ParameterSource
 
 from ..parameters import COMMANDS, option, render
-from ..tasks.rasters import RasterSettings
-from ..tasks.shrub import STAGE_SETTINGS, STEP_COMMANDS, ShrubSettings, shrub_from_tiles
+from ..products.rasters import RasterSettings
+from ..products.shrub import STAGE_SETTINGS, STEP_COMMANDS, ShrubSettings, shrub_from_tiles
 from .options import out_opt, batch_report, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -59,7 +59,7 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
         max_road_width=max_road_width, snap=snap, tile_field=tile_field,
     )
     if web_map:
-        from ..tasks.webmap import check_options
+        from ..deliver.webmap import check_options
 
         check_options(basemap)
     elif basemap:
@@ -77,7 +77,7 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
         click.echo("class area (" + unit + "): " + ", ".join(f"{k} {v:,.0f}" for k, v in report["class_area"].items()))
         click.echo(_breaks_line(report))
     if web_map and "class_area" in report:
-        from ..tasks.webmap import web_map as write_web_map
+        from ..deliver.webmap import web_map as write_web_map
 
         page = write_web_map(out, basemap=basemap)
         click.echo(f"web map: {page['html']} ({page['bytes'] / 1e6:.1f} MB)")
@@ -121,7 +121,7 @@ def _step_command(stage):
 def _run_step(stage, out, make_map, scheduler, jobs, quiet, **given):
     """Rerun ``stage`` (and the steps after it) on ``out`` with the options given on the command line changed (the
     others keep what the earlier run recorded)."""
-    from ..tasks.shrub import step_settings
+    from ..products.shrub import step_settings
 
     ctx = click.get_current_context()
     changes = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()
@@ -203,7 +203,7 @@ def map_(out, title):
     Example:
       $ gistools map out --title "Levy County shrub density"
     """
-    from ..tasks.shrub import map_from_classes
+    from ..products.shrub import map_from_classes
 
     result = map_from_classes(out, title=title)
     click.echo("wrote " + ", ".join(str(p) for p in result["paths"]))

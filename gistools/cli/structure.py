@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..tasks.structure import structure_model
+from ..products.structure import structure_model
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
 

@@ -4,7 +4,7 @@ A step is a function of a window (arrays in, arrays out, from ``gistools.lidar``
 inputs (a tile's GeoTIFF, a county's VRT mosaic, any single-band raster on the lattice), reads each window
 (with a halo where the step needs neighbours), and writes the outputs block by block into tiled GeoTIFFs,
 atomically and checked. The chain runs it over each tile, the step commands and QGIS over a tile or a
-mosaic: one implementation of each step (``gistools.tasks.steps``).
+mosaic: one implementation of each step (``gistools.products.steps``).
 """
 
 from __future__ import annotations

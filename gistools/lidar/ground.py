@@ -1,7 +1,7 @@
 """Ground points: the Simple Morphological Filter (SMRF; Pingel, Clarke & McBride 2013), as PDAL ``filters.smrf``.
 
 Pure functions over coordinate arrays. Lengths are in CRS units (x, y) and the vertical unit (z); the
-caller converts the metre defaults (``tasks.ground``). The steps, as in the paper and PDAL:
+caller converts the metre defaults (``products.ground``). The steps, as in the paper and PDAL:
 
 1. ZImin: the lowest point of each cell (on the absolute lattice of ``cell``: a tile with a buffer of its
    neighbours has the cells of the merged tiles), empty cells inpainted;

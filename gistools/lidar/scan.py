@@ -1,6 +1,6 @@
 """Pass 1 of the rasters over one chunk of a streamed tile: the tile's running grids and the ground points to keep.
 
-Pure functions over numpy arrays; the rasters task (tasks/rasters.py ``_scan_tile``) reads the chunks and writes the
+Pure functions over numpy arrays; the rasters task (products/rasters.py ``_scan_tile``) reads the chunks and writes the
 scratch files. Per chunk: point counts by class and by return number; the DSM (highest first return of the surface
 classes) and the class of its point; the ground and water points per cell; the first returns kept for the height
 band counts; and the chunk's ground points with the halo strip (within the buffer of the tile's west, east, south

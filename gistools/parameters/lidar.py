@@ -3,7 +3,7 @@ gistools.parameters.core). The tiles' CRS, the run (jobs, scheduler, chunk size)
 the shared ones (``common``, ``rasters``); a command whose default differs passes its own (``defaults=``).
 
 The library's choice constants are these: ``lidar.ground.GROUND_METHODS`` (rasters' GROUND_METHODS),
-``lidar.noise.NOISE_METHODS``, ``tasks.ground.FORMATS``, ``tasks.points.RETURNS`` and ``tasks.metrics.RETURNS``,
+``lidar.noise.NOISE_METHODS``, ``products.ground.FORMATS``, ``products.points.RETURNS`` and ``products.metrics.RETURNS``,
 ``lidar.chm.CHM_METHODS`` and ``lidar.bands.PRESETS`` (the same words in the same order).
 """
 

@@ -1,8 +1,8 @@
 """Parameters of the shrub chain (gistools shrub, the step commands bands / clip / density / classify / map, and the
 QGIS algorithms shrubchain, bands, breaklines, clip, density, classify).
 
-The Python names are the fields of ``gistools.tasks.settings.ShrubSettings`` and the arguments of
-``gistools.tasks.shrub.shrub_from_tiles``. The rasters' parameters (cell_size, dem_method, ...) are declared in
+The Python names are the fields of ``gistools.products.settings.ShrubSettings`` and the arguments of
+``gistools.products.shrub.shrub_from_tiles``. The rasters' parameters (cell_size, dem_method, ...) are declared in
 ``rasters``, the run's (crs, jobs, scheduler, chunk_size, overwrite) in ``common``, the height bands and the
 breaklines gistools normalize takes too in ``lidar``, the tile index and the web map's basemap in ``deliver``.
 """
@@ -74,7 +74,7 @@ SHRUB = command("shrub", "roads", "hydro", "waterbodies", "wetlands", "tile_inde
                 "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks", "max_road_width",
                 "snap", "make_map", "web_map", "basemap", "band_points", "scheduler", "crs", "jobs", "chunk_size",
                 "overwrite")
-# the step commands: each takes its own step's settings (tasks.shrub.STAGE_SETTINGS), then how it runs
+# the step commands: each takes its own step's settings (products.shrub.STAGE_SETTINGS), then how it runs
 BANDS = command("bands", "bands", "band_breaks_m", "noise_floor", *_RUN)
 CLIP = command("clip", "roads", "hydro", "waterbodies", "wetlands", "tile_index", "tile_field", "reproject_vectors",
                "max_road_width", "snap", *_RUN)

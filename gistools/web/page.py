@@ -1,6 +1,6 @@
 """The offline web map: one self-contained HTML page (Leaflet and the data inlined), as text.
 
-Pure: the GeoJSON, the styles and Leaflet's own files come in, the page's text goes out (tasks.webmap reads and
+Pure: the GeoJSON, the styles and Leaflet's own files come in, the page's text goes out (deliver.webmap reads and
 writes). Nothing on the page asks the network for anything unless a basemap URL is given.
 """
 

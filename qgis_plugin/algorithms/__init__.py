@@ -5,7 +5,7 @@ base       the shared plumbing (GistoolsAlgorithm) and the library's choices and
 tiles      info, points                    rasters    dsm, dem, rasters
 ground     ground (ground and noise classes)
 heights    normalize, metrics, chm (heights above ground, cell metrics, canopy height)
-steps      ndsm, bands, breaklines, clip, density, classify (gistools.tasks.steps)
+steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
 deliver    webmap, scene, mapbook (deliverables for field teams)

@@ -14,7 +14,7 @@ from qgis.core import (
     QgsProcessingParameterVectorLayer,
 )
 
-from gistools.tasks.aquifer import aquifer_query
+from gistools.products.aquifer import aquifer_query
 
 from .base import GistoolsAlgorithm, AQUIFER
 from ..compat import FOLDER, VECTOR_POINT
@@ -50,7 +50,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
     def _model_settings(self, parameters, context, feedback):
         """(the layers top to bottom, the run's inputs, the AquiferSettings) of the dialog's values."""
-        from gistools.tasks.aquifer import AquiferSettings
+        from gistools.products.aquifer import AquiferSettings
 
         values = self.spec_values(parameters, context, feedback)
         layers = [x.strip() for x in (values.pop("layers") or "").split(",") if x.strip()]
@@ -61,7 +61,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
     def run_gistools(self, parameters, context, feedback):
         import json
 
-        from gistools.tasks.aquifer import aquifer_model
+        from gistools.products.aquifer import aquifer_model
 
         out = Path(self.output_folder(parameters, context))
         layers, run, settings = self._model_settings(parameters, context, feedback)

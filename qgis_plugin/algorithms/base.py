@@ -17,7 +17,7 @@ from qgis.core import (
 )
 from qgis.PyQt.QtGui import QIcon
 
-from gistools.tasks.aquifer import AquiferSettings
+from gistools.products.aquifer import AquiferSettings
 from ..compat import ADVANCED, FOLDER, POINT_CLOUD
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)

@@ -42,7 +42,7 @@ class WebMapAlgorithm(_DeliverableAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("MEGABYTES", "Size of the page (MB)"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.webmap import web_map
+        from gistools.deliver.webmap import web_map
 
         result = web_map(self.text(parameters, "FOLDER", context), **self.spec_values(parameters, context, feedback))
         feedback.pushInfo(f"wrote {result['html']} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons"
@@ -65,7 +65,7 @@ class SceneAlgorithm(_DeliverableAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("STEP", "Decimation step (every k-th cell)"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.scene import scene_glb
+        from gistools.deliver.scene import scene_glb
 
         r = scene_glb(self.text(parameters, "FOLDER", context), **self.spec_values(parameters, context, feedback))
         feedback.pushInfo(f"wrote {r['glb']} ({r['bytes'] / 1e6:.1f} MB, {r['vertices']:,} vertices, every "
@@ -88,7 +88,7 @@ class MapBookAlgorithm(_DeliverableAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("PAGES", "Pages"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.mapbook import map_book
+        from gistools.deliver.mapbook import map_book
 
         values = self.spec_values(parameters, context, feedback)
         r = map_book(self.text(parameters, "FOLDER", context), **{k: v for k, v in values.items() if v is not None})

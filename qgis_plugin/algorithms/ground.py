@@ -29,7 +29,7 @@ class GroundAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("CHANGED", "Points whose class changed"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.ground import GroundSettings, ground_from_tiles
+        from gistools.products.ground import GroundSettings, ground_from_tiles
 
         out = self.output_folder(parameters, context)
         values = self.spec_values(parameters, context, feedback)

@@ -11,9 +11,9 @@ from qgis.core import (
 )
 
 from gistools.parameters.lidar import COMMAND_DEFAULTS
-from gistools.tasks import chm as _chm
-from gistools.tasks import metrics as _metrics
-from gistools.tasks import normalize as _normalize
+from gistools.products import chm as _chm
+from gistools.products import metrics as _metrics
+from gistools.products import normalize as _normalize
 
 from .base import GistoolsAlgorithm
 from ..compat import OPTIONAL

@@ -28,7 +28,7 @@ class _RastersBase(GistoolsAlgorithm):
             self.addOutput(QgsProcessingOutputRasterLayer(name, description))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.rasters import RasterSettings, rasters_from_tiles
+        from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
         out = self.output_folder(parameters, context)
         values = self.spec_values(parameters, context, feedback)

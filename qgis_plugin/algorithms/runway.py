@@ -48,7 +48,7 @@ class RunwayAlgorithm(GistoolsAlgorithm):
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.runway.survey import SurveyChecks
-        from gistools.tasks.runway import RunwaySettings, runway_earthworks, runway_metres
+        from gistools.products.runway import RunwaySettings, runway_earthworks, runway_metres
 
         out = Path(self.output_folder(parameters, context))
         values = self.spec_values(parameters, context, feedback)

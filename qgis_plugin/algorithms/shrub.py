@@ -43,8 +43,8 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputFolder("FOLDER", "Output folder"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.rasters import RasterSettings
-        from gistools.tasks.shrub import ShrubSettings, shrub_from_tiles
+        from gistools.products.rasters import RasterSettings
+        from gistools.products.shrub import ShrubSettings, shrub_from_tiles
 
         out = Path(self.output_folder(parameters, context))
         values = given(self.spec_values(parameters, context, feedback))

@@ -1,4 +1,4 @@
-"""The shrub chain one step at a time, raster in, raster out (gistools.tasks.steps)."""
+"""The shrub chain one step at a time, raster in, raster out (gistools.products.steps)."""
 
 from __future__ import annotations
 
@@ -45,7 +45,7 @@ class NdsmAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterRasterDestination("OUTPUT", "nDSM"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.steps import ndsm_from_rasters
+        from gistools.products.steps import ndsm_from_rasters
 
         out = self.output_path(parameters, "OUTPUT", context)
         ndsm_from_rasters(self.raster_path(parameters, "DSM", context), self.raster_path(parameters, "DEM", context), out,
@@ -71,7 +71,7 @@ class BandsAlgorithm(GistoolsAlgorithm):
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.steps import bands_from_ndsm
+        from gistools.products.steps import bands_from_ndsm
 
         out = self.output_path(parameters, "OUTPUT", context)
         points = self.output_path(parameters, "OUTPUT_POINTS", context, optional=True)
@@ -102,7 +102,7 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterVectorDestination("OUTPUT_WATER", "Water polygons", type=VECTOR_POLYGON))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.steps import breakline_polygons
+        from gistools.products.steps import breakline_polygons
 
         roads_out = self.output_path(parameters, "OUTPUT_ROADS", context)
         water_out = self.output_path(parameters, "OUTPUT_WATER", context)
@@ -130,7 +130,7 @@ class ClipAlgorithm(GistoolsAlgorithm):
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.steps import clip_bands
+        from gistools.products.steps import clip_bands
 
         out = self.output_path(parameters, "OUTPUT", context)
         wet = self.output_path(parameters, "OUTPUT_WETLAND", context, optional=True)
@@ -157,8 +157,8 @@ class DensityAlgorithm(GistoolsAlgorithm):
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.settings import DEFAULTS
-        from gistools.tasks.steps import density_from_vegetation
+        from gistools.products.settings import DEFAULTS
+        from gistools.products.steps import density_from_vegetation
 
         out = self.output_path(parameters, "OUTPUT", context)
         dens = self.output_path(parameters, "OUTPUT_DENSITY", context, optional=True)
@@ -184,7 +184,7 @@ class ClassifyAlgorithm(GistoolsAlgorithm):
                                                          createByDefault=False))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.steps import classes_from_cover
+        from gistools.products.steps import classes_from_cover
 
         out = self.output_path(parameters, "OUTPUT", context)
         polys = self.output_path(parameters, "OUTPUT_POLYGONS", context, optional=True)

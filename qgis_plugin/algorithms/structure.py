@@ -33,7 +33,7 @@ class StructureAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputString("WATERTIGHT", "Watertight"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.structure import structure_model
+        from gistools.products.structure import structure_model
 
         out = Path(self.output_folder(parameters, context))
         values = self.spec_values(parameters, context, feedback)

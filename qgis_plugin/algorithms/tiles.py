@@ -29,7 +29,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputString("CRS_NAME", "CRS"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.info import tiles_summary
+        from gistools.products.info import tiles_summary
 
         path = self.parameterAsFileOutput(parameters, "OUTPUT", context) if parameters.get("OUTPUT") else None
         result = tiles_summary(self.tiles(parameters, context), out=path, progress=self.progress(feedback),
@@ -63,7 +63,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
         self.addOutput(QgsProcessingOutputNumber("POINTS", "Points written"))
 
     def run_gistools(self, parameters, context, feedback):
-        from gistools.tasks.points import points_from_tiles
+        from gistools.products.points import points_from_tiles
 
         out = self.output_folder(parameters, context)
         result = points_from_tiles(self.tiles(parameters, context), out, overwrite=True, progress=self.progress(feedback),

@@ -18,7 +18,7 @@ from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
 from ..parameters import check, choices, default_for, option, render
 from ..units import LinearUnit
-from .record import add_run, read_folder_report
+from ..engine.record import add_run, read_folder_report
 
 __all__ = ["map_book", "PAPERS"]
 

@@ -1,6 +1,6 @@
 """Hydro-flattening of the rasters' DEM (``gistools rasters --hydro-flatten LAYER``).
 
-Pass 1 of the rasters (tasks.rasters._scan_tile) keeps, per water body near the tile, the lowest ground point within
+Pass 1 of the rasters (products.rasters._scan_tile) keeps, per water body near the tile, the lowest ground point within
 the shore band (``shore_width`` outside the polygon's edge); after pass 2 the minima of all the tiles are merged (a
 lake's shore crosses tiles) and every DEM cell whose centre lies inside the polygon takes that elevation, filled
 where it had none; the nDSM follows. The tiles' DEM and nDSM GeoTIFFs are rewritten (atomically) where a water body

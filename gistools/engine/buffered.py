@@ -23,8 +23,8 @@ from ..io.outdir import SCRATCH_PREFIX
 from ..io.points import parse_crs_text, points_in_box, read_tile_info
 from ..progress import report
 from .batch import make_pool
-from .engine import Passes, run_two_passes, scan_order
-from .engine import TileState as EngineTileState
+from .passes import Passes, run_two_passes, scan_order
+from .passes import TileState as EngineTileState
 from .schedule import neighbour_pairs
 
 log = logging.getLogger(__name__)
@@ -187,7 +187,7 @@ def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -
 
 def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs: int,
                     scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str) -> None:
-    """The tiles of ``todo`` through the tile engine (tasks.engine): pass 1 keeps the edge strips of each tile and
+    """The tiles of ``todo`` through the tile engine (engine.passes): pass 1 keeps the edge strips of each tile and
     its neighbours in a scratch folder, pass 2 runs ``tile_fn(name, *tile_args(name, sources))`` per tile as soon
     as its neighbours' strips are there, ``sources`` being what ``points_around`` reads; a strip no tile still
     needs is deleted. ``states``: name -> an object with ``status`` / ``error`` / ``warnings`` (failures are marked

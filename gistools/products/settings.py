@@ -1,5 +1,5 @@
 """The shrub chain's settings. Each parameter, with its default (the dissertation's values), is declared once in
-gistools.parameters.shrub; the chain (``tasks.shrub``), the one-step functions (``tasks.steps``), the CLI options and
+gistools.parameters.shrub; the chain (``products.shrub``), the one-step functions (``products.steps``), the CLI options and
 the QGIS algorithms take them from there.
 """
 

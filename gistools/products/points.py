@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .record import write_folder_report
+from ..engine.record import write_folder_report
 from ..errors import GistoolsError, InputError, OutputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info

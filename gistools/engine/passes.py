@@ -2,12 +2,12 @@
 
 Pass 1 reads each tile (``read``: what its neighbours will need of it, kept in a scratch folder); pass 2 makes
 each tile's products (``make``) as soon as it and its neighbours are read, and the scratch a tile left is freed
-once no tile still to make needs it (:class:`~gistools.tasks.schedule.TwoPassSchedule`: n log n, a front of a few
+once no tile still to make needs it (:class:`~gistools.engine.schedule.TwoPassSchedule`: n log n, a front of a few
 tile rows in the scratch, not the county). Tasks run inline or in a pool (local processes or a Dask cluster, the
 same door); a tile that fails is marked and the batch goes on; a full disk or a read-only output stops the run;
 Ctrl-C and cancellation stop it with the pool. ``gistools rasters`` and the buffered commands (``ground``,
 ``normalize``, ``metrics``, ``chm``) run through it; the shrub chain's steps are its single-pass stages
-(:func:`~gistools.tasks.batch.run_each`).
+(:func:`~gistools.engine.batch.run_each`).
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 Stages, each one function per tile run inline, on local processes or on Dask:
 
 1. DSM, DEM, nDSM and the class of each cell's highest first return
-   (:func:`gistools.tasks.rasters.rasters_from_tiles`).
+   (:func:`gistools.products.rasters.rasters_from_tiles`).
 2. *bands*: height bands of the nDSM; road and water polygons of the tile from the
    breaklines (split by the tile index, polygonised); vegetation = band minus road minus
    water (cell-centre-in-polygon, as Clip / Select By Location on Raster To Point output);
@@ -44,10 +44,10 @@ from ..parameters import in_data_units, option, render
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
-from .batch import make_pool, run_each
-from .engine import TileState
+from ..engine.batch import make_pool, run_each
+from ..engine.passes import TileState
 from .rasters import RasterSettings, rasters_from_tiles
-from .record import write_folder_report
+from ..engine.record import write_folder_report
 from .settings import ShrubSettings
 from .steps import band_summary, bands_from_ndsm, class_breaks, class_summary, classes_from_cover, clip_bands, \
     density_from_vegetation, nodata_causes
@@ -102,7 +102,7 @@ def _existing(out, name, products, overwrite) -> dict | None:
     return {k: str(v) for k, v in paths.items()}
 
 
-# The tile tasks: each runs one step of gistools.tasks.steps (the steps' one implementation) on the tile's
+# The tile tasks: each runs one step of gistools.products.steps (the steps' one implementation) on the tile's
 # rasters, as a whole tile at once (block=0: a tile fits in memory, and its class polygons stay whole).
 
 def _bands_tile(name, ndsm_path, top_path, p, out) -> dict:

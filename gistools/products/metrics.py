@@ -1,7 +1,7 @@
 """Cell metrics of LAS/LAZ tiles (``gistools metrics``, ``gistools:metrics``): one GeoTIFF per metric per tile on
 the snapped lattice of ``gistools rasters``, a VRT per metric, report.json.
 
-Each tile is read with its neighbours' points (tasks.buffered): the cells on a shared edge get every point that
+Each tile is read with its neighbours' points (engine.buffered): the cells on a shared edge get every point that
 falls in them, and heights above ground come from the TIN of the ground points of the tile and its neighbours
 within the buffer, so a tiled run equals a run on the merged tiles. Definitions: ``lidar.metrics``.
 """
@@ -28,7 +28,7 @@ from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from .buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
                        read_headers, write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]

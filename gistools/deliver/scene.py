@@ -23,7 +23,7 @@ from ..io.raster import read_raster
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import check, choices, option
 from ..scene import decimation_step, grid_mesh
-from .record import add_run, read_folder_report
+from ..engine.record import add_run, read_folder_report
 
 __all__ = ["scene_glb", "read_extras", "SCENE_SURFACES", "GROUND_COLOUR"]
 

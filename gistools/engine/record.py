@@ -46,12 +46,16 @@ def envelope(report: dict) -> dict:
     rep = {"schema": SCHEMA, "tool": report.get("tool"), "version": __version__}
     rep.update((k, v) for k, v in report.items() if k not in ("schema", "version"))
     rep.setdefault("counts", {"ok": 1, "skipped": 0, "failed": 0})
-    tiles = []
     if isinstance(report.get("tiles"), list):
-        rep["tiles"] = tiles = [{**t, "warnings": list(t.get("warnings") or [])} for t in report["tiles"]]
-    by_tile = [f"{t.get('name')}: {w}" for t in tiles for w in t["warnings"]]
-    rep["warnings"] = [w for w in map(str, report.get("warnings") or []) if w not in by_tile] + by_tile
+        rep["tiles"] = [{**t, "warnings": list(t.get("warnings") or [])} for t in report["tiles"]]
+    rep["warnings"] = _run_warnings(report.get("warnings"), rep.get("tiles") or [])
     return rep
+
+
+def _run_warnings(own, tiles: list) -> list[str]:
+    """The run's own warnings (those not already a tile's) and each tile's, named by its tile."""
+    by_tile = [f"{t.get('name')}: {w}" for t in tiles for w in t["warnings"]]
+    return [w for w in map(str, own or []) if w not in by_tile] + by_tile
 
 
 def _plain(value):

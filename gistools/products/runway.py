@@ -17,7 +17,7 @@ import pyproj
 import shapely
 from scipy.interpolate import LinearNDInterpolator
 
-from .record import write_folder_report
+from ..engine.record import write_folder_report
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import output_folder
 from ..grid import evaluate_on_grid, snapped_grid

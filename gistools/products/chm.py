@@ -1,7 +1,7 @@
 """Canopy height models of LAS/LAZ tiles (``gistools chm``, ``gistools:chm``): ``OUT/chm/<tile>.tif``, ``OUT/chm.vrt``,
 report.json with the pits left in each tile.
 
-Each tile is read with its neighbours' points (tasks.buffered): first returns get their height above the TIN of the
+Each tile is read with its neighbours' points (engine.buffered): first returns get their height above the TIN of the
 ground of the tile and its neighbours (lidar.normalize), and the CHM's TINs see the points across the tile edges.
 Methods: ``lidar.chm``.
 """
@@ -28,7 +28,7 @@ from ..parameters.lidar import COMMAND_DEFAULTS, check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from .buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
                        read_headers, write_batch_report)
 
 __all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]

@@ -29,7 +29,7 @@ from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from ..engine.buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
@@ -255,7 +255,7 @@ def _near(water, bounds, margin: float) -> list:
 
 
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
-    """Each tile with its neighbours' edge strips (tasks.buffered), inline, on local processes or on Dask."""
+    """Each tile with its neighbours' edge strips (engine.buffered), inline, on local processes or on Dask."""
     if not todo:  # every tile kept, or none whose header reads (their errors are in ``states``)
         return
 

@@ -23,7 +23,7 @@ from ..io.atomic import atomic_path
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import option
 from ..web.page import web_map_html
-from .record import add_run, read_folder_report
+from ..engine.record import add_run, read_folder_report
 
 __all__ = ["web_map", "check_options", "GENERATOR"]
 

@@ -1,7 +1,7 @@
 """Heights above ground of LAS/LAZ tiles (``gistools normalize``, ``gistools:normalize``).
 
 Every point gets z minus the TIN of the ground points (classes 2 and 9, as lidR's ``normalize_height``) of its
-tile and of its neighbours within the buffer (tasks.buffered), so a tiled run equals one TIN of all the tiles'
+tile and of its neighbours within the buffer (engine.buffered), so a tiled run equals one TIN of all the tiles'
 ground. The height goes into a ``HeightAboveGround`` extra dimension (float32; its description names the unit)
 or, with ``replace_z``, into z. With ``classify_vegetation`` unclassified points become low / medium / high
 vegetation (3 / 4 / 5) by the height bands, and, given breaklines, surface points in roads road surface (11) and
@@ -31,7 +31,7 @@ from ..progress import ProgressCallback
 from ..units import horizontal_unit, length_to_crs_units
 from ..validation import check_length
 from ..vector.breaklines import road_polygons, water_polygons
-from .buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from ..engine.buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
 from .ground import _output_name, _wkt1, check_point_format
 
 __all__ = ["NormalizeSettings", "normalize_from_tiles", "HAG_DIMENSION", "GROUND_CLASSES"]

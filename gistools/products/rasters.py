@@ -39,15 +39,15 @@ from ..lidar.bands import add_nodata_causes, nodata_cause_shares
 from ..lidar.scan import GROUND_CLASS, WATER_CLASS, ScanGrids, scan_chunk, surface_mask
 from ..lidar.gridding import dem_from_ground_points, fill_voids, ndsm_from, tin_dem_with_halo
 from ..progress import ProgressCallback, report, sub_progress
-from .record import write_folder_report
-from .batch import fail, make_pool
-from .engine import Passes, TileState, run_two_passes, scan_order
+from ..engine.record import write_folder_report
+from ..engine.batch import fail, make_pool
+from ..engine.passes import Passes, TileState, run_two_passes, scan_order
 from ..io.scratch import (FIRST_DTYPE, GROUND_DTYPE, HALO_SIDES, Extent, ground_file, ground_meta_file,
                           ground_sources, grids_folder, load_grid, read_ground, save_grids)
 from .dsmfill import DsmFillScan, fill_tile_dsm
 from .hydro import ShoreMinima, flatten_dem_tiles, water_bodies
-from .resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
-from .schedule import neighbour_pairs
+from ..engine.resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_report
+from ..engine.schedule import neighbour_pairs
 from ..units import length_to_crs_units
 from ..parameters import check_all, choices, default_for, in_data_units, option, render, setting_default
 from ..validation import check_scheduler, check_count, check_grid_size, check_length, grid_shape
@@ -76,7 +76,7 @@ class RasterSettings:
     height above the DEM in bands (h <= h0, h0-h1, h1-h2, h2-h3, > h3; ground and water
     returns in the first): band areas that do not depend on the cell grid. hydro_flatten: a layer of water
     polygons (file.gpkg:LAYER); the DEM cells inside each take its lowest ground elevation within shore_width
-    outside its edge (default 2 cells), filled where they had none (tasks.hydro). dem_fill: none, tin or idw: the
+    outside its edge (default 2 cells), filled where they had none (products.hydro). dem_fill: none, tin or idw: the
     DEM's voids (cells farther than dem_max_distance from ground, under big buildings) filled from the buffered
     ground points, water cells left (lidar.gridding.fill_voids); counted per tile. dsm_fill: none, tin (the DSM's
     empty cells from a TIN of the cells' highest returns, edges up to 3 cells) or subcircle (every first return also
@@ -155,7 +155,7 @@ class _Run:
     products: tuple[str, ...] = DEFAULT_PRODUCTS
     tin_block_points: int = 5_000_000
     return_breaks: tuple[float, ...] | None = None
-    water: tuple = ()  # water bodies to flatten the DEM in (tasks.hydro.water_bodies)
+    water: tuple = ()  # water bodies to flatten the DEM in (products.hydro.water_bodies)
     shore_width: float = 0.0
     water_key: str | None = None  # the layer and shore width, in the tile reports' settings
     dem_fill: str = "none"
@@ -558,7 +558,7 @@ def rasters_from_tiles(
     dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
     ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
     ``out`` (where the scratch folder lives) at the same paths. ``pool``: a worker pool to use
-    instead of starting one (``gistools.tasks.batch.make_pool``; the caller closes it). ``water``: with
+    instead of starting one (``gistools.engine.batch.make_pool``; the caller closes it). ``water``: with
     ``classify_ground``, polygons (CRS units) whose points are water (9) before the ground filter.
     """
     settings = settings or RasterSettings()

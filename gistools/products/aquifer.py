@@ -18,7 +18,7 @@ import pandas as pd
 import pyproj
 import shapely
 
-from .record import write_folder_report
+from ..engine.record import write_folder_report
 from ..io.contacts import read_contacts
 from ..aquifer.outliers import OutlierSettings, find_outliers, order_violations
 from ..aquifer.surface import HEIGHT_METHODS, Surface, build_surface, densify, height_at, mask_outside, unique_edges

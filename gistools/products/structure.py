@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import shapely
 
-from .record import write_folder_report
+from ..engine.record import write_folder_report
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import output_folder
 from ..io.outdir import claim_output

@@ -18,7 +18,7 @@ from ..io.atomic import atomic_path
 from ..io.points import crs_label
 from ..io.raster import crs_from_wkt, file_stamp, raster_is_readable
 
-log = logging.getLogger("gistools.tasks.rasters")
+log = logging.getLogger("gistools.products.rasters")
 
 __all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report", "read_tile_report",
            "check_same_settings", "complete_tile", "kept_tiles"]

@@ -1,0 +1,1 @@
+"""Example inputs from gistools' own generators (gistools examples)."""

@@ -1,0 +1,1 @@
+"""The tile engine: the two passes over tiles (passes), their order (schedule), the pools of processes or Dask (batch), resume (resume), the folder's record (record) and the neighbours' points (buffered)."""

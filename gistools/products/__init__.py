@@ -1,0 +1,1 @@
+"""One read -> compute -> write function per product; the CLI, the library and QGIS call only these."""
