@@ -16,10 +16,10 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ..errors import Cancelled
-from .batch import drive, fail, timed, worker_timed
+from .batch import drive, fail, run_each, timed, worker_timed
 from .schedule import TwoPassSchedule
 
-__all__ = ["Passes", "TileState", "run_two_passes", "scan_order"]
+__all__ = ["Passes", "Stage", "TileState", "run_stages", "run_two_passes", "scan_order"]
 
 
 @dataclass
@@ -109,3 +109,28 @@ def run_two_passes(order: list[str], todo: set[str], deps: dict[str, set[str]], 
     width = in_flight or (1 if pool is None else 2 * max(getattr(pool, "workers", 1), 1))
     drive(pool, owned, width, next_task, start, pending, finish)
     return schedule.scratch_peak
+
+
+@dataclass
+class Stage:
+    """A single-pass stage over tiles (the shrub chain's steps): ``fn(*args(name))`` per tile, ``on_done(name,
+    value, seconds)`` per result, then ``then(tiles)`` once every tile of the stage is done (a barrier: a mosaic the
+    next stage reads across tiles, class breaks over the whole block). ``tiles``: the tiles it runs on, None for
+    those still ok when it starts."""
+
+    verb: str
+    fn: Callable
+    args: Callable
+    on_done: Callable
+    then: Callable | None = None
+    tiles: list | None = None
+
+
+def run_stages(stages: list, results: dict, pool, tick, out=None) -> None:
+    """Run ``stages`` in order over the tiles (``results``: name -> the tile's state; a tile that fails in a stage
+    is marked failed there and left out of the next stages), inline or in ``pool`` (processes or Dask)."""
+    for stage in stages:
+        names = stage.tiles if stage.tiles is not None else [n for n, st in results.items() if st.status == "ok"]
+        run_each(stage.fn, [stage.args(n) for n in names], pool, results, names, stage.on_done, tick, stage.verb, out)
+        if stage.then is not None:
+            stage.then([n for n in names if results[n].status == "ok"])

@@ -44,8 +44,8 @@ from ..parameters import in_data_units, option, render
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_scheduler
-from ..engine.batch import make_pool, run_each
-from ..engine.passes import TileState
+from ..engine.batch import make_pool
+from ..engine.passes import Stage, TileState, run_stages
 from .rasters import RasterSettings, rasters_from_tiles
 from ..engine.record import write_folder_report
 from .settings import ShrubSettings
@@ -450,13 +450,11 @@ def _ndsm_bounds(out: Path, name: str):
 
 def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick,
                seconds_by_step: dict, causes: dict):
-    """bands, clip, density and classes of every tile that is still ok; (mosaics, class polygons, class breaks).
+    """bands, clip, density and classes of every tile that is still ok, as the engine's stages (run_stages; the
+    mosaics and the block's class breaks between them); (mosaics, class polygons, class breaks).
     ``seconds_by_step`` gets each step's seconds, summed over the tiles; ``causes``: tile -> its nodata causes where
     this run's rasters stage made them."""
     mosaic, polygons = {}, []
-
-    def alive():
-        return [n for n in names if states[n].status == "ok"]
 
     def timed_as(stage, done):  # the step's seconds summed over its tiles (in the workers: with --jobs N they overlap)
         def on_done(name, value, seconds):
@@ -479,25 +477,31 @@ def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, s
         states[name].class_area = value["class_area"]
         polygons.extend((name, c, g) for c, g in value["polygons"])
 
-    run_each(_bands_tile, [(n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", p, out) for n in names],
-             pool, states, names, timed_as("bands", keep_outputs), tick, "bands", out)
     margin = p.max_road_width + p.max_hydro_width
-    good = alive()
     trees = _vector_trees(vec)
-    run_each(_clip_tile, [(n, out / "bands" / f"{n}.tif", _subset(vec, _ndsm_bounds(out, n), margin, trees), p, out,
-                           causes.get(n)) for n in good],
-             pool, states, good, timed_as("clip", clip_done), tick, "clip", out)
-    good = alive()
-    for product in ("bands", "veg", "wetveg"):
-        mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
-    run_each(_density_tile, [(n, out / "veg" / f"{n}.tif", mosaic["veg"], p, out) for n in good], pool, states,
-             good, timed_as("density", keep_outputs), tick, "density", out)
-    good = alive()
-    cover = write_vrt(out / "cover.vrt", [out / "cover" / f"{n}.tif" for n in good])
-    breaks = class_breaks(cover, settings.classify, settings.class_breaks) if cover else DEFAULT_BREAKS
-    run_each(_classes_tile, [(n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks, p, out) for n in good],
-             pool, states, good, timed_as("classes", classes_done), tick, "classes", out)
-    return mosaic, polygons, breaks
+    breaks = [DEFAULT_BREAKS]
+
+    def mosaics(good):  # the next stage reads the vegetation across tile edges
+        for product in ("bands", "veg", "wetveg"):
+            mosaic[product] = write_vrt(out / f"{product}.vrt", [out / product / f"{n}.tif" for n in good])
+
+    def block_breaks(good):  # the class breaks of the whole block's cover
+        cover = write_vrt(out / "cover.vrt", [out / "cover" / f"{n}.tif" for n in good])
+        breaks[0] = class_breaks(cover, settings.classify, settings.class_breaks) if cover else DEFAULT_BREAKS
+
+    run_stages([
+        Stage("bands", _bands_tile, lambda n: (n, out / "ndsm" / f"{n}.tif", out / "topclass" / f"{n}.tif", p, out),
+              timed_as("bands", keep_outputs), tiles=names),
+        Stage("clip", _clip_tile, lambda n: (n, out / "bands" / f"{n}.tif",
+                                             _subset(vec, _ndsm_bounds(out, n), margin, trees), p, out, causes.get(n)),
+              timed_as("clip", clip_done), then=mosaics),
+        Stage("density", _density_tile, lambda n: (n, out / "veg" / f"{n}.tif", mosaic["veg"], p, out),
+              timed_as("density", keep_outputs), then=block_breaks),
+        Stage("classes", _classes_tile, lambda n: (n, out / "veg" / f"{n}.tif", out / "cover" / f"{n}.tif", breaks[0],
+                                                   p, out),
+              timed_as("classes", classes_done)),
+    ], states, pool, tick, out)
+    return mosaic, polygons, breaks[0]
 
 
 def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepParams, breaks, mosaic: dict,
