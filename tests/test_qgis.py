@@ -183,10 +183,23 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
     assert max(len(a.displayName()) for a in algs.values()) <= 32
     steps = sorted(a.displayName() for a in algs.values() if a.groupId() == "shrub")
     assert steps[0] == "Shrub map (whole chain)" and [d.split(":")[0] for d in steps[1:]] == [f"Step {i}" for i in range(1, 6)]
-    for a in algs.values():
-        assert a.helpUrl().startswith("https://") and "#" in a.helpUrl(), a.name()
-        if a.name() != "shrub_density":  # the model's help is its own text
-            assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
+    from qgis.PyQt.QtCore import QUrl
+
+    metadata = (ROOT / "qgis_plugin" / "metadata.txt").read_text()
+    about = next(line for line in metadata.splitlines() if line.startswith("about="))
+    assert "example.org" not in metadata
+    tools = {n: a for n, a in algs.items() if n != "shrub_density"}  # the model's help is its own text
+    for a in tools.values():  # Help opens the algorithm's page of the shipped documentation, offline
+        assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
+        page = Path(QUrl(a.helpUrl()).toLocalFile())
+        assert a.helpUrl().startswith("file://") and page.is_file(), (a.name(), a.helpUrl())
+        assert len(a.tags()) >= 4 and "gistools" in a.tags() and a.name() in about, a.name()
+    pages = {n: Path(QUrl(a.helpUrl()).toLocalFile()) for n, a in tools.items()}
+    assert len({pages["chm"], pages["ground"], pages["aquifer"]}) == 3 and pages["dem"] == pages["rasters"]
+    assert all("help" in p.parts for p in pages.values())  # the site built into the plugin zip
+    assert pages["chm"].parent.name == "chm" and pages["runway"].parent.name == "runway"
+    words = {w for a in tools.values() for w in a.tags()}
+    assert {"point cloud", "elevation", "terrain", "canopy"} <= words
     bands = algs["bands"].parameterDefinition("PRESET").options()
     assert bands == ["Exact metres: 1 / 2 / 6 m", "As printed in the dissertation: 3.28 / 6.56 / 19.658 ft"]
     assert "fractions 0-1" in algs["classify"].parameterDefinition("BREAKS").description()

@@ -38,11 +38,29 @@ def metadata() -> str:
     return "\n".join(f"version={version()}" if line.startswith("version=") else line for line in lines) + "\n"
 
 
+def build_site(into: Path) -> bool:
+    """The documentation site (mkdocs.yml, docs/) built into ``into``, for the algorithms' Help buttons; False
+    (with a note) where MkDocs is not installed (pip install mkdocs mkdocs-material)."""
+    import subprocess
+
+    proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "-q", "-f", str(ROOT / "mkdocs.yml"), "-d", str(into)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        print(f"build_plugin: the help pages are left out (mkdocs: {(proc.stderr or proc.stdout).strip()[-300:]})",
+              file=sys.stderr)
+        return False
+    return True
+
+
 def build(dist: Path) -> Path:
+    """The plugin zip: qgis_plugin/ as gistools_qgis/, its metadata given the gistools version, and the
+    documentation site as gistools_qgis/help/ (each algorithm's Help opens its page there, offline)."""
+    import tempfile
+
     dist.mkdir(parents=True, exist_ok=True)
     target = dist / f"{PLUGIN}-{version()}.zip"
     tmp = target.with_name(target.name + ".partial")
-    with zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
+    with tempfile.TemporaryDirectory() as work, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
         for path in sorted(SOURCE.rglob("*")):
             if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
                 continue
@@ -51,6 +69,10 @@ def build(dist: Path) -> Path:
                 zf.writestr(name, metadata())
             else:
                 zf.write(path, name)
+        site = Path(work) / "help"
+        if build_site(site):
+            for path in sorted(p for p in site.rglob("*") if p.is_file()):
+                zf.write(path, f"{PLUGIN}/help/{path.relative_to(site).as_posix()}")
     tmp.replace(target)
     return target
 

@@ -27,18 +27,28 @@ TILE_FILES_LABEL = "Or LAS/LAZ files or point cloud layers"
 NO_TILES = f"No tiles: choose a '{TILE_FOLDER_LABEL}', or files in '{TILE_FILES_LABEL}' (the ... button, then Add File(s))"
 
 
-def _homepage() -> str:
-    for line in (HERE / "metadata.txt").read_text().splitlines():
-        if line.startswith("homepage="):
-            return line.split("=", 1)[1].strip()
-    return ""
-
-
-HOMEPAGE = _homepage()
-
 GROUP_LIDAR = ("LiDAR", "lidar")
-README_SECTIONS = {"lidar": "command-line", "shrub": "the-shrub-chain", "deliverables": "field-deliverables", "aquifer": "aquifer-model", "runway": "runway-earthworks",
-                   "structure": "structure-reconstruction"}
+# each group's page of the documentation (docs/<page>.md; built into the plugin's help/ by tools/build_plugin.py)
+GROUP_PAGES = {"lidar": "commands/rasters", "shrub": "commands/shrub", "deliverables": "commands/deliverables",
+               "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure"}
+# words the toolbox's search finds an algorithm by, per group (an algorithm adds its own)
+GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terrain", "surface"],
+              "shrub": ["lidar", "vegetation", "shrub", "density", "fuel", "search and rescue", "fire"],
+              "deliverables": ["map", "field", "offline"],
+              "aquifer": ["geology", "aquifer", "hydrogeology", "stratigraphy", "volume", "surface"],
+              "runway": ["airport", "earthworks", "cut", "fill", "volume", "civil"],
+              "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"]}
+
+
+def help_url(page: str) -> str:
+    """A file URL of the documentation page ``page`` ("commands/rasters", "qgis"): the site shipped in the plugin
+    (help/), else a checkout's docs/ source beside the plugin's folder; "" where neither is there."""
+    from qgis.PyQt.QtCore import QUrl
+
+    for path in (HERE / "help" / page / "index.html", HERE.parent / "docs" / f"{page}.md"):
+        if path.is_file():
+            return QUrl.fromLocalFile(str(path)).toString()
+    return ""
 GROUP_SHRUB = ("Shrub chain", "shrub")
 GROUP_DELIVER = ("Field deliverables", "deliverables")
 AQUIFER = AquiferSettings()  # the aquifer model's defaults, for the labels that state them
@@ -51,7 +61,8 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     _display = ""
     _group = GROUP_LIDAR
     _help = ""
-    _readme_section = ""  # default: the section of the algorithm's group (README_SECTIONS)
+    _page = ""  # its documentation page; default: its group's (GROUP_PAGES)
+    _tags = ()  # its own search words, beside its group's (GROUP_TAGS)
 
     def name(self):
         return self._name
@@ -79,8 +90,11 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return "<br>".join(lines)
 
     def helpUrl(self):  # noqa: N802
-        """The README section of the algorithm (the project's homepage in metadata.txt)."""
-        return f"{HOMEPAGE}#{self._readme_section or README_SECTIONS.get(self._group[1], 'qgis')}"
+        """The algorithm's page of the documentation shipped in the plugin (offline)."""
+        return help_url(self._page or GROUP_PAGES.get(self._group[1], "qgis"))
+
+    def tags(self):
+        return [*GROUP_TAGS.get(self._group[1], []), *self._tags, "gistools"]
 
     def icon(self):
         return QIcon(str(HERE / "icon.svg"))

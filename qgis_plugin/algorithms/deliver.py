@@ -17,7 +17,7 @@ class _DeliverableAlgorithm(GistoolsAlgorithm):
     """An algorithm that makes a deliverable from a shrub chain's output folder."""
 
     _group = GROUP_DELIVER
-    _readme_section = "field-deliverables"
+    _page = "commands/deliverables"
 
     def add_folder(self, needs: str):
         self.add(QgsProcessingParameterFile("FOLDER", f"Shrub chain output folder (with {needs})", behavior=FOLDER),

@@ -36,7 +36,8 @@ def _lengths(text) -> tuple:
 class NormalizeAlgorithm(GistoolsAlgorithm):
     _renamed = {"BANDS": "PRESET"}  # the height band limits are PRESET in every algorithm
     _name, _display = "normalize", "Heights above ground (normalize)"
-    _readme_section = "heights-above-ground"
+    _page = "commands/normalize"
+    _tags = ("normalize", "height above ground", "hag", "canopy")
     _help = ("Height above ground of every point (gistools normalize): z minus the TIN of the ground points (classes 2 "
              "and 9) of the tile and its neighbours within the buffer, so tiles equal one TIN of all their ground "
              "(PDAL filters.hag_delaunay, lidR normalize_height(tin())). Written as a HeightAboveGround dimension "
@@ -68,7 +69,8 @@ class NormalizeAlgorithm(GistoolsAlgorithm):
 
 class MetricsAlgorithm(GistoolsAlgorithm):
     _name, _display = "metrics", "Cell metrics of the points"
-    _readme_section = "cell-metrics"
+    _page = "commands/metrics"
+    _tags = ("metrics", "canopy", "forest", "cover", "fuel", "density", "percentile")
     _help = ("Per-cell statistics of the points (gistools metrics; lasR rasterize / lidR pixel_metrics): one GeoTIFF "
              "per metric per tile on the snapped lattice of the rasters, and a VRT per metric (loaded). Cells without "
              "points are nodata. Neighbouring tiles' points are read, so tiles equal one merged run. " + METRICS_HELP)
@@ -100,7 +102,8 @@ class MetricsAlgorithm(GistoolsAlgorithm):
 
 class ChmAlgorithm(GistoolsAlgorithm):
     _name, _display = "chm", "Canopy height model (CHM)"
-    _readme_section = "canopy-height-models"
+    _page = "commands/chm"
+    _tags = ("chm", "canopy", "canopy height model", "trees", "forest", "pit-free")
     _help = ("Canopy height model of LAS/LAZ tiles (gistools chm; lidR rasterize_canopy): the first returns' heights "
              "above the TIN of the ground, gridded as the highest return per cell (p2r), a TIN of the returns, or "
              "pit-free (Khosravipour et al. 2014: TINs of the returns above a series of height thresholds, long "

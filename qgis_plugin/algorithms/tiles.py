@@ -16,6 +16,8 @@ from .spec import flag_parameters
 
 class InfoAlgorithm(GistoolsAlgorithm):
     _name, _display = "info", "Tile info"
+    _page = "commands/points"
+    _tags = ("header", "crs", "statistics", "lasinfo")
     _help = ("Header, CRS, horizontal and vertical units and point counts by class and return of LAS/LAZ tiles "
              "(gistools info). A tile that cannot be read is reported, the others are still listed.")
 
@@ -48,6 +50,8 @@ class InfoAlgorithm(GistoolsAlgorithm):
 
 class PointsAlgorithm(GistoolsAlgorithm):
     _name, _display = "points", "LAS to points (by class)"
+    _page = "commands/points"
+    _tags = ("multipoint", "geopackage", "geoparquet", "class", "export")
     _help = ("The dissertation's LAS To Multipoint: per tile, a point layer (GeoPackage, or GeoParquet) with x, y, z, "
              "class, return number and intensity of the chosen classes and returns, streamed in chunks. "
              "Non-ground: classes 1,2 first returns; ground: class 2, every return.")
