@@ -207,6 +207,7 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
     if hasattr(radius, "help"):  # a tooltip per parameter, with the unit rules
         assert "Radius of the circle" in radius.help() and "CRS's own foot" in radius.help()
         assert "Radius of the circle" in algs["shrubchain"].shortHelpString()
+        assert algs["shrubchain"].shortHelpString().count("CRS's own foot") == 1  # the unit rule said once
     assert algs["aquifer"].parameterDefinition("Z_FIELD").parentLayerParameterName() == "INPUT"
     assert algs["runway"].parameterDefinition("TYPE_FIELD").defaultValue() == "type"
     model = QgsApplication.processingRegistry().algorithmById("gistools:shrub_density")

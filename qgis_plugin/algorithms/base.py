@@ -78,12 +78,18 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
 
     def shortHelpString(self):  # noqa: N802
         """The algorithm's text, then each parameter with its help and each output, as QGIS's own algorithms list them."""
-        lines = [self._help, "", "<b>Parameters</b>"]
+        from .spec import LENGTH_RULE
+
+        lines, lengths = [self._help, "", "<b>Parameters</b>"], False
         for p in self.parameterDefinitions():
             if p.isDestination():
                 continue
             tip = p.help() if hasattr(p, "help") and p.help() else ""
+            lengths = lengths or LENGTH_RULE in tip
+            tip = tip.replace(LENGTH_RULE, "")  # the unit rule once, below, not under every length
             lines.append(f"<i>{p.description()}</i>" + (f": {tip}" if tip else ""))
+        if lengths:
+            lines.append(f"<i>Lengths</i>:{LENGTH_RULE}")
         lines.append("")
         lines.append("<b>Outputs</b>")
         lines.extend(f"<i>{o.description()}</i>" for o in self.outputDefinitions())

@@ -30,6 +30,7 @@ __all__ = ["qgis_parameter", "qgis_help", "read_value", "flag_parameters", "meth
 
 GEOMETRIES = {"point": [VECTOR_POINT], "line": [VECTOR_LINE], "polygon": [VECTOR_POLYGON], "any": []}
 LENGTH_UNITS = " (with unit: m, ft, ftUS)"
+LENGTH_RULE = " A length with its unit (m; ft, the CRS's own foot; ftUS); a bare number is in the CRS's unit."
 
 
 def qgis_help(p: Parameter, default=None) -> str:
@@ -41,7 +42,7 @@ def qgis_help(p: Parameter, default=None) -> str:
     elif default is None and p.default_text:
         text += f" Empty: {p.default_help('qgis')}."
     if p.kind == "length":
-        text += " A length with its unit (m; ft, the CRS's own foot; ftUS); a bare number is in the CRS's unit."
+        text += LENGTH_RULE
     return text
 
 
