@@ -108,6 +108,56 @@ int main(void) {
     assert any(line.split()[0] == "0" for line in got[-1000:])  # the cocircular cases reach the exact path
 
 
+def test_the_portable_kernel_triangulates_as_the_int128_kernel(tmp_path):
+    """The whole kernel built with the two-word 128-bit form (as on MSVC) gives the same triangles as the
+    __int128 build, point for point, on lattices (every quad cocircular: the exact path decides), rings of
+    cocircular points, repeats and random points over the kernel's whole 2^30 span."""
+    import importlib.util
+    import runpy
+    import sys
+
+    from gistools import kernel
+
+    if not kernel.loaded():
+        pytest.skip("the compiled kernel is not built here")
+    from cffi import FFI
+
+    from gistools._kernel import ffi as native_ffi, lib as native
+
+    build = runpy.run_path(str(ROOT / "csrc" / "kernel_build.py"))
+    ffi = FFI()
+    ffi.cdef(build["declarations"]())
+    ffi.set_source("_kernel_portable", '#include "gistools_kernel.h"', sources=[str(ROOT / "csrc" / s) for s in build["SOURCES"]],
+                   include_dirs=[str(ROOT / "csrc")], define_macros=[("GISTOOLS_PORTABLE_INT128", None)],
+                   extra_compile_args=build["FLAGS"])
+    built = ffi.compile(tmpdir=str(tmp_path))
+    spec = importlib.util.spec_from_file_location("_kernel_portable", built)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    portable, pffi = module.lib, module.ffi
+
+    def triangles(lib, f, x, y):
+        tris, repeats = np.empty(6 * len(x), np.int32), np.zeros(1, np.int64)
+        m = lib.gt_delaunay(len(x), f.from_buffer("int64_t[]", x), f.from_buffer("int64_t[]", y),
+                            f.from_buffer("int32_t[]", tris), f.from_buffer("int64_t[]", repeats))
+        return tris[: 3 * m].copy(), int(repeats[0])
+
+    rng = np.random.default_rng(5)
+    gx, gy = np.meshgrid(np.arange(60), np.arange(60))
+    angles = rng.uniform(0, 2 * np.pi, 400)
+    cases = {
+        "lattice": (gx.ravel() * 1000, gy.ravel() * 1000),
+        "lattice with repeats": (np.r_[gx.ravel(), gx.ravel()[:50]] * 7, np.r_[gy.ravel(), gy.ravel()[:50]] * 7),
+        "random over 2^30": (rng.integers(0, 2**30, 5000), rng.integers(0, 2**30, 5000)),
+        "cocircular ring": (np.rint(2**29 + 2**28 * np.cos(angles)), np.rint(2**29 + 2**28 * np.sin(angles))),
+    }
+    for name, (x, y) in cases.items():
+        x, y = np.ascontiguousarray(x, np.int64), np.ascontiguousarray(y, np.int64)
+        a, b = triangles(native, native_ffi, x, y), triangles(portable, pffi, x, y)
+        assert len(a[0]) > 0 and np.array_equal(a[0], b[0]) and a[1] == b[1], name
+    sys.modules.pop("_kernel_portable", None)
+
+
 def test_the_kernel_compiles_for_windows_without_int128(tmp_path):
     """The C is portable: every part cross-compiles for Windows (MinGW-w64) with -Wall -Werror and the two-word
     128-bit form (as MSVC, which has no __int128, builds it), and the DLL exports every declared entry point."""
