@@ -607,6 +607,24 @@ def test_a_stale_lock_is_taken_over(tiles, tmp_path):
     assert not (out / ".gistools.lock").exists()
 
 
+def test_the_lock_check_without_proc_tells_a_live_process_from_a_dead_one(monkeypatch):
+    """Where there is no /proc (macOS, the BSDs) the pid alone decides: a running process holds its lock, an exited
+    one's lock is stale; and the check never signals the process (Windows has its own branch: os.kill(pid, 0)
+    would end the process there)."""
+    from gistools.io import outdir
+
+    monkeypatch.setattr(outdir, "_process_start", lambda pid: None)
+    live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
+    dead = subprocess.Popen([sys.executable, "-c", "pass"])
+    dead.wait()
+    try:
+        assert outdir._alive(live.pid, "12345") and not outdir._alive(dead.pid, "12345")
+        assert live.poll() is None  # asked, not signalled
+    finally:
+        live.kill()
+        live.wait()
+
+
 # ------------------------------------------------------------------ Ctrl-C at several moments, kill -9 of the parent
 
 def _interrupt_when(args, ready, out: Path, signum=signal.SIGINT):

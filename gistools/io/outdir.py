@@ -16,6 +16,7 @@ import logging
 import os
 import shutil
 import socket
+import sys
 import threading
 import time
 from pathlib import Path
@@ -47,16 +48,34 @@ def _process_start(pid: int) -> str | None:
 
 
 def _alive(pid: int, start: str | None) -> bool:
+    """Whether the process ``pid`` that took a lock (started at ``start``, where known) still runs."""
+    if sys.platform == "win32":  # os.kill(pid, 0) would terminate the process there
+        return _alive_windows(pid)
     try:
-        os.kill(pid, 0)
+        os.kill(pid, 0)  # POSIX: signal 0 only asks whether the process exists
     except ProcessLookupError:
         return False
     except PermissionError:
         return True
     except OSError:
         return False
-    now = _process_start(pid)
+    now = _process_start(pid)  # None without /proc (macOS): the pid alone then decides
     return start is None or now is None or now == start
+
+
+def _alive_windows(pid: int) -> bool:  # pragma: no cover - Windows
+    """Windows: the process can be opened and has not exited (STILL_ACTIVE)."""
+    import ctypes
+
+    kernel32 = ctypes.windll.kernel32
+    handle = kernel32.OpenProcess(0x1000, False, pid)  # PROCESS_QUERY_LIMITED_INFORMATION
+    if not handle:
+        return ctypes.GetLastError() == 5  # access denied: it exists, another user's
+    try:
+        code = ctypes.c_ulong()
+        return bool(kernel32.GetExitCodeProcess(handle, ctypes.byref(code))) and code.value == 259
+    finally:
+        kernel32.CloseHandle(handle)
 
 
 def _make_folder(out: Path) -> None:
