@@ -37,10 +37,11 @@ def test_the_schema_rejects_a_record_without_its_envelope():
 
 
 def test_the_chain_and_its_deliverables_share_one_record(tmp_path):
-    """The shrub chain, then a web map, a scene and a map book into its folder: one valid record, four runs."""
+    """The shrub chain, then a web map, a scene, a map book and the map into its folder: one valid record, five
+    runs."""
     from gistools.deliver.mapbook import map_book
     from gistools.deliver.scene import scene_glb
-    from gistools.products.shrub import shrub_from_tiles
+    from gistools.products.shrub import map_from_classes, shrub_from_tiles
     from gistools.deliver.webmap import web_map
 
     out = tmp_path / "chain"
@@ -51,9 +52,10 @@ def test_the_chain_and_its_deliverables_share_one_record(tmp_path):
     web_map(out)
     scene_glb(out)
     map_book(out, tile_index=f"{BREAKLINES}:FOOTPRINT")
+    map_from_classes(out)
     record = valid_record(out)
-    assert [r["tool"] for r in record["runs"]][-4:] == ["gistools shrub", "gistools webmap", "gistools scene",
-                                                         "gistools mapbook"]
+    assert [r["tool"] for r in record["runs"]][-5:] == ["gistools shrub", "gistools webmap", "gistools scene",
+                                                         "gistools mapbook", "gistools map"]
 
 
 @pytest.mark.parametrize("command", ["rasters", "ground", "normalize", "metrics", "chm", "points"])

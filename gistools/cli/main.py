@@ -159,6 +159,10 @@ def main():  # console_scripts entry point
     except KeyboardInterrupt:  # outside a command (start-up, argument parsing)
         click.echo(INTERRUPTED, err=True)
         sys.exit(_status())
+    finally:
+        from ..engine.batch import join_workers
+
+        join_workers()  # no worker of the command outlives it (a script or a scheduler waits for the group)
 
 
 if __name__ == "__main__":

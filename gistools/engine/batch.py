@@ -239,6 +239,18 @@ def start_method() -> tuple[str | None, str | None]:
     return None, f"{reason}: the tiles run one at a time (put the call under the guard to use several processes)"
 
 
+_STARTED: list = []  # the executors this process started, joined by join_workers
+
+
+def join_workers() -> None:
+    """Wait until every worker process this process started has exited: the command line calls it before it
+    returns, so no worker outlives the command. (A pool closed after its last task lets its workers end on their
+    own, overlapping what the run does next; this waits for the last of them.) multiprocessing's resource tracker
+    still ends a moment after the command, when its pipe closes."""
+    while _STARTED:
+        _STARTED.pop().shutdown(wait=True, cancel_futures=True)
+
+
 class ProcessPool:
     """Local worker processes (spawn, not fork: forking a process that holds GDAL / BLAS threads can deadlock;
     fork only where spawn cannot work: see start_method).
@@ -254,6 +266,7 @@ class ProcessPool:
         self.workers = jobs
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+        _STARTED.append(self.pool)
         for _ in range(jobs):  # every worker starts now (a task each), importing while the parent plans the run
             self.pool.submit(os.getpid)
 

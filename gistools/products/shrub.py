@@ -47,7 +47,7 @@ from ..validation import check_scheduler
 from ..engine.batch import make_pool
 from ..engine.passes import Stage, TileState, run_stages
 from .rasters import RasterSettings, rasters_from_tiles
-from ..engine.record import write_folder_report
+from ..engine.record import add_run, write_folder_report
 from .settings import ShrubSettings
 from .steps import band_summary, bands_from_ndsm, class_breaks, class_summary, classes_from_cover, clip_bands, \
     density_from_vegetation, nodata_causes
@@ -402,7 +402,7 @@ def _write_chain_outputs(out: Path, good: list, mosaic: dict, polygons: list, cr
     polygons = sorted(polygons, key=lambda item: item[0])
     _write_polygons(out / "shrub_classes.gpkg", polygons, crs, settings.tile_field, unit.metres ** 2)
     if map_title and mosaic.get("classes"):
-        map_from_classes(out, title=map_title, unit=unit)
+        _draw_map(out, map_title, unit)  # the chain's own run line says it made the map
 
 
 def _step_params(summary: dict, settings: ShrubSettings, overwrite: bool, from_stage: str, band_points: bool) -> StepParams:
@@ -670,9 +670,7 @@ def _previous_run(out: Path) -> dict:
 
 
 def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None = None) -> dict:
-    """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``."""
-    from ..plot import map_parameters, shrub_map
-
+    """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``. Adds its run to report.json."""
     out = output_folder(out)
     if not (out / "classes.vrt").exists():
         raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")
@@ -680,9 +678,18 @@ def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None =
     if unit is None:
         unit = LinearUnit(summary["horizontal_unit"], summary["horizontal_unit_m"])
     title = title or summary.get("map_title") or f"Shrub density - {out.name}"  # the chain's title, kept across reruns
+    started = time.time()
     with claim_output(out, "gistools map"):
-        return shrub_map(out / "classes.vrt", out / "shrub_map", title=title, unit=unit,
-                         parameters=map_parameters(out / "classes.vrt", out / "cover.vrt", unit))
+        result = _draw_map(out, title, unit)
+        add_run(out, {"tool": "gistools map", "seconds": round(time.time() - started, 3), "settings": {"title": title}})
+        return result
+
+
+def _draw_map(out: Path, title: str, unit: LinearUnit) -> dict:
+    from ..plot import map_parameters, shrub_map
+
+    return shrub_map(out / "classes.vrt", out / "shrub_map", title=title, unit=unit,
+                     parameters=map_parameters(out / "classes.vrt", out / "cover.vrt", unit))
 
 
 def _write_polygons(path, polygons, crs, tile_field, area_m2):
