@@ -1056,12 +1056,16 @@ def test_coordinates_outside_the_crs_area_of_use_are_a_warning(tmp_path, caplog)
     las.x, las.y = -82.5 + rng.uniform(0, 0.01, 500), 28.1 + rng.uniform(0, 0.01, 500)  # degrees
     las.z = rng.uniform(0, 10, 500)
     las.classification = np.full(500, 2, np.uint8)
-    las.write(tmp_path / "deg.las")
-    code, text = invoke(["rasters", tmp_path / "deg.las", "--crs", "EPSG:2882", "--out", tmp_path / "o", "-q",
+    (tmp_path / "in").mkdir()
+    las.write(tmp_path / "in" / "deg.las")
+    las.x = las.x + 0.01
+    las.write(tmp_path / "in" / "deg2.las")
+    code, text = invoke(["rasters", tmp_path / "in", "--crs", "EPSG:2882", "--out", tmp_path / "o", "-q",
                          "--dem-method", "max"])
-    assert "lies far outside the area of use of its CRS EPSG:2882" in caplog.text
+    assert caplog.text.count("lies far outside the area of use of its CRS EPSG:2882") == 1  # once, not per tile
+    assert "and 1 more tiles alike, each named in report.json" in caplog.text
     report = json.loads((tmp_path / "o" / "report.json").read_text())
-    assert any("area of use" in w for w in report["tiles"][0]["warnings"])
+    assert all(any("area of use" in w for w in t["warnings"]) for t in report["tiles"]) and len(report["tiles"]) == 2
     text = (tmp_path / "o" / "report.json").read_text()
     assert "\ue000" not in text and "\\ue000" not in text  # no parameter mark left unrendered in the record
 

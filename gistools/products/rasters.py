@@ -673,7 +673,7 @@ def outside_area_of_use(info: TileInfo) -> str | None:
 
 def _readable_tiles(paths, override, results) -> list[TileInfo]:
     """The headers that read; the others are marked failed."""
-    infos = []
+    infos, far = [], []
     for p in paths:
         try:
             infos.append(read_tile_info(p, override))
@@ -683,7 +683,10 @@ def _readable_tiles(paths, override, results) -> list[TileInfo]:
         where = outside_area_of_use(infos[-1])
         if where:
             results[p.stem].warnings.append(where)
-            log.warning("%s", where)
+            far.append(where)
+    if far:  # once on the console (a county in the wrong CRS is thousands of tiles); each tile's in report.json
+        log.warning("%s", far[0] if len(far) == 1 else f"{far[0]} (and {len(far) - 1} more tiles alike, each named "
+                                                          "in report.json)")
     return infos
 
 
