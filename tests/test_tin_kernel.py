@@ -113,24 +113,30 @@ def test_the_portable_kernel_triangulates_as_the_int128_kernel(tmp_path):
     __int128 build, point for point, on lattices (every quad cocircular: the exact path decides), rings of
     cocircular points, repeats and random points over the kernel's whole 2^30 span."""
     import importlib.util
-    import runpy
     import sys
 
     from gistools import kernel
 
     if not kernel.loaded():
         pytest.skip("the compiled kernel is not built here")
-    from cffi import FFI
+    import subprocess
 
     from gistools._kernel import ffi as native_ffi, lib as native
 
-    build = runpy.run_path(str(ROOT / "csrc" / "kernel_build.py"))
-    ffi = FFI()
-    ffi.cdef(build["declarations"]())
-    ffi.set_source("_kernel_portable", '#include "gistools_kernel.h"', sources=[str(ROOT / "csrc" / s) for s in build["SOURCES"]],
-                   include_dirs=[str(ROOT / "csrc")], define_macros=[("GISTOOLS_PORTABLE_INT128", None)],
-                   extra_compile_args=build["FLAGS"])
-    built = ffi.compile(tmpdir=str(tmp_path))
+    # built in a fresh interpreter: QGIS, loaded by other tests of a session, puts a `long` into builtins, which
+    # makes cffi's build code try Python 2's cStringIO
+    script = f"""
+import runpy
+from cffi import FFI
+build = runpy.run_path({str(ROOT / "csrc" / "kernel_build.py")!r})
+ffi = FFI()
+ffi.cdef(build["declarations"]())
+ffi.set_source("_kernel_portable", '#include "gistools_kernel.h"',
+               sources=[{str(ROOT / "csrc")!r} + "/" + s for s in build["SOURCES"]], include_dirs=[{str(ROOT / "csrc")!r}],
+               define_macros=[("GISTOOLS_PORTABLE_INT128", None)], extra_compile_args=build["FLAGS"])
+print(ffi.compile(tmpdir={str(tmp_path)!r}))
+"""
+    built = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout.split()[-1]
     spec = importlib.util.spec_from_file_location("_kernel_portable", built)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
