@@ -607,7 +607,7 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
         try:
             run = _run_parameters(infos[0], crs, settings, out, scratch)
             infos = _griddable(infos, run, results, settings)
-            scratch_peak = _run_passes(infos, results, run, jobs, overwrite, progress, scheduler, pool)
+            scratch_peak = _passes_over_tiles(infos, results, run, jobs, overwrite, progress, scheduler, pool)
             flattened = flatten_dem_tiles(results, run.water, run) if run.water else None
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
@@ -798,9 +798,10 @@ def _stage_totals(results) -> dict:
     return totals
 
 
-def _run_passes(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
-                shared_pool=None) -> int:
-    """Both passes over the tiles (kept tiles of an earlier run skipped); returns the scratch's peak in tiles."""
+def _passes_over_tiles(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
+                       shared_pool=None) -> int:
+    """The rasters' two passes, declared for the tile engine (engine.passes.run_two_passes: pass 1 _scan_tile, pass
+    2 _grid_tile; kept tiles of an earlier run skipped); returns the scratch's peak in tiles."""
     out = Path(run.out)
     settings = run_settings(run)
     neighbours = _neighbours(infos, run.buffer + run.cell_size)

@@ -348,8 +348,8 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
             states[n].status, states[n].error = "ok", None
         ticker = _StepTicker(progress, 0.6 if from_stage == "rasters" else 0.0, 4 * len(names), states, len(names))
         step_seconds: dict = {}
-        mosaic, polygons, breaks = _run_steps(out, names, states, params, vec, settings, pool, ticker.tick, step_seconds,
-                                              _fresh_causes(base, from_stage))
+        mosaic, polygons, breaks = _steps_as_stages(out, names, states, params, vec, settings, pool, ticker.tick,
+                                                    step_seconds, _fresh_causes(base, from_stage))
     finally:
         if pool is not None:
             pool.close()
@@ -448,8 +448,8 @@ def _ndsm_bounds(out: Path, name: str):
                             hint="Rerun gistools shrub on the tiles (the rasters stage rewrites it)") from None
 
 
-def _run_steps(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool, tick,
-               seconds_by_step: dict, causes: dict):
+def _steps_as_stages(out: Path, names: list, states: dict, p: StepParams, vec: dict, settings: ShrubSettings, pool,
+                     tick, seconds_by_step: dict, causes: dict):
     """bands, clip, density and classes of every tile that is still ok, as the engine's stages (run_stages; the
     mosaics and the block's class breaks between them); (mosaics, class polygons, class breaks).
     ``seconds_by_step`` gets each step's seconds, summed over the tiles; ``causes``: tile -> its nodata causes where
