@@ -31,3 +31,19 @@ def test_the_readme_links_point_to_files_of_the_checkout():
     assert links, "the README links into docs/"
     missing = [t for t in links if not (ROOT / t.split("#")[0]).exists()]
     assert not missing, missing
+
+
+# words of a project's own history, which users' documentation has no use for (a CHANGELOG says what changed)
+HISTORY = [r"\bsessions?\b", r"\bissue #?\d{1,3}\b", r"\bthis round\b", r"\bthe commit before\b", r"\.\./shared",
+           r"\bprevious (code|session|version of the code)\b", r"example\.org", r"\.ci/run"]
+
+
+def test_no_page_speaks_of_the_projects_own_history():
+    """README, CHANGELOG and every docs page: no development history, no placeholder URL, no path a user lacks."""
+    import re
+
+    pages = [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    found = [f"{p.relative_to(ROOT)}: {m.group(0)!r}" for p in pages for pattern in HISTORY
+             for m in re.finditer(pattern, p.read_text(), re.I)]
+    assert not found, found
+    assert (ROOT / "README.md").stat().st_size < 10_000

@@ -182,8 +182,8 @@ def test_a_big_county_is_split_by_tile_and_foreign_pages_are_kept(chain, tmp_pat
     with pytest.raises(OutputExistsError):
         web_map(copy)
     assert (copy / "shrub_map.html").read_text() == "<html>my own page</html>"
-    with pytest.raises(InputError, match="^basemap 'tiles.example.org'"):  # a Python call names the argument
-        web_map(copy, basemap="tiles.example.org")
+    with pytest.raises(InputError, match="^basemap 'tiles.invalid'"):  # a Python call names the argument
+        web_map(copy, basemap="tiles.invalid")
 
 
 PAYLOADS = ["<img src=x onerror=\"document.documentElement.dataset.pwned='img'\">",

@@ -148,7 +148,7 @@ def script_json(value) -> str:
 
 
 def _source(url: str | None) -> str:
-    """The Content-Security-Policy source of an XYZ tile URL's host ({s}.tile.example.org: *.tile.example.org);
+    """The Content-Security-Policy source of an XYZ tile URL's host ({s}.tile.openstreetmap.org: *.tile.openstreetmap.org);
     its scheme alone where a placeholder sits elsewhere in the host."""
     if not url:
         return ""
