@@ -3,24 +3,86 @@ left out of mkdocs.yml's nav fails."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
 from conftest import ROOT
 
 
-def test_the_documentation_site_builds_strictly(tmp_path):
+@pytest.fixture(scope="module")
+def site(tmp_path_factory):
+    """The site, built once with ``mkdocs build --strict``."""
     pytest.importorskip("mkdocs", reason="mkdocs is in the test extra: pip install -e '.[test]'")
     pytest.importorskip("material", reason="mkdocs-material is in the test extra: pip install -e '.[test]'")
-    site = tmp_path / "site"
+    site = tmp_path_factory.mktemp("docs") / "site"
     proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(site)], cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-5000:]
+    return site
+
+
+def test_the_documentation_site_builds_strictly(site):
     for page in ("index.html", "quickstart/index.html", "commands/shrub/index.html", "concepts/index.html"):
         assert (site / page).is_file(), page
     assert (site / "webmap.png").is_file()
+
+
+def _help(*words: str) -> str:
+    """``gistools WORDS --help`` as printed."""
+    proc = subprocess.run([sys.executable, "-m", "gistools.cli.main", *words, "--help"], cwd=ROOT,
+                          capture_output=True, text=True, timeout=120, env={**os.environ, "COLUMNS": "100"})
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def _section(text: str, name: str) -> str:
+    return text.split(f"\n{name}:\n", 1)[1].split("\n\n", 1)[0] if f"\n{name}:\n" in text else ""
+
+
+def _table_rows(page: Path) -> list[tuple[str, str]]:
+    """The (option, what) rows of the page's options table, as the reader sees them."""
+    import html
+    import re
+
+    text = page.read_text()
+    table = text.split('id="options"', 1)[1].split("</table>", 1)[0]
+    rows = []
+    for row in re.findall(r"<tr>(.*?)</tr>", table, re.S)[1:]:
+        cells = [" ".join(html.unescape(re.sub(r"<[^>]+>", "", c)).split()) for c in re.findall(r"<td>(.*?)</td>", row, re.S)]
+        rows.append((cells[0], cells[1]))
+    return rows
+
+
+def test_every_command_has_a_reference_page_whose_options_table_is_its_help(site):
+    """One page per command of ``gistools --help``; its table holds every option of ``gistools COMMAND --help``, in
+    order, with the same words, and nothing else."""
+    import re
+
+    commands = []
+    for name in re.findall(r"^  (\S+)", _section(_help(), "Commands"), re.M):
+        subcommands = re.findall(r"^  (\S+)", _section(_help(name), "Commands"), re.M)
+        commands += [(f"{name}-{sub}", (name, sub)) for sub in subcommands] or [(name, (name,))]
+    assert len(commands) >= 20
+    pages = sorted(p.name for p in (site / "reference").iterdir())
+    assert pages == sorted(page for page, _ in commands), "a reference page per command, no other"
+    for page, words in commands:
+        command = " ".join(words)
+        printed = _section(_help(*words), "Options")
+        help_text = "".join(printed.split())
+        rows = _table_rows(site / "reference" / page / "index.html")
+        # the options column of --help: the lines of the section that start with an option's name
+        at = 0
+        for option, what in rows:
+            found = help_text.find("".join(f"{option}{what}".split()), at)
+            assert found >= 0, f"gistools {command}: {option!r} {what[:60]!r}... is not in --help after position {at}"
+            at = found + 1
+        assert at and help_text[at - 1:].startswith("".join(f"{rows[-1][0]}{rows[-1][1]}".split())) and (
+            help_text.endswith("".join(f"{rows[-1][0]}{rows[-1][1]}".split()))), f"gistools {command}: rows left out"
+        assert len(rows) == len(re.findall(r"^  -", printed, re.M)), f"gistools {command}: rows left out"
 
 
 def test_the_readme_links_point_to_files_of_the_checkout():

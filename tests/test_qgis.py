@@ -193,6 +193,8 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
         assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
         page = Path(QUrl(a.helpUrl()).toLocalFile())
         assert a.helpUrl().startswith("file://") and page.is_file(), (a.name(), a.helpUrl())
+        anchor = QUrl(a.helpUrl()).fragment()  # its own section of the built page, an id that is there
+        assert anchor == f"qgis-{a.name()}" and f'id="{anchor}"' in page.read_text(), (a.name(), a.helpUrl())
         assert len(a.tags()) >= 4 and "gistools" in a.tags() and a.name() in about, a.name()
     pages = {n: Path(QUrl(a.helpUrl()).toLocalFile()) for n, a in tools.items()}
     assert len({pages["chm"], pages["ground"], pages["aquifer"]}) == 3 and pages["dem"] == pages["rasters"]

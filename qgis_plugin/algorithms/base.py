@@ -40,14 +40,17 @@ GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terr
               "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"]}
 
 
-def help_url(page: str) -> str:
-    """A file URL of the documentation page ``page`` ("commands/rasters", "qgis"): the site shipped in the plugin
-    (help/), else a checkout's docs/ source beside the plugin's folder; "" where neither is there."""
+def help_url(page: str, anchor: str = "") -> str:
+    """A file URL of the documentation page ``page`` ("commands/rasters", "qgis") at ``anchor``: the site shipped in
+    the plugin (help/), else a checkout's docs/ source beside the plugin's folder; "" where neither is there."""
     from qgis.PyQt.QtCore import QUrl
 
     for path in (HERE / "help" / page / "index.html", HERE.parent / "docs" / f"{page}.md"):
         if path.is_file():
-            return QUrl.fromLocalFile(str(path)).toString()
+            url = QUrl.fromLocalFile(str(path))
+            if anchor:
+                url.setFragment(anchor)
+            return url.toString()
     return ""
 GROUP_SHRUB = ("Shrub chain", "shrub")
 GROUP_DELIVER = ("Field deliverables", "deliverables")
@@ -96,8 +99,9 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return "<br>".join(lines)
 
     def helpUrl(self):  # noqa: N802
-        """The algorithm's page of the documentation shipped in the plugin (offline)."""
-        return help_url(self._page or GROUP_PAGES.get(self._group[1], "qgis"))
+        """The algorithm's section (``#qgis-<name>``) of its page of the documentation shipped in the plugin
+        (offline)."""
+        return help_url(self._page or GROUP_PAGES.get(self._group[1], "qgis"), f"qgis-{self._name}")
 
     def tags(self):
         return [*GROUP_TAGS.get(self._group[1], []), *self._tags, "gistools"]
