@@ -113,3 +113,18 @@ def test_memory_errors_are_the_runs_not_a_tiles():
             text = str(raised.value)
         assert "35712" in text and "--jobs" in text and "--cell-size" in text
         assert result.status == "ok"  # the tile is not blamed
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="reads the process group with ps (Linux)")
+def test_no_process_of_the_group_is_left_when_the_command_returns(tmp_path):
+    """`gistools rasters --jobs 2` in its own process group (as a scheduler or a script starts it): when it has
+    returned, no process of the group is left: no worker, no resource tracker, no zombie."""
+    for run in range(3):
+        proc = subprocess.Popen([sys.executable, "-m", "gistools.cli.main", "rasters", str(SAMPLE), "--out",
+                                 str(tmp_path / f"out{run}"), "--jobs", "2"], start_new_session=True,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        _, err = proc.communicate(timeout=600)
+        left = subprocess.run(["ps", "-o", "pid=,stat=,args=", "-g", str(proc.pid)], capture_output=True,
+                              text=True).stdout.strip()
+        assert proc.returncode == 0, err[-2000:]
+        assert not left, f"run {run}: left in the group after the command returned:\n{left}"

@@ -245,10 +245,20 @@ _STARTED: list = []  # the executors this process started, joined by join_worker
 def join_workers() -> None:
     """Wait until every worker process this process started has exited: the command line calls it before it
     returns, so no worker outlives the command. (A pool closed after its last task lets its workers end on their
-    own, overlapping what the run does next; this waits for the last of them.) multiprocessing's resource tracker
-    still ends a moment after the command, when its pipe closes."""
+    own, overlapping what the run does next; this waits for the last of them.) multiprocessing's resource tracker,
+    which the pools started, is stopped and reaped too (else it would end a moment after the command)."""
+    import gc
+    from multiprocessing import resource_tracker
+
     while _STARTED:
-        _STARTED.pop().shutdown(wait=True, cancel_futures=True)
+        _STARTED.pop().join()
+    gc.collect()  # the pools' queues and their semaphores, unregistered from the tracker as they go
+    stop = getattr(getattr(resource_tracker, "_resource_tracker", None), "_stop", None)
+    if stop is not None:  # CPython's own teardown does the same at exit; here it happens before we return
+        try:
+            stop()
+        except Exception:  # noqa: BLE001 - a tracker already gone, or one that is not ours
+            pass
 
 
 class ProcessPool:
@@ -266,7 +276,8 @@ class ProcessPool:
         self.workers = jobs
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
-        _STARTED.append(self.pool)
+        self._manager, self._processes = None, []
+        _STARTED.append(self)
         for _ in range(jobs):  # every worker starts now (a task each), importing while the parent plans the run
             self.pool.submit(os.getpid)
 
@@ -281,13 +292,24 @@ class ProcessPool:
         for them. With every task done, the workers exit on their own while the caller goes on (their
         interpreters' teardown, about 0.1 s, overlaps the mosaics, the reports or the map); Python joins them
         at its exit at the latest."""
+        # what join() waits for: shutdown(wait=False) lets go of the executor's thread and processes
+        self._manager = getattr(self.pool, "_executor_manager_thread", None) or self._manager
+        self._processes = list((getattr(self.pool, "_processes", None) or {}).values()) or self._processes
         if futures:
             for fut in futures:
                 fut.cancel()
-            for proc in list((getattr(self.pool, "_processes", None) or {}).values()):
+            for proc in self._processes:
                 if proc.is_alive():
                     proc.kill()
         self.pool.shutdown(wait=bool(futures), cancel_futures=True)
+
+    def join(self):
+        """Close the pool if it is open, and wait until its workers and its manager thread have ended."""
+        self.close()
+        for proc in self._processes:
+            proc.join()
+        if self._manager is not None:
+            self._manager.join()
 
 
 class DaskPool:
