@@ -64,6 +64,18 @@ def check_count(value, name: str, *, minimum: int = 1, example: str = "1") -> in
     return int(value)
 
 
+def check_jobs(value) -> int | str:
+    """``jobs``: "auto" (gistools chooses, see gistools.engine.batch.auto_workers) or a whole number of at least 1."""
+    if isinstance(value, str) and value.strip().lower() == "auto":
+        return "auto"
+    try:
+        float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{named('jobs')} {value!r} is neither auto nor a whole number",
+                         hint=f"Give e.g. {named('jobs', 'auto')} or {named('jobs', 2)}") from None
+    return check_count(value, "jobs", example="2")
+
+
 def check_breaks(values, name: str, *, count: int, low: float, high: float, low_open: bool = False,
                  example: str = "0.3,0.7") -> tuple[float, ...]:
     """``count`` strictly increasing finite numbers within [low, high] (``low_open``: above low)."""

@@ -128,3 +128,35 @@ def test_no_process_of_the_group_is_left_when_the_command_returns(tmp_path):
                               text=True).stdout.strip()
         assert proc.returncode == 0, err[-2000:]
         assert not left, f"run {run}: left in the group after the command returned:\n{left}"
+
+
+def test_jobs_auto_runs_small_work_in_the_process_and_repays_each_worker_with_points(monkeypatch):
+    """The rule of jobs="auto": no worker below 5 M points, then one per 5 M points, capped by the tasks and the
+    CPUs; unknown work (a step rerun) counts 8 tiles a worker."""
+    from gistools.engine import batch
+
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 8)
+    assert batch.auto_workers(4, 2_830_000) == 1  # a few real tiles: the one process decodes on every core
+    assert batch.auto_workers(4, 9_999_999) == 1
+    assert batch.auto_workers(16, 43_000_000) == 8  # the 16-tile block: all the CPUs
+    assert batch.auto_workers(3, 43_000_000) == 3  # never more workers than tiles
+    assert batch.auto_workers(40, None) == 5 and batch.auto_workers(4, None) == 1
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
+    assert batch.auto_workers(16, 43_000_000) == 2
+
+
+def test_jobs_takes_auto_or_a_whole_number_and_says_so_in_one_line(tmp_path):
+    from gistools.errors import InputError
+    from gistools import rasters_from_tiles
+
+    for bad in ("0", "abc", "-1"):
+        proc = subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", str(SAMPLE), "--out",
+                               str(tmp_path / "o"), "--jobs", bad], capture_output=True, text=True, timeout=300)
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr and "--jobs" in proc.stderr, proc.stderr
+        assert not (tmp_path / "o").exists()
+    with pytest.raises(InputError, match="jobs 'many' is neither auto nor a whole number"):
+        rasters_from_tiles([str(SAMPLE)], tmp_path / "p", jobs="many")
+    assert not (tmp_path / "p").exists()
+    proc = subprocess.run([sys.executable, "-m", "gistools.cli.main", "-v", "rasters", str(SAMPLE), "--out",
+                           str(tmp_path / "a"), "--jobs", "auto"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0 and "jobs auto: in this process (4 tasks, 0.3 M points)" in proc.stderr, proc.stderr[-2000:]

@@ -54,11 +54,6 @@ def out_opt(help: str = "Output folder."):  # noqa: A002 - click's word
     return click.option("--out", "-o", required=True, type=click.Path(file_okay=False), callback=_folder, help=help)
 
 
-jobs_opt = click.option("--jobs", "-j", type=click.IntRange(1), default=1, show_default=True,
-                        help="Tiles processed in parallel (local processes).")
-crs_opt = click.option("--crs", default=None, help="CRS of the tiles (EPSG:2882, WKT): required when a header has none; overrides the header's otherwise.")
-chunk_opt = click.option("--chunk-size", type=click.IntRange(1), default=2_000_000, show_default=True,
-                         help="Points read at a time; memory grows with it (about 60 bytes per point).")
 
 
 def parse_classes(ctx, param, value):

@@ -78,8 +78,31 @@ def _help(p: Parameter, default) -> str:
     return text
 
 
+class _NumberOrWord(click.ParamType):
+    """A whole number of at least ``minimum``, or one of ``words`` (--jobs auto)."""
+
+    def __init__(self, words, minimum):
+        self.words, self.minimum, self.name = tuple(words), minimum, "|".join(words) + "|N"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) and not isinstance(value, bool):
+            number = value
+        elif str(value).strip().lower() in self.words:
+            return str(value).strip().lower()
+        else:
+            try:
+                number = int(str(value))
+            except ValueError:
+                self.fail(f"{value!r} is neither {' nor '.join(self.words)} nor a whole number", param, ctx)
+        if self.minimum is not None and number < self.minimum:
+            self.fail(f"{number} is below {self.minimum:g}", param, ctx)
+        return number
+
+
 def _click_type(p: Parameter):
     """The click type of a parameter's value (None: text)."""
+    if p.kind == "int" and p.words:
+        return _NumberOrWord(p.words, p.minimum)
     if p.kind == "int":
         return click.IntRange(None if p.minimum is None else int(p.minimum), None if p.maximum is None else int(p.maximum))
     if p.kind == "float":

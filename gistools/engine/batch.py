@@ -27,7 +27,7 @@ from ..progress import check_interrupt
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ProcessPool", "DaskPool", "make_pool", "run_each", "drive", "fail", "worker_count", "machine_error"]
+__all__ = ["ProcessPool", "DaskPool", "make_pool", "auto_workers", "run_each", "drive", "fail", "worker_count", "machine_error"]
 
 
 def fail(result, err: BaseException, out=None) -> None:
@@ -315,7 +315,7 @@ class ProcessPool:
 class DaskPool:
     """Tiles as tasks on a dask.distributed cluster: a scheduler address, or "local" for a LocalCluster."""
 
-    def __init__(self, address: str, jobs: int):
+    def __init__(self, address: str, jobs: int | None):
         try:
             from dask.distributed import Client, LocalCluster
         except ImportError:
@@ -335,6 +335,8 @@ class DaskPool:
                 raise InputError(f"{option('scheduler', address)}: cannot connect to a Dask scheduler there ({why})",
                                  hint="Start one (dask scheduler), check the address, or give tls:// its "
                                       "certificates in Dask's configuration") from None
+            if self.workers is None:  # jobs auto: the cluster's threads
+                self.workers = max(1, sum(self.client.nthreads().values()))
 
     def submit(self, fn, *args):
         return self.client.submit(fn, *args, pure=False)
@@ -413,11 +415,33 @@ def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn
     return count
 
 
-def make_pool(jobs: int, scheduler: str | None, n_tasks: int, task_bytes: int | None = None):
+# The points of work that repay starting one more worker process. A worker imports numpy, scipy, rasterio, pyproj
+# and laspy (about 1.2 s of CPU) and decodes LAZ on one thread, while the command's own process decodes a file on
+# every core: on 2 cores, 2 workers overtake the one process past about 5 M points (benchmarks/bench_jobs.py).
+POINTS_PER_WORKER = 5_000_000
+TASKS_PER_WORKER = 8  # where the work is not known in points (a step rerun over raster tiles): tiles a worker repays
+
+
+def auto_workers(n_tasks: int, points: int | None = None) -> int:
+    """The workers ``jobs="auto"`` starts: one per :data:`POINTS_PER_WORKER` points of the tasks (``points``; where
+    unknown, one per :data:`TASKS_PER_WORKER` tasks), never more than the tasks or the usable CPUs; 1 (this process,
+    no worker) below that."""
+    by_work = int(points) // POINTS_PER_WORKER if points is not None else int(n_tasks) // TASKS_PER_WORKER
+    return max(1, min(by_work, max(int(n_tasks), 1), usable_cpus()))
+
+
+def make_pool(jobs, scheduler: str | None, n_tasks: int, task_bytes: int | None = None, points: int | None = None):
     """A DaskPool for a scheduler address, a ProcessPool for more than one worker (``jobs`` capped by
-    :func:`worker_count`: never more workers than tasks, CPUs or the memory holds), else None (inline)."""
+    :func:`worker_count`: never more workers than tasks, CPUs or the memory holds), else None (inline). ``jobs``
+    "auto": :func:`auto_workers` from the tasks' ``points``."""
     if scheduler:
+        if jobs == "auto":  # a cluster: as many tasks in flight as its workers have threads; local: the CPUs
+            jobs = usable_cpus() if scheduler == "local" else None
         return DaskPool(scheduler, jobs if scheduler != "local" else worker_count(jobs, n_tasks, task_bytes))
+    if jobs == "auto":
+        jobs = auto_workers(n_tasks, points)
+        log.info("gistools: jobs auto: %s (%d tasks%s)", f"{jobs} worker processes" if jobs > 1 else "in this process",
+                 n_tasks, "" if points is None else f", {points / 1e6:.1f} M points")
     jobs = worker_count(jobs, n_tasks, task_bytes) if jobs > 1 else 1
     if jobs > 1 and n_tasks > 1:
         method, warning = start_method()

@@ -36,16 +36,16 @@ STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classifica
 EVERYWHERE = (-np.inf, -np.inf, np.inf, np.inf)
 
 
-def batch_inputs(inputs, settings, jobs: int, scheduler) -> tuple[list, object]:
+def batch_inputs(inputs, settings, jobs, scheduler) -> tuple[list, object]:
     """Every option checked (``settings.validate()``, the scheduler, --jobs) before anything is read or written; then
     (the tile paths of ``inputs``, the --crs override or None)."""
     from ..io.points import parse_crs_text
     from ..io.tiles import find_tiles
-    from ..validation import check_count, check_scheduler
+    from ..validation import check_jobs, check_scheduler
 
     settings.validate()
     check_scheduler(scheduler)
-    check_count(jobs, "jobs", example="2")
+    check_jobs(jobs)
     override = parse_crs_text(settings.crs) if settings.crs else None
     return find_tiles(inputs), override
 
@@ -185,7 +185,7 @@ def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -
     return sources, warnings
 
 
-def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs: int,
+def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs,
                     scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str) -> None:
     """The tiles of ``todo`` through the tile engine (engine.passes): pass 1 keeps the edge strips of each tile and
     its neighbours in a scratch folder, pass 2 runs ``tile_fn(name, *tile_args(name, sources))`` per tile as soon
@@ -222,7 +222,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
                 Path(strips[n].strip).unlink(missing_ok=True)
 
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
-    pool = make_pool(jobs, scheduler, len(todo))
+    pool = make_pool(jobs, scheduler, len(todo), points=sum(int(infos[n].point_count) for n in todo))
     passes = Passes(read=lambda name, inline: (_strip_tile, (name, str(infos[name].path), crs_text, buffer,
                                                              str(scratch))),
                     make=make, on_read=read_done, on_made=on_done, results=states, read_results=strips, release=release,

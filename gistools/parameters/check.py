@@ -68,6 +68,8 @@ def _length(p, value):
 def _int(p, value):
     from ..validation import check_count
 
+    if isinstance(value, str) and value.strip().lower() in p.words:
+        return value.strip().lower()
     try:
         float(value)
     except (TypeError, ValueError):

@@ -74,6 +74,7 @@ class Parameter:
     required: bool = False
     metavar: str = ""
     example: str = ""
+    words: tuple = ()  # words a number also takes (jobs: "auto"); the dialog offers the first as 0
     qgis: str = ""  # the QGIS parameter's name when it is not the Python name in capitals
 
     @property

@@ -151,7 +151,7 @@ class _TileState(TileState):
     cells: int = 0
 
 
-def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,
+def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                    overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """A CHM GeoTIFF per tile of ``inputs`` (``out/chm/<tile>.tif``), ``out/chm.vrt`` and ``out/report.json`` (cells,
     pits per tile); returns the report. Existing tiles are kept unless ``overwrite``; one bad tile is reported."""

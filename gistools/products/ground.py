@@ -208,7 +208,7 @@ class _TileState(TileState):
     points_by_class: dict | None = None
 
 
-def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int = 1, scheduler: str | None = None,
+def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                       overwrite: bool = False, progress: ProgressCallback | None = None, water=None) -> dict:
     """Classify ground (2) and noise (7, 18) of the tiles of ``inputs`` (files, folders, globs, a .vpc) into
     ``out/<tile>.laz`` (or .las), plus ``out/ground.vpc`` and ``out/report.json``; returns the report.

@@ -174,7 +174,7 @@ class _TileState(TileState):
     heights_outside_tin: int | None = None
 
 
-def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int = 1,
+def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int | str = "auto",
                        scheduler: str | None = None, overwrite: bool = False,
                        progress: ProgressCallback | None = None) -> dict:
     """Cell metrics of the tiles of ``inputs`` (files, folders, globs, a .vpc): ``out/<metric>/<tile>.tif``,

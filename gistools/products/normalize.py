@@ -146,7 +146,7 @@ class _TileState(TileState):
 
 
 def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None, *, roads=None, hydro=None,
-                         waterbodies=None, reproject_vectors: bool = False, jobs: int = 1, scheduler: str | None = None,
+                         waterbodies=None, reproject_vectors: bool = False, jobs: int | str = "auto", scheduler: str | None = None,
                          overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """Heights above ground of the tiles of ``inputs`` into ``out/<tile>.laz`` (or .las, .copc.laz), plus
     ``out/normalized.vpc`` and ``out/report.json``; returns the report. ``roads`` (edge-of-pavement lines),

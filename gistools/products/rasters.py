@@ -50,7 +50,7 @@ from ..engine.resume import TILE_FIELDS, kept_tiles, run_settings, write_tile_re
 from ..engine.schedule import neighbour_pairs
 from ..units import length_to_crs_units
 from ..parameters import check_all, choices, default_for, in_data_units, option, render, setting_default
-from ..validation import check_scheduler, check_count, check_grid_size, check_length, grid_shape
+from ..validation import check_jobs, check_scheduler, check_count, check_grid_size, check_length, grid_shape
 
 __all__ = ["RasterSettings", "rasters_from_tiles", "PRODUCTS", "NOISE_CLASSES", "GROUND_CLASS", "WATER_CLASS"]
 
@@ -539,7 +539,7 @@ def rasters_from_tiles(
     out,
     settings: RasterSettings | None = None,
     *,
-    jobs: int = 1,
+    jobs: int | str = "auto",
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
     scheduler: str | None = None,
@@ -554,7 +554,8 @@ def rasters_from_tiles(
     kept (status ``skipped``) unless ``overwrite``. Raises CRSMismatchError when
     tiles disagree on CRS, Cancelled when ``progress`` returns False.
 
-    ``jobs``: tiles in parallel on local processes. ``scheduler``: run the tiles as tasks on a
+    ``jobs``: tiles in parallel on local processes ("auto": as many as the tiles' points repay, see
+    ``gistools.engine.batch.auto_workers``). ``scheduler``: run the tiles as tasks on a
     dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
     ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
     ``out`` (where the scratch folder lives) at the same paths. ``pool``: a worker pool to use
@@ -564,6 +565,7 @@ def rasters_from_tiles(
     settings = settings or RasterSettings()
     settings.validate()
     check_scheduler(scheduler)
+    jobs = check_jobs(jobs)
     started = time.time()
     out = output_folder(out)
     paths = find_tiles(inputs)
@@ -798,7 +800,7 @@ def _stage_totals(results) -> dict:
     return totals
 
 
-def _passes_over_tiles(infos, results, run: _Run, jobs: int, overwrite: bool, progress, scheduler: str | None = None,
+def _passes_over_tiles(infos, results, run: _Run, jobs, overwrite: bool, progress, scheduler: str | None = None,
                        shared_pool=None) -> int:
     """The rasters' two passes, declared for the tile engine (engine.passes.run_two_passes: pass 1 _scan_tile, pass
     2 _grid_tile; kept tiles of an earlier run skipped); returns the scratch's peak in tiles."""
@@ -826,8 +828,9 @@ def _passes_over_tiles(infos, results, run: _Run, jobs: int, overwrite: bool, pr
                     on_read=lambda name, value, seconds: _scan_done(results[name], value, seconds), on_made=made,
                     results=results, release=lambda names: _release(run.scratch, names), tick=ticker.tick,
                     verbs=("read", "gridded"))
-    pool = shared_pool if shared_pool is not None else make_pool(jobs, scheduler, len(order),
-                                                                 _task_bytes([by_name[n] for n in order], run))
+    pool = shared_pool if shared_pool is not None else make_pool(
+        jobs, scheduler, len(order), _task_bytes([by_name[n] for n in order], run),
+        points=sum(int(by_name[n].point_count) for n in order))
     return run_two_passes(order, todo, {n: ({n} | {m.name for m in neighbours[n]}) & needed for n in todo}, passes,
                           pool, owned=pool is not shared_pool, out=out)
 

@@ -43,7 +43,7 @@ from ..progress import ProgressCallback, report, sub_progress
 from ..parameters import in_data_units, option, render
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
-from ..validation import check_scheduler
+from ..validation import check_jobs, check_scheduler
 from ..engine.batch import make_pool
 from ..engine.passes import Stage, TileState, run_stages
 from .rasters import RasterSettings, rasters_from_tiles
@@ -259,7 +259,7 @@ def shrub_from_tiles(
     wetlands=None,
     tile_index=None,
     reproject_vectors: bool = False,
-    jobs: int = 1,
+    jobs: int | str = "auto",
     scheduler: str | None = None,
     overwrite: bool = False,
     make_map: bool = True,
@@ -284,6 +284,7 @@ def shrub_from_tiles(
     settings = settings or ShrubSettings()
     settings.validate()
     check_scheduler(scheduler)
+    jobs = check_jobs(jobs)
     if from_stage not in STAGES:
         raise InputError(f"stage {from_stage!r} is not one of {', '.join(STAGES)}")
     out = output_folder(out)
@@ -314,6 +315,23 @@ STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_classes.qml", "shrub_m
               "wetveg.vrt", "density.vrt", "cover.vrt", "classes.vrt")
 
 
+def _points_in(inputs) -> int | None:
+    """The points of the tiles of ``inputs``, from their headers (for jobs="auto"); None where a header does not read
+    (the run reports that tile)."""
+    import laspy
+
+    from ..io.tiles import find_tiles
+
+    total = 0
+    for path in find_tiles(inputs):
+        try:
+            with laspy.open(path) as reader:
+                total += int(reader.header.point_count)
+        except Exception:  # noqa: BLE001 - a bad tile is the run's to report, not the estimate's
+            return None
+    return total
+
+
 def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, waterbodies, wetlands, tile_index,
               reproject_vectors, jobs, scheduler, overwrite, make_map, band_points, from_stage, progress) -> dict:
     started = time.time()
@@ -325,11 +343,11 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         # the vector layers are read and checked against the first readable tile's CRS before the long raster
         # stage, so a CRS mismatch or a missing field is reported in seconds, not after the county's rasters
         early = _early_vectors(inputs, rs.crs, layers, settings, reproject_vectors)
-        n_tasks = 2
+        n_tasks, points = 2, (_points_in(inputs) if jobs == "auto" else None)
     else:
         summary = _previous_run(out)
-        n_tasks = sum(t["status"] in ("ok", "skipped") for t in summary["tiles"])
-    pool = make_pool(jobs, scheduler, n_tasks)  # one pool for the rasters and the steps: workers start once
+        n_tasks, points = sum(t["status"] in ("ok", "skipped") for t in summary["tiles"]), None
+    pool = make_pool(jobs, scheduler, n_tasks, points=points)  # one pool for the rasters and the steps: workers start once
     try:
         if summary is None:
             water = _water_for_ground(inputs, rs, early, settings) if rs.classify_ground else None

@@ -53,9 +53,11 @@ def _text_default(p: Parameter, default):
 
 
 def _number(p, name, label, default, optional):
+    if p.words:  # a number that also takes a word (jobs: auto): the dialog's 0 is the first word
+        default = 0 if default in p.words else default
     kwargs = {"type": INTEGER if p.kind == "int" else DOUBLE, "defaultValue": default, "optional": optional}
     if p.minimum is not None:
-        kwargs["minValue"] = p.minimum
+        kwargs["minValue"] = 0 if p.words else p.minimum
     if p.maximum is not None:
         kwargs["maxValue"] = p.maximum
     return QgsProcessingParameterNumber(name, label, **kwargs)
@@ -114,7 +116,7 @@ def _numbers(text: str, p: Parameter, cast):
 
 # how each kind's value is read back, as the library takes it (``v``: the algorithm's order of a choice's values)
 _READERS = {
-    "int": lambda alg, p, ps, ctx, fb, v: alg.parameterAsInt(ps, p.qgis_name, ctx),
+    "int": lambda alg, p, ps, ctx, fb, v: alg.parameterAsInt(ps, p.qgis_name, ctx) or (p.words[0] if p.words else 0),
     "float": lambda alg, p, ps, ctx, fb, v: alg.parameterAsDouble(ps, p.qgis_name, ctx),
     "choice": lambda alg, p, ps, ctx, fb, v: v[alg.parameterAsEnum(ps, p.qgis_name, ctx)],
     "choices": lambda alg, p, ps, ctx, fb, v: tuple(v[i] for i in alg.parameterAsEnums(ps, p.qgis_name, ctx)),
