@@ -19,7 +19,7 @@ def _click_command(name):
     """The click command of a declared command ("aquifer model": a command of a group)."""
     command = cli
     for part in name.split():
-        command = command.commands[part]
+        command = command.get_command(None, part)
     return command
 
 

@@ -804,7 +804,7 @@ def test_every_parameter_comes_from_its_one_declaration(qgis, name):
     command = COMMAND_OF[name]
     click_command = cli
     for part in (command or "").split():
-        click_command = click_command.commands[part]
+        click_command = click_command.get_command(None, part)
     options = {p.name: p for p in click_command.params} if command else {}
     for qname, pname in declared.items():
         p, d = PARAMETERS[pname], alg.parameterDefinition(qname)

@@ -24,10 +24,10 @@ def _commands() -> dict:
 
     if str(ROOT) not in sys.path:
         sys.path.insert(0, str(ROOT))
-    from gistools.cli.main import cli
+    from gistools.cli.main import all_commands
 
     found = {}
-    for name, cmd in sorted(cli.commands.items()):
+    for name, cmd in sorted(all_commands().items()):
         if isinstance(cmd, click.Group):
             for sub, subcmd in sorted(cmd.commands.items()):
                 found[f"{name}-{sub}"] = (f"{name} {sub}", subcmd)
@@ -44,7 +44,7 @@ def _context(words: str):
     ctx = click.Context(cli, info_name="gistools")
     group = cli
     for word in words.split():
-        cmd = group.commands[word]
+        cmd = group.get_command(ctx, word)
         ctx = click.Context(cmd, info_name=word, parent=ctx)
         group = cmd
     return ctx

@@ -45,6 +45,17 @@ STOP_SIGNALS = [getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP"
 
 
 class GistoolsGroup(click.Group):
+    def list_commands(self, ctx):
+        return sorted({*self.commands, *COMMANDS})
+
+    def get_command(self, ctx, name):
+        if name not in self.commands and name in COMMANDS:
+            import importlib
+
+            module, attr = COMMANDS[name]
+            self.add_command(getattr(importlib.import_module(f"{__package__}.{module}"), attr), name)
+        return self.commands.get(name)
+
     def invoke(self, ctx):
         with speaks("cli"):  # library messages name parameters by their flags (gistools.parameters)
             return self._invoke(ctx)
@@ -114,35 +125,22 @@ def cli(verbose):
         logging.getLogger("laspy").setLevel(logging.CRITICAL)
 
 
-from . import ground as _ground  # noqa: E402
-from . import chm as _chm  # noqa: E402
-from . import deliver as _deliver  # noqa: E402
-from . import info as _info  # noqa: E402
-from . import metrics as _metrics  # noqa: E402
-from . import normalize as _normalize  # noqa: E402
-from . import rasters as _rasters  # noqa: E402
-from . import points as _points  # noqa: E402
-from . import shrub as _shrub  # noqa: E402
-from . import aquifer as _aquifer  # noqa: E402
-from . import runway as _runway  # noqa: E402
-from . import structure as _structure  # noqa: E402
-from . import examples as _examples  # noqa: E402
+# command -> (its module in gistools.cli, its function): a command's module (and the libraries it needs) is imported
+# only when that command runs, or when --help lists them all, so `gistools rasters` does not wait for geopandas
+COMMANDS = {
+    "info": ("info", "info"), "points": ("points", "points"), "ground": ("ground", "ground"),
+    "rasters": ("rasters", "rasters"), "normalize": ("normalize", "normalize"), "metrics": ("metrics", "metrics"),
+    "chm": ("chm", "chm"), "shrub": ("shrub", "shrub"), "bands": ("shrub", "bands"), "clip": ("shrub", "clip"),
+    "density": ("shrub", "density"), "classify": ("shrub", "classify"), "map": ("shrub", "map_"),
+    "webmap": ("deliver", "webmap"), "scene": ("deliver", "scene"), "mapbook": ("deliver", "mapbook"),
+    "aquifer": ("aquifer", "aquifer"), "runway": ("runway", "runway"), "structure": ("structure", "structure"),
+    "examples": ("examples", "examples"),
+}
 
-cli.add_command(_info.info)
-cli.add_command(_ground.ground)
-cli.add_command(_rasters.rasters)
-cli.add_command(_normalize.normalize)
-cli.add_command(_metrics.metrics)
-cli.add_command(_chm.chm)
-cli.add_command(_deliver.webmap)
-cli.add_command(_deliver.scene)
-cli.add_command(_deliver.mapbook)
-cli.add_command(_aquifer.aquifer)
-cli.add_command(_runway.runway)
-cli.add_command(_structure.structure)
-cli.add_command(_examples.examples)
-for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
-    cli.add_command(_command)
+
+def all_commands() -> dict:
+    """{name: click command} of every command of ``gistools`` (each module imported)."""
+    return {name: cli.get_command(None, name) for name in cli.list_commands(None)}
 
 
 def main():  # console_scripts entry point

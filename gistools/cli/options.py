@@ -1,9 +1,14 @@
 """Options shared by several commands, and the progress bar, defined once."""
 
 import contextlib
+import threading
 
 import click
 from tqdm import tqdm
+
+# The bars are drawn by this process only (workers report through it): a thread lock is enough, and tqdm's default
+# (a multiprocessing lock, a named semaphore) would keep multiprocessing's resource tracker alive past the command
+tqdm.set_lock(threading.RLock())
 
 BAR_FORMAT = "{l_bar}{bar}| {n:.0f}% [{elapsed}<{remaining}{postfix}]"
 

@@ -253,6 +253,10 @@ def join_workers() -> None:
     while _STARTED:
         _STARTED.pop().join()
     gc.collect()  # the pools' queues and their semaphores, unregistered from the tracker as they go
+    from multiprocessing.synchronize import SemLock
+
+    if any(isinstance(o, SemLock) for o in gc.get_objects()):  # still held (an interrupted run's traceback): the
+        return  # tracker must outlive them, or their clean-up at exit would find them gone; it ends with us
     stop = getattr(getattr(resource_tracker, "_resource_tracker", None), "_stop", None)
     if stop is not None:  # CPython's own teardown does the same at exit; here it happens before we return
         try:

@@ -1,0 +1,198 @@
+#!/usr/bin/env python3
+"""gistools beside the fastest peers, product by product, on the same tiles, cores and cell size.
+
+Runs each product with gistools (its defaults: ``--jobs auto``) and with lasR (r-lidar/lasR, when ``Rscript`` can
+load it; ``../shared/tools/build_lasr.sh`` builds it), alternately, ``--repeat`` times, each run a fresh process
+timed from start to exit (the interpreter and library start included, as a user waits for them), and prints the
+medians and the ratio lasR / gistools (above 1: gistools is faster).
+
+Products (lasR's equivalent in brackets):
+
+* rasters: DSM (highest first return) + DEM (TIN of the ground points) + nDSM
+  [``rasterize(res, "max", filter = keep_first())`` + ``triangulate(filter = keep_ground())`` + ``rasterize(res, tin)``:
+  lasR writes no nDSM];
+* normalize: heights above the ground TIN, LAS out [``normalize()`` + ``write_las()``];
+* metrics: count, z_max, z_mean, z_sd, z_p95 per cell [``rasterize(res, c(...))``];
+* chm: gistools' pit-free CHM (Khosravipour et al. 2014) [lasR's fastest CHM, ``rasterize(res, "max")`` +
+  ``pit_fill()``: a different, lighter method];
+* ground: gistools' default ground filter, LAS out [``classify_with_csf()`` + ``write_las()``].
+
+Cases: the sample tiles (4 LAS tiles, US survey feet, 5 ft cells), ``../shared/data``'s autzen tile alone and as a
+2 x 2 block of copies side by side, and the synthetic Levy-density block (4 tiles of 5,000 ft, 6.8 M points) and a
+16-tile block of its copies (27 M points), generated once into ``--workdir``.
+
+    python benchmarks/bench_peers.py [--repeat 3] [--cases sample,autzen,autzen4,levy,levy16]
+                                     [--products rasters,normalize,metrics,chm,ground] [--jobs-table]
+
+``--jobs-table`` also times ``gistools rasters`` with ``--jobs 1`` and ``--jobs 2`` beside the default (auto).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+SHARED = ROOT.parent / "shared" / "data" / "lidar"
+PY = sys.executable
+CORES = 2
+
+GISTOOLS = {
+    "rasters": lambda src, out, cell: ["rasters", src, "--out", out, "--cell-size", cell],
+    "normalize": lambda src, out, cell: ["normalize", src, "--out", out, "--format", "las"],
+    "metrics": lambda src, out, cell: ["metrics", src, "--out", out, "--cell-size", cell, "--metrics",
+                                       "count,z_max,z_mean,z_sd,z_p95"],
+    "chm": lambda src, out, cell: ["chm", src, "--out", out, "--cell-size", cell],
+    "ground": lambda src, out, cell: ["ground", src, "--out", out, "--format", "las"],
+}
+LASR = {
+    "rasters": 'reader() + rasterize({res}, "max", filter = keep_first(), ofile = file.path(out, "*_dsm.tif")) + '
+               '(tri <- triangulate(filter = keep_ground())) + rasterize({res}, tri, ofile = file.path(out, "*_dtm.tif"))',
+    "normalize": 'reader() + normalize() + write_las(file.path(out, "*.las"))',
+    "metrics": 'reader() + rasterize({res}, c("count", "z_max", "z_mean", "z_sd", "z_p95"), '
+               'ofile = file.path(out, "*_metrics.tif"))',
+    "chm": 'reader() + (chm <- rasterize({res}, "max", filter = keep_first())) + '
+           'pit_fill(chm, ofile = file.path(out, "*_chm.tif"))',
+    "ground": 'reader() + classify_with_csf() + write_las(file.path(out, "*.las"))',
+}
+
+
+def lasr_available() -> bool:
+    if not shutil.which("Rscript"):
+        return False
+    return subprocess.run(["Rscript", "-e", "library(lasR)"], capture_output=True).returncode == 0
+
+
+def timed(cmd: list, env=None) -> float:
+    t = time.perf_counter()
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=env)
+    seconds = time.perf_counter() - t
+    if proc.returncode != 0:
+        raise SystemExit(f"bench_peers: {' '.join(map(str, cmd))[:200]} failed:\n{(proc.stderr or proc.stdout)[-1500:]}")
+    return seconds
+
+
+def gistools_cmd(product: str, src: Path, out: Path, cell: str, jobs: str | None = None) -> list:
+    args = [PY, "-m", "gistools.cli.main", *GISTOOLS[product](str(src), str(out), cell), "--overwrite", "--quiet"]
+    return args + (["--jobs", jobs] if jobs else [])
+
+
+def lasr_cmd(product: str, files: list[Path], out: Path, res: float) -> list:
+    strategy = f"concurrent_files({CORES})" if len(files) > 1 else f"concurrent_points({CORES})"
+    script = (f'suppressMessages(library(lasR)); out <- "{out}"; dir.create(out, showWarnings = FALSE); '
+              f'f <- c({", ".join(repr(str(p)) for p in files)}); '
+              f'pipeline <- {LASR[product].format(res=res)}; '
+              f'invisible(exec(pipeline, on = f, ncores = {strategy}, progress = FALSE))')
+    return ["Rscript", "-e", script]
+
+
+def tiles_of(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.iterdir() if p.suffix.lower() in (".las", ".laz"))
+
+
+def shifted_copies(sources: list[Path], into: Path, nx: int, ny: int) -> Path:
+    """``nx`` x ``ny`` copies of the block ``sources`` side by side (each copy's x, y shifted by the block's
+    extent), as LAS, unless already there."""
+    import laspy
+    import numpy as np
+
+    into.mkdir(parents=True, exist_ok=True)
+    if len(tiles_of(into)) == len(sources) * nx * ny:
+        return into
+    headers = [laspy.open(p).header for p in sources]
+    west, south = min(h.mins[0] for h in headers), min(h.mins[1] for h in headers)
+    east, north = max(h.maxs[0] for h in headers), max(h.maxs[1] for h in headers)
+    width, height = np.ceil(east - west + 1), np.ceil(north - south + 1)
+    for p in sources:
+        las = laspy.read(p)
+        x, y = np.asarray(las.x), np.asarray(las.y)
+        for i in range(nx):
+            for j in range(ny):
+                copy = laspy.LasData(las.header)
+                copy.points = las.points.copy()
+                copy.header.offsets = las.header.offsets + np.array([i * width, j * height, 0])
+                copy.x, copy.y = x + i * width, y + j * height
+                copy.write(into / f"{p.stem}_{i}{j}.las")
+    return into
+
+
+def cases(work: Path, wanted: list[str]) -> dict:
+    """{case: (folder of tiles, cell size text, cell size in CRS units)}."""
+    found = {}
+    if "sample" in wanted:
+        found["sample (4 tiles, 0.3 M points)"] = (ROOT / "sample_tiles", "5ft", 5.0)
+    autzen = SHARED / "autzen" / "autzen_trim.las"
+    if autzen.exists() and "autzen" in wanted:
+        one = work / "autzen1"
+        one.mkdir(parents=True, exist_ok=True)
+        if not (one / autzen.name).exists():
+            shutil.copy(autzen, one / autzen.name)
+        found["autzen, 1 real tile"] = (one, "5ft", 5.0)
+    if autzen.exists() and "autzen4" in wanted:
+        found["autzen, 2 x 2 copies"] = (shifted_copies([autzen], work / "autzen4", 2, 2), "5ft", 5.0)
+    if "levy" in wanted or "levy16" in wanted:
+        import bench_rasters
+
+        info = bench_rasters.generate_levy(work)
+        if "levy" in wanted:
+            found[f"Levy density, 4 tiles, {info['points'] / 1e6:.1f} M points"] = (work / "levy_las", "5ft", 5.0)
+        if "levy16" in wanted:
+            block = shifted_copies(tiles_of(work / "levy_las"), work / "levy16", 2, 2)
+            found[f"Levy density, 16 tiles, {4 * info['points'] / 1e6:.1f} M points"] = (block, "5ft", 5.0)
+    return found
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--cases", default="sample,autzen,autzen4,levy,levy16")
+    ap.add_argument("--products", default="rasters,normalize,metrics,chm,ground")
+    ap.add_argument("--workdir", default="/tmp/gistools-bench")
+    ap.add_argument("--jobs-table", action="store_true")
+    args = ap.parse_args(argv)
+    work = Path(args.workdir)
+    work.mkdir(parents=True, exist_ok=True)
+    peers = lasr_available()
+    if not peers:
+        print("lasR is not installed (Rscript -e 'library(lasR)' fails): gistools alone", flush=True)
+    products = args.products.split(",")
+    print(f"{CORES} cores; medians of {args.repeat} alternating runs; seconds from start to exit", flush=True)
+    print("| case | product | gistools (auto) | lasR | lasR / gistools |", flush=True)
+    print("|---|---|---:|---:|---:|", flush=True)
+    jobs_rows = []
+    for case, (folder, cell, res) in cases(work, args.cases.split(",")).items():
+        files = tiles_of(folder)
+        for product in products:
+            ours, theirs = [], []
+            for _ in range(args.repeat):
+                ours.append(timed(gistools_cmd(product, folder, work / f"out_gistools_{product}", cell)))
+                if peers:
+                    out = work / f"out_lasr_{product}"
+                    shutil.rmtree(out, ignore_errors=True)
+                    theirs.append(timed(lasr_cmd(product, files, out, res)))
+            mo = statistics.median(ours)
+            mt = statistics.median(theirs) if theirs else None
+            print(f"| {case} | {product} | {mo:.2f} s | " + (f"{mt:.2f} s | {mt / mo:.2f}x |" if mt else "- | - |"),
+                  flush=True)
+        if args.jobs_table:
+            runs = {"auto": [], "1": [], "2": []}
+            for _ in range(args.repeat):
+                for jobs in runs:
+                    runs[jobs].append(timed(gistools_cmd("rasters", folder, work / "out_jobs", cell, jobs)))
+            jobs_rows.append((case, {k: statistics.median(v) for k, v in runs.items()}))
+    if jobs_rows:
+        print("\n| case | rasters --jobs auto | --jobs 1 | --jobs 2 |\n|---|---:|---:|---:|")
+        for case, m in jobs_rows:
+            print(f"| {case} | {m['auto']:.2f} s | {m['1']:.2f} s | {m['2']:.2f} s |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
