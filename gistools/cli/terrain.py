@@ -1,0 +1,36 @@
+"""``gistools terrain`` (slope, aspect, hillshade, ruggedness of a DEM) and ``gistools viewshed``."""
+
+from __future__ import annotations
+
+import click
+
+from .options import out_opt, progress_bar
+from .spec import spec_options
+
+
+@click.command()
+@click.argument("dem", type=click.Path(exists=True))
+@out_opt("Output folder (slope.tif, aspect.tif, ... and report.json).")
+@spec_options("terrain")
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+def terrain(dem, out, terrain_products, azimuth, altitude, dem_z_unit, overwrite, quiet):
+    """Slope (degrees, percent), aspect, hillshade and ruggedness (Riley's TRI) of DEM, as gdaldem computes them
+    (Horn's method): DEM is a raster (GeoTIFF, or a VRT mosaic of tiles) or a folder written by gistools rasters
+    (its dem.vrt). The mosaic is read block by block with a one-cell halo, so tiles join without seams. Elevations
+    in another unit than x and y are scaled (gdaldem -s).
+
+    \b
+    Examples:
+      $ gistools terrain out/dem.vrt --out out/terrain
+      $ gistools terrain out --out terrain --products slope,hillshade --azimuth 270
+    """
+    from ..products.terrain import terrain_from_dem
+
+    with progress_bar(quiet) as progress:
+        report = terrain_from_dem(dem, out, products=terrain_products, azimuth=azimuth, altitude=altitude,
+                                  z_unit=dem_z_unit, overwrite=overwrite, progress=progress)
+    u = report["units"]
+    click.echo(f"{', '.join(report['outputs'])} written ({report['cells'][0]} x {report['cells'][1]} cells; x, y in "
+               f"{u['horizontal']}, z in {u['vertical']}, scale {u['scale']:.6g}); report: {out}/report.json")
+    for w in report.get("warnings", []):
+        click.echo(f"warning: {w}", err=True)
