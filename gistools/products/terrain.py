@@ -82,45 +82,58 @@ def terrain_arrays(z: np.ndarray, ewres: float, nsres: float, *, scale: float = 
     """
     z = np.asarray(z)
     if z.dtype != np.float64:
-        z = z.astype(np.float32)  # gdaldem sums a float raster's window in single precision
+        z = z.astype(np.float32, copy=False)  # gdaldem sums a float raster's window in single precision
+    ft = z.dtype.type
     left, right, top, bottom = _horn_sums(z)
-    valid = np.isfinite(z[:-2, :-2])
-    for win in (z[:-2, 1:-1], z[:-2, 2:], z[1:-1, :-2], z[1:-1, 1:-1], z[1:-1, 2:], z[2:, :-2], z[2:, 1:-1], z[2:, 2:]):
-        valid &= np.isfinite(win)
+    we = np.subtract(left, right, out=left)  # west minus east (a NaN anywhere in the window stays NaN)
+    sn = np.subtract(bottom, top, out=bottom)  # south minus north
+    del right, top
+    centre_nodata = np.isnan(z[1:-1, 1:-1])  # the one cell of the window the sums leave out
     out = {}
     wanted = set(products)
     if wanted & {"slope", "slope_percent", "hillshade"}:
-        gx = (left - right).astype(np.float64) * (1.0 / (ewres * scale))  # west minus east
-        gy = (bottom - top).astype(np.float64) * (1.0 / (nsres * scale))  # south minus north
+        gx = we * ft(1.0 / (8.0 * ewres * scale))
+        gy = sn * ft(1.0 / (8.0 * nsres * scale))
+        rise2 = gx * gx
+        rise2 += gy * gy
         if wanted & {"slope", "slope_percent"}:
-            rise = np.sqrt(gx * gx + gy * gy) / 8.0
-            if "slope" in wanted:
-                out["slope"] = np.degrees(np.arctan(rise))
+            rise = np.sqrt(rise2)
             if "slope_percent" in wanted:
-                out["slope_percent"] = 100.0 * rise
+                out["slope_percent"] = rise * ft(100.0)
+            if "slope" in wanted:
+                out["slope"] = np.degrees(np.arctan(rise, out=rise), out=rise)
         if "hillshade" in wanted:
-            x, y = gx / 8.0, -gy / 8.0  # gdaldem: y = (south - north) / (8 x the geotransform's negative nsres)
+            # gdaldem: x = (west - east) / (8 ewres), y = (south - north) / (8 x the geotransform's negative nsres)
             az, alt = math.radians(azimuth), math.radians(altitude)
-            cang = (math.sin(alt) - (y * math.cos(az) * math.cos(alt) - x * math.sin(az) * math.cos(alt))) / \
-                np.sqrt(1.0 + x * x + y * y)
-            out["hillshade"] = np.where(cang <= 0.0, 1.0, 1.0 + 254.0 * cang)
+            cang = gx * ft(math.sin(az) * math.cos(alt))
+            cang += gy * ft(math.cos(az) * math.cos(alt))
+            cang += ft(math.sin(alt))
+            rise2 += ft(1.0)
+            cang /= np.sqrt(rise2, out=rise2)
+            cang *= ft(254.0)
+            cang += ft(1.0)
+            cang[cang <= 1.0] = 1.0
+            out["hillshade"] = cang
     if "aspect" in wanted:
-        dx, dy = (right - left).astype(np.float64), (bottom - top).astype(np.float64)
-        deg = np.degrees(np.arctan2(dy, -dx))
-        aspect = np.where(deg > 90.0, 450.0 - deg, 90.0 - deg)
-        aspect = np.where(aspect == 360.0, 0.0, aspect)
-        out["aspect"] = np.where((dx == 0) & (dy == 0), np.nan, aspect)
+        deg = np.degrees(np.arctan2(sn, we))  # atan2(dy, -dx), dx = east minus west
+        aspect = np.where(deg > 90.0, ft(450.0) - deg, ft(90.0) - deg)
+        aspect[aspect == 360.0] = 0.0
+        aspect[(we == 0) & (sn == 0)] = np.nan  # flat: gdaldem's nodata
+        out["aspect"] = aspect
     if "tri" in wanted:
-        e = z[1:-1, 1:-1].astype(np.float64)
-        acc = np.zeros(e.shape)
+        e = z[1:-1, 1:-1]
+        h, w = e.shape
+        acc = np.zeros(e.shape, z.dtype)
         for r in range(3):
             for c in range(3):
                 if r != 1 or c != 1:
-                    diff = z[r:r + z.shape[0] - 2, c:c + z.shape[1] - 2].astype(np.float64) - e
-                    acc += diff * diff
-        out["tri"] = np.sqrt(acc)
-    for k in out:
-        out[k] = np.where(valid, out[k], np.nan)
+                    diff = z[r:r + h, c:c + w] - e
+                    diff *= diff
+                    acc += diff
+        out["tri"] = np.sqrt(acc, out=acc)
+    if centre_nodata.any():
+        for k in out:
+            out[k][centre_nodata] = np.nan
     return out
 
 
