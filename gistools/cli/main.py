@@ -143,6 +143,7 @@ cli.add_command(_runway.runway)
 cli.add_command(_structure.structure)
 cli.add_command(_examples.examples)
 cli.add_command(_terrain.terrain)
+cli.add_command(_terrain.viewshed)
 for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
     cli.add_command(_command)
 
