@@ -31,7 +31,11 @@ def terrain(dem, out, terrain_products, azimuth, altitude, dem_z_unit, overwrite
         report = terrain_from_dem(dem, out, products=terrain_products, azimuth=azimuth, altitude=altitude,
                                   z_unit=dem_z_unit, overwrite=overwrite, progress=progress)
     u = report["units"]
-    click.echo(f"{', '.join(report['outputs'])} written ({report['cells'][0]} x {report['cells'][1]} cells; x, y in "
+    kept = report.get("kept") or []
+    made = [p for p in report["outputs"] if p not in kept]
+    done = (f"{', '.join(made)} written" if made else "") + ("; " if made and kept else "") + \
+        (f"{', '.join(kept)} kept (made before with these settings; --overwrite remakes them)" if kept else "")
+    click.echo(f"{done} ({report['cells'][0]} x {report['cells'][1]} cells; x, y in "
                f"{u['horizontal']}, z in {u['vertical']}, scale {u['scale']:.6g}); report: {out}/report.json")
     for w in report.get("warnings", []):
         click.echo(f"warning: {w}", err=True)

@@ -152,6 +152,17 @@ def _check(products, azimuth, altitude, z_unit) -> tuple:
     return products
 
 
+def _kept(previous, tool: str, source: str, settings: dict, targets: dict) -> list:
+    """The outputs an earlier run of the same settings on the same input completed (kept unless overwrite); an
+    existing output of other settings is refused when written (OutputExistsError names --overwrite)."""
+    if not previous or previous.get("tool") != tool or previous.get("input") != source:
+        return []
+    before = {k: v for k, v in (previous.get("settings") or {}).items() if k != "products"}
+    if before != {k: v for k, v in settings.items() if k != "products"}:
+        return []
+    return [p for p, path in targets.items() if Path(path).exists()]
+
+
 def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: float = 315.0, altitude: float = 45.0,
                      z_unit: str | None = "raster", overwrite: bool = False, block: int = BLOCK,
                      progress: ProgressCallback | None = None) -> dict:
@@ -173,7 +184,8 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
         The elevations' unit (m, ft, ftUS), or "raster": the band's unit, else the CRS's vertical unit, else the
         horizontal unit. Elevations in another unit than x and y are scaled (gdaldem ``-s``).
     overwrite : bool
-        Replace existing outputs (else an existing output is refused).
+        Replace existing outputs; else outputs of an earlier run with the same settings are kept, and one of other
+        settings is refused.
     block : int
         Cells a side of the windows read at once (0: the whole raster).
 
@@ -209,18 +221,22 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
                     z = z.astype(np.float32)
                 return terrain_arrays(z, ewres, nsres, scale=scale, products=products, azimuth=azimuth, altitude=altitude)
 
+            from ..engine.record import read_folder_report, write_folder_report
+
+            settings = {"products": list(products), "azimuth": azimuth, "altitude": altitude, "z_unit": z_unit}
+            kept = [] if overwrite else _kept(read_folder_report(out), "gistools terrain", str(dem), settings, targets)
             outputs = {}
             for p in products:
                 unit = PRODUCT_UNITS[p] if PRODUCT_UNITS[p] is not None else zu.short
-                outputs[p] = (targets[p], "float32", NODATA, {"GISTOOLS_PRODUCT": p, **({"units": unit} if unit else {})})
-            paths = run_blockwise(src, outputs, compute, progress=progress, label="terrain", overwrite=overwrite,
-                                  block=block)
-            from ..engine.record import write_folder_report
+                outputs[p] = (None if p in kept else targets[p], "float32", NODATA,
+                              {"GISTOOLS_PRODUCT": p, **({"units": unit} if unit else {})})
+            paths = {p: targets[p] for p in kept}
+            if len(kept) < len(products):
+                paths.update(run_blockwise(src, outputs, compute, progress=progress, label="terrain",
+                                           overwrite=overwrite, block=block))
 
             report = {"tool": "gistools terrain", "input": str(dem), "crs": raster_crs(src, dem).name,
-                      "outputs": {k: str(v) for k, v in paths.items()},
-                      "settings": {"products": list(products), "azimuth": azimuth, "altitude": altitude,
-                                   "z_unit": z_unit},
+                      "outputs": {k: str(paths[k]) for k in products}, "kept": kept, "settings": settings,
                       "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source, "scale": scale},
                       "method": "Horn (1981) 3 x 3 gradient, as gdaldem; edge and nodata-adjacent cells nodata; "
                                 "tri: Riley et al. (1999)",

@@ -236,6 +236,17 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
             factor = curvature_coefficient / (2 * semi_major) * xy.metres / zu.metres
         z = src.read(1, masked=True).astype(np.float64).filled(np.nan)
         with claim_output(out, "gistools viewshed"):
+            from ..engine.record import add_run, read_folder_report, write_folder_report
+            from .terrain import _kept
+
+            settings = {"observers": [list(p) for p in points], "observer_height": str(observer_height),
+                        "target_height": str(target_height), "surface": surface_kind, "curvature": bool(curvature),
+                        "curvature_coefficient": curvature_coefficient, "z_unit": z_unit}
+            previous = None if overwrite else read_folder_report(out)
+            if len(_kept(previous, "gistools viewshed", str(path), settings, targets)) == len(targets):
+                add_run(out, {**previous, "seconds": round(time.time() - started, 3),
+                              "counts": {"ok": 0, "skipped": 1, "failed": 0}})
+                return previous  # made before with these settings: kept
             count = np.zeros(z.shape, np.uint16)
             seen = []
             for i, ((row, col), (x, y)) in enumerate(zip(cells, points)):
@@ -261,14 +272,11 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
 
             paths = run_blockwise(src, outputs, compute, progress=progress, label="viewshed", overwrite=overwrite,
                                   block=BLOCK)
-            from ..engine.record import write_folder_report
 
             cell_area = abs(t.a * t.e)
             rep = {"tool": "gistools viewshed", "input": str(path), "crs": crs.name,
                    "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen,
-                   "settings": {"observer_height": str(observer_height), "target_height": str(target_height),
-                                "surface": surface_kind, "curvature": bool(curvature),
-                                "curvature_coefficient": curvature_coefficient, "z_unit": z_unit},
+                   "settings": settings,
                    "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source,
                              "observer_height": eye_h, "target_height": tgt_h, "curvature_per_unit2": factor},
                    "cells_seen": int((count > 0).sum()), "area_seen": float((count > 0).sum() * cell_area),
