@@ -16,7 +16,7 @@ GROUP_TERRAIN = ("Terrain and search", "terrain")
 
 
 class TerrainAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "terrain", "Terrain: slope, aspect, hillshade", GROUP_TERRAIN
+    _name, _display, _group = "terrain", "Slope, aspect, hillshade (DEM)", GROUP_TERRAIN
     _page = "commands/terrain"
     _tags = ("slope", "aspect", "hillshade", "ruggedness", "tri", "gdaldem", "dem", "terrain")
     _help = ("Slope (degrees and percent), aspect (degrees clockwise from north, flat cells nodata), hillshade and "
