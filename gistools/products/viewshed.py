@@ -17,9 +17,7 @@ unit: gdal_viewshed takes the diameter in metres whatever the CRS's unit, so the
 
 from __future__ import annotations
 
-import math
 import time
-from pathlib import Path
 
 import numpy as np
 
@@ -189,14 +187,7 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
     >>> rep = viewshed_from_surface("out", "out/viewshed", observers="565300,654400", observer_height="6ft")  # doctest: +SKIP
     """
     started = time.time()
-    from ..parameters.terrain import SURFACES
-
-    if surface_kind not in SURFACES:
-        raise InputError(f"{option('hiding_surface', surface_kind)} is not dsm or dem",
-                         hint=f"e.g. {option('hiding_surface', 'dsm')}")
-    if not 0 <= float(curvature_coefficient) <= 1:
-        raise InputError(f"{option('curvature_coefficient', curvature_coefficient)} is not between 0 and 1",
-                         hint=f"e.g. {option('curvature_coefficient', 0.85714)}")
+    _check_options(surface_kind, curvature_coefficient)
     points = parse_observers(observers)
     path = resolve_dem(surface, surface_kind)
     out = output_folder(out)
@@ -207,81 +198,107 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
         xy, zu, source = elevation_units(src, path, z_unit)
         if observers_layer:
             points += _layer_observers(observers_layer, crs)
-        if not points:
-            raise InputError(f"no observer: give {option('observer', '565300,654400')} or {option('observers')}",
-                             hint="Positions are in the surface's CRS")
         if observer_height is None:
             from ..parameters import default_for
 
             observer_height = default_for("observer_height", zu.is_foot)
-        eye_h = length_to_crs_units(observer_height, zu, name="observer height")
-        tgt_h = length_to_crs_units(target_height, zu, name="target height")
-        if eye_h < 0 or tgt_h < 0:
-            raise InputError(f"{option('observer_height', observer_height)} and {option('target_height', target_height)} "
-                             "must not be negative", hint=f"e.g. {option('observer_height', '6ft')}")
-        t = src.transform
-        if t.b != 0 or t.d != 0:
-            raise InputError("the surface is rotated", path=path, hint="Warp it north-up first (gdalwarp)")
-        cells = []
-        for x, y in points:
-            col, row = (x - t.c) / t.a, (y - t.f) / t.e
-            if not (0 <= col < src.width and 0 <= row < src.height):
-                raise InputError(f"observer {x:.10g},{y:.10g} is outside the surface raster", path=path,
-                                 hint=f"Give a position within {src.bounds.left:.10g}..{src.bounds.right:.10g}, "
-                                      f"{src.bounds.bottom:.10g}..{src.bounds.top:.10g}")
-            cells.append((int(row), int(col)))
-        factor = 0.0
-        if curvature:
-            semi_major = crs.ellipsoid.semi_major_metre / xy.metres if crs.ellipsoid else 6378137.0 / xy.metres
-            factor = curvature_coefficient / (2 * semi_major) * xy.metres / zu.metres
+        eye_h, tgt_h = _heights(observer_height, target_height, zu)
         z = src.read(1, masked=True).astype(np.float64).filled(np.nan)
+        cells = _observer_cells(src, path, points, z)
+        factor = _curvature_factor(crs, xy, zu, curvature_coefficient) if curvature else 0.0
+        settings = {"observers": [list(p) for p in points], "observer_height": str(observer_height),
+                    "target_height": str(target_height), "surface": surface_kind, "curvature": bool(curvature),
+                    "curvature_coefficient": curvature_coefficient, "z_unit": z_unit}
         with claim_output(out, "gistools viewshed"):
             from ..engine.record import add_run, read_folder_report, write_folder_report
             from .terrain import _kept
 
-            settings = {"observers": [list(p) for p in points], "observer_height": str(observer_height),
-                        "target_height": str(target_height), "surface": surface_kind, "curvature": bool(curvature),
-                        "curvature_coefficient": curvature_coefficient, "z_unit": z_unit}
             previous = None if overwrite else read_folder_report(out)
             if len(_kept(previous, "gistools viewshed", str(path), settings, targets)) == len(targets):
                 add_run(out, {**previous, "seconds": round(time.time() - started, 3),
                               "counts": {"ok": 0, "skipped": 1, "failed": 0}})
                 return previous  # made before with these settings: kept
+            t = src.transform
             count = np.zeros(z.shape, np.uint16)
             seen = []
             for i, ((row, col), (x, y)) in enumerate(zip(cells, points)):
                 report(progress, i / len(cells), f"viewshed: observer {i + 1} of {len(cells)}")
-                if not np.isfinite(z[row, col]):
-                    raise InputError(f"observer {x:.10g},{y:.10g} stands on a cell without a height (nodata)", path=path,
-                                     hint="Move the observer onto data")
                 vis = viewshed_array(z, row, col, observer_height=eye_h, target_height=tgt_h, curvature=factor,
                                      cell=(abs(t.a), abs(t.e)))
                 vis &= np.isfinite(z)
                 count += vis
                 seen.append({"x": x, "y": y, "row": row, "col": col, "eye_elevation": float(z[row, col] + eye_h),
                              "cells_seen": int(vis.sum())})
-            nodata = ~np.isfinite(z)
-            outputs = {"visibility": (targets["visibility"], "uint8", VIS_NODATA, {"GISTOOLS_PRODUCT": "viewshed"}),
-                       "count": (targets["count"], "uint16", COUNT_NODATA, {"GISTOOLS_PRODUCT": "viewshed_count"})}
-
-            def compute(win):
-                sl = (slice(win.row_off, win.row_off + win.height), slice(win.col_off, win.col_off + win.width))
-                c, nd = count[sl], nodata[sl]
-                return {"visibility": np.where(nd, VIS_NODATA, (c > 0).astype(np.uint8)),
-                        "count": np.where(nd, COUNT_NODATA, c)}
-
-            paths = run_blockwise(src, outputs, compute, progress=progress, label="viewshed", overwrite=overwrite,
-                                  block=BLOCK)
-
-            cell_area = abs(t.a * t.e)
+            paths = _write(src, targets, count, ~np.isfinite(z), overwrite, progress)
             rep = {"tool": "gistools viewshed", "input": str(path), "crs": crs.name,
-                   "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen,
-                   "settings": settings,
+                   "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen, "settings": settings,
                    "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source,
                              "observer_height": eye_h, "target_height": tgt_h, "curvature_per_unit2": factor},
-                   "cells_seen": int((count > 0).sum()), "area_seen": float((count > 0).sum() * cell_area),
+                   "cells_seen": int((count > 0).sum()), "area_seen": float((count > 0).sum() * abs(t.a * t.e)),
                    "area_unit": f"square {xy.short}", "method": "gdal_viewshed's (Wang et al. 2000), edge mode",
                    "seconds": round(time.time() - started, 3)}
             if source == "horizontal":
                 rep["warnings"] = [f"the surface carries no vertical unit: its heights are taken in {xy.short}"]
             return write_folder_report(out, rep)
+
+
+def _check_options(surface_kind, curvature_coefficient) -> None:
+    from ..parameters.terrain import SURFACES
+
+    if surface_kind not in SURFACES:
+        raise InputError(f"{option('hiding_surface', surface_kind)} is not dsm or dem",
+                         hint=f"e.g. {option('hiding_surface', 'dsm')}")
+    if not 0 <= float(curvature_coefficient) <= 1:
+        raise InputError(f"{option('curvature_coefficient', curvature_coefficient)} is not between 0 and 1",
+                         hint=f"e.g. {option('curvature_coefficient', 0.85714)}")
+
+
+def _heights(observer_height, target_height, zu) -> tuple[float, float]:
+    eye_h = length_to_crs_units(observer_height, zu, name="observer height")
+    tgt_h = length_to_crs_units(target_height, zu, name="target height")
+    if eye_h < 0 or tgt_h < 0:
+        raise InputError(f"{option('observer_height', observer_height)} and {option('target_height', target_height)} "
+                         "must not be negative", hint=f"e.g. {option('observer_height', '6ft')}")
+    return eye_h, tgt_h
+
+
+def _observer_cells(src, path, points, z) -> list[tuple[int, int]]:
+    """The (row, col) of each observer (gdal_viewshed's: the cell its position falls in), refused outside the
+    raster or on a nodata cell."""
+    if not points:
+        raise InputError(f"no observer: give {option('observer', '565300,654400')} or {option('observers')}",
+                         hint="Positions are in the surface's CRS")
+    t = src.transform
+    if t.b != 0 or t.d != 0:
+        raise InputError("the surface is rotated", path=path, hint="Warp it north-up first (gdalwarp)")
+    cells = []
+    for x, y in points:
+        col, row = (x - t.c) / t.a, (y - t.f) / t.e
+        if not (0 <= col < src.width and 0 <= row < src.height):
+            raise InputError(f"observer {x:.10g},{y:.10g} is outside the surface raster", path=path,
+                             hint=f"Give a position within {src.bounds.left:.10g}..{src.bounds.right:.10g}, "
+                                  f"{src.bounds.bottom:.10g}..{src.bounds.top:.10g}")
+        if not np.isfinite(z[int(row), int(col)]):
+            raise InputError(f"observer {x:.10g},{y:.10g} stands on a cell without a height (nodata)", path=path,
+                             hint="Move the observer onto data")
+        cells.append((int(row), int(col)))
+    return cells
+
+
+def _curvature_factor(crs, xy, zu, coefficient: float) -> float:
+    """gdal_viewshed's coefficient / (2 x semi-major axis), with the axis in the CRS's horizontal unit, as a lowering
+    in the vertical unit per squared horizontal unit."""
+    semi_major = (crs.ellipsoid.semi_major_metre if crs.ellipsoid else 6378137.0) / xy.metres
+    return coefficient / (2 * semi_major) * xy.metres / zu.metres
+
+
+def _write(src, targets, count, nodata, overwrite, progress) -> dict:
+    outputs = {"visibility": (targets["visibility"], "uint8", VIS_NODATA, {"GISTOOLS_PRODUCT": "viewshed"}),
+               "count": (targets["count"], "uint16", COUNT_NODATA, {"GISTOOLS_PRODUCT": "viewshed_count"})}
+
+    def compute(win):
+        sl = (slice(win.row_off, win.row_off + win.height), slice(win.col_off, win.col_off + win.width))
+        c, nd = count[sl], nodata[sl]
+        return {"visibility": np.where(nd, VIS_NODATA, (c > 0).astype(np.uint8)), "count": np.where(nd, COUNT_NODATA, c)}
+
+    return run_blockwise(src, outputs, compute, progress=progress, label="viewshed", overwrite=overwrite, block=BLOCK)
