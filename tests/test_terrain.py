@@ -107,3 +107,39 @@ def test_a_folder_of_rasters_is_its_dem_and_bad_options_write_nothing(sample_run
         with pytest.raises(InputError):
             terrain_from_dem(out, tmp_path / "bad", **bad)
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_compound_crs_gives_the_vertical_unit(sample_run, tmp_path):
+    """EPSG:2882 + NAVD88 height in metres (5703), no unit of our own on the band: z in metres, scaled as -s."""
+    from rasterio.crs import CRS
+
+    out, _ = sample_run
+    with rasterio.open(out / "dem.vrt") as src:
+        z, profile = src.read(1), src.profile
+    profile.update(driver="GTiff", crs=CRS.from_user_input("EPSG:2882+5703"))
+    with rasterio.open(tmp_path / "compound.tif", "w", **profile) as dst:
+        dst.write(np.where(z == src.nodata, src.nodata, z * (1200 / 3937)).astype(np.float32), 1)
+    rep = terrain_from_dem(tmp_path / "compound.tif", tmp_path / "t", products=("slope",))
+    assert rep["units"]["vertical"] == "m" and rep["units"]["horizontal"] == "ftUS"
+    assert abs(rep["units"]["scale"] - 1200 / 3937) < 1e-12
+    assert_equals_gdaldem(tmp_path / "compound.tif", tmp_path / "t", scale=1200 / 3937)
+
+
+def test_the_command_line(sample_run, tmp_path):
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    out, _ = sample_run
+    ok = CliRunner().invoke(cli, ["terrain", str(out / "dem.vrt"), "--out", str(tmp_path / "t"), "--products",
+                                  "slope,hillshade", "-q"])
+    assert ok.exit_code == 0, ok.output
+    assert sorted(p.name for p in (tmp_path / "t").glob("*.tif")) == ["hillshade.tif", "slope.tif"]
+    again = CliRunner().invoke(cli, ["terrain", str(out / "dem.vrt"), "--out", str(tmp_path / "t"), "--products",
+                                     "slope", "-q"])
+    assert again.exit_code == 0 and "slope kept" in again.output  # made before with these settings
+    other = CliRunner().invoke(cli, ["terrain", str(out / "dem.vrt"), "--out", str(tmp_path / "t"), "--products",
+                                     "hillshade", "--azimuth", "200", "-q"])
+    assert other.exit_code == 1 and "--overwrite" in other.output  # another light: never silently kept
+    bad = CliRunner().invoke(cli, ["terrain", str(out / "dem.vrt"), "--out", str(tmp_path / "b"), "--products", "curv"])
+    assert bad.exit_code == 2 and "curv" in bad.output and not (tmp_path / "b").exists()

@@ -114,3 +114,27 @@ def test_bad_observers_write_nothing(sample_run, tmp_path):
         with pytest.raises(InputError):
             viewshed_from_surface(out, tmp_path / "bad", **bad)
     assert not (tmp_path / "bad").exists()
+
+
+def test_a_point_layer_of_observers_and_the_command_line(sample_run, tmp_path):
+    """Observers from a GeoPackage layer equal the same positions given with --from."""
+    import geopandas as gpd
+    import shapely
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    out, _ = sample_run
+    points = [(430500.0, 1811500.0), (431500.0, 1810500.0)]
+    gpd.GeoDataFrame(geometry=[shapely.Point(p) for p in points], crs="EPSG:2882").to_file(tmp_path / "obs.gpkg",
+                                                                                          layer="observers")
+    a = CliRunner().invoke(cli, ["viewshed", str(out), "--out", str(tmp_path / "a"), "--observers",
+                                 f"{tmp_path / 'obs.gpkg'}:observers", "-q"])
+    b = CliRunner().invoke(cli, ["viewshed", str(out), "--out", str(tmp_path / "b"), "--from", "430500,1811500",
+                                 "--from", "431500,1810500", "-q"])
+    assert a.exit_code == 0 and b.exit_code == 0, a.output + b.output
+    for name in ("viewshed.tif", "viewshed_count.tif"):
+        with rasterio.open(tmp_path / "a" / name) as x, rasterio.open(tmp_path / "b" / name) as y:
+            assert np.array_equal(x.read(1), y.read(1))
+    bad = CliRunner().invoke(cli, ["viewshed", str(out), "--out", str(tmp_path / "c"), "--from", "0,0"])
+    assert bad.exit_code != 0 and "outside" in bad.output and not (tmp_path / "c").exists()
