@@ -138,3 +138,28 @@ def test_a_point_layer_of_observers_and_the_command_line(sample_run, tmp_path):
             assert np.array_equal(x.read(1), y.read(1))
     bad = CliRunner().invoke(cli, ["viewshed", str(out), "--out", str(tmp_path / "c"), "--from", "0,0"])
     assert bad.exit_code != 0 and "outside" in bad.output and not (tmp_path / "c").exists()
+
+
+def test_max_distance_equals_gdal_viewshed_md(sample_run, tmp_path):
+    """--max-distance 400ft: gdal_viewshed -md 400 writes the observer's window; the output covers the same cells
+    (two observers: the union of their windows) and each observer's cells equal gdal_viewshed's."""
+    out, _ = sample_run
+    points = [(430500.0, 1811500.0), (430800.0, 1811300.0)]
+    rep = viewshed_from_surface(out, tmp_path / "ours", observers=points, max_distance="400ft")
+    with rasterio.open(tmp_path / "ours" / "viewshed_count.tif") as src:
+        count, transform = src.read(1), src.transform
+    ours_total = np.zeros(count.shape, int)
+    for i, (x, y) in enumerate(points):
+        ref = tmp_path / f"gdal_{i}.tif"
+        subprocess.run([GDAL_VIEWSHED, "-q", "-ox", repr(x), "-oy", repr(y), "-oz", "6", "-md", "400", "-vv", "1",
+                        "-iv", "0", "-ov", "0", "-cc", "0", str(out / "dsm.vrt"), str(ref)], check=True)
+        one = viewshed_from_surface(out, tmp_path / f"one_{i}", observers=[(x, y)], max_distance="400ft")
+        with rasterio.open(ref) as a, rasterio.open(tmp_path / f"one_{i}" / "viewshed.tif") as b:
+            assert a.transform == b.transform and a.shape == b.shape  # the same window of the surface
+            theirs, ours = a.read(1), b.read(1)
+            valid = ours != 255
+            assert np.array_equal(theirs[valid], ours[valid]) and (theirs[valid] == 1).sum() > 100
+            c0, r0 = ~transform * (b.transform.c, b.transform.f)
+            ours_total[round(r0):round(r0) + ours.shape[0], round(c0):round(c0) + ours.shape[1]] += ours == 1
+    data = count != 65535
+    assert np.array_equal(count[data], ours_total[data]) and rep["extent"]["width"] < 400

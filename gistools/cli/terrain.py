@@ -48,8 +48,8 @@ def terrain(dem, out, terrain_products, azimuth, altitude, dem_z_unit, overwrite
 @click.option("--from", "observer", multiple=True, metavar="X,Y",
               help=PARAMETERS["observer"].help_text("cli"))
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def viewshed(surface, out, observer, observers, observer_height, target_height, hiding_surface, curvature,
-             curvature_coefficient, dem_z_unit, overwrite, quiet):
+def viewshed(surface, out, observer, observers, observer_height, target_height, hiding_surface, max_distance,
+             curvature, curvature_coefficient, dem_z_unit, overwrite, quiet):
     """Cells seen from one or several observers, as gdal_viewshed: SURFACE is a raster (GeoTIFF or VRT mosaic) or a
     folder written by gistools rasters (its dsm.vrt: trees and buildings hide; --surface dem: bare ground). Writes
     OUT/viewshed.tif (1 seen by at least one observer, 0 hidden, 255 nodata) and OUT/viewshed_count.tif (how many
@@ -65,7 +65,7 @@ def viewshed(surface, out, observer, observers, observer_height, target_height, 
     with progress_bar(quiet) as progress:
         report = viewshed_from_surface(surface, out, observers=list(observer), observers_layer=observers,
                                        observer_height=observer_height, target_height=target_height,
-                                       surface_kind=hiding_surface, curvature=curvature,
+                                       surface_kind=hiding_surface, max_distance=max_distance, curvature=curvature,
                                        curvature_coefficient=curvature_coefficient, z_unit=dem_z_unit,
                                        overwrite=overwrite, progress=progress)
     click.echo(f"{len(report['observers'])} observer(s); {report['cells_seen']:,} cells seen "

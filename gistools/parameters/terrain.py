@@ -34,6 +34,10 @@ declare(
     Parameter("hiding_surface", "choice", "The surface that hides: the DSM (trees and buildings hide a person) or the DEM "
               "(bare ground only). Used when the input is a folder of gistools rasters.", "Surface that hides",
               default="dsm", choices=SURFACES, flag="--surface", qgis="SURFACE"),
+    Parameter("max_distance", "length", "Only cells within this distance of an observer are computed (gdal_viewshed "
+              "-md); the output covers the observers' ranges only, and cells beyond every range are 0. 0: no limit, "
+              "the whole raster (read into memory).", "Maximum distance from an observer (0: no limit)", default="0",
+              minimum=0.0, example="3000ft"),
     Parameter("curvature", "flag", f"Lower distant cells by the Earth's curvature less refraction, as gdal_viewshed: "
               f"{option('curvature_coefficient')} x distance^2 / the ellipsoid's diameter.",
               "Earth curvature and refraction", default=False),
@@ -43,6 +47,6 @@ declare(
 )
 
 TERRAIN = command("terrain", "terrain_products", "azimuth", "altitude", "dem_z_unit", "overwrite")
-VIEWSHED = command("viewshed", "observer", "observers", "observer_height", "target_height", "hiding_surface", "curvature",
+VIEWSHED = command("viewshed", "observer", "observers", "observer_height", "target_height", "hiding_surface", "max_distance", "curvature",
                    "curvature_coefficient", "dem_z_unit", "overwrite")
 COMMAND_DEFAULTS.update({"terrain": {}, "viewshed": {}})

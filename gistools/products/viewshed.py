@@ -17,9 +17,11 @@ unit: gdal_viewshed takes the diameter in metres whatever the CRS's unit, so the
 
 from __future__ import annotations
 
+import math
 import time
 
 import numpy as np
+from rasterio.windows import Window
 
 from ..errors import InputError
 from ..io.blocks import BLOCK, check_outputs_are_not_inputs, open_raster, raster_crs, run_blockwise
@@ -79,13 +81,14 @@ def _sweep(v, h, obs_row, eye, target, *, strict: bool, visible):
 
 
 def viewshed_array(z: np.ndarray, row: int, col: int, *, observer_height: float, target_height: float = 0.0,
-                   curvature: float = 0.0, cell=(1.0, 1.0)) -> np.ndarray:
+                   curvature: float = 0.0, cell=(1.0, 1.0), max_distance: float = 0.0) -> np.ndarray:
     """Visibility (bool) of every cell of surface ``z`` (NaN = nodata, hides nothing) from an eye ``observer_height``
     above cell (``row``, ``col``), as gdal_viewshed's default mode.
 
     ``target_height``: a cell is seen when a point this high above it is. ``curvature``: the lowering per squared
     horizontal distance (coefficient / the ellipsoid's diameter, in z's unit per squared horizontal unit); ``cell``:
-    (width, height) of a cell in horizontal units, for the curvature's distances. Heights in z's unit.
+    (width, height) of a cell in horizontal units, for the distances; ``max_distance`` (> 0): cells farther from the
+    observer's cell are not seen (gdal_viewshed -md). Heights in z's unit.
     """
     z = np.asarray(z, dtype=np.float64)
     rows, cols = z.shape
@@ -94,10 +97,13 @@ def viewshed_array(z: np.ndarray, row: int, col: int, *, observer_height: float,
     if not np.isfinite(z[row, col]):
         raise InputError("the observer stands on a cell without a height (nodata)", hint="Move the observer onto data")
     h = np.where(np.isfinite(z), z, _LOW)
-    if curvature:
+    r2 = None
+    if curvature or max_distance:
         dy = (np.arange(rows) - row)[:, None] * cell[1]
         dx = (np.arange(cols) - col)[None, :] * cell[0]
-        h = h - curvature * (dx * dx + dy * dy)
+        r2 = dx * dx + dy * dy
+    if curvature:
+        h = h - curvature * r2
         h[row, col] = z[row, col]
     eye = z[row, col] + observer_height
     v = h.copy()
@@ -110,6 +116,8 @@ def viewshed_array(z: np.ndarray, row: int, col: int, *, observer_height: float,
              (v[row:, :].T, h[row:, :].T, visible[row:, :].T, col, True)]
     for vv, hh, vis, obs, strict in views:
         _sweep(vv, hh, obs, eye, target_height, strict=strict, visible=vis)
+    if max_distance:
+        visible &= r2 <= max_distance * max_distance
     return visible
 
 
@@ -151,7 +159,7 @@ def _layer_observers(layer, crs) -> list[tuple[float, float]]:
 
 
 def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None, observer_height=None,
-                          target_height="0", surface_kind: str = "dsm", curvature: bool = False,
+                          target_height="0", surface_kind: str = "dsm", max_distance="0", curvature: bool = False,
                           curvature_coefficient: float = 0.85714, z_unit: str | None = "raster",
                           overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """Cells seen from one or several observers, as gdal_viewshed, into ``out/viewshed.tif`` and ``out/report.json``.
@@ -171,6 +179,10 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
     observer_height, target_height : str or float
         The eye above the surface, and the height above a cell that must be seen (lengths with a unit; a bare number
         in the vertical unit). Default eye: 6ft on data in feet, 2m on metre data.
+    max_distance : str or float
+        Only cells within this distance of an observer are computed (gdal_viewshed -md): the output covers the
+        observers' ranges only (cells beyond every range 0), and only that part of the surface is read. "0": the
+        whole raster, read into memory (8 bytes a cell).
     curvature : bool
         Lower distant cells by curvature_coefficient x distance^2 / the ellipsoid's diameter (gdal_viewshed -cc).
     z_unit : str
@@ -203,11 +215,21 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
 
             observer_height = default_for("observer_height", zu.is_foot)
         eye_h, tgt_h = _heights(observer_height, target_height, zu)
-        z = src.read(1, masked=True).astype(np.float64).filled(np.nan)
-        cells = _observer_cells(src, path, points, z)
+        reach = length_to_crs_units(max_distance, xy, name="max distance")
+        if reach < 0:
+            raise InputError(f"{option('max_distance', max_distance)} is negative", hint=f"e.g. {option('max_distance', '3000ft')}")
+        cells = _observer_cells(src, path, points)
+        windows = [_range_window(src, row, col, reach) for row, col in cells]
+        extent = Window(min(w.col_off for w in windows), min(w.row_off for w in windows), 0, 0)
+        extent = Window(extent.col_off, extent.row_off,
+                        max(w.col_off + w.width for w in windows) - extent.col_off,
+                        max(w.row_off + w.height for w in windows) - extent.row_off)
+        z = src.read(1, window=extent, masked=True).astype(np.float64).filled(np.nan)
+        _on_data(path, points, [(r - extent.row_off, c - extent.col_off) for r, c in cells], z)
         factor = _curvature_factor(crs, xy, zu, curvature_coefficient) if curvature else 0.0
         settings = {"observers": [list(p) for p in points], "observer_height": str(observer_height),
-                    "target_height": str(target_height), "surface": surface_kind, "curvature": bool(curvature),
+                    "target_height": str(target_height), "surface": surface_kind, "max_distance": str(max_distance),
+                    "curvature": bool(curvature),
                     "curvature_coefficient": curvature_coefficient, "z_unit": z_unit}
         with claim_output(out, "gistools viewshed"):
             from ..engine.record import add_run, read_folder_report, write_folder_report
@@ -221,19 +243,25 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
             t = src.transform
             count = np.zeros(z.shape, np.uint16)
             seen = []
-            for i, ((row, col), (x, y)) in enumerate(zip(cells, points)):
+            for i, ((row, col), (x, y), w) in enumerate(zip(cells, points, windows)):
                 report(progress, i / len(cells), f"viewshed: observer {i + 1} of {len(cells)}")
-                vis = viewshed_array(z, row, col, observer_height=eye_h, target_height=tgt_h, curvature=factor,
-                                     cell=(abs(t.a), abs(t.e)))
-                vis &= np.isfinite(z)
-                count += vis
-                seen.append({"x": x, "y": y, "row": row, "col": col, "eye_elevation": float(z[row, col] + eye_h),
-                             "cells_seen": int(vis.sum())})
-            paths = _write(src, targets, count, ~np.isfinite(z), overwrite, progress)
+                r0, c0 = w.row_off - extent.row_off, w.col_off - extent.col_off
+                part = (slice(r0, r0 + w.height), slice(c0, c0 + w.width))
+                vis = viewshed_array(z[part], row - w.row_off, col - w.col_off, observer_height=eye_h,
+                                     target_height=tgt_h, curvature=factor, cell=(abs(t.a), abs(t.e)),
+                                     max_distance=reach)
+                vis &= np.isfinite(z[part])
+                count[part] += vis
+                seen.append({"x": x, "y": y, "row": row, "col": col, "eye_elevation": float(z[row - extent.row_off,
+                             col - extent.col_off] + eye_h), "cells_seen": int(vis.sum())})
+            paths = _write(_Extent(src, extent), targets, count, ~np.isfinite(z), overwrite, progress)
             rep = {"tool": "gistools viewshed", "input": str(path), "crs": crs.name,
                    "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen, "settings": settings,
                    "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source,
-                             "observer_height": eye_h, "target_height": tgt_h, "curvature_per_unit2": factor},
+                             "observer_height": eye_h, "target_height": tgt_h, "max_distance": reach,
+                             "curvature_per_unit2": factor},
+                   "extent": {"col_off": int(extent.col_off), "row_off": int(extent.row_off), "width": int(extent.width),
+                              "height": int(extent.height)},
                    "cells_seen": int((count > 0).sum()), "area_seen": float((count > 0).sum() * abs(t.a * t.e)),
                    "area_unit": f"square {xy.short}", "method": "gdal_viewshed's (Wang et al. 2000), edge mode",
                    "seconds": round(time.time() - started, 3)}
@@ -262,9 +290,9 @@ def _heights(observer_height, target_height, zu) -> tuple[float, float]:
     return eye_h, tgt_h
 
 
-def _observer_cells(src, path, points, z) -> list[tuple[int, int]]:
+def _observer_cells(src, path, points) -> list[tuple[int, int]]:
     """The (row, col) of each observer (gdal_viewshed's: the cell its position falls in), refused outside the
-    raster or on a nodata cell."""
+    raster."""
     if not points:
         raise InputError(f"no observer: give {option('observer', '565300,654400')} or {option('observers')}",
                          hint="Positions are in the surface's CRS")
@@ -278,11 +306,33 @@ def _observer_cells(src, path, points, z) -> list[tuple[int, int]]:
             raise InputError(f"observer {x:.10g},{y:.10g} is outside the surface raster", path=path,
                              hint=f"Give a position within {src.bounds.left:.10g}..{src.bounds.right:.10g}, "
                                   f"{src.bounds.bottom:.10g}..{src.bounds.top:.10g}")
-        if not np.isfinite(z[int(row), int(col)]):
-            raise InputError(f"observer {x:.10g},{y:.10g} stands on a cell without a height (nodata)", path=path,
-                             hint="Move the observer onto data")
         cells.append((int(row), int(col)))
     return cells
+
+
+def _on_data(path, points, cells, z) -> None:
+    for (x, y), (row, col) in zip(points, cells):
+        if not np.isfinite(z[row, col]):
+            raise InputError(f"observer {x:.10g},{y:.10g} stands on a cell without a height (nodata)", path=path,
+                             hint="Move the observer onto data")
+
+
+def _range_window(src, row: int, col: int, reach: float) -> Window:
+    """The cells gdal_viewshed computes for an observer at (row, col) within ``reach`` (0: the whole raster)."""
+    if not reach:
+        return Window(0, 0, src.width, src.height)
+    cw, ch = abs(src.transform.a), abs(src.transform.e)
+    x0, x1 = max(0, math.floor(col - reach / cw)), min(src.width, math.ceil(col + reach / cw) + 1)
+    y0, y1 = max(0, math.floor(row - reach / ch)), min(src.height, math.ceil(row + reach / ch) + 1)
+    return Window(x0, y0, x1 - x0, y1 - y0)
+
+
+class _Extent:
+    """The part ``window`` of raster ``src`` as the grid the outputs are written on."""
+
+    def __init__(self, src, window: Window):
+        self.width, self.height, self.crs = int(window.width), int(window.height), src.crs
+        self.transform = src.window_transform(window)
 
 
 def _curvature_factor(crs, xy, zu, coefficient: float) -> float:

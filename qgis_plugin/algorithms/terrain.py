@@ -81,6 +81,7 @@ class ViewshedAlgorithm(GistoolsAlgorithm):
         report = viewshed_from_surface(self.raster_path(parameters, "SURFACE_RASTER", context), out,
                                        observers=v["observer"], observers_layer=v["observers"],
                                        observer_height=v["observer_height"], target_height=v["target_height"] or "0",
+                                       max_distance=v["max_distance"] or "0",
                                        curvature=v["curvature"], curvature_coefficient=v["curvature_coefficient"],
                                        z_unit=v["dem_z_unit"] or "raster", overwrite=True,
                                        progress=self.progress(feedback))
