@@ -163,3 +163,19 @@ def test_max_distance_equals_gdal_viewshed_md(sample_run, tmp_path):
             ours_total[round(r0):round(r0) + ours.shape[0], round(c0):round(c0) + ours.shape[1]] += ours == 1
     data = count != 65535
     assert np.array_equal(count[data], ours_total[data]) and rep["extent"]["width"] < 400
+
+
+def test_cancel_writes_nothing(sample_run, tmp_path):
+    from gistools.errors import Cancelled
+
+    out, _ = sample_run
+    calls = []
+
+    def progress(fraction, message=""):
+        calls.append(message)
+        return len(calls) < 3  # cancel during the first observer's sweep
+
+    with pytest.raises(Cancelled):
+        viewshed_from_surface(out, tmp_path / "v", observers="431000,1811000;430500,1811500", progress=progress)
+    assert calls[0] == "viewshed: observer 1 of 2"
+    assert not list((tmp_path / "v").glob("*.tif")) and not (tmp_path / "v" / "report.json").exists()

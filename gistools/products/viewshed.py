@@ -27,7 +27,7 @@ from ..errors import InputError
 from ..io.blocks import BLOCK, check_outputs_are_not_inputs, open_raster, raster_crs, run_blockwise
 from ..io.outdir import claim_output, output_folder
 from ..parameters import option
-from ..progress import ProgressCallback, report
+from ..progress import ProgressCallback, report, sub_progress
 from ..units import length_to_crs_units
 from .terrain import elevation_units, resolve_dem
 
@@ -81,14 +81,16 @@ def _sweep(v, h, obs_row, eye, target, *, strict: bool, visible):
 
 
 def viewshed_array(z: np.ndarray, row: int, col: int, *, observer_height: float, target_height: float = 0.0,
-                   curvature: float = 0.0, cell=(1.0, 1.0), max_distance: float = 0.0) -> np.ndarray:
+                   curvature: float = 0.0, cell=(1.0, 1.0), max_distance: float = 0.0,
+                   progress: ProgressCallback | None = None) -> np.ndarray:
     """Visibility (bool) of every cell of surface ``z`` (NaN = nodata, hides nothing) from an eye ``observer_height``
     above cell (``row``, ``col``), as gdal_viewshed's default mode.
 
     ``target_height``: a cell is seen when a point this high above it is. ``curvature``: the lowering per squared
     horizontal distance (coefficient / the ellipsoid's diameter, in z's unit per squared horizontal unit); ``cell``:
     (width, height) of a cell in horizontal units, for the distances; ``max_distance`` (> 0): cells farther from the
-    observer's cell are not seen (gdal_viewshed -md). Heights in z's unit.
+    observer's cell are not seen (gdal_viewshed -md); ``progress``: told after each of the four wedges (and may
+    cancel). Heights in z's unit.
     """
     z = np.asarray(z, dtype=np.float64)
     rows, cols = z.shape
@@ -114,8 +116,9 @@ def viewshed_array(z: np.ndarray, row: int, col: int, *, observer_height: float,
              (v[:, col::-1], h[:, col::-1], visible[:, col::-1], row, False),
              (v[row::-1, :].T, h[row::-1, :].T, visible[row::-1, :].T, col, True),
              (v[row:, :].T, h[row:, :].T, visible[row:, :].T, col, True)]
-    for vv, hh, vis, obs, strict in views:
+    for i, (vv, hh, vis, obs, strict) in enumerate(views):
         _sweep(vv, hh, obs, eye, target_height, strict=strict, visible=vis)
+        report(progress, (i + 1) / len(views), "viewshed: sweeping")
     if max_distance:
         visible &= r2 <= max_distance * max_distance
     return visible
@@ -244,17 +247,19 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
             count = np.zeros(z.shape, np.uint16)
             seen = []
             for i, ((row, col), (x, y), w) in enumerate(zip(cells, points, windows)):
-                report(progress, i / len(cells), f"viewshed: observer {i + 1} of {len(cells)}")
+                share = _labelled(sub_progress(progress, 0.9 * i / len(cells), 0.9 * (i + 1) / len(cells)),
+                                  f"viewshed: observer {i + 1} of {len(cells)}")
                 r0, c0 = w.row_off - extent.row_off, w.col_off - extent.col_off
                 part = (slice(r0, r0 + w.height), slice(c0, c0 + w.width))
                 vis = viewshed_array(z[part], row - w.row_off, col - w.col_off, observer_height=eye_h,
                                      target_height=tgt_h, curvature=factor, cell=(abs(t.a), abs(t.e)),
-                                     max_distance=reach)
+                                     max_distance=reach, progress=share)
                 vis &= np.isfinite(z[part])
                 count[part] += vis
                 seen.append({"x": x, "y": y, "row": row, "col": col, "eye_elevation": float(z[row - extent.row_off,
                              col - extent.col_off] + eye_h), "cells_seen": int(vis.sum())})
-            paths = _write(_Extent(src, extent), targets, count, ~np.isfinite(z), overwrite, progress)
+            paths = _write(_Extent(src, extent), targets, count, ~np.isfinite(z), overwrite,
+                           sub_progress(progress, 0.9, 1.0))
             rep = {"tool": "gistools viewshed", "input": str(path), "crs": crs.name,
                    "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen, "settings": settings,
                    "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source,
@@ -268,6 +273,13 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
             if source == "horizontal":
                 rep["warnings"] = [f"the surface carries no vertical unit: its heights are taken in {xy.short}"]
             return write_folder_report(out, rep)
+
+
+def _labelled(progress, text: str):
+    """``progress`` with its messages replaced by ``text``."""
+    if progress is None:
+        return None
+    return lambda fraction, message="": progress(fraction, text)
 
 
 def _check_options(surface_kind, curvature_coefficient) -> None:
