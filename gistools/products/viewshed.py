@@ -1,7 +1,9 @@
 """What observers see (``gistools viewshed``, ``gistools:viewshed``): a visibility raster of a surface (the DSM by
 default: trees and buildings hide a person; or the DEM), from one or several observers, as GDAL's gdal_viewshed.
 
-The algorithm is gdal_viewshed's (GDAL 3.1-3.7, its default "edge" mode): Wang, Robinson and White (2000),
+The algorithm is gdal_viewshed's (as in GDAL 3.6, its default "edge" mode; later GDAL versions count the cells next
+to the observer as always seen, where here they are seen over the observer cell's own height): Wang, Robinson and
+White (2000),
 "Generating viewsheds without using sightlines" - each cell's horizon height is interpolated from the two cells
 next to it on the side of the observer, in one sweep outward from the observer, so a cell is seen when it (plus the
 target height) is not below the plane through the observer's eye and the horizon already passed. GDAL's Python
