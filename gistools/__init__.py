@@ -36,6 +36,8 @@ _PRODUCTS = {
     "products.aquifer": ("AquiferSettings", "aquifer_model", "aquifer_query"),
     "products.runway": ("RunwaySettings", "runway_earthworks"),
     "products.structure": ("structure_model", "reconstruct"),
+    "products.terrain": ("terrain_from_dem",),
+    "products.viewshed": ("viewshed_from_surface",),
     "deliver.webmap": ("web_map",),
     "deliver.scene": ("scene_glb",),
     "deliver.mapbook": ("map_book",),

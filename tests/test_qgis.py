@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -778,7 +778,28 @@ COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize
               "chm": "chm", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
               "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
               "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
-              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook"}
+              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed"}
+
+
+def test_terrain_and_viewshed_in_processing_equal_the_library(qgis, reference, tmp_path):
+    """gistools:terrain on the DEM mosaic and gistools:viewshed (two observers, 2 m eyes) on the DSM mosaic: the
+    library's cells."""
+    from gistools.products.terrain import terrain_from_dem
+    from gistools.products.viewshed import viewshed_from_surface
+
+    lib = terrain_from_dem(reference / "dem.vrt", tmp_path / "lib", azimuth=270)
+    res = qgis.run("gistools:terrain", {"DEM": str(reference / "dem.vrt"), "AZIMUTH": 270,
+                                        "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert res["SLOPE"] and res["HILLSHADE"]
+    for product, path in lib["outputs"].items():
+        same_cells(path, tmp_path / "q" / f"{product}.tif")
+    observers = "430500,1811500;431500,1810500"
+    lib = viewshed_from_surface(reference / "dsm.vrt", tmp_path / "vlib", observers=observers, observer_height="2m")
+    res = qgis.run("gistools:viewshed", {"SURFACE_RASTER": str(reference / "dsm.vrt"), "OBSERVER": observers,
+                                         "OBSERVER_HEIGHT": "2m", "OUTPUT_FOLDER": str(tmp_path / "vq")})
+    assert res["CELLS_SEEN"] == lib["cells_seen"] > 0
+    for name in ("viewshed", "viewshed_count"):
+        same_cells(tmp_path / "vlib" / f"{name}.tif", tmp_path / "vq" / f"{name}.tif")
 
 
 # the steps in QGIS take rasters; on the command line they rerun on a folder, whose record gives these

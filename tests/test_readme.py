@@ -38,6 +38,7 @@ _NOT_RUN = {
     ("docs/performance.md", "python benchmarks/bench_schedule.py"): "benchmark: schedules 100,000 tiles",
     ("docs/performance.md", "python benchmarks/bench_aquifer.py"): "benchmark: 400,000 contacts (half a minute)",
     ("docs/performance.md", "python benchmarks/bench_runway.py"): "benchmark: 452,605 survey points (20 s)",
+    ("docs/performance.md", "python benchmarks/bench_terrain.py"): "benchmark: a 36 M cell mosaic and five gdaldem runs (40 s)",
     ("docs/performance.md", "python benchmarks/bench_structure.py"): "benchmark: 93,860 points (10 s)",
 }
 # lines of run blocks not run here: the test suite itself (this test is part of it)

@@ -112,3 +112,18 @@ def test_aquifer_runway_and_structure_write_the_one_record(tmp_path):
         record = valid_record(tmp_path / command.split()[0])
         assert record["tool"] == f"gistools {command}" and record["counts"]["ok"] == 1
         assert record["settings"] and [r["tool"] for r in record["runs"]] == [f"gistools {command}"]
+
+
+def test_terrain_and_viewshed_write_the_one_record(sample_run, tmp_path):
+    from gistools.products.terrain import terrain_from_dem
+    from gistools.products.viewshed import viewshed_from_surface
+
+    out, _ = sample_run
+    terrain_from_dem(out, tmp_path / "t", products=("slope",))
+    terrain_from_dem(out, tmp_path / "t", products=("slope",))  # kept: a second line in runs
+    record = valid_record(tmp_path / "t")
+    assert record["tool"] == "gistools terrain" and len(record["runs"]) == 2 and record["kept"] == ["slope"]
+    viewshed_from_surface(out, tmp_path / "v", observers="431000,1811000")
+    viewshed_from_surface(out, tmp_path / "v", observers="431000,1811000")
+    record = valid_record(tmp_path / "v")
+    assert record["tool"] == "gistools viewshed" and [r["counts"]["skipped"] for r in record["runs"]] == [0, 1]

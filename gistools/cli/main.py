@@ -134,7 +134,7 @@ COMMANDS = {
     "density": ("shrub", "density"), "classify": ("shrub", "classify"), "map": ("shrub", "map_"),
     "webmap": ("deliver", "webmap"), "scene": ("deliver", "scene"), "mapbook": ("deliver", "mapbook"),
     "aquifer": ("aquifer", "aquifer"), "runway": ("runway", "runway"), "structure": ("structure", "structure"),
-    "examples": ("examples", "examples"),
+    "examples": ("examples", "examples"), "terrain": ("terrain", "terrain"), "viewshed": ("terrain", "viewshed"),
 }
 
 

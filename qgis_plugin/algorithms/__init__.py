@@ -9,6 +9,7 @@ steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.s
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
 deliver    webmap, scene, mapbook (deliverables for field teams)
+terrain    terrain, viewshed (slope, aspect, hillshade, ruggedness; what observers see)
 
 A new algorithm goes in its group's module and into ALGORITHMS below.
 """
@@ -22,9 +23,10 @@ from .runway import RunwayAlgorithm
 from .shrub import ShrubChainAlgorithm
 from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipAlgorithm, DensityAlgorithm, NdsmAlgorithm
 from .structure import StructureAlgorithm
+from .terrain import TerrainAlgorithm, ViewshedAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
 
 ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
-              SceneAlgorithm, MapBookAlgorithm)
+              SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm)

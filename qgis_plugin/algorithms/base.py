@@ -30,14 +30,16 @@ NO_TILES = f"No tiles: choose a '{TILE_FOLDER_LABEL}', or files in '{TILE_FILES_
 GROUP_LIDAR = ("LiDAR", "lidar")
 # each group's page of the documentation (docs/<page>.md; built into the plugin's help/ by tools/build_plugin.py)
 GROUP_PAGES = {"lidar": "commands/rasters", "shrub": "commands/shrub", "deliverables": "commands/deliverables",
-               "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure"}
+               "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure",
+               "terrain": "commands/terrain"}
 # words the toolbox's search finds an algorithm by, per group (an algorithm adds its own)
 GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terrain", "surface"],
               "shrub": ["lidar", "vegetation", "shrub", "density", "fuel", "search and rescue", "fire"],
               "deliverables": ["map", "field", "offline"],
               "aquifer": ["geology", "aquifer", "hydrogeology", "stratigraphy", "volume", "surface"],
               "runway": ["airport", "earthworks", "cut", "fill", "volume", "civil"],
-              "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"]}
+              "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"],
+              "terrain": ["terrain", "elevation", "search and rescue"]}
 
 
 def help_url(page: str, anchor: str = "") -> str:

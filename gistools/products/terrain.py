@@ -1,0 +1,247 @@
+"""Terrain derivatives of a DEM (``gistools terrain``, ``gistools:terrain``): slope in degrees and in percent, aspect,
+hillshade and Riley's terrain ruggedness index, as gdaldem computes them (Horn 1981's 3 x 3 gradient).
+
+The DEM (a GeoTIFF, or a VRT mosaic of tiles such as the ``dem.vrt`` of ``gistools rasters``) is read window by window
+with a one-cell halo (``gistools.io.blocks``), so a mosaic of tiles gives the same cells as one merged raster, and
+memory stays bounded whatever the extent. A cell whose 3 x 3 window holds a nodata cell, or lies on the raster's
+outer ring, is nodata, as gdaldem without ``-compute_edges``.
+
+Units: the horizontal unit is the CRS's; the vertical unit the band's (``units`` / ``GISTOOLS_Z_UNIT``, as gistools
+writes them), else a compound CRS's vertical unit, else the horizontal unit. Where they differ, the elevations are
+scaled as gdaldem's ``-s`` (horizontal metres per unit / vertical metres per unit).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..io.blocks import BLOCK, check_outputs_are_not_inputs, open_raster, raster_crs, read_window, run_blockwise
+from ..io.outdir import claim_output, output_folder
+from ..io.raster import NODATA
+from ..parameters import option
+from ..parameters.terrain import TERRAIN_PRODUCTS
+from ..progress import ProgressCallback
+from ..units import LinearUnit, horizontal_unit, unit_from_word, vertical_unit
+
+__all__ = ["terrain_from_dem", "terrain_arrays", "resolve_dem", "elevation_units", "TERRAIN_PRODUCTS"]
+
+PRODUCT_UNITS = {"slope": "degree", "slope_percent": "percent", "aspect": "degree", "hillshade": "", "tri": None}
+
+
+def resolve_dem(source, name: str = "dem") -> Path:
+    """The raster of ``source``: a raster file as given, or a folder of gistools rasters' ``<name>.vrt``."""
+    path = Path(source)
+    if path.is_dir():
+        vrt = path / f"{name}.vrt"
+        if not vrt.exists():
+            raise InputError(f"the folder has no {name}.vrt", path=path,
+                             hint=f"Give a {name.upper()} raster, or a folder written by gistools rasters")
+        return vrt
+    if not path.exists():
+        raise InputError("no such raster", path=path, hint="Give a GeoTIFF or VRT, or a folder written by gistools rasters")
+    return path
+
+
+def elevation_units(src, path, z_unit: str | None = "raster") -> tuple[LinearUnit, LinearUnit, str]:
+    """(horizontal unit, vertical unit, where the vertical unit was read) of an open raster."""
+    crs = raster_crs(src, path)
+    xy = horizontal_unit(crs)
+    if z_unit and z_unit != "raster":
+        return xy, unit_from_word(z_unit, name="z unit"), "given"
+    word = (src.units or (None,))[0] or src.tags().get("GISTOOLS_Z_UNIT")
+    if word:
+        return xy, unit_from_word(word, name=f"{path}: vertical unit"), "band"
+    if crs.is_compound:
+        return xy, vertical_unit(crs), "crs"
+    return xy, xy, "horizontal"
+
+
+def _horn_sums(z):
+    """gdaldem's four weighted sums of a 3 x 3 window (cells a b c / d e f / g h i), in the DEM's own precision and
+    order of addition: left a+2d+g, right c+2f+i, top a+2b+c, bottom g+2h+i, for every inner cell of ``z``."""
+    a, b, c = z[:-2, :-2], z[:-2, 1:-1], z[:-2, 2:]
+    d, f = z[1:-1, :-2], z[1:-1, 2:]
+    g, h, i = z[2:, :-2], z[2:, 1:-1], z[2:, 2:]
+    return ((a + d) + d) + g, ((c + f) + f) + i, ((a + b) + b) + c, ((g + h) + h) + i
+
+
+def terrain_arrays(z: np.ndarray, ewres: float, nsres: float, *, scale: float = 1.0, products=tuple(TERRAIN_PRODUCTS),
+                   azimuth: float = 315.0, altitude: float = 45.0) -> dict:
+    """The terrain derivatives of the inner cells of ``z`` (a window with a one-cell halo; NaN = nodata).
+
+    ``ewres``, ``nsres``: the cell's width and height (positive, horizontal units); ``scale``: horizontal metres per
+    unit / vertical metres per unit (gdaldem ``-s``). Returns {product: float array of shape z.shape - 2}, NaN where
+    the 3 x 3 window has a nodata cell or (aspect) the cell is flat. Slope and aspect in degrees (aspect clockwise
+    from north), slope_percent in percent, hillshade 1-255 (gdaldem's), tri in z's unit (Riley et al. 1999: the
+    square root of the sum of the squared differences to the 8 neighbours).
+    """
+    z = np.asarray(z)
+    if z.dtype != np.float64:
+        z = z.astype(np.float32, copy=False)  # gdaldem sums a float raster's window in single precision
+    ft = z.dtype.type
+    left, right, top, bottom = _horn_sums(z)
+    we = np.subtract(left, right, out=left)  # west minus east (a NaN anywhere in the window stays NaN)
+    sn = np.subtract(bottom, top, out=bottom)  # south minus north
+    del right, top
+    centre_nodata = np.isnan(z[1:-1, 1:-1])  # the one cell of the window the sums leave out
+    out = {}
+    wanted = set(products)
+    if wanted & {"slope", "slope_percent", "hillshade"}:
+        gx = we * ft(1.0 / (8.0 * ewres * scale))
+        gy = sn * ft(1.0 / (8.0 * nsres * scale))
+        rise2 = gx * gx
+        rise2 += gy * gy
+        if wanted & {"slope", "slope_percent"}:
+            rise = np.sqrt(rise2)
+            if "slope_percent" in wanted:
+                out["slope_percent"] = rise * ft(100.0)
+            if "slope" in wanted:
+                out["slope"] = np.degrees(np.arctan(rise, out=rise), out=rise)
+        if "hillshade" in wanted:
+            # gdaldem: x = (west - east) / (8 ewres), y = (south - north) / (8 x the geotransform's negative nsres)
+            az, alt = math.radians(azimuth), math.radians(altitude)
+            cang = gx * ft(math.sin(az) * math.cos(alt))
+            cang += gy * ft(math.cos(az) * math.cos(alt))
+            cang += ft(math.sin(alt))
+            rise2 += ft(1.0)
+            cang /= np.sqrt(rise2, out=rise2)
+            cang *= ft(254.0)
+            cang += ft(1.0)
+            cang[cang <= 1.0] = 1.0
+            out["hillshade"] = cang
+    if "aspect" in wanted:
+        deg = np.degrees(np.arctan2(sn, we))  # atan2(dy, -dx), dx = east minus west
+        aspect = np.where(deg > 90.0, ft(450.0) - deg, ft(90.0) - deg)
+        aspect[aspect == 360.0] = 0.0
+        aspect[(we == 0) & (sn == 0)] = np.nan  # flat: gdaldem's nodata
+        out["aspect"] = aspect
+    if "tri" in wanted:
+        e = z[1:-1, 1:-1]
+        h, w = e.shape
+        acc = np.zeros(e.shape, z.dtype)
+        for r in range(3):
+            for c in range(3):
+                if r != 1 or c != 1:
+                    diff = z[r:r + h, c:c + w] - e
+                    diff *= diff
+                    acc += diff
+        out["tri"] = np.sqrt(acc, out=acc)
+    if centre_nodata.any():
+        for k in out:
+            out[k][centre_nodata] = np.nan
+    return out
+
+
+def _check(products, azimuth, altitude, z_unit) -> tuple:
+    products = tuple(products)
+    bad = [p for p in products if p not in TERRAIN_PRODUCTS]
+    if bad or not products:
+        raise InputError(f"{option('terrain_products', products)}: {', '.join(bad) or 'none given'} not among "
+                         f"{', '.join(TERRAIN_PRODUCTS)}", hint=f"e.g. {option('terrain_products', ('slope', 'hillshade'))}")
+    if not 0 <= float(azimuth) <= 360:
+        raise InputError(f"{option('azimuth', azimuth)} is not between 0 and 360 degrees", hint=f"e.g. {option('azimuth', 315)}")
+    if not 0 <= float(altitude) <= 90:
+        raise InputError(f"{option('altitude', altitude)} is not between 0 and 90 degrees", hint=f"e.g. {option('altitude', 45)}")
+    if z_unit not in (None, "raster", "m", "ft", "ftUS"):
+        raise InputError(f"{option('dem_z_unit', z_unit)} is not m, ft or ftUS", hint=f"e.g. {option('dem_z_unit', 'm')}")
+    return products
+
+
+def _kept(previous, tool: str, source: str, settings: dict, targets: dict) -> list:
+    """The outputs an earlier run of the same settings on the same input completed (kept unless overwrite); an
+    existing output of other settings is refused when written (OutputExistsError names --overwrite)."""
+    if not previous or previous.get("tool") != tool or previous.get("input") != source:
+        return []
+    before = {k: v for k, v in (previous.get("settings") or {}).items() if k != "products"}
+    if before != {k: v for k, v in settings.items() if k != "products"}:
+        return []
+    return [p for p, path in targets.items() if Path(path).exists()]
+
+
+def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: float = 315.0, altitude: float = 45.0,
+                     z_unit: str | None = "raster", overwrite: bool = False, block: int = BLOCK,
+                     progress: ProgressCallback | None = None) -> dict:
+    """Slope, aspect, hillshade and ruggedness of a DEM, as gdaldem, into ``out/<product>.tif`` and ``out/report.json``.
+
+    Parameters
+    ----------
+    dem : path
+        A DEM raster (GeoTIFF or VRT mosaic), or a folder written by ``gistools rasters`` (its ``dem.vrt``).
+    out : path
+        Output folder: ``slope.tif`` (degrees), ``slope_percent.tif`` (percent), ``aspect.tif`` (degrees clockwise
+        from north; flat cells nodata), ``hillshade.tif`` (1-255), ``tri.tif`` (Riley's TRI, the DEM's vertical unit);
+        float32, nodata -9999.
+    products : sequence of str
+        Which of slope, slope_percent, aspect, hillshade, tri to write.
+    azimuth, altitude : float
+        Hillshade light, degrees (gdaldem's 315 and 45).
+    z_unit : str
+        The elevations' unit (m, ft, ftUS), or "raster": the band's unit, else the CRS's vertical unit, else the
+        horizontal unit. Elevations in another unit than x and y are scaled (gdaldem ``-s``).
+    overwrite : bool
+        Replace existing outputs; else outputs of an earlier run with the same settings are kept, and one of other
+        settings is refused.
+    block : int
+        Cells a side of the windows read at once (0: the whole raster).
+
+    Returns
+    -------
+    dict
+        The report (also written as ``out/report.json``): outputs, units, scale, seconds.
+
+    Examples
+    --------
+    >>> from gistools.products.terrain import terrain_from_dem
+    >>> rep = terrain_from_dem("out/dem.vrt", "out/terrain", products=("slope", "hillshade"))  # doctest: +SKIP
+    """
+    started = time.time()
+    products = _check(products, azimuth, altitude, z_unit)
+    dem = resolve_dem(dem)
+    out = output_folder(out)
+    targets = {p: out / f"{p}.tif" for p in products}
+    check_outputs_are_not_inputs(targets, [dem])
+    with open_raster(dem, "DEM") as src:
+        xy, zu, source = elevation_units(src, dem, z_unit)
+        t = src.transform
+        if t.b != 0 or t.d != 0:
+            raise InputError("the DEM is rotated", path=dem, hint="Warp it north-up first (gdalwarp)")
+        ewres, nsres = abs(t.a), abs(t.e)
+        scale = xy.metres / zu.metres
+        if abs(scale - 1.0) < 1e-12:
+            scale = 1.0
+        with claim_output(out, "gistools terrain"):
+            def compute(win):
+                z = read_window(src, src, win, halo=1, fill=np.nan)
+                if src.dtypes[0] != "float64":
+                    z = z.astype(np.float32)
+                return terrain_arrays(z, ewres, nsres, scale=scale, products=products, azimuth=azimuth, altitude=altitude)
+
+            from ..engine.record import read_folder_report, write_folder_report
+
+            settings = {"products": list(products), "azimuth": azimuth, "altitude": altitude, "z_unit": z_unit}
+            kept = [] if overwrite else _kept(read_folder_report(out), "gistools terrain", str(dem), settings, targets)
+            outputs = {}
+            for p in products:
+                unit = PRODUCT_UNITS[p] if PRODUCT_UNITS[p] is not None else zu.short
+                outputs[p] = (None if p in kept else targets[p], "float32", NODATA,
+                              {"GISTOOLS_PRODUCT": p, **({"units": unit} if unit else {})})
+            paths = {p: targets[p] for p in kept}
+            if len(kept) < len(products):
+                paths.update(run_blockwise(src, outputs, compute, progress=progress, label="terrain",
+                                           overwrite=overwrite, block=block))
+
+            report = {"tool": "gistools terrain", "input": str(dem), "crs": raster_crs(src, dem).name,
+                      "outputs": {k: str(paths[k]) for k in products}, "kept": kept, "settings": settings,
+                      "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source, "scale": scale},
+                      "method": "Horn (1981) 3 x 3 gradient, as gdaldem; edge and nodata-adjacent cells nodata; "
+                                "tri: Riley et al. (1999)",
+                      "cells": [src.width, src.height], "seconds": round(time.time() - started, 3)}
+            if source == "horizontal":
+                report["warnings"] = [f"the DEM carries no vertical unit: its elevations are taken in {xy.short}, the "
+                                      f"horizontal unit (give the unit with {option('dem_z_unit', 'm')} otherwise)"]
+            return write_folder_report(out, report)
