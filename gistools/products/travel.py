@@ -51,6 +51,17 @@ def neighbour_offsets(neighbours: int = 16) -> list[tuple[int, int]]:
     raise InputError(f"neighbours={neighbours!r}: 8 or 16", hint="16 (with the knight's moves) is the closer to straight lines")
 
 
+def check_memory(shape, neighbours: int, max_memory: float) -> int:
+    """The graph's estimated peak bytes; OutOfMemoryError when above ``max_memory`` bytes."""
+    rows, cols = shape
+    need = BYTES_PER_CELL[int(neighbours)] * rows * cols
+    if need > max_memory:
+        raise OutOfMemoryError(f"the travel graph of {rows:,} x {cols:,} cells needs about {need / 1e9:.2f} GB, more "
+                               f"than the {max_memory / 1e9:.2f} GB allowed",
+                               hint="Clip the DEM to the search area, use coarser cells, or raise the memory limit")
+    return need
+
+
 def tobler_speed(slope, a: float = TOBLER[0], b: float = TOBLER[1], c: float = TOBLER[2]):
     """Tobler's hiking function: walking speed in km/h on ``slope`` (rise over run, uphill positive)."""
     return a * np.exp(-b * np.abs(np.asarray(slope, dtype=np.float64) + c))
@@ -107,13 +118,9 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     rows, cols = dem.shape
     n = rows * cols
     offsets = neighbour_offsets(neighbours)
-    need = BYTES_PER_CELL[neighbours] * n
-    if need > max_memory:
-        raise OutOfMemoryError(f"the travel graph of {rows:,} x {cols:,} cells needs about {need / 1e9:.1f} GB, more than "
-                               f"the {max_memory / 1e9:.1f} GB allowed",
-                               hint="Clip the DEM to the search area, use coarser cells, or raise the memory limit")
+    check_memory((rows, cols), neighbours, max_memory)
     z_metres = xy_metres if z_metres is None else z_metres
-    a, b, c = (float(v) for v in tobler)
+    a_, b_, c_ = (float(v) for v in tobler)
     factor = np.ones_like(dem) if factor is None else np.asarray(factor, dtype=np.float64)
     fixed = np.full_like(dem, np.nan) if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64)
     passable = np.isfinite(dem) & ((np.nan_to_num(factor) > 0) | (np.isfinite(fixed) & (fixed > 0)))
@@ -121,25 +128,39 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     z = np.where(np.isfinite(dem), dem, 0.0)
     iso = None
     if isotropic:
-        iso = _slowness(gradient_magnitude(dem, cell_size * xy_metres, z_metres), factor, fixed, a, b, c)
+        iso = _slowness(gradient_magnitude(dem, cell_size * xy_metres, z_metres), factor, fixed, a_, b_, c_)
     cell_m = cell_size * xy_metres
     index = np.arange(n, dtype=np.int64).reshape(rows, cols)
     k = len(offsets)
     targets = np.full((rows, cols, k), -1, dtype=np.int32 if n < 2**31 else np.int64)
     weights = np.zeros((rows, cols, k), dtype=np.float64)
+    def shifted(a, dr, dc, src):
+        """``a`` at the cells (r + dr, c + dc) of the cells ``src``."""
+        rs, cs = src
+        return a[rs.start + dr:rs.stop + dr, cs.start + dc:cs.stop + dc]
+
     for m, (dr, dc) in enumerate(offsets):
         # the cells (r, c) whose neighbour (r + dr, c + dc) is on the grid
         src = (slice(max(0, -dr), rows - max(0, dr)), slice(max(0, -dc), cols - max(0, dc)))
-        dst = (slice(max(0, dr), rows - max(0, -dr)), slice(max(0, dc), cols - max(0, -dc)))
         step_m = cell_m * math.hypot(dr, dc)
-        ok = passable[src] & passable[dst]
-        if iso is not None:
-            slow = 0.5 * (iso[src] + iso[dst])
+        # the cells the step crosses: a knight's move crosses two more cells, a quarter of its length in each
+        # (start, two between, end); a diagonal passes a corner, closed when both cells beside it are impassable
+        if abs(dr) == 2 or abs(dc) == 2:
+            mids = [(dr // 2, 0), (dr // 2, dc)] if abs(dr) == 2 else [(0, dc // 2), (dr, dc // 2)]
         else:
-            slope = (z[dst] - z[src]) * z_metres / step_m
-            slow = 0.5 * (_slowness(slope, factor[src], fixed[src], a, b, c) + _slowness(slope, factor[dst], fixed[dst], a, b, c))
+            mids = []
+        crossed = [(0, 0), *mids, (dr, dc)]
+        ok = np.logical_and.reduce([shifted(passable, a, b, src) for a, b in crossed])
+        if abs(dr) == 1 and abs(dc) == 1:
+            ok &= shifted(passable, dr, 0, src) | shifted(passable, 0, dc, src)
+        if iso is not None:
+            slow = np.mean([shifted(iso, a, b, src) for a, b in crossed], axis=0)
+        else:
+            slope = (shifted(z, dr, dc, src) - z[src]) * z_metres / step_m
+            slow = np.mean([_slowness(slope, shifted(factor, a, b, src), shifted(fixed, a, b, src), a_, b_, c_)
+                            for a, b in crossed], axis=0)
         t = targets[src + (m,)]
-        t[ok] = index[dst][ok]
+        t[ok] = shifted(index, dr, dc, src)[ok]
         weights[src + (m,)] = np.where(ok, step_m / 1000.0 * slow * MINUTES_PER_HOUR, 0.0)
     valid = targets >= 0
     counts = valid.reshape(n, k).sum(axis=1)
@@ -327,19 +348,19 @@ def _lines_of(spec, crs, what, reproject, kinds):
 
 def speed_model(classes, road, water, settings: TravelSettings) -> tuple[np.ndarray, np.ndarray]:
     """(factor, fixed speed) arrays of the cells: the factor on Tobler's speed (shrub classes 1-3 their factors,
-    water 0) and a fixed km/h (roads at ``road_speed``, water at ``wade_speed``; NaN elsewhere)."""
+    water 0) and a fixed km/h (roads at ``road_speed``, water at ``wade_speed``; NaN elsewhere). A road cell over
+    water is a bridge: road."""
     factor = np.ones(road.shape, dtype=np.float64)
     if classes is not None:
         for code, f in zip((1, 2, 3), settings.shrub_factors):
             factor[classes == code] = f
         road = road | (classes == CLASS_ROAD)
         water = water | (classes == CLASS_WATER)
-    factor[road] = 1.0
     fixed = np.full(road.shape, np.nan)
-    if settings.road_speed is not None:
-        fixed[road] = settings.road_speed
     factor[water] = 0.0
     fixed[water] = np.nan if settings.wade_speed is None else settings.wade_speed
+    factor[road] = 1.0  # a road over water is a bridge
+    fixed[road] = np.nan if settings.road_speed is None else settings.road_speed
     return factor, fixed
 
 
@@ -490,7 +511,7 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     factor, fixed = speed_model(class_codes, road, water, settings)
     if class_codes is not None:
         road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
-    road_cells, water_cells = int(road.sum()), int(water.sum())
+    road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
     passable = np.isfinite(heights) & ((factor > 0) | np.isfinite(fixed))
     for (x, y, where), (r, c) in zip(points, cells):
         if not passable[r, c]:
@@ -499,6 +520,7 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
                              hint=f"Move it onto land, or let the walker wade: {option('wade_speed', 1.0)}"
                              if "water" in why else "Move it onto the DEM's data")
     neighbours = int(settings.neighbours)
+    need = check_memory(grid.shape, neighbours, settings.max_memory * 1e9)
     with claim_output(out, "gistools travel"):
         report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours)")
         solve = time.time()
@@ -524,7 +546,7 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         rep = {
             "tool": "gistools travel", "crs_wkt": grid.crs.to_wkt(), "dem": str(dem_path),
             "classes": str(classes_path) if classes_path else None, "unit": xy.short, "vertical_unit": z.short,
-            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height),
+            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height), "graph_bytes_estimate": need,
             "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
             "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in points],
             "reached_share": float(reached.mean()), "max_minutes": top,
