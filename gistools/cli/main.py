@@ -127,6 +127,7 @@ from . import aquifer as _aquifer  # noqa: E402
 from . import runway as _runway  # noqa: E402
 from . import structure as _structure  # noqa: E402
 from . import examples as _examples  # noqa: E402
+from . import travel as _travel  # noqa: E402
 
 cli.add_command(_info.info)
 cli.add_command(_ground.ground)
@@ -141,6 +142,7 @@ cli.add_command(_aquifer.aquifer)
 cli.add_command(_runway.runway)
 cli.add_command(_structure.structure)
 cli.add_command(_examples.examples)
+cli.add_command(_travel.travel)
 for _command in (_shrub.shrub, _points.points, _shrub.bands, _shrub.clip, _shrub.density, _shrub.classify, _shrub.map_):
     cli.add_command(_command)
 

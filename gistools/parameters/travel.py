@@ -14,9 +14,9 @@ declare(
               "give it again for more points: each cell gets the time from the nearest.", "Points last seen",
               flag="--from", metavar="X,Y|LAYER", example="431000,1811000"),
     Parameter("shrub_classes", "raster", "A shrub classes raster of gistools shrub (0 none, 1 light, 2 medium, 3 heavy, "
-              "4 road, 5 water) on the DEM's grid; default: classes.vrt beside the DEM, if any.",
+              "4 road, 5 water) on the DEM's grid.",
               "Shrub classes raster (gistools shrub classes.vrt)", flag="--classes", qgis="CLASSES", metavar="RASTER",
-              default_text="classes.vrt beside the DEM, if there is one"),
+              default_text="classes.vrt of the folder when the DEM is a gistools shrub folder"),
     Parameter("tobler", "numbers", "Tobler's hiking function v = A exp(-B |slope + C|) km/h: A,B,C (the slope along "
               "each step, rise over run, uphill positive).", "Tobler's function A,B,C of v = A exp(-B |s + C|) km/h",
               default=(6.0, 3.5, 0.05), count=3, minimum=0.0, example="6,3.5,0.05", advanced=True),

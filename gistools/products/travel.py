@@ -178,6 +178,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
 ACRE_M2 = 4046.8564224
 HECTARE_M2 = 10000.0
 BAND_NODATA = 255
+OUTPUTS = ("travel_minutes.tif", "isochrone_bands.tif", "travel.gpkg")
 _RAMP = ("#1a9850", "#91cf60", "#fee08b", "#fc8d59", "#d73027", "#7f0000")  # green (soon) to dark red (late)
 
 
@@ -521,6 +522,12 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
                              if "water" in why else "Move it onto the DEM's data")
     neighbours = int(settings.neighbours)
     need = check_memory(grid.shape, neighbours, settings.max_memory * 1e9)
+    written = [out / name for name in OUTPUTS if (out / name).exists()]
+    if written and not overwrite:
+        from ..errors import OutputExistsError
+
+        raise OutputExistsError(f"{written[0].name} is there from an earlier run", path=out,
+                                hint=f"Give another folder, or replace it: {option('overwrite')}")
     with claim_output(out, "gistools travel"):
         report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours)")
         solve = time.time()
