@@ -8,6 +8,7 @@ heights    normalize, metrics, chm (heights above ground, cell metrics, canopy h
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
+travel     travel (search and rescue: a walker's travel time)
 deliver    webmap, scene, mapbook (deliverables for field teams)
 
 A new algorithm goes in its group's module and into ALGORITHMS below.
@@ -23,8 +24,9 @@ from .shrub import ShrubChainAlgorithm
 from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipAlgorithm, DensityAlgorithm, NdsmAlgorithm
 from .structure import StructureAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
+from .travel import TravelAlgorithm
 
 ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
-              SceneAlgorithm, MapBookAlgorithm)
+              SceneAlgorithm, MapBookAlgorithm, TravelAlgorithm)

@@ -30,14 +30,15 @@ NO_TILES = f"No tiles: choose a '{TILE_FOLDER_LABEL}', or files in '{TILE_FILES_
 GROUP_LIDAR = ("LiDAR", "lidar")
 # each group's page of the documentation (docs/<page>.md; built into the plugin's help/ by tools/build_plugin.py)
 GROUP_PAGES = {"lidar": "commands/rasters", "shrub": "commands/shrub", "deliverables": "commands/deliverables",
-               "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure"}
+               "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure", "sar": "search_and_rescue"}
 # words the toolbox's search finds an algorithm by, per group (an algorithm adds its own)
 GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terrain", "surface"],
               "shrub": ["lidar", "vegetation", "shrub", "density", "fuel", "search and rescue", "fire"],
               "deliverables": ["map", "field", "offline"],
               "aquifer": ["geology", "aquifer", "hydrogeology", "stratigraphy", "volume", "surface"],
               "runway": ["airport", "earthworks", "cut", "fill", "volume", "civil"],
-              "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"]}
+              "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"],
+              "sar": ["search and rescue", "travel time", "terrain", "slope", "dem"]}
 
 
 def help_url(page: str) -> str:
@@ -51,6 +52,7 @@ def help_url(page: str) -> str:
     return ""
 GROUP_SHRUB = ("Shrub chain", "shrub")
 GROUP_DELIVER = ("Field deliverables", "deliverables")
+GROUP_SAR = ("Search and rescue", "sar")
 AQUIFER = AquiferSettings()  # the aquifer model's defaults, for the labels that state them
 
 
