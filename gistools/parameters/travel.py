@@ -35,7 +35,7 @@ declare(
               default=False, advanced=True),
     Parameter("isochrones", "numbers", "The isochrones, minutes.", "Isochrones (minutes)", default=(30.0, 60.0, 120.0,
               240.0), minimum=0.0, example="30,60,120,240"),
-    Parameter("max_memory", "float", "The most memory the travel graph may take, in GB (about 0.5 KB a cell at 16 "
+    Parameter("max_memory", "float", "The most memory the travel graph may take, in GB (about 0.6 KB a cell at 16 "
               "neighbours); a larger DEM is refused before anything is written.", "Memory limit of the graph, GB",
               default=4.0, minimum=0.01, advanced=True, example="4"),
 )

@@ -34,7 +34,7 @@ TOBLER = (6.0, 3.5, 0.05)  # km/h, per unit of slope, slope of the fastest walk 
 SHRUB_FACTORS = (0.92, 0.83, 0.75)  # light, medium, heavy shrub (classes 1, 2, 3 of the shrub chain); none: 1
 ISOCHRONES = (30.0, 60.0, 120.0, 240.0)  # minutes
 CLASS_ROAD, CLASS_WATER = 4, 5  # the shrub chain's classes raster
-BYTES_PER_CELL = {8: 260, 16: 500}  # peak memory of the graph and its building, measured (benchmarks/bench_travel.py)
+BYTES_PER_CELL = {8: 330, 16: 600}  # peak memory of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
 # worst over-estimate of a straight walk's length on flat ground: 1 / cos(half the widest angle between two moves)
 NEIGHBOUR_BOUND = {8: 1.0 / math.cos(math.radians(45.0 / 2)) - 1.0,
                    16: 1.0 / math.cos(math.atan(0.5) / 2) - 1.0}  # 8.24 %, 2.75 %
