@@ -109,6 +109,16 @@ def test_a_river_is_not_crossed_and_is_with_wading(tmp_path):
     wade = 10 / 1000 / 1.0 * 60  # 10 m at 1 km/h (cell centres 39.5 ... 49.5 ... : the steps' halves)
     assert t[50, 99] == pytest.approx(89 / M_PER_MIN + wade, rel=1e-6)
     assert rep["speed_model"]["water_cells"] == 10 * 100
+    # water without ground under it (a DEM from ground returns has none): waded all the same, the steps level
+    grid = Grid(rasterio.transform.from_origin(500000.0, 4000100.0, 1.0, 1.0), 100, 100, pyproj.CRS("EPSG:32610"))
+    holes = np.zeros((100, 100))
+    holes[:, 40:50] = np.nan
+    write_raster(tmp_path / "holes.tif", holes, grid, units="m")
+    travel_from_dem(tmp_path / "holes.tif", tmp_path / "holes", src, TravelSettings(wade_speed=1.0),
+                    waterbodies=f"{tmp_path / 'water.gpkg'}:WATERBODY")
+    np.testing.assert_array_equal(_minutes(tmp_path / "holes" / "travel_minutes.tif"), t)
+    with pytest.raises(InputError, match="water"):
+        travel_from_dem(dem, tmp_path / "in_water", "500045,4000050", waterbodies=f"{tmp_path / 'water.gpkg'}:WATERBODY")
     with rasterio.open(tmp_path / "wet" / "isochrone_bands.tif") as b:
         assert b.colormap(1)[1][:3] == (0x1a, 0x98, 0x50) and b.dtypes[0] == "uint8"
 

@@ -34,7 +34,8 @@ TOBLER = (6.0, 3.5, 0.05)  # km/h, per unit of slope, slope of the fastest walk 
 SHRUB_FACTORS = (0.92, 0.83, 0.75)  # light, medium, heavy shrub (classes 1, 2, 3 of the shrub chain); none: 1
 ISOCHRONES = (30.0, 60.0, 120.0, 240.0)  # minutes
 CLASS_ROAD, CLASS_WATER = 4, 5  # the shrub chain's classes raster
-BYTES_PER_CELL = {8: 330, 16: 600}  # peak memory of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
+# peak bytes a cell of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
+BYTES_PER_CELL = {8: 330, 16: 600}
 # worst over-estimate of a straight walk's length on flat ground: 1 / cos(half the widest angle between two moves)
 NEIGHBOUR_BOUND = {8: 1.0 / math.cos(math.radians(45.0 / 2)) - 1.0,
                    16: 1.0 / math.cos(math.atan(0.5) / 2) - 1.0}  # 8.24 %, 2.75 %
@@ -89,7 +90,8 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
 
     Parameters
     ----------
-    dem : 2-D array of heights (NaN: no data, impassable), rows north to south, square cells of ``cell_size``.
+    dem : 2-D array of heights (NaN: no data, impassable but at a ``fixed_speed``; a step to or from such a cell is
+        taken as level), rows north to south, square cells of ``cell_size``.
     cell_size : the cell's side in CRS units (``xy_metres`` metres each); ``z_metres``: metres per height unit
         (default ``xy_metres``).
     sources : (row, column) pairs of the start cells.
@@ -123,7 +125,9 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     a_, b_, c_ = (float(v) for v in tobler)
     factor = np.ones_like(dem) if factor is None else np.asarray(factor, dtype=np.float64)
     fixed = np.full_like(dem, np.nan) if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64)
-    passable = np.isfinite(dem) & ((np.nan_to_num(factor) > 0) | (np.isfinite(fixed) & (fixed > 0)))
+    # a cell at a fixed speed (a road, water waded) needs no height: water often has none (no ground under it)
+    has_z = np.isfinite(dem)
+    passable = (has_z & (np.nan_to_num(factor) > 0)) | (np.isfinite(fixed) & (fixed > 0))
     factor = np.where(passable, np.nan_to_num(factor), 0.0)
     z = np.where(np.isfinite(dem), dem, 0.0)
     iso = None
@@ -157,6 +161,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
             slow = np.mean([shifted(iso, a, b, src) for a, b in crossed], axis=0)
         else:
             slope = (shifted(z, dr, dc, src) - z[src]) * z_metres / step_m
+            slope[~(has_z[src] & shifted(has_z, dr, dc, src))] = 0.0  # to or from a cell without height: level
             slow = np.mean([_slowness(slope, shifted(factor, a, b, src), shifted(fixed, a, b, src), a_, b_, c_)
                             for a, b in crossed], axis=0)
         t = targets[src + (m,)]
@@ -513,10 +518,10 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     if class_codes is not None:
         road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
     road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
-    passable = np.isfinite(heights) & ((factor > 0) | np.isfinite(fixed))
+    passable = (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed)
     for (x, y, where), (r, c) in zip(points, cells):
         if not passable[r, c]:
-            why = "no DEM there" if not np.isfinite(heights[r, c]) else "water (impassable)"
+            why = "water (impassable)" if water[r, c] and not road[r, c] else "no DEM there"
             raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is on a cell the walker cannot be: {why}",
                              hint=f"Move it onto land, or let the walker wade: {option('wade_speed', 1.0)}"
                              if "water" in why else "Move it onto the DEM's data")
