@@ -36,6 +36,7 @@ _PRODUCTS = {
     "products.aquifer": ("AquiferSettings", "aquifer_model", "aquifer_query"),
     "products.runway": ("RunwaySettings", "runway_earthworks"),
     "products.structure": ("structure_model", "reconstruct"),
+    "products.travel": ("TravelSettings", "travel_from_dem", "travel_minutes"),
     "deliver.webmap": ("web_map",),
     "deliver.scene": ("scene_glb",),
     "deliver.mapbook": ("map_book",),

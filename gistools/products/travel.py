@@ -20,12 +20,12 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import DataFileError, GistoolsError, InputError, OutOfMemoryError
+from ..errors import DataFileError, InputError, OutOfMemoryError
 
 __all__ = ["TravelSettings", "travel_minutes", "tobler_speed", "neighbour_offsets", "travel_from_dem", "SHRUB_FACTORS",
            "ISOCHRONES", "BYTES_PER_CELL", "NEIGHBOUR_BOUND"]
@@ -442,6 +442,80 @@ def _write_style(path: Path, text: str) -> None:
         tmp.write_text(text)
 
 
+def _start_cells(points, grid) -> list[tuple[int, int]]:
+    """(row, column) of each point; a point outside the DEM is refused."""
+    from ..parameters import option
+
+    inv = ~grid.transform
+    cells = []
+    for x, y, where in points:
+        col, row = inv * (x, y)
+        r, c = int(math.floor(row)), int(math.floor(col))
+        if not (0 <= r < grid.height and 0 <= c < grid.width):
+            w, s, e, n = grid.bounds
+            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is outside the DEM "
+                             f"({w:.3f},{s:.3f} - {e:.3f},{n:.3f})", hint=f"Give {option('last_seen')} in the DEM's CRS")
+        cells.append((r, c))
+    return cells
+
+
+def _check_starts(points, cells, passable, water) -> None:
+    """Refuse a point last seen on a cell the walker cannot be on."""
+    from ..parameters import option
+
+    for (x, y, where), (r, c) in zip(points, cells):
+        if not passable[r, c]:
+            why = "water (impassable)" if water[r, c] else "no DEM there"
+            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is on a cell the walker cannot be: {why}",
+                             hint=f"Move it onto land, or let the walker wade: {option('wade_speed', 1.0)}"
+                             if water[r, c] else "Move it onto the DEM's data")
+
+
+def _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """Cells of the road and water polygons of the breaklines, made as the shrub chain makes them (whole DEM)."""
+    from shapely.geometry import box
+
+    from ..parameters import option
+    from ..vector.breaklines import road_polygons, water_polygons
+
+    frame = box(*grid.bounds)
+    reproject = settings.reproject_vectors
+    road = np.zeros(grid.shape, dtype=bool)
+    if roads:
+        road = _burn([road_polygons(_lines_of(roads, grid.crs, option("roads"), reproject, ("line",)), frame,
+                                    snap=lengths["snap"], max_width=lengths["max_road_width"])], grid)
+    water = np.zeros(grid.shape, dtype=bool)
+    if hydro or waterbodies:
+        lines = _lines_of(hydro, grid.crs, option("hydro"), reproject, ("line",))
+        bodies = _lines_of(waterbodies, grid.crs, option("waterbodies"), reproject, ("polygon",))
+        water = _burn([water_polygons(lines, bodies, frame, snap=lengths["snap"], max_width=lengths["max_hydro_width"],
+                                      single_line_width=lengths["single_line_width"])], grid)
+    return road, water
+
+
+def _write_outputs(out: Path, minutes, grid, settings, points, xy, top: float):
+    """The minutes raster and its style, the isochrone bands, the GeoPackage; returns the isochrones' GeoDataFrame."""
+    import geopandas as gpd
+    import shapely
+
+    from ..io.raster import write_raster
+    from ..io.vector import write_layers
+
+    reached = np.isfinite(minutes)
+    write_raster(out / "travel_minutes.tif", np.where(reached, minutes, np.nan), grid, overwrite=True,
+                 tags={"GISTOOLS_PRODUCT": "travel_minutes"}, description="travel time (minutes)", units="min")
+    _write_style(out / "travel_minutes.qml", raster_style_qml(settings.isochrones, top))
+    write_raster(out / "isochrone_bands.tif", isochrone_bands(minutes, settings.isochrones), grid, nodata=BAND_NODATA,
+                 dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "isochrone_bands"},
+                 description="isochrone band", categories=band_categories(settings.isochrones))
+    iso = isochrone_polygons(minutes, grid, settings.isochrones, xy.metres)
+    seen = gpd.GeoDataFrame({"source": [w for *_xy, w in points], "x": [p[0] for p in points],
+                             "y": [p[1] for p in points]},
+                            geometry=[shapely.Point(p[0], p[1]) for p in points], crs=grid.crs.to_wkt())
+    write_layers({"isochrones": iso, "last_seen": seen}, out / "travel.gpkg", overwrite=True)
+    return iso
+
+
 def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None, *, classes=None, roads=None,
                     hydro=None, waterbodies=None, overwrite: bool = False, progress=None) -> dict:
     """Minutes for a walker to reach every cell of ``dem`` from the nearest point last seen.
@@ -469,18 +543,12 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     >>> rep = travel_from_dem("out", "out/travel", "431000,1811000")  # doctest: +SKIP
     >>> [round(i["hectares"], 1) for i in rep["isochrones"]]  # doctest: +SKIP
     """
-    import geopandas as gpd
-    import shapely
-    from shapely.geometry import box
-
     from ..engine.record import write_folder_report
+    from ..errors import OutputExistsError
     from ..io.outdir import claim_output, output_folder
-    from ..io.raster import write_raster
-    from ..io.vector import write_layers
     from ..parameters import in_data_units, option
     from ..progress import report
     from ..units import length_to_crs_units
-    from ..vector.breaklines import road_polygons, water_polygons
 
     started = time.time()
     settings = settings or TravelSettings()
@@ -493,44 +561,18 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     lengths = {name: length_to_crs_units(getattr(settings, name), xy, name=name)
                for name in ("snap", "max_road_width", "max_hydro_width", "single_line_width")}
     points = _last_seen_points(last_seen, grid.crs, settings.reproject_vectors)
-    inv = ~grid.transform
-    cells = []
-    for x, y, where in points:
-        col, row = inv * (x, y)
-        r, c = int(math.floor(row)), int(math.floor(col))
-        if not (0 <= r < grid.height and 0 <= c < grid.width):
-            w, s, e, n = grid.bounds
-            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is outside the DEM "
-                             f"({w:.3f},{s:.3f} - {e:.3f},{n:.3f})", hint=f"Give {option('last_seen')} in the DEM's CRS")
-        cells.append((r, c))
+    cells = _start_cells(points, grid)
     class_codes = _classes_on(classes_path, grid) if classes_path is not None else None
-    frame = box(*grid.bounds)
-    road = _burn([road_polygons(_lines_of(roads, grid.crs, option("roads"), settings.reproject_vectors, ("line",)),
-                                frame, snap=lengths["snap"], max_width=lengths["max_road_width"])], grid) \
-        if roads else np.zeros(grid.shape, dtype=bool)
-    water = np.zeros(grid.shape, dtype=bool)
-    if hydro or waterbodies:
-        lines = _lines_of(hydro, grid.crs, option("hydro"), settings.reproject_vectors, ("line",))
-        bodies = _lines_of(waterbodies, grid.crs, option("waterbodies"), settings.reproject_vectors, ("polygon",))
-        water = _burn([water_polygons(lines, bodies, frame, snap=lengths["snap"], max_width=lengths["max_hydro_width"],
-                                      single_line_width=lengths["single_line_width"])], grid)
+    road, water = _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths)
     factor, fixed = speed_model(class_codes, road, water, settings)
     if class_codes is not None:
         road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
     road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
-    passable = (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed)
-    for (x, y, where), (r, c) in zip(points, cells):
-        if not passable[r, c]:
-            why = "water (impassable)" if water[r, c] and not road[r, c] else "no DEM there"
-            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is on a cell the walker cannot be: {why}",
-                             hint=f"Move it onto land, or let the walker wade: {option('wade_speed', 1.0)}"
-                             if "water" in why else "Move it onto the DEM's data")
+    _check_starts(points, cells, (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed), water & ~road)
     neighbours = int(settings.neighbours)
     need = check_memory(grid.shape, neighbours, settings.max_memory * 1e9)
     written = [out / name for name in OUTPUTS if (out / name).exists()]
     if written and not overwrite:
-        from ..errors import OutputExistsError
-
         raise OutputExistsError(f"{written[0].name} is there from an earlier run", path=out,
                                 hint=f"Give another folder, or replace it: {option('overwrite')}")
     with claim_output(out, "gistools travel"):
@@ -543,22 +585,12 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         report(progress, 0.8, "writing the rasters and isochrones")
         reached = np.isfinite(minutes)
         top = float(minutes[reached].max()) if reached.any() else 0.0
-        write_raster(out / "travel_minutes.tif", np.where(reached, minutes, np.nan), grid, overwrite=True,
-                     tags={"GISTOOLS_PRODUCT": "travel_minutes"}, description="travel time (minutes)", units="min")
-        _write_style(out / "travel_minutes.qml", raster_style_qml(settings.isochrones, top))
-        cats = band_categories(settings.isochrones)
-        write_raster(out / "isochrone_bands.tif", isochrone_bands(minutes, settings.isochrones), grid, nodata=BAND_NODATA,
-                     dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "isochrone_bands"},
-                     description="isochrone band", categories=cats)
-        iso = isochrone_polygons(minutes, grid, settings.isochrones, xy.metres)
-        seen = gpd.GeoDataFrame({"source": [w for *_xy, w in points], "x": [p[0] for p in points],
-                                 "y": [p[1] for p in points]},
-                                geometry=[shapely.Point(p[0], p[1]) for p in points], crs=grid.crs.to_wkt())
-        write_layers({"isochrones": iso, "last_seen": seen}, out / "travel.gpkg", overwrite=True)
+        iso = _write_outputs(out, minutes, grid, settings, points, xy, top)
         rep = {
             "tool": "gistools travel", "crs_wkt": grid.crs.to_wkt(), "dem": str(dem_path),
             "classes": str(classes_path) if classes_path else None, "unit": xy.short, "vertical_unit": z.short,
-            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height), "graph_bytes_estimate": need,
+            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height),
+            "graph_bytes_estimate": need,
             "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
             "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in points],
             "reached_share": float(reached.mean()), "max_minutes": top,
