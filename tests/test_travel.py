@@ -63,6 +63,20 @@ def test_a_uniform_plane_gives_the_analytic_times_up_and_down_the_slope(z_metres
     assert t[0, 60] == pytest.approx(60 * cell / M_PER_MIN, rel=1e-9)
 
 
+def test_heights_in_feet_on_a_metre_grid_read_from_the_band_unit(tmp_path):
+    """A plane rising 10 % eastwards written once in metres and once in feet (band unit "ft"): the same minutes,
+    equal to Tobler's analytic time up the plane."""
+    grid = Grid(rasterio.transform.from_origin(500000.0, 4000060.0, 1.0, 1.0), 61, 60, pyproj.CRS("EPSG:32610"))
+    rise = np.tile(np.arange(61) * 0.1, (60, 1))
+    write_raster(tmp_path / "m.tif", rise, grid, units="m")
+    write_raster(tmp_path / "ft.tif", rise / 0.3048, grid, units="ft")
+    for name in ("m", "ft"):
+        travel_from_dem(tmp_path / f"{name}.tif", tmp_path / f"out_{name}", "500000.5,4000030.5")
+    a, b = _minutes(tmp_path / "out_m" / "travel_minutes.tif"), _minutes(tmp_path / "out_ft" / "travel_minutes.tif")
+    np.testing.assert_allclose(a, b, rtol=1e-6)
+    assert a[29, 60] == pytest.approx(60 / 1000 / _tobler(0.1) * 60, rel=1e-6)
+
+
 def _scene(tmp_path, classes=None, crs="EPSG:32610", n=100, cell=1.0):
     tmp_path.mkdir(parents=True, exist_ok=True)
     grid = Grid(rasterio.transform.from_origin(500000.0, 4000000.0 + n * cell, cell, cell), n, n, pyproj.CRS(crs))
