@@ -19,7 +19,7 @@ declare(
               default_text="classes.vrt of the folder when the DEM is a gistools shrub folder"),
     Parameter("tobler", "numbers", "Tobler's hiking function v = A exp(-B |slope + C|) km/h: A,B,C (the slope along "
               "each step, rise over run, uphill positive).", "Tobler's function A,B,C of v = A exp(-B |s + C|) km/h",
-              default=(6.0, 3.5, 0.05), count=3, minimum=0.0, example="6,3.5,0.05", advanced=True),
+              default=(6, 3.5, 0.05), count=3, minimum=0.0, example="6,3.5,0.05", advanced=True),
     Parameter("shrub_factors", "numbers", "Speed factors of light, medium and heavy shrub (1 open ground); 0 makes a "
               "class impassable.", "Speed factors of light, medium, heavy shrub", default=(0.92, 0.83, 0.75), count=3,
               minimum=0.0, maximum=1.0, example="0.92,0.83,0.75", advanced=True),
@@ -33,8 +33,8 @@ declare(
     Parameter("isotropic", "flag", "The same speed both ways: each cell's speed from its steepest slope taken uphill "
               "(no downhill gain), as a cost-distance tool.", "Isotropic (no uphill / downhill difference)",
               default=False, advanced=True),
-    Parameter("isochrones", "numbers", "The isochrones, minutes.", "Isochrones (minutes)", default=(30.0, 60.0, 120.0,
-              240.0), minimum=0.0, example="30,60,120,240"),
+    Parameter("isochrones", "numbers", "The isochrones, minutes.", "Isochrones (minutes)", default=(30, 60, 120,
+              240), minimum=0.0, example="30,60,120,240"),
     Parameter("max_memory", "float", "The most memory the travel graph may take, in GB (about 0.6 KB a cell at 16 "
               "neighbours); a larger DEM is refused before anything is written.", "Memory limit of the graph, GB",
               default=4.0, minimum=0.01, advanced=True, example="4"),
