@@ -599,6 +599,11 @@ def test_travel_algorithm_equals_the_library(qgis, reference, tmp_path):
     assert result["MAX_MINUTES"] == pytest.approx(lib["max_minutes"], rel=1e-12) and (minutes == 0).sum() == 2
     rep = json.loads(Path(result["REPORT"]).read_text())
     assert rep["isochrones"] == lib["isochrones"] and rep["speed_model"] == lib["speed_model"]
+    from qgis.core import QgsRasterLayer  # the styles QGIS opens them with: classes at the isochrones, the bands' palette
+
+    shader = QgsRasterLayer(result["MINUTES"], "minutes").renderer().shader().rasterShaderFunction()
+    assert [i.value for i in shader.colorRampItemList()] == [2, 4, float("inf")]
+    assert QgsRasterLayer(result["BANDS"], "bands").renderer().type() == "paletted"
     with pytest.raises(QgsProcessingException, match="No point last seen"):
         qgis.run("gistools:travel", {"DEM": str(reference / "dem.vrt"), "OUTPUT_FOLDER": str(tmp_path / "none")})
 

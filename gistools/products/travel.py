@@ -422,7 +422,7 @@ def raster_style_qml(isochrones, maximum: float) -> str:
         items.append(f'          <item alpha="255" value="{t:g}" label="&lt;= {t:g} min" color="#{r:02x}{g:02x}{b:02x}"/>')
     r, g, b, _ = rgba(_RAMP[-1])
     top = max(maximum, edges[-1])
-    items.append(f'          <item alpha="255" value="{top:g}" label="&gt; {edges[-1]:g} min" color="#{r:02x}{g:02x}{b:02x}"/>')
+    items.append(f'          <item alpha="255" value="inf" label="&gt; {edges[-1]:g} min" color="#{r:02x}{g:02x}{b:02x}"/>')
     return ("<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n" + MARK + "\n"
             '<qgis version="3.22.0" styleCategories="Symbology">\n  <pipe>\n'
             f'    <rasterrenderer type="singlebandpseudocolor" band="1" opacity="1" classificationMin="0" '
