@@ -601,9 +601,10 @@ def test_travel_algorithm_equals_the_library(qgis, reference, tmp_path):
     assert rep["isochrones"] == lib["isochrones"] and rep["speed_model"] == lib["speed_model"]
     from qgis.core import QgsRasterLayer  # the styles QGIS opens them with: classes at the isochrones, the bands' palette
 
-    shader = QgsRasterLayer(result["MINUTES"], "minutes").renderer().shader().rasterShaderFunction()
+    minutes_layer, bands_layer = QgsRasterLayer(result["MINUTES"], "minutes"), QgsRasterLayer(result["BANDS"], "bands")
+    shader = minutes_layer.renderer().shader().rasterShaderFunction()  # the layer kept alive while its renderer is read
     assert [i.value for i in shader.colorRampItemList()] == [2, 4, float("inf")]
-    assert QgsRasterLayer(result["BANDS"], "bands").renderer().type() == "paletted"
+    assert bands_layer.renderer().type() == "paletted"
     with pytest.raises(QgsProcessingException, match="No point last seen"):
         qgis.run("gistools:travel", {"DEM": str(reference / "dem.vrt"), "OUTPUT_FOLDER": str(tmp_path / "none")})
 
