@@ -97,9 +97,10 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     sources : (row, column) pairs of the start cells.
     factor : multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). Default 1 everywhere.
     fixed_speed : km/h per cell, NaN where Tobler's function applies (roads at a road speed, water waded).
-    neighbours : 8 or 16 moves; ``isotropic``: each cell's speed from its steepest slope taken uphill (the same
-        both ways), so a step costs its length times the mean of its two cells' slowness, as
-        ``skimage.graph.MCP_Geometric``.
+    neighbours : 8 or 16 moves. A step costs its length times the mean slowness (1 / speed) of the cells it
+        crosses on the step's slope: its two ends, and for a knight's move the two cells between.
+    isotropic : each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours
+        the cost of ``skimage.graph.MCP_Geometric``).
     tobler : (a km/h, b, c) of ``v = a exp(-b |s + c|)``.
     max_memory : bytes; a larger grid is refused (OutOfMemoryError) before any work.
 
@@ -138,6 +139,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     k = len(offsets)
     targets = np.full((rows, cols, k), -1, dtype=np.int32 if n < 2**31 else np.int64)
     weights = np.zeros((rows, cols, k), dtype=np.float64)
+
     def shifted(a, dr, dc, src):
         """``a`` at the cells (r + dr, c + dc) of the cells ``src``."""
         rs, cs = src
