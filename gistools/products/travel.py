@@ -112,7 +112,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     --------
     >>> t = travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8)
     >>> round(float(t[1, 40]), 4)  # 40 m on flat ground at 6 exp(-0.175) km/h
-    0.4763
+    0.4765
     """
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
