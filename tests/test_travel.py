@@ -168,6 +168,16 @@ def test_many_sources_give_the_time_from_the_nearest():
     np.testing.assert_allclose(both, np.minimum(a, b), rtol=1e-12)
 
 
+def test_cancel_leaves_no_output(tmp_path):
+    from gistools.errors import Cancelled
+
+    dem, _cls, _grid = _scene(tmp_path)
+    with pytest.raises(Cancelled):
+        travel_from_dem(dem, tmp_path / "out", "500010,4000010",
+                        progress=lambda f, m="": not m.startswith("the walk's graph: move 3"))
+    assert not list((tmp_path / "out").glob("*.tif")) and not (tmp_path / "out" / "travel.gpkg").exists()
+
+
 def test_refusals_before_any_output(tmp_path):
     dem, _cls, _grid = _scene(tmp_path)
     with pytest.raises(InputError, match="outside the DEM"):

@@ -85,7 +85,7 @@ def gradient_magnitude(dem: np.ndarray, cell_metres: float, z_metres: float) -> 
 
 def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, fixed_speed=None, xy_metres: float = 1.0,
                    z_metres: float | None = None, neighbours: int = 16, isotropic: bool = False,
-                   tobler: tuple = TOBLER, max_memory: float = 4e9) -> np.ndarray:
+                   tobler: tuple = TOBLER, max_memory: float = 4e9, progress=None) -> np.ndarray:
     """Minutes to walk from the nearest of ``sources`` to each cell of ``dem``.
 
     Parameters
@@ -103,6 +103,8 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
         the cost of ``skimage.graph.MCP_Geometric``).
     tobler : (a km/h, b, c) of ``v = a exp(-b |s + c|)``.
     max_memory : bytes; a larger grid is refused (OutOfMemoryError) before any work.
+    progress : a gistools progress callback, told after each move's edges (False from it cancels); the shortest
+        paths themselves (scipy) run without a word.
 
     Returns
     -------
@@ -116,6 +118,8 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     """
     from scipy.sparse import csr_matrix
     from scipy.sparse.csgraph import dijkstra
+
+    from ..progress import report
 
     dem = np.asarray(dem, dtype=np.float64)
     rows, cols = dem.shape
@@ -169,6 +173,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
         t = targets[src + (m,)]
         t[ok] = shifted(index, dr, dc, src)[ok]
         weights[src + (m,)] = np.where(ok, step_m / 1000.0 * slow * MINUTES_PER_HOUR, 0.0)
+        report(progress, 0.5 * (m + 1) / k, f"the walk's graph: move {m + 1} of {k}")
     valid = targets >= 0
     counts = valid.reshape(n, k).sum(axis=1)
     indptr = np.zeros(n + 1, dtype=np.int64)
@@ -176,6 +181,7 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
     graph = csr_matrix((weights[valid], targets[valid], indptr), shape=(n, n))
     del targets, weights, valid
     start = np.unique([int(r) * cols + int(cc) for r, cc in sources])
+    report(progress, 0.6, "shortest walks from the points last seen")
     minutes = dijkstra(graph, directed=True, indices=start, min_only=True)
     return minutes.reshape(rows, cols)
 
@@ -549,7 +555,7 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     from ..errors import OutputExistsError
     from ..io.outdir import claim_output, output_folder
     from ..parameters import in_data_units, option
-    from ..progress import report
+    from ..progress import report, sub_progress
     from ..units import length_to_crs_units
 
     started = time.time()
@@ -582,7 +588,8 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         solve = time.time()
         minutes = travel_minutes(heights, grid.cell_size, cells, factor=factor, fixed_speed=fixed, xy_metres=xy.metres,
                                  z_metres=z.metres, neighbours=neighbours, isotropic=settings.isotropic,
-                                 tobler=tuple(settings.tobler), max_memory=settings.max_memory * 1e9)
+                                 tobler=tuple(settings.tobler), max_memory=settings.max_memory * 1e9,
+                                 progress=sub_progress(progress, 0.1, 0.8))
         solve = time.time() - solve
         report(progress, 0.8, "writing the rasters and isochrones")
         reached = np.isfinite(minutes)
