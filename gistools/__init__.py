@@ -38,6 +38,7 @@ _PRODUCTS = {
     "products.structure": ("structure_model", "reconstruct"),
     "products.terrain": ("terrain_from_dem",),
     "products.viewshed": ("viewshed_from_surface",),
+    "products.travel": ("TravelSettings", "travel_from_dem", "travel_minutes"),
     "deliver.webmap": ("web_map",),
     "deliver.scene": ("scene_glb",),
     "deliver.mapbook": ("map_book",),

@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
 
@@ -583,6 +583,34 @@ def test_runway_algorithm_equals_the_library(qgis, tmp_path):
     same_cells(result["DESIGN"], lib["outputs"]["design_surface"])
 
 
+def test_travel_algorithm_equals_the_library(qgis, reference, tmp_path):
+    """gistools:travel on the chain's DEM and classes, from a point layer and a typed point, equals the library."""
+    import geopandas as gpd
+
+    from gistools.products.travel import TravelSettings, travel_from_dem
+
+    gpd.GeoDataFrame(geometry=[shapely.Point(430400, 1811600)], crs=2882).to_file(tmp_path / "seen.gpkg", layer="seen")
+    seen = ["431000,1811000", f"{tmp_path / 'seen.gpkg'}:seen"]
+    lib = travel_from_dem(reference, tmp_path / "lib", seen, TravelSettings(isochrones=(2, 4), wade_speed=1.0))
+    result = qgis.run("gistools:travel", {"DEM": str(reference / "dem.vrt"), "CLASSES": str(reference / "classes.vrt"),
+                                          "LAST_SEEN": "431000,1811000",
+                                          "LAST_SEEN_LAYER": f"{tmp_path / 'seen.gpkg'}|layername=seen",
+                                          "ISOCHRONES": "2,4", "WADE_SPEED": 1.0, "OUTPUT_FOLDER": str(tmp_path / "q")})
+    minutes = same_cells(result["MINUTES"], tmp_path / "lib" / "travel_minutes.tif")
+    same_cells(result["BANDS"], tmp_path / "lib" / "isochrone_bands.tif")
+    assert result["MAX_MINUTES"] == pytest.approx(lib["max_minutes"], rel=1e-12) and (minutes == 0).sum() == 2
+    rep = json.loads(Path(result["REPORT"]).read_text())
+    assert rep["isochrones"] == lib["isochrones"] and rep["speed_model"] == lib["speed_model"]
+    from qgis.core import QgsRasterLayer  # the styles QGIS opens them with: classes at the isochrones, the bands' palette
+
+    minutes_layer, bands_layer = QgsRasterLayer(result["MINUTES"], "minutes"), QgsRasterLayer(result["BANDS"], "bands")
+    shader = minutes_layer.renderer().shader().rasterShaderFunction()  # the layer kept alive while its renderer is read
+    assert [i.value for i in shader.colorRampItemList()] == [2, 4, float("inf")]
+    assert bands_layer.renderer().type() == "paletted"
+    with pytest.raises(QgsProcessingException, match="No point last seen"):
+        qgis.run("gistools:travel", {"DEM": str(reference / "dem.vrt"), "OUTPUT_FOLDER": str(tmp_path / "none")})
+
+
 def test_structure_algorithm_equals_the_library(qgis, tmp_path):
     from gistools.structure.fixtures import building
     from gistools.products.structure import structure_model
@@ -778,7 +806,7 @@ COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize
               "chm": "chm", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
               "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
               "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
-              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed"}
+              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed", "travel": "travel"}
 
 
 def test_terrain_and_viewshed_in_processing_equal_the_library(qgis, reference, tmp_path):

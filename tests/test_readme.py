@@ -40,6 +40,7 @@ _NOT_RUN = {
     ("docs/performance.md", "python benchmarks/bench_runway.py"): "benchmark: 452,605 survey points (20 s)",
     ("docs/performance.md", "python benchmarks/bench_terrain.py"): "benchmark: a 36 M cell mosaic and five gdaldem runs (40 s)",
     ("docs/performance.md", "python benchmarks/bench_structure.py"): "benchmark: 93,860 points (10 s)",
+    ("docs/performance.md", "python benchmarks/bench_travel.py"): "benchmark: 2.56 M cells (15 s, 1.6 GB)",
 }
 # lines of run blocks not run here: the test suite itself (this test is part of it)
 _NOT_HERE = ("bash tools/run.sh test",)

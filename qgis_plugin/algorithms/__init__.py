@@ -8,6 +8,7 @@ heights    normalize, metrics, chm (heights above ground, cell metrics, canopy h
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
+travel     travel (search and rescue: a walker's travel time)
 deliver    webmap, scene, mapbook (deliverables for field teams)
 terrain    terrain, viewshed (slope, aspect, hillshade, ruggedness; what observers see)
 
@@ -25,8 +26,10 @@ from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipA
 from .structure import StructureAlgorithm
 from .terrain import TerrainAlgorithm, ViewshedAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
+from .travel import TravelAlgorithm
 
 ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
-              SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm)
+              SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm,
+              TravelAlgorithm)

@@ -31,7 +31,8 @@ GROUP_LIDAR = ("LiDAR", "lidar")
 # each group's page of the documentation (docs/<page>.md; built into the plugin's help/ by tools/build_plugin.py)
 GROUP_PAGES = {"lidar": "commands/rasters", "shrub": "commands/shrub", "deliverables": "commands/deliverables",
                "aquifer": "commands/aquifer", "runway": "commands/runway", "structure": "commands/structure",
-               "terrain": "commands/terrain"}
+               "terrain": "commands/terrain",
+               "sar": "search_and_rescue"}
 # words the toolbox's search finds an algorithm by, per group (an algorithm adds its own)
 GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terrain", "surface"],
               "shrub": ["lidar", "vegetation", "shrub", "density", "fuel", "search and rescue", "fire"],
@@ -39,7 +40,8 @@ GROUP_TAGS = {"lidar": ["lidar", "point cloud", "las", "laz", "elevation", "terr
               "aquifer": ["geology", "aquifer", "hydrogeology", "stratigraphy", "volume", "surface"],
               "runway": ["airport", "earthworks", "cut", "fill", "volume", "civil"],
               "structure": ["point cloud", "mesh", "building", "3d", "reconstruction"],
-              "terrain": ["terrain", "elevation", "search and rescue"]}
+              "terrain": ["terrain", "elevation", "search and rescue"],
+              "sar": ["search and rescue", "travel time", "terrain", "slope", "dem"]}
 
 
 def help_url(page: str, anchor: str = "") -> str:
@@ -56,6 +58,7 @@ def help_url(page: str, anchor: str = "") -> str:
     return ""
 GROUP_SHRUB = ("Shrub chain", "shrub")
 GROUP_DELIVER = ("Field deliverables", "deliverables")
+GROUP_SAR = ("Search and rescue", "sar")
 AQUIFER = AquiferSettings()  # the aquifer model's defaults, for the labels that state them
 
 

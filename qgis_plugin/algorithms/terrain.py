@@ -1,4 +1,4 @@
-"""Terrain and search: gistools terrain (slope, aspect, hillshade, ruggedness of a DEM) and gistools viewshed."""
+"""Terrain and visibility: gistools terrain (slope, aspect, hillshade, ruggedness of a DEM) and gistools viewshed."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from qgis.core import (
 
 from .base import GistoolsAlgorithm
 
-GROUP_TERRAIN = ("Terrain and search", "terrain")
+GROUP_TERRAIN = ("Terrain and visibility", "terrain")
 
 
 class TerrainAlgorithm(GistoolsAlgorithm):

@@ -1,0 +1,616 @@
+"""Travel time of a walker from the points last seen (``gistools travel``, ``gistools:travel``): minutes to reach every
+cell of a DEM, isochrone polygons and bands, for search and rescue.
+
+Speed model (the documentation's "Search and rescue" page states it with its references):
+
+* Tobler's hiking function on the slope along each step, uphill and downhill apart:
+  ``v = a exp(-b |dz/dx + c|)`` km/h, ``a`` 6 km/h, ``b`` 3.5, ``c`` 0.05 (Tobler 1993);
+* times a vegetation factor per shrub class of the shrub chain (none 1, light 0.92, medium 0.83, heavy 0.75; after
+  Campbell, Dennison & Butler 2017: dense vegetation cut travel rates by up to about a quarter beyond the slope);
+* road cells clear of shrub (or at a fixed ``road_speed``), water cells impassable (or waded at ``wade_speed``).
+
+Algorithm: a directed graph of the grid (8 or 16 neighbours: the 16 add the knight moves), each step weighted by its
+length times the mean of the two end cells' slowness on the step's slope (the slope seen from the step's start: up
+one way, down the other), solved by ``scipy.sparse.csgraph.dijkstra(indices=sources, min_only=True)`` (the time from
+the nearest source). The whole grid is in memory: about ``BYTES_PER_CELL`` bytes a cell at 16 neighbours; a grid
+whose estimate passes ``max_memory`` is refused before anything is written.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DataFileError, InputError, OutOfMemoryError
+
+__all__ = ["TravelSettings", "travel_minutes", "tobler_speed", "neighbour_offsets", "travel_from_dem", "SHRUB_FACTORS",
+           "ISOCHRONES", "BYTES_PER_CELL", "NEIGHBOUR_BOUND"]
+
+TOBLER = (6.0, 3.5, 0.05)  # km/h, per unit of slope, slope of the fastest walk (downhill 5 %)
+SHRUB_FACTORS = (0.92, 0.83, 0.75)  # light, medium, heavy shrub (classes 1, 2, 3 of the shrub chain); none: 1
+ISOCHRONES = (30.0, 60.0, 120.0, 240.0)  # minutes
+CLASS_ROAD, CLASS_WATER = 4, 5  # the shrub chain's classes raster
+# peak bytes a cell of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
+BYTES_PER_CELL = {8: 330, 16: 600}
+# worst over-estimate of a straight walk's length on flat ground: 1 / cos(half the widest angle between two moves)
+NEIGHBOUR_BOUND = {8: 1.0 / math.cos(math.radians(45.0 / 2)) - 1.0,
+                   16: 1.0 / math.cos(math.atan(0.5) / 2) - 1.0}  # 8.24 %, 2.75 %
+MINUTES_PER_HOUR = 60.0
+
+
+def neighbour_offsets(neighbours: int = 16) -> list[tuple[int, int]]:
+    """(row, column) moves: 8 (the king's) or 16 (and the knight's)."""
+    king = [(-1, -1), (-1, 0), (-1, 1), (0, -1), (0, 1), (1, -1), (1, 0), (1, 1)]
+    if neighbours == 8:
+        return king
+    if neighbours == 16:
+        return king + [(-2, -1), (-2, 1), (-1, -2), (-1, 2), (1, -2), (1, 2), (2, -1), (2, 1)]
+    raise InputError(f"neighbours={neighbours!r}: 8 or 16", hint="16 (with the knight's moves) is the closer to straight lines")
+
+
+def check_memory(shape, neighbours: int, max_memory: float) -> int:
+    """The graph's estimated peak bytes; OutOfMemoryError when above ``max_memory`` bytes."""
+    rows, cols = shape
+    need = BYTES_PER_CELL[int(neighbours)] * rows * cols
+    if need > max_memory:
+        raise OutOfMemoryError(f"the travel graph of {rows:,} x {cols:,} cells needs about {need / 1e9:.2f} GB, more "
+                               f"than the {max_memory / 1e9:.2f} GB allowed",
+                               hint="Clip the DEM to the search area, use coarser cells, or raise the memory limit")
+    return need
+
+
+def tobler_speed(slope, a: float = TOBLER[0], b: float = TOBLER[1], c: float = TOBLER[2]):
+    """Tobler's hiking function: walking speed in km/h on ``slope`` (rise over run, uphill positive)."""
+    return a * np.exp(-b * np.abs(np.asarray(slope, dtype=np.float64) + c))
+
+
+def _slowness(slope, factor, fixed, a, b, c):
+    """Hours per km on ``slope`` of cells with vegetation ``factor`` (0: impassable) or a ``fixed`` speed (km/h)."""
+    with np.errstate(divide="ignore"):
+        tob = 1.0 / (tobler_speed(slope, a, b, c) * factor)
+        return np.where(np.isfinite(fixed), 1.0 / np.where(np.isfinite(fixed), fixed, 1.0), tob)
+
+
+def gradient_magnitude(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
+    """The steepest slope of each cell (rise over run; central differences, one-sided at edges and beside nodata)."""
+    z = dem * z_metres
+    gy, gx = np.gradient(z, cell_metres)
+    # where a neighbour is NaN, np.gradient's central difference is NaN: take the cell as flat there
+    return np.nan_to_num(np.hypot(gx, gy), nan=0.0)
+
+
+def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, fixed_speed=None, xy_metres: float = 1.0,
+                   z_metres: float | None = None, neighbours: int = 16, isotropic: bool = False,
+                   tobler: tuple = TOBLER, max_memory: float = 4e9, progress=None) -> np.ndarray:
+    """Minutes to walk from the nearest of ``sources`` to each cell of ``dem``.
+
+    Parameters
+    ----------
+    dem : 2-D array of heights (NaN: no data, impassable but at a ``fixed_speed``; a step to or from such a cell is
+        taken as level), rows north to south, square cells of ``cell_size``.
+    cell_size : the cell's side in CRS units (``xy_metres`` metres each); ``z_metres``: metres per height unit
+        (default ``xy_metres``).
+    sources : (row, column) pairs of the start cells.
+    factor : multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). Default 1 everywhere.
+    fixed_speed : km/h per cell, NaN where Tobler's function applies (roads at a road speed, water waded).
+    neighbours : 8 or 16 moves. A step costs its length times the mean slowness (1 / speed) of the cells it
+        crosses on the step's slope: its two ends, and for a knight's move the two cells between.
+    isotropic : each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours
+        the cost of ``skimage.graph.MCP_Geometric``).
+    tobler : (a km/h, b, c) of ``v = a exp(-b |s + c|)``.
+    max_memory : bytes; a larger grid is refused (OutOfMemoryError) before any work.
+    progress : a gistools progress callback, told after each move's edges (False from it cancels); the shortest
+        paths themselves (scipy) run without a word.
+
+    Returns
+    -------
+    float64 array of minutes, ``inf`` where no path reaches (water, no data, cut off).
+
+    Examples
+    --------
+    >>> t = travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8)
+    >>> round(float(t[1, 40]), 4)  # 40 m on flat ground at 6 exp(-0.175) km/h
+    0.4765
+    """
+    from scipy.sparse import csr_matrix
+    from scipy.sparse.csgraph import dijkstra
+
+    from ..progress import report
+
+    dem = np.asarray(dem, dtype=np.float64)
+    rows, cols = dem.shape
+    n = rows * cols
+    offsets = neighbour_offsets(neighbours)
+    check_memory((rows, cols), neighbours, max_memory)
+    z_metres = xy_metres if z_metres is None else z_metres
+    a_, b_, c_ = (float(v) for v in tobler)
+    factor = np.ones_like(dem) if factor is None else np.asarray(factor, dtype=np.float64)
+    fixed = np.full_like(dem, np.nan) if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64)
+    # a cell at a fixed speed (a road, water waded) needs no height: water often has none (no ground under it)
+    has_z = np.isfinite(dem)
+    passable = (has_z & (np.nan_to_num(factor) > 0)) | (np.isfinite(fixed) & (fixed > 0))
+    factor = np.where(passable, np.nan_to_num(factor), 0.0)
+    z = np.where(np.isfinite(dem), dem, 0.0)
+    iso = None
+    if isotropic:
+        iso = _slowness(gradient_magnitude(dem, cell_size * xy_metres, z_metres), factor, fixed, a_, b_, c_)
+    cell_m = cell_size * xy_metres
+    index = np.arange(n, dtype=np.int64).reshape(rows, cols)
+    k = len(offsets)
+    targets = np.full((rows, cols, k), -1, dtype=np.int32 if n < 2**31 else np.int64)
+    weights = np.zeros((rows, cols, k), dtype=np.float64)
+
+    def shifted(a, dr, dc, src):
+        """``a`` at the cells (r + dr, c + dc) of the cells ``src``."""
+        rs, cs = src
+        return a[rs.start + dr:rs.stop + dr, cs.start + dc:cs.stop + dc]
+
+    for m, (dr, dc) in enumerate(offsets):
+        # the cells (r, c) whose neighbour (r + dr, c + dc) is on the grid
+        src = (slice(max(0, -dr), rows - max(0, dr)), slice(max(0, -dc), cols - max(0, dc)))
+        step_m = cell_m * math.hypot(dr, dc)
+        # the cells the step crosses: a knight's move crosses two more cells, a quarter of its length in each
+        # (start, two between, end); a diagonal passes a corner, closed when both cells beside it are impassable
+        if abs(dr) == 2 or abs(dc) == 2:
+            mids = [(dr // 2, 0), (dr // 2, dc)] if abs(dr) == 2 else [(0, dc // 2), (dr, dc // 2)]
+        else:
+            mids = []
+        crossed = [(0, 0), *mids, (dr, dc)]
+        ok = np.logical_and.reduce([shifted(passable, a, b, src) for a, b in crossed])
+        if abs(dr) == 1 and abs(dc) == 1:
+            ok &= shifted(passable, dr, 0, src) | shifted(passable, 0, dc, src)
+        if iso is not None:
+            slow = np.mean([shifted(iso, a, b, src) for a, b in crossed], axis=0)
+        else:
+            slope = (shifted(z, dr, dc, src) - z[src]) * z_metres / step_m
+            slope[~(has_z[src] & shifted(has_z, dr, dc, src))] = 0.0  # to or from a cell without height: level
+            slow = np.mean([_slowness(slope, shifted(factor, a, b, src), shifted(fixed, a, b, src), a_, b_, c_)
+                            for a, b in crossed], axis=0)
+        t = targets[src + (m,)]
+        t[ok] = shifted(index, dr, dc, src)[ok]
+        weights[src + (m,)] = np.where(ok, step_m / 1000.0 * slow * MINUTES_PER_HOUR, 0.0)
+        report(progress, 0.5 * (m + 1) / k, f"the walk's graph: move {m + 1} of {k}")
+    valid = targets >= 0
+    counts = valid.reshape(n, k).sum(axis=1)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(counts, out=indptr[1:])
+    graph = csr_matrix((weights[valid], targets[valid], indptr), shape=(n, n))
+    del targets, weights, valid
+    start = np.unique([int(r) * cols + int(cc) for r, cc in sources])
+    report(progress, 0.6, "shortest walks from the points last seen")
+    minutes = dijkstra(graph, directed=True, indices=start, min_only=True)
+    return minutes.reshape(rows, cols)
+
+
+# --- the command: a DEM, its shrub classes, roads and water, the points last seen -> rasters, polygons, report --------
+
+ACRE_M2 = 4046.8564224
+HECTARE_M2 = 10000.0
+BAND_NODATA = 255
+OUTPUTS = ("travel_minutes.tif", "isochrone_bands.tif", "travel.gpkg")
+_RAMP = ("#1a9850", "#91cf60", "#fee08b", "#fc8d59", "#d73027", "#7f0000")  # green (soon) to dark red (late)
+
+
+@dataclass(frozen=True)
+class TravelSettings:
+    """Parameters of ``gistools travel`` (declared in gistools.parameters.travel). Speeds in km/h; ``tobler``:
+    (A km/h, B, C) of v = A exp(-B |s + C|); ``shrub_factors``: light, medium, heavy; ``road_speed`` None: Tobler's
+    on the slope without shrub; ``wade_speed`` None: water impassable; ``isochrones`` in minutes; ``max_memory`` in
+    GB. Breakline lengths (``snap`` ...) take a unit or are in CRS units; None: the shrub chain's defaults in the
+    data's unit."""
+
+    tobler: tuple = TOBLER
+    shrub_factors: tuple = SHRUB_FACTORS
+    road_speed: float | None = None
+    wade_speed: float | None = None
+    isochrones: tuple = ISOCHRONES
+    neighbours: int | str = 16
+    isotropic: bool = False
+    max_memory: float = 4.0
+    snap: str | float | None = None
+    max_road_width: str | float | None = None
+    max_hydro_width: str | float | None = None
+    single_line_width: str | float | None = None
+    reproject_vectors: bool = False
+
+    def validate(self) -> None:
+        from ..parameters import PARAMETERS, check, option
+
+        check("isochrones", tuple(sorted(float(v) for v in self.isochrones)))
+        for name, high in (("tobler", None), ("shrub_factors", 1.0)):  # three numbers, not a rising list
+            values = tuple(getattr(self, name))
+            if len(values) != 3 or not all(np.isfinite(v) and v >= 0 and (high is None or v <= high) for v in values):
+                raise InputError(f"{option(name, values)}: give three numbers, each at least 0"
+                                 + (f" and at most {high:g}" if high else ""),
+                                 hint=f"e.g. {option(name, PARAMETERS[name].default)}")
+        for name in ("road_speed", "wade_speed", "max_memory", "snap", "max_road_width", "max_hydro_width",
+                     "single_line_width"):
+            check(name, getattr(self, name))
+        check("neighbours", str(self.neighbours))
+        if self.tobler[0] <= 0:
+            raise InputError(f"{option('tobler', tuple(self.tobler))}: the speed A must be above 0",
+                             hint=f"e.g. {option('tobler', (6, 3.5, 0.05))}")
+        if not self.isochrones or min(self.isochrones) <= 0:
+            raise InputError(f"{option('isochrones', tuple(self.isochrones))}: give minutes above 0",
+                             hint=f"e.g. {option('isochrones', (30, 60, 120, 240))}")
+
+
+def _point_text(text):
+    """(x, y) of "X,Y", else None."""
+    parts = str(text).replace(" ", "").split(",")
+    if len(parts) != 2:
+        return None
+    try:
+        return float(parts[0]), float(parts[1])
+    except ValueError:
+        return None
+
+
+def _last_seen_points(last_seen, crs, reproject: bool) -> list[tuple[float, float, str]]:
+    """(x, y, where from) of every point last seen: "X,Y" texts, (x, y) pairs or point layers."""
+    from ..io.vector import check_crs, read_layer
+    from ..parameters import option
+
+    items = [last_seen] if isinstance(last_seen, (str, Path)) else list(last_seen or [])
+    if items and all(isinstance(v, (int, float)) for v in items) and len(items) == 2:
+        items = [tuple(items)]
+    points = []
+    for item in items:
+        if isinstance(item, (tuple, list)) and len(item) == 2:
+            points.append((float(item[0]), float(item[1]), f"{item[0]},{item[1]}"))
+            continue
+        xy = _point_text(item)
+        if xy is not None:
+            points.append((*xy, str(item)))
+            continue
+        gdf = check_crs(read_layer(item, kinds=("point",), what=option("last_seen")), crs, str(item),
+                        reproject=reproject, against="the DEM's")
+        for geom in gdf.geometry.explode(index_parts=False):
+            if geom is not None and not geom.is_empty:
+                points.append((geom.x, geom.y, str(item)))
+    if not points:
+        raise InputError(f"no point last seen: give {option('last_seen')}",
+                         hint=f"e.g. {option('last_seen', '431000,1811000')} (X,Y in the DEM's CRS) or a point layer")
+    return points
+
+
+def _dem_inputs(dem, classes):
+    """(DEM raster, classes raster or None) of a raster, or of a gistools output folder (its dem.vrt, classes.vrt)."""
+    from ..parameters import option
+
+    path = Path(dem)
+    if not path.exists():
+        raise DataFileError("not found", path=path, hint=f"Give {option('dem')} a DEM raster or VRT, or a gistools "
+                            "rasters / shrub output folder")
+    if path.is_dir():
+        found = path / "dem.vrt"
+        if not found.exists():
+            raise InputError("the folder has no dem.vrt", path=path,
+                             hint="Give the DEM raster, or the output folder of gistools rasters or gistools shrub")
+        if classes is None and (path / "classes.vrt").exists():
+            classes = path / "classes.vrt"
+        path = found
+    return path, (Path(classes) if classes is not None else None)
+
+
+def _read_dem(path):
+    """(heights with NaN for nodata, Grid, horizontal LinearUnit, vertical LinearUnit)."""
+    import rasterio
+
+    from ..io.raster import read_raster
+    from ..units import horizontal_unit, unit_from_word, vertical_unit
+
+    data, grid, _nodata = read_raster(path)
+    if grid.crs is None:
+        raise InputError("the DEM has no CRS", path=path, hint="Assign one (gdal_edit.py -a_srs) so its units are known")
+    xy = horizontal_unit(grid.crs)
+    with rasterio.open(path) as src:
+        word = (src.units or (None,))[0]
+        res = src.res
+    if abs(abs(res[0]) - abs(res[1])) > 1e-9 * abs(res[0]):
+        raise InputError(f"the DEM's cells are not square ({res[0]:g} x {res[1]:g})", path=path,
+                         hint="Resample it to square cells (gdalwarp -tr)")
+    z = unit_from_word(word) if word else vertical_unit(grid.crs)
+    if not np.issubdtype(data.dtype, np.floating):
+        data = data.astype(np.float64)
+    return data, grid, xy, z
+
+
+def _classes_on(path, grid) -> np.ndarray:
+    """The classes raster on the DEM's grid (nearest cell; 255 outside it)."""
+    import pyproj
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.vrt import WarpedVRT
+
+    try:
+        with rasterio.open(path) as src:
+            if src.crs is not None and grid.crs is not None and \
+                    not pyproj.CRS.from_wkt(src.crs.to_wkt()).equals(grid.crs, ignore_axis_order=True):
+                raise InputError("the classes raster's CRS differs from the DEM's", path=path,
+                                 hint="Give the classes of the same survey (gistools shrub's classes.vrt)")
+            with WarpedVRT(src, transform=grid.transform, width=grid.width, height=grid.height,
+                           resampling=Resampling.nearest, nodata=BAND_NODATA) as vrt:
+                return vrt.read(1)
+    except rasterio.errors.RasterioError as err:
+        raise DataFileError(f"cannot read the classes raster ({err})", path=path) from None
+
+
+def _burn(geoms, grid) -> np.ndarray:
+    """Cells whose centre is in ``geoms`` (as Polygon To Raster's cell-centre rule)."""
+    from rasterio.features import rasterize
+
+    geoms = [g for g in geoms if g is not None and not g.is_empty]
+    if not geoms:
+        return np.zeros((grid.height, grid.width), dtype=bool)
+    return rasterize(geoms, out_shape=(grid.height, grid.width), transform=grid.transform, fill=0,
+                     default_value=1, dtype="uint8").astype(bool)
+
+
+def _lines_of(spec, crs, what, reproject, kinds):
+    from ..io.vector import check_crs, read_layer
+
+    if spec is None:
+        return []
+    gdf = check_crs(read_layer(spec, kinds=kinds, what=what), crs, str(spec), reproject=reproject, against="the DEM's")
+    return [g for g in gdf.geometry if g is not None and not g.is_empty]
+
+
+def speed_model(classes, road, water, settings: TravelSettings) -> tuple[np.ndarray, np.ndarray]:
+    """(factor, fixed speed) arrays of the cells: the factor on Tobler's speed (shrub classes 1-3 their factors,
+    water 0) and a fixed km/h (roads at ``road_speed``, water at ``wade_speed``; NaN elsewhere). A road cell over
+    water is a bridge: road."""
+    factor = np.ones(road.shape, dtype=np.float64)
+    if classes is not None:
+        for code, f in zip((1, 2, 3), settings.shrub_factors):
+            factor[classes == code] = f
+        road = road | (classes == CLASS_ROAD)
+        water = water | (classes == CLASS_WATER)
+    fixed = np.full(road.shape, np.nan)
+    factor[water] = 0.0
+    fixed[water] = np.nan if settings.wade_speed is None else settings.wade_speed
+    factor[road] = 1.0  # a road over water is a bridge
+    fixed[road] = np.nan if settings.road_speed is None else settings.road_speed
+    return factor, fixed
+
+
+def isochrone_bands(minutes: np.ndarray, isochrones) -> np.ndarray:
+    """uint8 band of each cell: 1 within the first isochrone, 2 within the second, ..., len + 1 beyond the last,
+    255 where no path reaches."""
+    edges = np.asarray(sorted(isochrones), dtype=np.float64)
+    band = (np.searchsorted(edges, minutes, side="left") + 1).astype(np.uint8)
+    band[~np.isfinite(minutes)] = BAND_NODATA
+    return band
+
+
+def band_categories(isochrones) -> dict:
+    """{code: (name, colour)} of the isochrone bands (the raster's colour table and category names)."""
+    edges = [0.0, *sorted(isochrones)]
+    cats = {}
+    for i in range(1, len(edges)):
+        cats[i] = (f"{edges[i - 1]:g}-{edges[i]:g} min", _RAMP[min(i - 1, len(_RAMP) - 2)])
+    cats[len(edges)] = (f"over {edges[-1]:g} min", _RAMP[-1])
+    return cats
+
+
+def isochrone_polygons(minutes, grid, isochrones, xy_metres: float):
+    """A GeoDataFrame: per isochrone the cells reached within it (dissolved), with ``minutes``, ``area`` (CRS units
+    squared), ``hectares`` and ``acres``."""
+    import geopandas as gpd
+    import shapely
+    from rasterio.features import shapes
+
+    rows = []
+    for t in sorted(isochrones):
+        inside = np.isfinite(minutes) & (minutes <= t)
+        polys = [shapely.geometry.shape(g) for g, v in shapes(inside.astype(np.uint8), mask=inside,
+                                                              transform=grid.transform) if v == 1]
+        geom = shapely.union_all(polys) if polys else shapely.MultiPolygon()
+        if geom.geom_type == "Polygon":
+            geom = shapely.MultiPolygon([geom])
+        area = float(geom.area)
+        m2 = area * xy_metres ** 2
+        rows.append({"minutes": float(t), "area": area, "hectares": m2 / HECTARE_M2, "acres": m2 / ACRE_M2,
+                     "geometry": geom})
+    return gpd.GeoDataFrame(rows, geometry="geometry", crs=grid.crs.to_wkt())
+
+
+def raster_style_qml(isochrones, maximum: float) -> str:
+    """A QGIS style (QML) of the minutes raster: a pseudocolour ramp with a class break at each isochrone."""
+    from ..io.styles import MARK, rgba
+
+    edges = sorted(isochrones)
+    items = []
+    for i, t in enumerate(edges):
+        r, g, b, _ = rgba(_RAMP[min(i, len(_RAMP) - 2)])
+        items.append(f'          <item alpha="255" value="{t:g}" label="&lt;= {t:g} min" color="#{r:02x}{g:02x}{b:02x}"/>')
+    r, g, b, _ = rgba(_RAMP[-1])
+    top = max(maximum, edges[-1])
+    items.append(f'          <item alpha="255" value="inf" label="&gt; {edges[-1]:g} min" color="#{r:02x}{g:02x}{b:02x}"/>')
+    return ("<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n" + MARK + "\n"
+            '<qgis version="3.22.0" styleCategories="Symbology">\n  <pipe>\n'
+            f'    <rasterrenderer type="singlebandpseudocolor" band="1" opacity="1" classificationMin="0" '
+            f'classificationMax="{top:g}">\n      <rastershader>\n'
+            '        <colorrampshader colorRampType="DISCRETE" classificationMode="1" clip="0">\n'
+            + "\n".join(items) + "\n        </colorrampshader>\n      </rastershader>\n    </rasterrenderer>\n"
+            "  </pipe>\n</qgis>\n")
+
+
+def _write_style(path: Path, text: str) -> None:
+    from ..io.atomic import atomic_path
+    from ..io.styles import MARK
+
+    if path.exists() and MARK not in path.read_text(errors="replace")[:4096]:
+        return  # the user's own style
+    with atomic_path(path, overwrite=True) as tmp:
+        tmp.write_text(text)
+
+
+def _start_cells(points, grid) -> list[tuple[int, int]]:
+    """(row, column) of each point; a point outside the DEM is refused."""
+    from ..parameters import option
+
+    inv = ~grid.transform
+    cells = []
+    for x, y, where in points:
+        col, row = inv * (x, y)
+        r, c = int(math.floor(row)), int(math.floor(col))
+        if not (0 <= r < grid.height and 0 <= c < grid.width):
+            w, s, e, n = grid.bounds
+            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is outside the DEM "
+                             f"({w:.3f},{s:.3f} - {e:.3f},{n:.3f})", hint=f"Give {option('last_seen')} in the DEM's CRS")
+        cells.append((r, c))
+    return cells
+
+
+def _check_starts(points, cells, passable, water) -> None:
+    """Refuse a point last seen on a cell the walker cannot be on."""
+    from ..parameters import option
+
+    for (x, y, where), (r, c) in zip(points, cells):
+        if not passable[r, c]:
+            why = "water (impassable)" if water[r, c] else "no DEM there"
+            raise InputError(f"the point last seen {x:.3f},{y:.3f} ({where}) is on a cell the walker cannot be: {why}",
+                             hint=f"Move it onto land, or let the walker wade: {option('wade_speed', 1.0)}"
+                             if water[r, c] else "Move it onto the DEM's data")
+
+
+def _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths) -> tuple[np.ndarray, np.ndarray]:
+    """Cells of the road and water polygons of the breaklines, made as the shrub chain makes them (whole DEM)."""
+    from shapely.geometry import box
+
+    from ..parameters import option
+    from ..vector.breaklines import road_polygons, water_polygons
+
+    frame = box(*grid.bounds)
+    reproject = settings.reproject_vectors
+    road = np.zeros(grid.shape, dtype=bool)
+    if roads:
+        road = _burn([road_polygons(_lines_of(roads, grid.crs, option("roads"), reproject, ("line",)), frame,
+                                    snap=lengths["snap"], max_width=lengths["max_road_width"])], grid)
+    water = np.zeros(grid.shape, dtype=bool)
+    if hydro or waterbodies:
+        lines = _lines_of(hydro, grid.crs, option("hydro"), reproject, ("line",))
+        bodies = _lines_of(waterbodies, grid.crs, option("waterbodies"), reproject, ("polygon",))
+        water = _burn([water_polygons(lines, bodies, frame, snap=lengths["snap"], max_width=lengths["max_hydro_width"],
+                                      single_line_width=lengths["single_line_width"])], grid)
+    return road, water
+
+
+def _write_outputs(out: Path, minutes, grid, settings, points, xy, top: float):
+    """The minutes raster and its style, the isochrone bands, the GeoPackage; returns the isochrones' GeoDataFrame."""
+    import geopandas as gpd
+    import shapely
+
+    from ..io.raster import write_raster
+    from ..io.vector import write_layers
+
+    reached = np.isfinite(minutes)
+    write_raster(out / "travel_minutes.tif", np.where(reached, minutes, np.nan), grid, overwrite=True,
+                 tags={"GISTOOLS_PRODUCT": "travel_minutes"}, description="travel time (minutes)", units="min")
+    _write_style(out / "travel_minutes.qml", raster_style_qml(settings.isochrones, top))
+    write_raster(out / "isochrone_bands.tif", isochrone_bands(minutes, settings.isochrones), grid, nodata=BAND_NODATA,
+                 dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "isochrone_bands"},
+                 description="isochrone band", categories=band_categories(settings.isochrones))
+    iso = isochrone_polygons(minutes, grid, settings.isochrones, xy.metres)
+    seen = gpd.GeoDataFrame({"source": [w for *_xy, w in points], "x": [p[0] for p in points],
+                             "y": [p[1] for p in points]},
+                            geometry=[shapely.Point(p[0], p[1]) for p in points], crs=grid.crs.to_wkt())
+    write_layers({"isochrones": iso, "last_seen": seen}, out / "travel.gpkg", overwrite=True)
+    return iso
+
+
+def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None, *, classes=None, roads=None,
+                    hydro=None, waterbodies=None, overwrite: bool = False, progress=None) -> dict:
+    """Minutes for a walker to reach every cell of ``dem`` from the nearest point last seen.
+
+    Parameters
+    ----------
+    dem : a DEM raster or VRT, or an output folder of ``gistools rasters`` / ``gistools shrub`` (its ``dem.vrt``,
+        and its ``classes.vrt`` for shrub, roads and water).
+    out : the output folder.
+    last_seen : "X,Y" (the DEM's CRS), an (x, y) pair, a point layer (``file.gpkg:LAYER``), or a list of them.
+    settings : :class:`TravelSettings` (speeds in km/h, isochrones in minutes).
+    classes : a shrub classes raster (0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water); default: the folder's.
+    roads, hydro, waterbodies : breakline layers (``file.gpkg:LAYER``) made into road and water polygons as the
+        shrub chain makes them (added to the classes' roads and water).
+
+    Returns
+    -------
+    The report (also ``out/report.json``): ``isochrones`` (minutes, area in CRS units squared, hectares, acres),
+    ``last_seen``, ``reached_share``, ``max_minutes``, the units and the speed model. Files: ``travel_minutes.tif``
+    (float32 minutes, nodata -9999, with ``travel_minutes.qml``), ``isochrone_bands.tif`` (uint8 bands with a
+    colour table), ``travel.gpkg`` (layers ``isochrones`` and ``last_seen``).
+
+    Examples
+    --------
+    >>> rep = travel_from_dem("out", "out/travel", "431000,1811000")  # doctest: +SKIP
+    >>> [round(i["hectares"], 1) for i in rep["isochrones"]]  # doctest: +SKIP
+    """
+    from ..engine.record import write_folder_report
+    from ..errors import OutputExistsError
+    from ..io.outdir import claim_output, output_folder
+    from ..parameters import in_data_units, option
+    from ..progress import report, sub_progress
+    from ..units import length_to_crs_units
+
+    started = time.time()
+    settings = settings or TravelSettings()
+    settings.validate()
+    out = output_folder(out)
+    dem_path, classes_path = _dem_inputs(dem, classes)
+    report(progress, 0.0, "reading the DEM")
+    heights, grid, xy, z = _read_dem(dem_path)
+    settings = in_data_units(settings, xy.is_foot)
+    lengths = {name: length_to_crs_units(getattr(settings, name), xy, name=name)
+               for name in ("snap", "max_road_width", "max_hydro_width", "single_line_width")}
+    points = _last_seen_points(last_seen, grid.crs, settings.reproject_vectors)
+    cells = _start_cells(points, grid)
+    class_codes = _classes_on(classes_path, grid) if classes_path is not None else None
+    road, water = _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths)
+    factor, fixed = speed_model(class_codes, road, water, settings)
+    if class_codes is not None:
+        road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
+    road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
+    _check_starts(points, cells, (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed), water & ~road)
+    neighbours = int(settings.neighbours)
+    need = check_memory(grid.shape, neighbours, settings.max_memory * 1e9)
+    written = [out / name for name in OUTPUTS if (out / name).exists()]
+    if written and not overwrite:
+        raise OutputExistsError(f"{written[0].name} is there from an earlier run", path=out,
+                                hint=f"Give another folder, or replace it: {option('overwrite')}")
+    with claim_output(out, "gistools travel"):
+        report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours)")
+        solve = time.time()
+        minutes = travel_minutes(heights, grid.cell_size, cells, factor=factor, fixed_speed=fixed, xy_metres=xy.metres,
+                                 z_metres=z.metres, neighbours=neighbours, isotropic=settings.isotropic,
+                                 tobler=tuple(settings.tobler), max_memory=settings.max_memory * 1e9,
+                                 progress=sub_progress(progress, 0.1, 0.8))
+        solve = time.time() - solve
+        report(progress, 0.8, "writing the rasters and isochrones")
+        reached = np.isfinite(minutes)
+        top = float(minutes[reached].max()) if reached.any() else 0.0
+        iso = _write_outputs(out, minutes, grid, settings, points, xy, top)
+        rep = {
+            "tool": "gistools travel", "crs_wkt": grid.crs.to_wkt(), "dem": str(dem_path),
+            "classes": str(classes_path) if classes_path else None, "unit": xy.short, "vertical_unit": z.short,
+            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height),
+            "graph_bytes_estimate": need,
+            "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
+            "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in points],
+            "reached_share": float(reached.mean()), "max_minutes": top,
+            "isochrones": [{k: row[k] for k in ("minutes", "area", "hectares", "acres")} for _, row in iso.iterrows()],
+            "speed_model": {"tobler": list(settings.tobler), "shrub_factors": dict(zip(("light", "medium", "heavy"),
+                            settings.shrub_factors)), "road_speed": settings.road_speed, "wade_speed": settings.wade_speed,
+                            "isotropic": settings.isotropic, "road_cells": road_cells, "water_cells": water_cells},
+            "outputs": {"minutes": "travel_minutes.tif", "bands": "isochrone_bands.tif", "polygons": "travel.gpkg"},
+            "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.__dict__.items()},
+            "solve_seconds": round(solve, 3), "seconds": round(time.time() - started, 3),
+        }
+        rep = write_folder_report(out, rep)
+    report(progress, 1.0, "done")
+    return rep

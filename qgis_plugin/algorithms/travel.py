@@ -1,0 +1,77 @@
+"""Travel time of a walker from the points last seen (gistools travel): search and rescue."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from qgis.core import (
+    QgsProcessingException,
+    QgsProcessingOutputFile,
+    QgsProcessingOutputNumber,
+    QgsProcessingOutputRasterLayer,
+    QgsProcessingOutputVectorLayer,
+    QgsProcessingParameterFolderDestination,
+    QgsProcessingParameterVectorLayer,
+)
+
+from .base import GROUP_SAR, GistoolsAlgorithm
+from ..compat import VECTOR_POINT
+
+NO_POINT = "No point last seen: give 'Points last seen' (X,Y in the DEM's CRS) or a 'Point layer of the points last seen'"
+
+
+class TravelAlgorithm(GistoolsAlgorithm):
+    _name, _display, _group = "travel", "Travel time from last seen", GROUP_SAR
+    _tags = ("isochrone", "tobler", "walking", "cost distance", "lost person")
+    _help = ("Minutes for a walker to reach every cell of a DEM from the nearest point last seen: Tobler's hiking "
+             "function on the slope along each step (uphill and downhill differ), times a factor per shrub class of "
+             "the shrub chain, roads clear, water impassable (or waded); isochrone polygons with their areas and "
+             "isochrone bands (gistools travel).")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add_spec("dem", "last_seen")
+        self.add(QgsProcessingParameterVectorLayer("LAST_SEEN_LAYER", "Point layer of the points last seen",
+                                                   [VECTOR_POINT], optional=True))
+        self.add_spec("shrub_classes", "roads", "hydro", "waterbodies", "road_speed", "wade_speed", "isochrones",
+                      "tobler", "shrub_factors", "neighbours", "isotropic", "max_memory", "snap", "max_road_width",
+                      "max_hydro_width", "single_line_width", "reproject_vectors")
+        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
+        self.addOutput(QgsProcessingOutputRasterLayer("MINUTES", "Travel time (minutes)"))
+        self.addOutput(QgsProcessingOutputRasterLayer("BANDS", "Isochrone bands"))
+        self.addOutput(QgsProcessingOutputVectorLayer("ISOCHRONES", "Isochrones"))
+        self.addOutput(QgsProcessingOutputNumber("MAX_MINUTES", "Farthest cell reached (minutes)"))
+        self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
+
+    def checkParameterValues(self, parameters, context):  # noqa: N802
+        if not parameters.get("LAST_SEEN") and not parameters.get("LAST_SEEN_LAYER"):
+            return False, NO_POINT
+        return super().checkParameterValues(parameters, context)
+
+    def run_gistools(self, parameters, context, feedback):
+        from gistools.products.travel import TravelSettings, travel_from_dem
+
+        out = Path(self.output_folder(parameters, context))
+        values = self.spec_values(parameters, context, feedback)
+        seen = [values.pop("last_seen")] if values.get("last_seen") else []
+        values.pop("last_seen", None)
+        if parameters.get("LAST_SEEN_LAYER"):
+            seen.append(self.layer_spec(parameters, "LAST_SEEN_LAYER", context, feedback))
+        if not seen:
+            raise QgsProcessingException(NO_POINT)
+        dem = self.raster_path(parameters, "DEM", context)
+        classes = self.raster_path(parameters, "CLASSES", context)
+        layers = {name: self.layer_spec(parameters, name.upper(), context, feedback)
+                  for name in ("roads", "hydro", "waterbodies")}
+        for name in ("dem", "shrub_classes", *layers):
+            values.pop(name, None)
+        for name in ("road_speed", "wade_speed"):  # empty in the dialog: the default (Tobler's; impassable)
+            if parameters.get(name.upper()) in (None, ""):
+                values[name] = None
+        rep = travel_from_dem(dem, out, seen, TravelSettings(**values), classes=classes, overwrite=True,
+                              progress=self.progress(feedback), **layers)
+        for iso in rep["isochrones"]:
+            feedback.pushInfo(f"within {iso['minutes']:g} min: {iso['hectares']:,.2f} ha ({iso['acres']:,.2f} acres)")
+        self.load_on_completion(context, out / "travel_minutes.tif", "Travel time (minutes)", "MINUTES")
+        return {"OUTPUT_FOLDER": str(out), "MINUTES": str(out / "travel_minutes.tif"),
+                "BANDS": str(out / "isochrone_bands.tif"), "ISOCHRONES": f"{out / 'travel.gpkg'}|layername=isochrones",
+                "MAX_MINUTES": rep["max_minutes"], "REPORT": str(out / "report.json")}
