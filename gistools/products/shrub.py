@@ -315,21 +315,30 @@ STEP_FILES = ("report.json", "shrub_classes.gpkg", "shrub_classes.qml", "shrub_m
               "wetveg.vrt", "density.vrt", "cover.vrt", "classes.vrt")
 
 
-def _points_in(inputs) -> int | None:
-    """The points of the tiles of ``inputs``, from their headers (for jobs="auto"); None where a header does not read
-    (the run reports that tile)."""
+def _chain_pool(jobs, scheduler, inputs, summary):
+    """The chain's one worker pool (or None: inline): from the tiles' points for the whole chain (``summary`` None),
+    from the earlier run's tiles for a step rerun."""
+    if summary is None:
+        return make_pool(jobs, scheduler, *_tiles_and_points(inputs, count_points=jobs == "auto"))
+    return make_pool(jobs, scheduler, sum(t["status"] in ("ok", "skipped") for t in summary["tiles"]))
+
+
+def _tiles_and_points(inputs, count_points: bool) -> tuple[int, None, int | None]:
+    """(the tiles of ``inputs``, None, their points from the headers: for jobs="auto"; None where not counted or a
+    header does not read, which the run reports)."""
     import laspy
 
     from ..io.tiles import find_tiles
 
-    total = 0
-    for path in find_tiles(inputs):
+    paths = find_tiles(inputs)
+    total = 0 if count_points else None
+    for path in paths if count_points else ():
         try:
             with laspy.open(path) as reader:
                 total += int(reader.header.point_count)
         except Exception:  # noqa: BLE001 - a bad tile is the run's to report, not the estimate's
-            return None
-    return total
+            return len(paths), None, None
+    return len(paths), None, total
 
 
 def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, waterbodies, wetlands, tile_index,
@@ -343,11 +352,9 @@ def _shrub_in(inputs, out: Path, settings: ShrubSettings, *, roads, hydro, water
         # the vector layers are read and checked against the first readable tile's CRS before the long raster
         # stage, so a CRS mismatch or a missing field is reported in seconds, not after the county's rasters
         early = _early_vectors(inputs, rs.crs, layers, settings, reproject_vectors)
-        n_tasks, points = 2, (_points_in(inputs) if jobs == "auto" else None)
     else:
         summary = _previous_run(out)
-        n_tasks, points = sum(t["status"] in ("ok", "skipped") for t in summary["tiles"]), None
-    pool = make_pool(jobs, scheduler, n_tasks, points=points)  # one pool for the rasters and the steps: workers start once
+    pool = _chain_pool(jobs, scheduler, inputs, summary)  # one pool for the rasters and the steps: workers start once
     try:
         if summary is None:
             water = _water_for_ground(inputs, rs, early, settings) if rs.classify_ground else None
