@@ -871,6 +871,8 @@ def test_every_parameter_comes_from_its_one_declaration(qgis, name):
                 assert ",".join(str(order[i]) for i in d.defaultValue()) == str(o.default), qname
             elif (p.kind == "choice" or p.choices) and d.defaultValue() is not None:
                 assert order[d.defaultValue()] == o.default, qname
+            elif p.words and d.defaultValue() is not None:  # a number that also takes a word: the dialog's 0 is it
+                assert (p.words[0] if d.defaultValue() == 0 else str(d.defaultValue())) == str(o.default), qname
             elif p.kind in ("length", "text", "int") and not p.choices and not o.required and not isinstance(p.default, ByUnits) and d.defaultValue() is not None:
                 assert str(d.defaultValue()) == str(o.default), qname
 
