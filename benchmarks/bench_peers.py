@@ -17,6 +17,7 @@ Products (lasR's equivalent in brackets):
   ``pit_fill()``: a different, lighter method];
 * ground: gistools' default ground filter, LAS out [``classify_with_csf()`` + ``write_las()``].
 
+The tiles are read from copies in ``--workdir`` (lasR writes a ``.lax`` index beside the files it reads).
 Cases: the sample tiles (4 LAS tiles, US survey feet, 5 ft cells), ``../shared/data``'s autzen tile alone and as a
 2 x 2 block of copies side by side, and the synthetic Levy-density block (4 tiles of 5,000 ft, 6.8 M points) and a
 16-tile block of its copies (27 M points), generated once into ``--workdir``.
@@ -127,8 +128,13 @@ def shifted_copies(sources: list[Path], into: Path, nx: int, ny: int) -> Path:
 def cases(work: Path, wanted: list[str]) -> dict:
     """{case: (folder of tiles, cell size text, cell size in CRS units)}."""
     found = {}
-    if "sample" in wanted:
-        found["sample (4 tiles, 0.3 M points)"] = (ROOT / "sample_tiles", "5ft", 5.0)
+    if "sample" in wanted:  # copies: lasR writes a .lax index beside the files it reads
+        sample = work / "sample"
+        sample.mkdir(parents=True, exist_ok=True)
+        for tile in tiles_of(ROOT / "sample_tiles"):
+            if not (sample / tile.name).exists():
+                shutil.copy(tile, sample / tile.name)
+        found["sample (4 tiles, 0.3 M points)"] = (sample, "5ft", 5.0)
     autzen = SHARED / "autzen" / "autzen_trim.las"
     if autzen.exists() and "autzen" in wanted:
         one = work / "autzen1"
