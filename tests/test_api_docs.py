@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import functools
 import inspect
 import subprocess
 import sys
@@ -17,14 +18,19 @@ griffe = pytest.importorskip("griffe", reason="griffe comes with mkdocstrings[py
 FUNCTIONS = sorted(name for name in gistools.__all__ if inspect.isfunction(getattr(gistools, name)))
 
 
+@functools.lru_cache(maxsize=None)
+def _package():
+    """The package as griffe reads it from the source (not imported)."""
+    return griffe.load("gistools", search_paths=[str(ROOT)], resolve_aliases=False)
+
+
 def _sections(name: str, caplog) -> dict:
     """{section kind: section} of the function's docstring as griffe parses it (numpy style); griffe's warnings
     (a documented parameter not in the signature, one without a type, a malformed section) fail."""
     import logging
 
     function = getattr(gistools, name)
-    module = griffe.load(function.__module__, search_paths=[str(ROOT)], resolve_aliases=False)
-    obj = module[function.__name__]
+    obj = _package()[f"{function.__module__.removeprefix('gistools.')}.{function.__name__}"]
     assert obj.docstring, f"{name}: no docstring"
     with caplog.at_level(logging.WARNING):
         parsed = griffe.parse_numpy(obj.docstring, warn_unknown_params=True, warn_missing_types=True)
@@ -69,3 +75,33 @@ def api_page(tmp_path_factory):
 def test_the_api_page_has_each_function(api_page, name):
     function = getattr(gistools, name)
     assert f'id="{function.__module__}.{function.__name__}"' in api_page, name
+
+
+@pytest.fixture(scope="module")
+def example_folder(tmp_path_factory):
+    """A folder as ``gistools.write_examples`` makes it (with the checkout's sample_tiles/), made once."""
+    folder = tmp_path_factory.mktemp("examples") / "made"
+    gistools.write_examples(folder, sample_tiles=ROOT / "sample_tiles")
+    return folder
+
+
+@pytest.mark.parametrize("name", FUNCTIONS)
+def test_the_examples_run_as_printed(name, example_folder, tmp_path, monkeypatch):
+    """Each function's Examples, run in a fresh copy of the examples folder, print what the docstring shows. Those
+    that write files carry ``doctest: +SKIP`` (pytest's --doctest-modules runs in the checkout); here the flag is
+    lifted."""
+    import doctest
+    import importlib
+    import shutil
+
+    function = getattr(gistools, name)
+    text = inspect.getdoc(function).replace("# doctest: +SKIP", "")
+    module = importlib.import_module(function.__module__)
+    test = doctest.DocTestParser().get_doctest(text, dict(vars(module)), name, module.__file__, 0)
+    assert test.examples, name
+    shutil.copytree(example_folder, tmp_path / "run")
+    monkeypatch.chdir(tmp_path / "run")
+    runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
+    out = []
+    result = runner.run(test, out=out.append)
+    assert result.failed == 0, "".join(out)
