@@ -384,9 +384,8 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     Raises
     ------
     InputError
-        An option or the contacts are not valid (a missing layer, a column not found, ...).
-    MissingCRSError
-        The contacts carry no CRS and ``crs`` is not given.
+        An option or the contacts are not valid (a missing layer, a column not found, ...), or they carry no CRS
+        and ``crs`` is not given.
     OutputExistsError
         ``out`` holds a model and ``overwrite`` is False.
 
