@@ -233,7 +233,7 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
         Remake tiles whose output exists.
     progress : callable, optional
         ``progress(fraction, message)``; returning False cancels the run.
-    water : optional
+    water : list of shapely geometries, optional
         Water polygons (shapely geometries, in CRS units) whose points of classes 0, 1, 2, 7, 18 become water (9)
         before the filters.
 

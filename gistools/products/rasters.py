@@ -571,9 +571,9 @@ def rasters_from_tiles(
     scheduler : str, optional
         A dask.distributed scheduler address (``"tcp://host:8786"``), or ``"local"`` for a local cluster of ``jobs``
         workers, to run the tiles on instead; the workers must see the tiles and ``out`` at the same paths.
-    pool : optional
+    pool : gistools.engine.batch.ProcessPool, optional
         A worker pool to use instead of starting one (``gistools.engine.batch.make_pool``; the caller closes it).
-    water : optional
+    water : list of shapely geometries, optional
         With ``settings.classify_ground``: water polygons (shapely geometries, in CRS units) whose points become water
         (class 9) before the ground filter.
 
@@ -586,11 +586,12 @@ def rasters_from_tiles(
     Raises
     ------
     InputError
-        An option is not valid, or ``inputs`` holds no tile.
+        An option is not valid, ``inputs`` holds no tile, or ``out`` holds tiles made with other settings (without
+        ``overwrite``).
     CRSMismatchError
         The tiles are not all in one CRS.
     OutputExistsError
-        ``out`` holds another command's outputs, or tiles made with other settings (without ``overwrite``).
+        ``out`` holds another command's outputs.
     TilesFailed
         Every tile failed.
     Cancelled
