@@ -71,6 +71,20 @@ def api_page(tmp_path_factory):
     return (site / "api" / "index.html").read_text()
 
 
+def test_the_api_page_speaks_to_users(api_page):
+    """The docstrings reach the site: the page holds no development history (tests/test_docs.py's words) and no
+    doctest flag."""
+    import html
+    import re
+
+    from test_docs import HISTORY
+
+    text = html.unescape(re.sub(r"<[^>]+>", " ", api_page))
+    found = [m.group(0) for pattern in HISTORY for m in re.finditer(pattern, text, re.I)]
+    assert not found, found
+    assert "doctest:" not in text
+
+
 @pytest.mark.parametrize("name", FUNCTIONS)
 def test_the_api_page_has_each_function(api_page, name):
     function = getattr(gistools, name)
