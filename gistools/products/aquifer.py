@@ -378,8 +378,9 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     Returns
     -------
     dict
-        The run's report, also written to ``out/report.json``: ``layers`` (points, flagged, triangles per layer),
-        the units' volumes and thickness, ``outputs``, ``length_unit``, ``volume_unit``.
+        The run's report, also written to ``out/report.json``: ``layers`` (points, flagged, triangles of each
+        layer), ``units`` (each unit's volume, area and thickness, in ``volume_unit`` and ``length_unit``),
+        ``outputs``.
 
     Raises
     ------

@@ -314,8 +314,9 @@ def shrub_from_tiles(
     Returns
     -------
     dict
-        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), each step's
-        figures (band and class areas in CRS area units), ``tiles``.
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``band_area`` and
+        ``class_area`` (in ``area_unit``, the CRS unit squared), ``class_area_acres``, ``band_thresholds``,
+        ``mosaics``, ``tiles``, ...
 
     Raises
     ------
