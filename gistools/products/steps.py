@@ -116,7 +116,7 @@ def ndsm_from_rasters(dsm, dem, out, *, overwrite: bool = True, block: int = BLO
 def bands_from_ndsm(ndsm, out, *, top_class=None, preset: str = DEFAULTS.bands, breaks_m=None, thresholds=None,
                     noise_floor: str | float = DEFAULTS.noise_floor, z_unit: str | None = None, points_out=None, overwrite: bool = True,
                     block: int = BLOCK, progress: ProgressCallback | None = None) -> dict:
-    """Height bands of an nDSM raster: B0 (at most the noise floor), B1, B2, B3, 4 above B3, 255 nodata.
+    """Height bands of an nDSM raster: 0 (B0, up to the noise floor), 1-3 (B1-B3), 4 (above T3), 255 nodata.
 
     Thresholds in metres (``preset``, or ``breaks_m``) are converted to the nDSM's vertical unit, read from the raster
     (or ``z_unit``); or ``thresholds`` gives T1, T2, T3 in that unit.
@@ -637,7 +637,8 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
     polygons_out : str or path, optional
         Also write the classes as polygons (a GeoPackage; one feature per class and block, with its area).
     method : str
-        ``"breaks"`` (``breaks`` on the cover fraction), ``"quantile"`` or ``"jenks"`` (from a sample of the cover).
+        ``"breaks"`` (``breaks`` on the cover fraction), ``"quantile"`` (equal areas) or ``"jenks"`` (Jenks natural
+        breaks), the latter two found in a sample of the cover.
     breaks : sequence of float
         Two cover fractions (0-1) between light / medium and medium / heavy, with ``"breaks"``.
     keep_polygons : bool
