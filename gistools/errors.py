@@ -102,7 +102,28 @@ class TilesFailed(GistoolsError):
 
 
 def raise_if_every_tile_failed(report: dict) -> dict:
-    """``report`` unchanged, or TilesFailed when it lists tiles and every one of them failed."""
+    """``report`` unchanged, unless it lists tiles and every one of them failed.
+
+    Parameters
+    ----------
+    report : dict
+        A run's report (as in its ``report.json``), with its ``"tiles"`` list.
+
+    Returns
+    -------
+    dict
+        ``report`` itself.
+
+    Raises
+    ------
+    TilesFailed
+        Every tile listed failed; its ``report`` attribute holds the report.
+
+    Examples
+    --------
+    >>> raise_if_every_tile_failed({"tiles": [{"name": "a", "status": "ok"}, {"name": "b", "status": "failed"}]})["tiles"][0]
+    {'name': 'a', 'status': 'ok'}
+    """
     tiles = report.get("tiles", [])
     if tiles and all(t.get("status") == "failed" for t in tiles):
         raise TilesFailed(report)

@@ -103,8 +103,31 @@ def _structures(out: Path) -> None:
 
 
 def write_examples(out, *, sample_tiles=None) -> dict:
-    """Every README example input into ``out`` (see the module); ``sample_tiles``: a folder to copy as
-    ``sample_tiles/`` instead of generating it (a checkout's). Returns {name: path} of what is there."""
+    """Example inputs for every command into ``out``: ``gistools examples``.
+
+    Writes ``sample_tiles/`` (four LAS / LAZ tiles in EPSG:2882, US survey feet, with ``breaklines.gpkg``), ``tiles/``
+    (the same tiles as LAZ), the aquifer contacts (``contacts.csv``, ``LSInput.txt`` ...), ``area.gpkg``, a runway
+    survey (``survey.csv``) and building clouds (``cctv.txt``, ``scan.txt``). Existing files are kept, never
+    overwritten.
+
+    Parameters
+    ----------
+    out : str or path
+        The folder, made when missing.
+    sample_tiles : str or path, optional
+        A folder to copy as ``sample_tiles/`` instead of generating it.
+
+    Returns
+    -------
+    dict
+        ``{name: path}`` of what ``out`` holds.
+
+    Examples
+    --------
+    >>> from gistools import write_examples
+    >>> sorted(write_examples("."))[:4]  # doctest: +SKIP
+    ['ADInput.txt', 'AQInput.txt', 'AUInput.txt', 'LSInput.txt']
+    """
     import shutil
 
     out = Path(out)

@@ -86,8 +86,45 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tupl
 
 def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
              max_pages: int = MAX_PAGES) -> dict:
-    """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
-    per sheet of a grid at 1:``scale``; returns {"pdf", "pages", "scales"}."""
+    """A PDF map book of a shrub chain's classes, what a field team prints: ``gistools mapbook``.
+
+    Writes ``out/map_book.pdf``: a page per tile of ``tile_index`` (each fitted to its page), or per sheet of a grid at
+    1:``scale``.
+
+    Parameters
+    ----------
+    out : str or path
+        The folder of a shrub chain run.
+    tile_index : str, optional
+        Tile footprints, a path or ``file.gpkg:LAYER``; None: a grid of sheets.
+    tile_field : str
+        The tile index's field holding the tile number, printed on each page.
+    scale : float
+        The n of 1:n, for the grid of sheets.
+    paper : str
+        The paper (landscape), e.g. ``"letter"``.
+    max_pages : int
+        Refuse a map book of more pages than this.
+
+    Returns
+    -------
+    dict
+        ``pdf`` (the path, as text), ``pages``, ``labels`` and ``scales`` (the n of 1:n of each page).
+
+    Raises
+    ------
+    InputError
+        An option is not valid, ``out`` is not a folder, or the book would have more than ``max_pages`` pages.
+    OutputExistsError
+        A file gistools did not write is in the way.
+
+    Examples
+    --------
+    >>> from gistools import map_book, shrub_from_tiles
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> map_book("shrub", tile_index="sample_tiles/breaklines.gpkg:FOOTPRINT")["pages"]  # doctest: +SKIP
+    4
+    """
     import time
 
     started = time.time()

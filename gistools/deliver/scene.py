@@ -63,8 +63,41 @@ def _surface(out: Path, surface: str):
 
 
 def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: str = "dsm") -> dict:
-    """Write ``out/scene.glb`` (+ ``scene.prj``, ``scene.wld``) from the chain's mosaics in ``out``; returns
-    {"glb", "bytes", "vertices", "faces", "step", "height_range_m"}."""
+    """A 3D scene (glTF binary) of a shrub chain's surface and classes: ``gistools scene``.
+
+    Writes ``out/scene.glb`` with ``scene.prj`` and ``scene.wld`` (its CRS and placement).
+
+    Parameters
+    ----------
+    out : str or path
+        The folder of a shrub chain run.
+    exaggeration : float
+        Heights times this.
+    max_mb : float
+        The file stays under this many megabytes: the grid is decimated (every k-th cell) to fit.
+    surface : str
+        ``"dsm"`` (the DSM, the DEM where it has no value) or ``"dem"`` (the bare ground).
+
+    Returns
+    -------
+    dict
+        ``glb`` (the path, as text), ``bytes``, ``vertices``, ``faces``, ``step`` (cells per vertex) and
+        ``height_range_m``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or ``out`` is not a folder.
+    OutputExistsError
+        A file gistools did not write is in the way.
+
+    Examples
+    --------
+    >>> from gistools import scene_glb, shrub_from_tiles
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> scene_glb("shrub", exaggeration=2.0)["glb"]  # doctest: +SKIP
+    'shrub/scene.glb'
+    """
     import time
 
     started = time.time()

@@ -114,9 +114,42 @@ def _parts(features: list[dict], limit: int) -> list[list[dict]]:
 
 
 def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
-    """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
-    ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
-    (off by default: the page then makes no request to any network address)."""
+    """One HTML file of a shrub chain's outputs, for a tablet in the field: ``gistools webmap``.
+
+    Writes ``out/shrub_map.html`` (and parts by tile past ``split_mb``): the class polygons, the legend and the
+    parameters, working without a network.
+
+    Parameters
+    ----------
+    out : str or path
+        The folder of a shrub chain run.
+    basemap : str, optional
+        An XYZ tile URL drawn under the polygons, for users who are online. None: no basemap, and the page makes no
+        request to any network address.
+    basemap_attribution : str, optional
+        The basemap's attribution text.
+    split_mb : float
+        Above this many megabytes of polygons the map is split by tile into parts, with an index page.
+
+    Returns
+    -------
+    dict
+        ``html`` (the path, as text), ``bytes``, ``features`` and ``parts``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or ``out`` is not a folder.
+    OutputExistsError
+        A file gistools did not write is in the way.
+
+    Examples
+    --------
+    >>> from gistools import shrub_from_tiles, web_map
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> web_map("shrub")["html"]  # doctest: +SKIP
+    'shrub/shrub_map.html'
+    """
     import time
 
     started = time.time()

@@ -55,9 +55,32 @@ def cell_statistic(grid: Grid, x, y, z, statistic: str = "max") -> np.ndarray:
 
 
 def dsm_from_points(x, y, z, grid: Grid) -> np.ndarray:
-    """DSM: maximum z per cell (give first returns of the chosen classes). NaN where empty.
+    """DSM: the highest z of the points in each cell; NaN where a cell holds none.
 
-    The same accumulation (lidar.accumulate) as a streamed tile's, on all the points at once."""
+    Give the first returns of the classes the surface shows. The same accumulation as a streamed tile's, on all the
+    points at once.
+
+    Parameters
+    ----------
+    x, y : array_like
+        Point coordinates, in CRS units.
+    z : array_like
+        Point heights, in the vertical unit (returned unchanged).
+    grid : Grid
+        The grid (see `gistools.snapped_grid`).
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 DSM of ``grid.shape``, NaN = no point.
+
+    Examples
+    --------
+    >>> from gistools import snapped_grid
+    >>> g = snapped_grid((0.0, 0.0, 9.0, 9.0), 5.0)
+    >>> dsm_from_points([1.0, 2.0, 7.0], [8.0, 9.0, 2.0], [10.0, 12.5, 3.0], g).tolist()
+    [[12.5, nan], [nan, 3.0]]
+    """
     flat = cell_index(grid, x, y)
     inside = flat >= 0
     dsm = np.full(grid.width * grid.height, -np.inf)
@@ -154,19 +177,48 @@ def dem_from_ground_points(
     water: np.ndarray | None = None,
     engine: str | None = None,
 ) -> np.ndarray:
-    """DEM of ground points on ``grid`` (float64, NaN = nodata).
+    """DEM of ground points on ``grid``; NaN = nodata.
 
-    method: ``tin`` (Delaunay, linear, evaluated at cell centres: the default, fills
-    cells without ground points under vegetation), ``max`` (the dissertation's
-    Point To Raster MAXIMUM, gaps stay NaN), ``min``, ``mean``, ``idw`` (8 nearest
-    within ``max_distance``, power 2). ``max_distance`` (CRS units): cells whose
-    centre is farther from every ground point stay NaN (tin, idw). ``water``: a
-    boolean grid of water cells, which stay NaN. ``max_edge`` (CRS units, tin):
-    triangles with a longer edge are left out (default: 2 x ``max_distance``).
-    ``engine``: the TIN engine (lidar.tin; None = the default).
+    Give ground points from a buffer around the grid (neighbouring tiles) so that edge cells equal those of one
+    mosaic-wide computation.
 
-    Give ground points from a buffer around the grid (neighbouring tiles) so edge
-    cells equal those of one mosaic-wide computation.
+    Parameters
+    ----------
+    x, y : array_like
+        Ground point coordinates, in CRS units.
+    z : array_like
+        Ground heights, in the vertical unit (returned unchanged).
+    grid : Grid
+        The grid (see `gistools.snapped_grid`).
+    method : str
+        ``"tin"`` (Delaunay, linear, evaluated at cell centres; fills cells without ground points under vegetation),
+        ``"max"`` (highest point per cell, gaps stay NaN), ``"min"``, ``"mean"``, or ``"idw"`` (the 8 nearest within
+        ``max_distance``, power 2).
+    max_distance : float, optional
+        CRS units (tin, idw): cells whose centre is farther from every ground point stay NaN. None: no limit.
+    max_edge : float, optional
+        CRS units (tin): triangles with a longer edge are left out. None: 2 x ``max_distance``.
+    water : numpy.ndarray, optional
+        Boolean grid of ``grid.shape``; its True cells (water) stay NaN.
+    engine : str, optional
+        TIN engine: ``"kernel"``, ``"triangle"`` or ``"qhull"``; None: the fastest one installed.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 DEM of ``grid.shape``, in the vertical unit.
+
+    Raises
+    ------
+    InputError
+        ``method`` is not one of the above.
+
+    Examples
+    --------
+    >>> from gistools import snapped_grid
+    >>> g = snapped_grid((0.0, 0.0, 9.0, 9.0), 5.0)
+    >>> dem_from_ground_points([0.0, 10.0, 0.0, 10.0], [0.0, 0.0, 10.0, 10.0], [0.0, 10.0, 0.0, 10.0], g).tolist()
+    [[2.5, 7.5], [2.5, 7.5]]
     """
     if method not in DEM_METHODS:
         raise InputError(f"DEM method {method!r} is not one of {', '.join(DEM_METHODS)}", hint=f"Use {option('dem_method', 'tin')}")
@@ -314,10 +366,27 @@ def fill_voids(dem: np.ndarray, grid: Grid, x, y, z, *, method: str, keep: np.nd
 
 
 def ndsm_from(dsm: np.ndarray, dem: np.ndarray) -> np.ndarray:
-    """nDSM = DSM - DEM where both are valid, NaN elsewhere (heights above ground).
+    """nDSM = DSM - DEM where both are valid, NaN elsewhere: heights above ground.
 
-    Computed on the float32 values the DSM and DEM rasters store, so the nDSM of the
-    rasters (``gistools:ndsm``, a raster calculator) equals the one written with them.
+    Computed on the float32 values that the DSM and DEM rasters store, so it equals the nDSM of the rasters.
+
+    Parameters
+    ----------
+    dsm : numpy.ndarray
+        Surface heights, in the vertical unit.
+    dem : numpy.ndarray
+        Ground heights of the same shape, in the same unit.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 heights above ground, in the vertical unit.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ndsm_from(np.array([[12.5, np.nan]]), np.array([[10.0, 9.0]])).tolist()
+    [[2.5, nan]]
     """
     dsm32 = np.asarray(dsm, np.float32)
     dem32 = np.asarray(dem, np.float32)

@@ -254,13 +254,49 @@ def tin_to_grid(
 ) -> np.ndarray:
     """Linear TIN interpolation of (x, y, z) at the cell centres of ``grid``.
 
-    x, y in CRS units; z in any unit (returned unchanged). Cells outside the
-    convex hull of the points are NaN, and so are cells in triangles with an edge
-    longer than ``max_edge`` (CRS units; the hull's long bridges over concave data
-    edges and big gaps, as WhiteboxTools' and PDAL's ``max_triangle_edge_length``).
-    Repeated (x, y) are merged (mean z). ``engine``: see the module.
-    Returns a float64 array of ``grid.shape``; with ``out`` given, only cells the
-    TIN covers are written into it.
+    Cells outside the convex hull of the points are NaN, and so are cells in triangles with an edge longer than
+    ``max_edge`` (the hull's long bridges over concave data edges and big gaps). Repeated (x, y) are merged (mean z).
+
+    Parameters
+    ----------
+    x, y : numpy.ndarray
+        Point coordinates, in CRS units.
+    z : numpy.ndarray
+        Point values, in any unit (returned unchanged).
+    grid : Grid
+        The grid (see `gistools.snapped_grid`).
+    out : numpy.ndarray, optional
+        C-contiguous float64 array of ``grid.shape``: only the cells the TIN covers are written into it. None: a new
+        array of NaN.
+    max_edge : float, optional
+        Longest triangle edge kept, in CRS units. None: every triangle.
+    exact : numpy.ndarray, optional
+        uint8 array of ``grid.shape`` (kernel engine only): set to 1 at the cells whose value any larger point set
+        adding points only outside ``exact_box`` would give too.
+    exact_box : tuple of float, optional
+        (west, south, east, north) in CRS units, with ``exact``.
+    engine : str, optional
+        ``"kernel"`` (gistools' compiled Delaunay), ``"triangle"`` (Shewchuk's Triangle) or ``"qhull"`` (scipy's);
+        None: the kernel when built, else Triangle when installed, else Qhull.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 array of ``grid.shape`` (``out`` when given).
+
+    Raises
+    ------
+    ValueError
+        ``engine`` is unknown, or ``out`` is not a C-contiguous float64 array of the grid's shape.
+    RuntimeError
+        The engine asked for is not installed.
+
+    Examples
+    --------
+    >>> from gistools import snapped_grid
+    >>> g = snapped_grid((0.0, 0.0, 9.0, 9.0), 5.0)
+    >>> tin_to_grid([0.0, 10.0, 0.0, 10.0], [0.0, 0.0, 10.0, 10.0], [0.0, 0.0, 10.0, 10.0], g).tolist()
+    [[7.5, 7.5], [2.5, 2.5]]
     """
     if out is None:
         out = np.full(grid.shape, np.nan)

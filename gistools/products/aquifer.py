@@ -342,12 +342,60 @@ def _figures(model: Model, out: Path) -> list[Path]:
 def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, settings: AquiferSettings | None = None,
                   within=None, clip=None, overwrite: bool = False, progress: ProgressCallback | None = None,
                   fields: dict | None = None) -> dict:
-    """The whole aquifer model; writes under ``out`` and returns the report (also ``out/report.json``).
+    """The aquifer model from layer contacts: ``gistools aquifer model``.
 
-    ``source``: a contacts table (CSV / GeoPackage layer / shapefile) or per-layer files ``LAYER=path``.
-    ``layers``: names top to bottom. ``within``: a polygon layer; volumes and thickness statistics
-    inside it (default: each unit's common footprint). ``clip``: a polygon layer the surfaces are
-    cut to (the dissertation's concave / hole rule).
+    Cleans the contacts (duplicates, outliers), builds a TIN surface per layer and a closed mesh per unit between two
+    layers, and writes under ``out``: ``aquifer.gpkg``, the unit meshes, thickness rasters, figures and
+    ``report.json`` (volumes in the CRS unit cubed).
+
+    Parameters
+    ----------
+    source : str, path or list
+        A contacts table (CSV, GeoPackage layer ``file.gpkg:LAYER``, shapefile) with x, y, z and layer, or per-layer
+        files given as ``"LAYER=path"``.
+    layers : sequence of str
+        The layer names, top to bottom (e.g. ``["LS", "AU", "AD", "AQ"]``).
+    out : str or path
+        Output folder, made when missing.
+    crs : str, optional
+        The contacts' CRS (e.g. ``"EPSG:3003"``) when the file carries none.
+    swap_xy : bool
+        Swap x and y (files that label East as North).
+    settings : AquiferSettings, optional
+        The options (outlier thresholds, ``xy_tol``, ``cell_size``, ``matching``, ...; lengths as text with their unit
+        or a number in CRS units). None: the defaults.
+    within : str, optional
+        A polygon layer: volumes and thickness statistics inside it. None: each unit's common footprint.
+    clip : str, optional
+        A polygon layer the surfaces are cut to (a concave outline, holes).
+    overwrite : bool
+        Replace a model already in ``out``.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+    fields : dict, optional
+        ``{field: column}`` where the table names the fields otherwise (id, x, y, z, layer, borehole_id).
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``layers`` (points, flagged, triangles of each
+        layer), ``units`` (each unit's volume, area and thickness, in ``volume_unit`` and ``length_unit``),
+        ``outputs``.
+
+    Raises
+    ------
+    InputError
+        An option or the contacts are not valid (a missing layer, a column not found, ...), or they carry no CRS
+        and ``crs`` is not given.
+    OutputExistsError
+        ``out`` holds a model and ``overwrite`` is False.
+
+    Examples
+    --------
+    >>> from gistools import aquifer_model
+    >>> report = aquifer_model("contacts.csv", ["LS", "AU", "AD", "AQ"], "milan", crs="EPSG:3003")  # doctest: +SKIP
+    >>> report["layers"]["AU"]["points"], report["volume_unit"]  # doctest: +SKIP
+    (953, 'cubic metre')
     """
     started = time.time()
     s = settings or AquiferSettings()
@@ -460,7 +508,39 @@ def load_model(out) -> Model:
 
 
 def aquifer_query(out, x, y, method: str = "tin", *, k: int = 10) -> dict:
-    """Each surface's height and each unit's thickness at (x, y) of a written model (S8)."""
+    """Each surface's height and each unit's thickness at (x, y) of a written model: ``gistools aquifer query``.
+
+    Parameters
+    ----------
+    out : str or path
+        The folder of a model written by `aquifer_model`.
+    x, y : float
+        The point, in the model's CRS units.
+    method : str
+        ``"tin"`` (each surface's TIN; nothing outside its boundary), ``"knn"`` (mean of the ``k`` nearest contacts)
+        or ``"idw"`` (inverse-distance weighted contacts).
+    k : int
+        Neighbours of ``"knn"`` and ``"idw"``.
+
+    Returns
+    -------
+    dict
+        ``heights`` ({layer: {"z": height in the CRS unit, "inside": bool}}) and ``thickness`` ({"TOP/BASE":
+        thickness}), with ``x``, ``y`` and ``method``.
+
+    Raises
+    ------
+    InputError
+        ``method``, ``k``, ``x`` or ``y`` is not valid, or ``out`` holds no model.
+
+    Examples
+    --------
+    >>> from gistools import aquifer_model, aquifer_query
+    >>> report = aquifer_model("contacts.csv", ["LS", "AU", "AD", "AQ"], "milan", crs="EPSG:3003")  # doctest: +SKIP
+    >>> answer = aquifer_query("milan", 1517365, 5031638, "knn", k=10)  # doctest: +SKIP
+    >>> sorted(answer["thickness"])  # doctest: +SKIP
+    ['AD/AQ', 'AU/AD', 'LS/AU']
+    """
     return query_model(load_model(out), x, y, method, k=k)
 
 

@@ -153,8 +153,53 @@ class _TileState(TileState):
 
 def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                    overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
-    """A CHM GeoTIFF per tile of ``inputs`` (``out/chm/<tile>.tif``), ``out/chm.vrt`` and ``out/report.json`` (cells,
-    pits per tile); returns the report. Existing tiles are kept unless ``overwrite``; one bad tile is reported."""
+    """A canopy height model GeoTIFF per tile of ``inputs``: ``gistools chm``.
+
+    Writes ``out/chm/<tile>.tif``, the mosaic ``out/chm.vrt`` and ``out/report.json`` (cells and pits per tile); heights
+    above ground in the vertical unit. Tiles whose output exists are kept unless ``overwrite``; a tile that fails is
+    reported and the others go on.
+
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
+    out : str or path
+        Output folder, made when missing.
+    settings : ChmSettings, optional
+        The options (``cell_size``, ``method`` p2r, pitfree or tin, ``thresholds``, ``max_edge``, ...; lengths as text
+        with their unit or a number in CRS units). None: the defaults.
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake tiles whose output exists.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``tiles``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or ``inputs`` holds no tile.
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import ChmSettings, chm_from_tiles
+    >>> chm_from_tiles("sample_tiles", "chm", ChmSettings(method="pitfree"))["counts"]  # doctest: +SKIP
+    {'ok': 4, 'skipped': 0, 'failed': 0}
+    """
     settings = settings or ChmSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = output_folder(out)

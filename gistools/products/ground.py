@@ -210,12 +210,56 @@ class _TileState(TileState):
 
 def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                       overwrite: bool = False, progress: ProgressCallback | None = None, water=None) -> dict:
-    """Classify ground (2) and noise (7, 18) of the tiles of ``inputs`` (files, folders, globs, a .vpc) into
-    ``out/<tile>.laz`` (or .las), plus ``out/ground.vpc`` and ``out/report.json``; returns the report.
+    """Ground (class 2) and noise (7, 18) of every tile of ``inputs``, classified: ``gistools ground``.
 
-    Tiles whose output exists are kept (a rerun resumes) unless ``overwrite``. One bad tile is reported and
-    the others go on; inputs are never written. ``water``: polygons (the tiles' CRS units) whose points of
-    classes 0, 1, 2, 7, 18 become water (9) before the filters (the shrub chain passes its hydro polygons).
+    Writes ``out/<tile>.laz`` (or ``.las``, ``.copc.laz``), ``out/ground.vpc`` and ``out/report.json``. Inputs are
+    never written. Tiles whose output exists are kept (a rerun resumes) unless ``overwrite``; a tile that fails is
+    reported and the others go on.
+
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
+    out : str or path
+        Output folder, made when missing.
+    settings : GroundSettings, optional
+        The options (``method`` smrf or csf, the filter's parameters, ``noise``, ``format``, ...; lengths as text
+        with their unit, e.g. ``"1m"``, or a number in CRS units; heights in the vertical unit). None: the defaults.
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake tiles whose output exists.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+    water : list of shapely geometries, optional
+        Water polygons (shapely geometries, in CRS units) whose points of classes 0, 1, 2, 7, 18 become water (9)
+        before the filters.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``tiles``, ``vpc``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or ``inputs`` holds no tile.
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import GroundSettings, ground_from_tiles
+    >>> report = ground_from_tiles("sample_tiles", "ground", GroundSettings(method="smrf"))  # doctest: +SKIP
+    >>> report["counts"]  # doctest: +SKIP
+    {'ok': 4, 'skipped': 0, 'failed': 0}
     """
     settings = settings or GroundSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)

@@ -17,8 +17,36 @@ __all__ = ["tile_summary", "tiles_summary"]
 
 
 def tile_summary(path, crs=None) -> dict:
-    """Header facts plus point counts by class and by return (reads every point, in chunks). A file without a
-    usable CRS is summarised too: ``crs`` "no CRS", units None, and ``crs_note`` says what is wrong."""
+    """Header facts and point counts by class and by return of one LAS / LAZ file: ``gistools info``.
+
+    Reads every point, in chunks. A file without a usable CRS is summarised too: its ``crs`` reads "no CRS", its units
+    None, and ``crs_note`` says what is wrong.
+
+    Parameters
+    ----------
+    path : str or path
+        The LAS / LAZ file.
+    crs : str, optional
+        A CRS to use instead of the header's (e.g. ``"EPSG:2882"``).
+
+    Returns
+    -------
+    dict
+        ``file``, ``las_version``, ``point_format``, ``points``, ``bounds`` (CRS units), ``z_range`` (vertical unit),
+        ``crs``, ``horizontal_unit``, ``vertical_unit``, ``points_by_class``, ``points_by_return``, ...
+
+    Raises
+    ------
+    DataFileError
+        The file is missing or not a readable LAS / LAZ file.
+
+    Examples
+    --------
+    >>> from gistools import tile_summary
+    >>> summary = tile_summary("sample_tiles/35712.las")  # doctest: +SKIP
+    >>> summary["horizontal_unit"], summary["points_by_class"]  # doctest: +SKIP
+    ('US survey foot', {1: 7556, 2: 59503})
+    """
     info = read_tile_info(path, crs, require_crs=False)
     by_class = np.zeros(256, np.int64)
     by_return = np.zeros(16, np.int64)
@@ -56,9 +84,36 @@ def _unit_name(info, which: str):
 
 
 def tiles_summary(inputs, *, crs=None, out=None, progress: ProgressCallback | None = None) -> dict:
-    """:func:`tile_summary` of every tile of ``inputs``; a tile that cannot be read is listed with its error.
+    """`tile_summary` of every tile of ``inputs``; a tile that cannot be read is listed with its error.
 
-    ``out``: also write the summary there as JSON (atomically; an existing file is replaced).
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
+    crs : str, optional
+        A CRS to use instead of the headers' (e.g. ``"EPSG:2882"``).
+    out : str or path, optional
+        Also write the summary there as JSON (an existing file is replaced).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``tiles`` (each tile's summary, with its ``status``), ``counts`` (ok, failed), ``points`` (their total) and
+        ``crs`` (the CRS names found).
+
+    Raises
+    ------
+    InputError
+        ``inputs`` holds no tile.
+
+    Examples
+    --------
+    >>> from gistools import tiles_summary
+    >>> summary = tiles_summary("sample_tiles")  # doctest: +SKIP
+    >>> summary["counts"], summary["points"]  # doctest: +SKIP
+    ({'ok': 4, 'failed': 0}, 258950)
     """
     paths = find_tiles(inputs)
     tiles = []

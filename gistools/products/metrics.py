@@ -177,9 +177,55 @@ class _TileState(TileState):
 def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int | str = "auto",
                        scheduler: str | None = None, overwrite: bool = False,
                        progress: ProgressCallback | None = None) -> dict:
-    """Cell metrics of the tiles of ``inputs`` (files, folders, globs, a .vpc): ``out/<metric>/<tile>.tif``,
-    ``out/<metric>.vrt`` and ``out/report.json``; returns the report. Cells without points are nodata. A tile
-    whose every metric exists is kept unless ``overwrite``; one bad tile is reported and the others go on."""
+    """Cell metrics (point count, density, height statistics, cover, ...) of the tiles of ``inputs``: ``gistools metrics``.
+
+    Writes ``out/<metric>/<tile>.tif``, the mosaics ``out/<metric>.vrt`` and ``out/report.json``; cells without points
+    are nodata. A tile whose every metric exists is kept unless ``overwrite``; a tile that fails is reported and the
+    others go on.
+
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
+    out : str or path
+        Output folder, made when missing.
+    settings : MetricsSettings, optional
+        The options (``cell_size`` as text with its unit or a number in CRS units, ``metrics``, ``normalized``,
+        ``classes``, ``returns``, ...). None: the defaults.
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake tiles whose outputs exist.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``metrics``,
+        ``tiles``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid (an unknown metric, ...), or ``inputs`` holds no tile.
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import MetricsSettings, metrics_from_tiles
+    >>> report = metrics_from_tiles("sample_tiles", "metrics", MetricsSettings(cell_size="10ft"))  # doctest: +SKIP
+    >>> report["metrics"]  # doctest: +SKIP
+    ['count', 'density', 'z_min', 'z_max', 'z_mean', 'z_sd', 'z_p95']
+    """
     settings = settings or MetricsSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = output_folder(out)

@@ -148,10 +148,61 @@ class _TileState(TileState):
 def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None, *, roads=None, hydro=None,
                          waterbodies=None, reproject_vectors: bool = False, jobs: int | str = "auto", scheduler: str | None = None,
                          overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
-    """Heights above ground of the tiles of ``inputs`` into ``out/<tile>.laz`` (or .las, .copc.laz), plus
-    ``out/normalized.vpc`` and ``out/report.json``; returns the report. ``roads`` (edge-of-pavement lines),
-    ``hydro`` (lines) and ``waterbodies`` (polygons), paths or ``file.gpkg:LAYER``, are used with
-    ``classify_vegetation``. Existing outputs are kept unless ``overwrite``; one bad tile is reported."""
+    """Heights above ground of every point of the tiles of ``inputs``: ``gistools normalize``.
+
+    Writes ``out/<tile>.laz`` (or ``.las``, ``.copc.laz``) with the height above ground (an extra dimension, or
+    replacing z), ``out/normalized.vpc`` and ``out/report.json``. Tiles whose output exists are kept unless
+    ``overwrite``; a tile that fails is reported and the others go on.
+
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``; ground points classified (class 2).
+    out : str or path
+        Output folder, made when missing.
+    settings : NormalizeSettings, optional
+        The options (``buffer``, ``replace_z``, ``classify_vegetation``, ``format``, ...; lengths as text with their
+        unit or a number in CRS units). None: the defaults.
+    roads : str, optional
+        Edge-of-pavement lines, a path or ``file.gpkg:LAYER`` (only with ``settings.classify_vegetation``).
+    hydro : str, optional
+        Water lines, likewise.
+    waterbodies : str, optional
+        Water polygons, likewise.
+    reproject_vectors : bool
+        Reproject breaklines in another CRS than the tiles' (else they are refused).
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake tiles whose output exists.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``tiles``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid (breaklines without ``classify_vegetation``), or ``inputs`` holds no tile.
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import normalize_from_tiles
+    >>> normalize_from_tiles("sample_tiles", "normalized")["counts"]  # doctest: +SKIP
+    {'ok': 4, 'skipped': 0, 'failed': 0}
+    """
     settings = settings or NormalizeSettings()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = output_folder(out)

@@ -546,21 +546,64 @@ def rasters_from_tiles(
     pool=None,
     water=None,
 ) -> dict:
-    """DSM, DEM and nDSM GeoTIFFs for every tile of ``inputs`` under ``out``; returns the report dict.
+    """DSM, DEM and nDSM GeoTIFFs of every tile of ``inputs``: ``gistools rasters``.
 
-    ``inputs``: LAS/LAZ files, folders or globs. Writes ``out/{dsm,dem,ndsm}/<tile>.tif``,
-    ``out/{dsm,dem,ndsm}.vrt`` and ``out/report.json``. A tile that fails is reported
-    (status ``failed`` with its error) and the others complete; existing outputs are
-    kept (status ``skipped``) unless ``overwrite``. Raises CRSMismatchError when
-    tiles disagree on CRS, Cancelled when ``progress`` returns False.
+    Writes ``out/{dsm,dem,ndsm}/<tile>.tif``, the mosaics ``out/{dsm,dem,ndsm}.vrt`` and ``out/report.json``. A tile that
+    fails is reported (status ``failed``, with its error) and the others complete; tiles whose outputs exist are kept
+    (status ``skipped``) unless ``overwrite``.
 
-    ``jobs``: tiles in parallel on local processes ("auto": as many as the tiles' points repay, see
-    ``gistools.engine.batch.auto_workers``). ``scheduler``: run the tiles as tasks on a
-    dask.distributed cluster instead, given its scheduler address (``tcp://host:8786``) or
-    ``"local"`` (a LocalCluster of ``jobs`` workers); the workers must see the tiles and
-    ``out`` (where the scratch folder lives) at the same paths. ``pool``: a worker pool to use
-    instead of starting one (``gistools.engine.batch.make_pool``; the caller closes it). ``water``: with
-    ``classify_ground``, polygons (CRS units) whose points are water (9) before the ground filter.
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
+    out : str or path
+        Output folder, made when missing.
+    settings : RasterSettings, optional
+        The options (``cell_size``, ``dem_method``, ``dem_max_distance``, ...; lengths as text with their unit, e.g.
+        ``"5ft"``, ``"1.5m"``, or a number in CRS units). None: the defaults (5 ft cells on data in feet, 1.5 m in
+        metres).
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    overwrite : bool
+        Remake tiles whose outputs exist.
+    progress : callable, optional
+        ``progress(fraction, message)``, called as the work goes; returning False cancels the run.
+    scheduler : str, optional
+        A dask.distributed scheduler address (``"tcp://host:8786"``), or ``"local"`` for a local cluster of ``jobs``
+        workers, to run the tiles on instead; the workers must see the tiles and ``out`` at the same paths.
+    pool : gistools.engine.batch.ProcessPool, optional
+        A worker pool to use instead of starting one (``gistools.engine.batch.make_pool``; the caller closes it).
+    water : list of shapely geometries, optional
+        With ``settings.classify_ground``: water polygons (shapely geometries, in CRS units) whose points become water
+        (class 9) before the ground filter.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, failed, skipped), each tile's entry
+        in ``tiles``, the settings, units and timings.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, ``inputs`` holds no tile, or ``out`` holds tiles made with other settings (without
+        ``overwrite``).
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    OutputExistsError
+        ``out`` holds another command's outputs.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import RasterSettings, rasters_from_tiles
+    >>> report = rasters_from_tiles("sample_tiles", "rasters", RasterSettings(cell_size="5ft"))  # doctest: +SKIP
+    >>> report["counts"]  # doctest: +SKIP
+    {'ok': 4, 'failed': 0, 'skipped': 0}
     """
     settings = settings or RasterSettings()
     settings.validate()

@@ -263,7 +263,50 @@ def _design_raster(ew: Earthworks, crs, cell: float):
 
 def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, crs=None, overwrite: bool = False,
                       progress: ProgressCallback | None = None, fields: dict | None = None) -> dict:
-    """The whole pipeline on a survey file; writes under ``out`` and returns the report (``out/report.json``)."""
+    """Cut and fill of a runway from a survey of its ground: ``gistools runway``.
+
+    Fits the runway's frame to the survey, lays the ICAO template of its reference code on it and computes the volumes
+    station by station, the mass haul (Brueckner) diagram and the overhaul. Writes under ``out``: ``runway.gpkg``,
+    ``design_surface.tif``, ``sections.csv``, the diagrams and ``report.json`` (volumes in m3, lengths in m).
+
+    Parameters
+    ----------
+    source : str or path
+        The survey: a CSV or point layer with id, type, x, y, z (metres).
+    out : str or path
+        Output folder, made when missing.
+    settings : RunwaySettings, optional
+        The options (``code`` e.g. ``"4E"``, ``runway_type``, ``template``, ``spacing``, ``swell``, ``free_haul``,
+        ...; lengths as text with their unit or a number in metres). None: the defaults.
+    crs : str, optional
+        The survey's CRS (e.g. ``"EPSG:3003"``) when the file carries none; it must be in metres.
+    overwrite : bool
+        Replace a run already in ``out``.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+    fields : dict, optional
+        ``{field: column}`` where the table names the fields otherwise (id, type, x, y, z).
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``cut``, ``fill``, ``net`` (m3), ``length`` (m),
+        ``stations``, ``balance_points``, ``units``, ``outputs``.
+
+    Raises
+    ------
+    InputError
+        An option or the survey is not valid, it has no CRS, or its CRS is not in metres.
+    OutputExistsError
+        ``out`` holds a run and ``overwrite`` is False.
+
+    Examples
+    --------
+    >>> from gistools import RunwaySettings, runway_earthworks
+    >>> report = runway_earthworks("survey.csv", "orio", RunwaySettings(code="4E"), crs="EPSG:3003")  # doctest: +SKIP
+    >>> report["units"]["cut"], report["cut"] > 0  # doctest: +SKIP
+    ('m3', True)
+    """
     started = time.time()
     st = settings or RunwaySettings()
     st.validate()

@@ -267,19 +267,77 @@ def shrub_from_tiles(
     from_stage: str = "rasters",
     progress: ProgressCallback | None = None,
 ) -> dict:
-    """The whole shrub chain on LAS/LAZ tiles; returns the report dict (also ``out/report.json``).
+    """The whole shrub chain on LAS / LAZ tiles: ``gistools shrub``.
 
-    Vector inputs are paths or ``file.gpkg:LAYER``; they must be in the points' CRS unless
-    ``reproject_vectors``. Writes under ``out``: dsm/ dem/ ndsm/ topclass/ bands/ veg/ wetveg/
-    density/ cover/ classes/ (one GeoTIFF per tile) with VRT mosaics, ``shrub_classes.gpkg``,
-    ``shrub_map.png`` / ``.pdf`` and ``report.json``; with ``band_points``, also the
-    dissertation's Raster To Point output: ``band_points/<tile>.gpkg``, one point per cell
-    centre of bands B0-B3 with its band and height (``grid_code``).
+    Writes under ``out``: ``dsm/ dem/ ndsm/ topclass/ bands/ veg/ wetveg/ density/ cover/ classes/`` (a GeoTIFF per
+    tile) with their VRT mosaics, ``shrub_classes.gpkg``, ``shrub_map.png`` / ``.pdf`` and ``report.json``. Complete
+    outputs of an earlier run are kept (a killed run resumes) unless ``overwrite``.
 
-    Complete outputs of an earlier run are kept (a killed run resumes) unless ``overwrite``.
-    ``from_stage`` (bands, clip, density or classes) reruns the chain from that stage on an
-    existing ``out``, reusing what comes before it (``inputs`` may then be None): the
-    one-step commands ``gistools bands / clip / density / classify``.
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``; None with ``from_stage`` past
+        ``"rasters"``.
+    out : str or path
+        Output folder, made when missing.
+    settings : ShrubSettings, optional
+        The options (``raster`` a RasterSettings, ``bands``, ``noise_floor``, ``radius``, ``class_breaks``, ...;
+        lengths as text with their unit, e.g. ``"50ft"``, or a number in CRS units). None: the defaults.
+    roads : str, optional
+        Edge-of-pavement lines, a path or ``file.gpkg:LAYER``.
+    hydro : str, optional
+        Water lines (streams, canals), likewise.
+    waterbodies : str, optional
+        Water polygons, likewise.
+    wetlands : str, optional
+        Wetland polygons, likewise: vegetation inside them is also written to ``wetveg/``.
+    tile_index : str, optional
+        Tile footprints, likewise: the breaklines are split by tile.
+    reproject_vectors : bool
+        Reproject vector layers in another CRS than the tiles' (else they are refused).
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake outputs that exist.
+    make_map : bool
+        Also draw the printable map (``shrub_map.png`` / ``.pdf``).
+    band_points : bool
+        Also write ``band_points/<tile>.gpkg``: a point per cell centre of bands B0-B3 with its band and height.
+    from_stage : str
+        ``"rasters"`` (the whole chain), or ``"bands"``, ``"clip"``, ``"density"``, ``"classes"``: rerun from that
+        step on an existing ``out``, reusing what comes before it.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``band_area`` and
+        ``class_area`` (in ``area_unit``, the CRS unit squared), ``class_area_acres``, ``band_thresholds``,
+        ``mosaics``, ``tiles``, ...
+
+    Raises
+    ------
+    InputError
+        An option is not valid, a vector layer is in another CRS, ``from_stage`` is unknown or has no earlier run.
+    CRSMismatchError
+        The tiles are not all in one CRS.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> from gistools import ShrubSettings, shrub_from_tiles
+    >>> B = "sample_tiles/breaklines.gpkg"
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", ShrubSettings(radius="50ft"), roads=f"{B}:ROADBREAKLINE",
+    ...                           waterbodies=f"{B}:WATERBODY", tile_index=f"{B}:FOOTPRINT")  # doctest: +SKIP
+    >>> report["counts"]  # doctest: +SKIP
+    {'ok': 4, 'skipped': 0, 'failed': 0}
     """
     settings = settings or ShrubSettings()
     settings.validate()
@@ -695,7 +753,36 @@ def _previous_run(out: Path) -> dict:
 
 
 def map_from_classes(out, *, title: str | None = None, unit: LinearUnit | None = None) -> dict:
-    """The printable map (PNG and PDF) of ``out/classes.vrt`` (S11); ``gistools map``. Adds its run to report.json."""
+    """The printable map (PNG and PDF) of a shrub chain's ``out/classes.vrt``: ``gistools map``.
+
+    Writes ``out/shrub_map.png`` and ``out/shrub_map.pdf`` and adds the run to ``out/report.json``.
+
+    Parameters
+    ----------
+    out : str or path
+        The folder of a shrub chain run.
+    title : str, optional
+        The map's title; None: the chain's.
+    unit : LinearUnit, optional
+        The unit of the scale bar (``gistools.units.LinearUnit``); None: the data's horizontal unit.
+
+    Returns
+    -------
+    dict
+        ``paths``: the PNG and the PDF.
+
+    Raises
+    ------
+    InputError
+        ``out`` holds no ``classes.vrt``.
+
+    Examples
+    --------
+    >>> from gistools import map_from_classes, shrub_from_tiles
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> [p.name for p in map_from_classes("shrub", title="Sample block")["paths"]]  # doctest: +SKIP
+    ['shrub_map.png', 'shrub_map.pdf']
+    """
     out = output_folder(out)
     if not (out / "classes.vrt").exists():
         raise InputError(f"{out}: no classes.vrt", hint="Run gistools shrub (or gistools classify) first")

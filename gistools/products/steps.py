@@ -66,7 +66,40 @@ def _z_unit(src, path, z_unit) -> LinearUnit:
 
 def ndsm_from_rasters(dsm, dem, out, *, overwrite: bool = True, block: int = BLOCK,
                       progress: ProgressCallback | None = None) -> Path:
-    """nDSM = DSM - DEM (heights above ground, S3) on the DSM's grid; NaN where either has no value."""
+    """nDSM = DSM - DEM (heights above ground) on the DSM's grid; nodata where either has no value.
+
+    Parameters
+    ----------
+    dsm : str or path
+        The DSM raster (GeoTIFF or VRT).
+    dem : str or path
+        The DEM raster, on the DSM's grid.
+    out : str or path
+        The nDSM GeoTIFF written (float32, heights in the vertical unit).
+    overwrite : bool
+        Replace ``out`` when it exists.
+    block : int
+        Rows and columns computed at a time (bounds memory).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    pathlib.Path
+        ``out``.
+
+    Raises
+    ------
+    InputError
+        The rasters are not on one grid, or ``out`` is one of them.
+
+    Examples
+    --------
+    >>> from gistools import ndsm_from_rasters, rasters_from_tiles
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> ndsm_from_rasters("rasters/dsm.vrt", "rasters/dem.vrt", "ndsm.tif")  # doctest: +SKIP
+    PosixPath('ndsm.tif')
+    """
     check_outputs_are_not_inputs({"out": out}, [dsm, dem])
     with open_raster(dsm, "DSM") as s_dsm, open_raster(dem, "DEM") as s_dem:
         same_grid(s_dsm, dsm, s_dem, dem)
@@ -83,15 +116,58 @@ def ndsm_from_rasters(dsm, dem, out, *, overwrite: bool = True, block: int = BLO
 def bands_from_ndsm(ndsm, out, *, top_class=None, preset: str = DEFAULTS.bands, breaks_m=None, thresholds=None,
                     noise_floor: str | float = DEFAULTS.noise_floor, z_unit: str | None = None, points_out=None, overwrite: bool = True,
                     block: int = BLOCK, progress: ProgressCallback | None = None) -> dict:
-    """Height bands of an nDSM raster (S4-S5): B0 <= 0 (or the noise floor), B1, B2, B3, 4 above, 255 nodata.
+    """Height bands of an nDSM raster: 0 (B0, up to the noise floor), 1-3 (B1-B3), 4 (above T3), 255 nodata.
 
-    ``top_class``: the class-of-highest-first-return raster (``topclass``); cells topped by a
-    ground or water point are B0. Thresholds in metres (``preset`` "exact" 1/2/6 m or
-    "text_literal", or ``breaks_m``) are converted to the nDSM's vertical unit, read from
-    the raster (or ``z_unit``); or ``thresholds`` gives T1, T2, T3 in that unit. ``points_out``:
-    also write the cell-centre points of B0-B3 with band and height (``grid_code``), a
-    GeoPackage layer ``band_points`` (Raster To Point).
-    Returns {"bands": path, "points": path?, "thresholds": (T1, T2, T3), "z_unit": name}.
+    Thresholds in metres (``preset``, or ``breaks_m``) are converted to the nDSM's vertical unit, read from the raster
+    (or ``z_unit``); or ``thresholds`` gives T1, T2, T3 in that unit.
+
+    Parameters
+    ----------
+    ndsm : str or path
+        The nDSM raster (heights above ground).
+    out : str or path
+        The bands GeoTIFF written (uint8).
+    top_class : str or path, optional
+        The raster of each cell's highest first return's class (``topclass``): cells topped by a ground or water
+        point are B0.
+    preset : str
+        ``"exact"`` (1, 2, 6 m) or ``"text_literal"``.
+    breaks_m : sequence of float, optional
+        Three band breaks in metres, instead of the preset.
+    thresholds : sequence of float, optional
+        T1, T2, T3 in the nDSM's vertical unit, instead of the above.
+    noise_floor : str or float
+        Heights up to this are B0: text with its unit (``"0.1m"``), or a number in the vertical unit.
+    z_unit : str, optional
+        The nDSM's vertical unit (``"m"``, ``"ft"``, ``"ftUS"``) when the raster does not say.
+    points_out : str or path, optional
+        Also write the cell-centre points of B0-B3 with their band and height (``grid_code``), a GeoPackage layer
+        ``band_points``.
+    overwrite : bool
+        Replace outputs that exist.
+    block : int
+        Rows and columns computed at a time (bounds memory).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``bands`` (the path), ``thresholds`` (T1, T2, T3 in the vertical unit), ``z_unit`` (its name) and, with
+        ``points_out``, ``points``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, the vertical unit is unknown, or an output is an input.
+
+    Examples
+    --------
+    >>> from gistools import bands_from_ndsm, rasters_from_tiles
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> result = bands_from_ndsm("rasters/ndsm.vrt", "bands.tif", breaks_m=(1, 2, 6))  # doctest: +SKIP
+    >>> result["z_unit"]  # doctest: +SKIP
+    'US survey foot'
     """
     check_length(noise_floor, "noise floor", allow_equal=True, example="0.1m")
     if breaks_m is not None:
@@ -172,12 +248,66 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
                        max_hydro_width: str | float = DEFAULTS.max_hydro_width,
                        single_line_width: str | float = DEFAULTS.single_line_width, overwrite: bool = True,
                        progress: ProgressCallback | None = None) -> dict:
-    """Road and water polygons from breaklines (S6-S7): split by each tile footprint, noded, polygonised.
+    """Road and water polygons from breaklines: split by each tile footprint, noded, polygonised.
 
-    Layers are paths or ``file.gpkg:LAYER``; all must share one CRS (``crs``, else the first
-    layer's) unless ``reproject``. Without a tile index the lines' extent is one frame.
-    Writes one polygon per tile and kind, with the tile number in ``tile_field``
-    (GeoPackages ``road_out`` / ``water_out``). Returns {"road": path, "water": path, "crs": wkt}.
+    All layers must share one CRS (``crs``, else the first layer's) unless ``reproject``. Without a tile index the lines'
+    extent is one frame. One polygon is written per tile and kind, with the tile number in ``tile_field``.
+
+    Parameters
+    ----------
+    roads : str, optional
+        Edge-of-pavement lines, a path or ``file.gpkg:LAYER``.
+    hydro : str, optional
+        Water lines (streams, canals), likewise.
+    waterbodies : str, optional
+        Water polygons, likewise.
+    tile_index : str, optional
+        Tile footprints, likewise.
+    tile_field : str
+        The tile index's field holding the tile number.
+    road_out : str or path, optional
+        The road polygons' GeoPackage written.
+    water_out : str or path, optional
+        The water polygons' GeoPackage written.
+    crs : str, optional
+        The CRS of the layers (e.g. ``"EPSG:2882"``); None: the first layer's.
+    reproject : bool
+        Reproject layers in another CRS (else they are refused).
+    snap : str or float, optional
+        Line ends this close are joined: text with its unit (``"0.2ft"``) or a number in CRS units; None: the default
+        in the data's unit.
+    max_road_width : str or float, optional
+        Widest road polygon, likewise.
+    max_hydro_width : str or float, optional
+        Widest water polygon between hydro lines, likewise.
+    single_line_width : str or float, optional
+        Width given to a single hydro line, likewise.
+    overwrite : bool
+        Replace outputs that exist.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``road`` and ``water`` (the paths written, or None) and ``crs`` (its WKT).
+
+    Raises
+    ------
+    InputError
+        A length is not valid, or the layers are in different CRSs.
+    DataFileError
+        A layer cannot be read.
+
+    Examples
+    --------
+    >>> from gistools import breakline_polygons
+    >>> B = "sample_tiles/breaklines.gpkg"
+    >>> result = breakline_polygons(roads=f"{B}:ROADBREAKLINE", waterbodies=f"{B}:WATERBODY",
+    ...                             tile_index=f"{B}:FOOTPRINT", road_out="roads.gpkg",
+    ...                             water_out="water.gpkg")  # doctest: +SKIP
+    >>> str(result["road"]), str(result["water"])  # doctest: +SKIP
+    ('roads.gpkg', 'water.gpkg')
     """
     if snap is not None:
         check_length(snap, "snap", allow_equal=True, example="0.2ft")
@@ -284,12 +414,54 @@ def _band_stats_result(stats: dict) -> dict:
 def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=None, wetland_out=None,
                reproject: bool = False, overwrite: bool = True, block: int = BLOCK,
                progress: ProgressCallback | None = None) -> dict:
-    """Vegetation = band minus road minus water (S8), and vegetation inside wetlands (S9), by cell centre.
+    """Vegetation = bands minus road minus water, and vegetation inside wetlands, by cell centre.
 
-    ``road_polygons`` / ``water_polygons``: polygon layers (``breakline_polygons`` output), or lists
-    of shapely polygons in the bands' CRS; ``wetlands``: wetland polygons. Codes: 0 none, 1-3 band,
-    4 road, 5 water, 255 nodata. Returns {"veg": path, "wetveg": path?, "band_area": {band: CRS area
-    units}, "nodata_share": share of band cells without a value, "wetland_vegetation_area": CRS area units}.
+    Codes: 0 none, 1-3 band, 4 road, 5 water, 255 nodata.
+
+    Parameters
+    ----------
+    bands : str or path
+        The bands raster (`bands_from_ndsm`).
+    out : str or path
+        The vegetation GeoTIFF written (uint8).
+    road_polygons : str, path or list, optional
+        Road polygons: a layer (`breakline_polygons`' output, path or ``file.gpkg:LAYER``) or shapely polygons in
+        the bands' CRS.
+    water_polygons : str, path or list, optional
+        Water polygons, likewise.
+    wetlands : str, path or list, optional
+        Wetland polygons, likewise.
+    wetland_out : str or path, optional
+        The GeoTIFF of vegetation inside wetlands, written with ``wetlands``.
+    reproject : bool
+        Reproject layers in another CRS than the bands' (else they are refused).
+    overwrite : bool
+        Replace outputs that exist.
+    block : int
+        Rows and columns computed at a time (bounds memory).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``veg`` (and ``wetveg``) paths, ``band_area`` ({band: area in CRS area units}), ``nodata_share`` (share of
+        cells without a value) and ``wetland_vegetation_area`` (CRS area units).
+
+    Raises
+    ------
+    InputError
+        A layer is in another CRS, or an output is an input.
+
+    Examples
+    --------
+    >>> from gistools import bands_from_ndsm, breakline_polygons, clip_bands, rasters_from_tiles
+    >>> B = "sample_tiles/breaklines.gpkg"
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> result = bands_from_ndsm("rasters/ndsm.vrt", "bands.tif")  # doctest: +SKIP
+    >>> polygons = breakline_polygons(roads=f"{B}:ROADBREAKLINE", road_out="roads.gpkg")  # doctest: +SKIP
+    >>> sorted(clip_bands("bands.tif", "veg.tif", road_polygons="roads.gpkg")["band_area"])  # doctest: +SKIP
+    ['B0', 'B1', 'B2', 'B3']
     """
     check_outputs_are_not_inputs({"out": out, "wet": wetland_out}, [bands])
     with open_raster(bands, "band") as src:
@@ -348,13 +520,49 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
                             density_bands=DEFAULTS.density_bands,
                             like=None, overwrite: bool = True, block: int = BLOCK,
                             progress: ProgressCallback | None = None) -> dict:
-    """Cover (0-1) and point density of vegetation cells over a circle of ``radius`` (S10).
+    """Cover (0-1) and density of vegetation cells over a circle of ``radius`` around each cell.
 
-    ``density_bands``: the bands (1-3) whose vegetation counts. density is in cells per CRS
-    area unit. Blocks read a halo of the radius, so block edges do not show. ``like``: a raster
-    on the same lattice whose grid the outputs take (a tile), ``veg`` then being the mosaic that
-    holds its neighbours, so tile edges do not show either.
-    Returns {"cover": path, "density": path?, "radius": radius in CRS units}.
+    Blocks read a halo of the radius, so block edges do not show.
+
+    Parameters
+    ----------
+    veg : str or path
+        The vegetation raster (`clip_bands`).
+    out : str or path
+        The cover GeoTIFF written (float32, 0-1).
+    density_out : str or path, optional
+        Also write the density GeoTIFF (vegetation cells per CRS area unit).
+    radius : str or float, optional
+        The circle's radius: text with its unit (``"25ft"``) or a number in CRS units; None: 25 ft on data in feet,
+        7.5 m in metres.
+    density_bands : sequence of int
+        The bands (1-3) whose vegetation counts.
+    like : str or path, optional
+        A raster on the same lattice (a tile) whose grid the outputs take, ``veg`` then being the mosaic holding its
+        neighbours, so tile edges do not show either.
+    overwrite : bool
+        Replace outputs that exist.
+    block : int
+        Rows and columns computed at a time (bounds memory).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``cover`` (and ``density``) paths and ``radius`` (in CRS units).
+
+    Raises
+    ------
+    InputError
+        The radius or the bands are not valid, or an output is an input.
+
+    Examples
+    --------
+    >>> from gistools import density_from_vegetation, shrub_from_tiles
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> density_from_vegetation("shrub/veg.vrt", "cover.tif", radius="50ft")["radius"]  # doctest: +SKIP
+    50.0
     """
     if radius is not None:
         check_length(radius, "density radius", example="25ft")
@@ -416,13 +624,50 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
                        breaks=DEFAULTS.class_breaks,
                        keep_polygons: bool = False, overwrite: bool = True, block: int = BLOCK,
                        progress: ProgressCallback | None = None) -> dict:
-    """Shrub classes (S11): 0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water, 255 nodata, from cover.
+    """Shrub classes from cover: 0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water, 255 nodata.
 
-    ``method``: "breaks" (``breaks`` on cover fraction), "quantile" or "jenks" (from a sample of
-    the cover, ``class_breaks``). ``veg`` (the clip output) marks road and water. ``polygons_out``:
-    the classes as polygons, one feature per class and block, with area (``keep_polygons``: return
-    them as [(code, polygon)] instead). Returns {"classes": path, "polygons": path or list?,
-    "breaks": (b1, b2), "class_area": {name: CRS area units}}.
+    Parameters
+    ----------
+    cover : str or path
+        The cover raster (`density_from_vegetation`).
+    out : str or path
+        The classes GeoTIFF written (uint8, with its colour table).
+    veg : str or path, optional
+        The vegetation raster (`clip_bands`), which marks road and water.
+    polygons_out : str or path, optional
+        Also write the classes as polygons (a GeoPackage; one feature per class and block, with its area).
+    method : str
+        ``"breaks"`` (``breaks`` on the cover fraction), ``"quantile"`` (equal areas) or ``"jenks"`` (Jenks natural
+        breaks), the latter two found in a sample of the cover.
+    breaks : sequence of float
+        Two cover fractions (0-1) between light / medium and medium / heavy, with ``"breaks"``.
+    keep_polygons : bool
+        Return the polygons as ``[(code, polygon)]`` instead of writing them.
+    overwrite : bool
+        Replace outputs that exist.
+    block : int
+        Rows and columns computed at a time (bounds memory).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        ``classes`` (the path), ``breaks`` (the two used), ``class_area`` ({class name: area in CRS area units}) and,
+        with ``polygons_out`` or ``keep_polygons``, ``polygons``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or an output is an input.
+
+    Examples
+    --------
+    >>> from gistools import classes_from_cover, shrub_from_tiles
+    >>> report = shrub_from_tiles("sample_tiles", "shrub", make_map=False)  # doctest: +SKIP
+    >>> result = classes_from_cover("shrub/cover.vrt", "classes.tif", veg="shrub/veg.vrt", breaks=(0.2, 0.6))  # doctest: +SKIP
+    >>> result["breaks"]  # doctest: +SKIP
+    (0.2, 0.6)
     """
     use = class_breaks(cover, method, breaks, block=block)
     check_outputs_are_not_inputs({"out": out, "polygons": polygons_out}, [cover, veg])

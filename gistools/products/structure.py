@@ -64,7 +64,46 @@ def mesh_from_triangles(tris: np.ndarray, decimals: int = 6) -> tuple[np.ndarray
 
 def reconstruct(points: pd.DataFrame, *, h=None, d=None, t=None, eps_z: float = 0.1, check: bool = True,
                 progress: ProgressCallback | None = None, source=None) -> Structure:
-    """S1-S8 in memory on points id, x, y, z (``source``: the file they came from, named in errors)."""
+    """A building's structure from its points, in memory: levels, clusters, loops and a closed mesh.
+
+    Parameters
+    ----------
+    points : pandas.DataFrame
+        Columns id, x, y, z (metres), as `gistools.products.structure.read_points` gives them.
+    h : float, optional
+        Largest height step between consecutive levels (m); None or 0: estimated.
+    d : float, optional
+        Planimetric distance joining points into a cluster (m); None or 0: estimated.
+    t : float, optional
+        Planimetric tolerance of matching and of the chain / sown split (m); None or 0: 4 m.
+    eps_z : float
+        Points within this height (m) are on one level.
+    check : bool
+        First clean the points (duplicates, reused ids, near points merged, isolated points left out).
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+    source : str or path, optional
+        The file the points came from, named in errors.
+
+    Returns
+    -------
+    Structure
+        ``points``, ``log`` (the cleaning's), ``parameters`` (h, d, t used), ``levels`` ([(z, clusters)]), ``pairs``,
+        and the mesh's ``vertices`` and ``faces`` (numpy arrays).
+
+    Raises
+    ------
+    InputError
+        Too few points or levels, coordinates not finite, or points that do not span an area in plan.
+
+    Examples
+    --------
+    >>> from gistools import reconstruct
+    >>> from gistools.products.structure import read_points
+    >>> structure = reconstruct(read_points("cctv.txt"))  # doctest: +SKIP
+    >>> structure.faces.shape[1]  # doctest: +SKIP
+    3
+    """
     if len(points) < 2:
         raise InputError(f"{len(points)} point(s): a structure needs levels of points", hint="Give the building's cloud",
                          path=source)
@@ -207,10 +246,58 @@ def _check_options(h, d, t, scales, rotations, loop_mode) -> None:
 
 def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scales=(1, 1, 1), rotations=(0, 0, 0),
                     loop_mode: str = "classic", overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
-    """Read a cloud, reconstruct it and write mesh (PLY, OBJ), loops (GeoPackage), a figure and report.json.
+    """A closed mesh of a building's point cloud: ``gistools structure``.
 
-    ``loop_mode``: "classic" (loops through the points as they are, the mesh's) or "catmull-rom" (also the
-    dissertation's piecewise Catmull-Rom loops: the new points and the lines through each vertex)."""
+    Reads the cloud, reconstructs it level by level (`reconstruct`) and writes under ``out``: ``structure.ply``,
+    ``structure.obj``, the loops (``structure.gpkg``), a figure and ``report.json``.
+
+    Parameters
+    ----------
+    source : str or path
+        The cloud: ``ID X Y Z`` text, or a LAS / LAZ file.
+    out : str or path
+        Output folder, made when missing.
+    h : float, optional
+        Largest height step between consecutive levels, in the cloud's unit (m); None or 0: estimated.
+    d : float, optional
+        Planimetric distance joining points into a cluster (m); None or 0: estimated.
+    t : float, optional
+        Planimetric tolerance of matching and of the chain / sown split (m); None or 0: 4 m.
+    columns : str
+        Which input columns are x, y, z (``"213"`` swaps x and y).
+    scales : sequence of float
+        Signed scale per axis (x, y, z; -1 flips an axis).
+    rotations : sequence of float
+        Rotations about x, y, z, in degrees.
+    loop_mode : str
+        ``"classic"`` (loops through the points as they are) or ``"catmull-rom"`` (also piecewise Catmull-Rom loops).
+    overwrite : bool
+        Replace a structure already in ``out``.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``levels``, ``watertight``, ``volume`` (m3),
+        ``surface_area`` (m2), ``outputs``, ...
+
+    Raises
+    ------
+    InputError
+        An option or the cloud is not valid (fewer than 3 levels, points on a line, ...).
+    DataFileError
+        The cloud cannot be read.
+    OutputExistsError
+        ``out`` holds a structure and ``overwrite`` is False.
+
+    Examples
+    --------
+    >>> from gistools import structure_model
+    >>> report = structure_model("cctv.txt", "f4")  # doctest: +SKIP
+    >>> report["watertight"], sorted(report["outputs"])  # doctest: +SKIP
+    (True, ['figure', 'gpkg', 'obj', 'ply'])
+    """
     _check_options(h, d, t, scales, rotations, loop_mode)
     started = time.time()
     out = output_folder(out)
