@@ -215,14 +215,15 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return crs.authid() or crs.toWkt()
 
     def layer_spec(self, parameters, name, context, feedback):
-        """A vector input as gistools reads it (``file.gpkg:LAYER``); memory or filtered layers are exported first."""
+        """A vector input as gistools reads it (``file.gpkg|layername=LAYER``, unambiguous on Windows paths too);
+        memory or filtered layers are exported first."""
         if parameters.get(name) in (None, ""):
             return None
         path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
             parameters, name, context, ["gpkg", "shp"], "gpkg", feedback)
         if not path:
             return None
-        return f"{path}:{layer}" if layer and path.lower().endswith(".gpkg") else path
+        return f"{path}|layername={layer}" if layer and path.lower().endswith(".gpkg") else path
 
     def output_path(self, parameters, name, context, optional=False):
         """A destination's file; None for an optional one left out; a temporary file when a model leaves it empty."""
