@@ -532,6 +532,39 @@ def test_point_cloud_layers_as_input(qgis, reference, sample_tiles, tmp_path):
     assert "No tiles" in str(err.value) and "'Folder of LAS/LAZ tiles'" in str(err.value) and "POINT_CLOUDS" not in str(err.value)
 
 
+def test_where_qgis_cannot_open_point_clouds_the_tiles_are_a_file_list_and_vpcs_are_not_loaded(qgis, reference,
+                                                                                               sample_tiles, tmp_path):
+    """QGIS 3.22 (Debian: no "pdal", no "vpc" provider; "vpc" came in 3.32): the tile input is a list of files, a .vpc
+    among them read by gistools, and the .vpc outputs are not put on the map (QGIS would fail to open them)."""
+    from qgis.core import QgsApplication, QgsProcessing, QgsProcessingContext, QgsProviderRegistry, QgsProject
+
+    providers = set(QgsProviderRegistry.instance().providerList())
+    if "vpc" in providers or "pdal" in providers:
+        pytest.skip(f"this QGIS opens point clouds ({sorted(providers & {'vpc', 'pdal'})})")
+    alg = QgsApplication.processingRegistry().algorithmById("gistools:dsm")
+    files = alg.parameterDefinition("POINT_CLOUDS")
+    assert files.layerType() == QgsProcessing.TypeFile and "files" in files.description()
+    result = qgis.run("gistools:dsm", {"POINT_CLOUDS": [str(p) for p in sample_tiles], "OUTPUT_FOLDER": str(tmp_path / "f")})
+    same_cells(result["OUTPUT"], reference / "dsm.vrt")
+
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    feedback = Feedback()
+    ground = qgis.run("gistools:ground", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "g")},
+                      context=context, feedback=feedback)
+    vpc = Path(ground["VPC"])
+    assert vpc.is_file() and vpc.suffix == ".vpc"
+    assert not any(str(k).endswith(".vpc") for k in context.layersToLoadOnCompletion()), context.layersToLoadOnCompletion()
+    assert any("cannot open virtual point clouds" in line for line in feedback.infos), feedback.infos
+
+    from gistools.products.rasters import rasters_from_tiles
+
+    lib = rasters_from_tiles([vpc], tmp_path / "lib")  # the library on the same .vpc
+    from_vpc = qgis.run("gistools:dsm", {"POINT_CLOUDS": [str(vpc)], "OUTPUT_FOLDER": str(tmp_path / "v")})
+    assert lib["counts"]["ok"] == 4
+    same_cells(from_vpc["OUTPUT"], tmp_path / "lib" / "dsm.vrt")
+
+
 def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
     import geopandas as gpd
     import shapely as shp
