@@ -127,6 +127,9 @@ def _read_layer(spec) -> gpd.GeoDataFrame:
     except Exception as err:
         raise DataFileError(f"cannot read layer {'(first)' if layer is None else layer} ({err})", path=path,
                             hint="Name an existing layer, e.g. breaklines.gpkg:ROADBREAKLINE") from None
+    if not isinstance(gdf, gpd.GeoDataFrame):  # a table (a CSV, a GeoPackage attribute table): no geometry
+        raise InputError(f"layer {'(first)' if layer is None else layer} is a table without geometry", path=spec,
+                         hint="Give a point, line or polygon layer (a contacts or survey table: the CSV file itself)")
     if gdf.crs is None:
         raise InputError("layer has no CRS", path=spec, hint="Assign one in QGIS or with ogr2ogr -a_srs")
     return gdf

@@ -241,13 +241,15 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             return None
         return crs.authid() or crs.toWkt()
 
-    def layer_spec(self, parameters, name, context, feedback):
+    def layer_spec(self, parameters, name, context, feedback, tables=False):
         """A vector input as gistools reads it (``file.gpkg|layername=LAYER``, unambiguous on Windows paths too);
-        memory or filtered layers are exported first."""
+        memory or filtered layers are exported first. ``tables``: a CSV file is passed as it is (the contacts and
+        survey readers read its columns; exported to a GeoPackage it would be a table without geometry)."""
         if parameters.get(name) in (None, ""):
             return None
+        formats = ["gpkg", "shp"] + (["csv", "txt"] if tables else [])  # a CSV is read as the table it is
         path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-            parameters, name, context, ["gpkg", "shp"], "gpkg", feedback)
+            parameters, name, context, formats, "gpkg", feedback)
         if not path:
             return None
         return f"{path}|layername={layer}" if layer and path.lower().endswith(".gpkg") else path
