@@ -58,7 +58,8 @@ def missing_message(missing: list[str]) -> str:
             "(Debian's system pip is externally managed)")
     if pure:
         text += "; the pure-Python ones alone: `python3 -m pip install --user --break-system-packages " + " ".join(
-            f"'{m}'" for m in pure) + "`"
+            f"'{m}'" for m in pure) + "`, or from QGIS's Python console, into the profile: `from gistools_qgis.install " \
+            "import install_dependencies; print(install_dependencies().message)`"
     if bound:
         text += ". Debian's own packages work too: `sudo apt-get install " + " ".join(
             f"python3-{m.split('>')[0]}" for m in bound) + "`"
@@ -140,6 +141,9 @@ class GistoolsPlugin:
         self.mismatches: list[str] = []
 
     def initProcessing(self):  # noqa: N802 (QGIS's name)
+        from .install import add_to_path, default_target
+
+        add_to_path(default_target())  # what install_dependencies() put in the profile, after QGIS's own packages
         self.missing = missing_requirements()
         if self.missing:
             QgsMessageLog.logMessage(missing_message(self.missing), "gistools", CRITICAL)
