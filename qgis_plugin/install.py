@@ -138,54 +138,58 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
         ``ok`` when every requirement imports and uses QGIS's GDAL / PROJ / GEOS; else ``message`` says what is
         missing and the one command that installs it.
     """
-    from .plugin import library_mismatches, mismatch_message, missing_requirements
+    from .plugin import library_mismatches, missing_requirements
 
     target = Path(target) if target is not None else default_target()
     result = InstallResult(target=target)
-    notes = []
-    bound = []
-    if requirements is None:
-        missing = missing_requirements()
-        bound = sorted({m.split(">")[0] for m in missing} & set(BOUND))
-        wanted = [m for m in missing if m.split(">")[0] not in BOUND and m != "gistools"]
-        if "gistools" in missing and gistools is not None:
-            wanted.append(str(gistools))
-        elif "gistools" in missing:
-            notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
-                         "gistools='path/to/gistools-<version>-py3-none-any.whl')")
-    else:
-        wanted = list(requirements)
+    bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
-    failed = False
+    failure = None
     if wanted:
         cmd = [str(exe or "python"), "-m", "pip", "install", "--disable-pip-version-check", "--no-input",
                "--target", str(target), *wanted]
         result.installed = wanted
         failure = _run_pip(exe, cmd, target, timeout, result)
         if failure:
-            failed = True
             notes.insert(0, f"{failure}. Run this once, then restart QGIS: {_quoted(cmd)}")
     add_to_path(target)
     if requirements is None:
         result.missing = missing_requirements()
-        if not result.missing:
-            result.mismatches = library_mismatches()
-    elif failed:
+        result.mismatches = [] if result.missing else library_mismatches()
+    elif failure:
         result.missing = wanted
     if bound:
         notes.append(f"{', '.join(bound)} must be QGIS's own builds (pip's wheels bring other GDAL / PROJ / GEOS "
                      f"libraries, which crash QGIS); install them with: {_bound_command(bound)}; then restart QGIS")
-    if notes:
-        result.message = "gistools: " + "; ".join(notes)
-    elif result.mismatches:
-        result.message = mismatch_message(result.mismatches)
-    elif result.missing:
-        result.message = f"gistools: still missing after the install: {', '.join(result.missing)}"
-    elif result.installed:
-        result.message = f"gistools: installed {', '.join(result.installed)} into {target}; restart QGIS"
-    else:
-        result.message = "gistools: nothing to install"
+    result.message = _message(result, notes)
     return result
+
+
+def _plan(missing: list, gistools) -> tuple[list, list, list]:
+    """(the GDAL / PROJ / GEOS bound packages missing, what pip installs, notes) of the missing requirements."""
+    bound = sorted({m.split(">")[0] for m in missing} & set(BOUND))
+    wanted = [m for m in missing if m.split(">")[0] not in BOUND and m != "gistools"]
+    notes = []
+    if "gistools" in missing and gistools is not None:
+        wanted.append(str(gistools))
+    elif "gistools" in missing:
+        notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
+                     "gistools='path/to/gistools-<version>-py3-none-any.whl')")
+    return bound, wanted, notes
+
+
+def _message(result: InstallResult, notes: list) -> str:
+    from .plugin import mismatch_message
+
+    if notes:
+        return "gistools: " + "; ".join(notes)
+    if result.mismatches:
+        return mismatch_message(result.mismatches)
+    if result.missing:
+        return f"gistools: still missing after the install: {', '.join(result.missing)}"
+    if result.installed:
+        return f"gistools: installed {', '.join(result.installed)} into {result.target}; restart QGIS"
+    return "gistools: nothing to install"
 
 
 def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult) -> str | None:
