@@ -59,3 +59,32 @@ def test_gdal_bound_packages_are_never_pip_installed_and_a_failure_gives_the_com
                              f"--disable-pip-version-check --no-input --target {target} laspy"), result.message
     assert "rasterio must be QGIS's own builds" in bound and "sudo apt-get install python3-rasterio" in bound
     assert "\n" not in result.message
+
+
+def test_the_plugin_puts_the_profiles_folder_on_the_path_when_it_starts(tmp_path):
+    """A QGIS started on a profile whose python/gistools_deps holds a package: the plugin's start adds that folder
+    after QGIS's own packages, so what install_dependencies put there imports."""
+    import os
+    import subprocess
+
+    from conftest import ROOT
+
+    profile = tmp_path / "profiles" / "default"
+    deps = profile / "python" / install.DEPS_FOLDER
+    (deps / "gistools_probe").mkdir(parents=True)
+    (deps / "gistools_probe" / "__init__.py").write_text("VALUE = 7\n")
+    script = f"""
+import sys
+sys.path.insert(0, {str(ROOT)!r})
+from qgis.core import QgsApplication
+app = QgsApplication([], False, {str(profile)!r}); app.initQgis()
+import qgis_plugin
+plugin = qgis_plugin.classFactory(None)
+plugin.initProcessing()
+import gistools_probe
+print("DEPS", sys.path.index({str(deps)!r}) == len(sys.path) - 1, gistools_probe.VALUE, plugin.provider is not None)
+plugin.unload()
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    assert "DEPS True 7 True" in run.stdout, run.stdout + run.stderr[-3000:]
