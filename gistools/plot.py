@@ -44,6 +44,50 @@ def new_figure(figsize):
     return fig
 
 
+def axes_3d(fig):
+    """A 3D axes on ``fig``, or None where this matplotlib cannot make one: its ``mpl_toolkits`` shadowed by another
+    matplotlib's (Debian's python3-matplotlib on QGIS's path beside a newer one: "'3d' is not a valid value for
+    projection")."""
+    try:
+        return fig.add_subplot(projection="3d")
+    except Exception:  # ValueError (no "3d" projection), or the other copy's mplot3d failing on this matplotlib
+        for ax in list(fig.axes):
+            fig.delaxes(ax)
+        return None
+
+
+def oblique_surfaces(ax, surfaces, colours, *, azimuth: float = -60.0, elevation: float = 30.0) -> None:
+    """Triangulated surfaces (``[(label, x, y, z, triangles)]``) drawn as an oblique view on a 2D axes, without
+    mpl_toolkits: rotated by ``azimuth`` about z, tilted by ``elevation`` (degrees, matplotlib's default 3D view),
+    vertical exaggerated to a third of the horizontal extent, triangles painted far to near."""
+    from matplotlib.collections import PolyCollection
+    from matplotlib.patches import Patch
+
+    xs = np.concatenate([s[1] for s in surfaces])
+    ys = np.concatenate([s[2] for s in surfaces])
+    zs = np.concatenate([s[3] for s in surfaces])
+    cx, cy = xs.mean(), ys.mean()
+    span = max(np.ptp(xs), np.ptp(ys), 1e-9)
+    zscale = span / 3 / max(np.ptp(zs), 1e-9)
+    a, e = np.radians(azimuth), np.radians(elevation)
+    polys, depth, faces = [], [], []
+    for k, (_label, x, y, z, tri) in enumerate(surfaces):
+        u = (x - cx) * np.cos(a) + (y - cy) * np.sin(a)  # across the view
+        d = -(x - cx) * np.sin(a) + (y - cy) * np.cos(a)  # into the view
+        v = (z - zs.min()) * zscale * np.cos(e) + d * np.sin(e)
+        polys.append(np.stack([u[tri], v[tri]], axis=-1))
+        depth.append((d[tri].mean(axis=1) * np.cos(e)) - (z[tri].mean(axis=1) - zs.min()) * zscale * np.sin(e))
+        faces.append(np.full(len(tri), k))
+    polys, depth, faces = np.concatenate(polys), np.concatenate(depth), np.concatenate(faces)
+    order = np.argsort(-depth)  # far first
+    colour = np.array([colours[k] for k in range(len(surfaces))])[faces[order]]
+    ax.add_collection(PolyCollection(polys[order], facecolors=colour, edgecolors="none", alpha=0.6))
+    ax.autoscale_view()
+    ax.set_aspect("equal")
+    ax.set_axis_off()
+    ax.legend(handles=[Patch(color=colours[k], label=s[0]) for k, s in enumerate(surfaces)], loc="upper right")
+
+
 def map_parameters(classes_path, cover_path, unit: LinearUnit) -> str:
     """The map's caption of what made it: cell size, density radius (from the cover raster's tags) and the cover
     breaks (from the class raster's tags), in the data's units."""

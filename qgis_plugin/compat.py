@@ -17,9 +17,27 @@ VECTOR_POINT = _pick("ProcessingSourceType", "VectorPoint", QgsProcessing, "Type
 VECTOR_LINE = _pick("ProcessingSourceType", "VectorLine", QgsProcessing, "TypeVectorLine")
 VECTOR_POLYGON = _pick("ProcessingSourceType", "VectorPolygon", QgsProcessing, "TypeVectorPolygon")
 POINT_CLOUD = _pick("ProcessingSourceType", "PointCloud", QgsProcessing, "TypePointCloud")
+FILE = _pick("ProcessingSourceType", "File", QgsProcessing, "TypeFile")
 INTEGER = _pick("ProcessingNumberParameterType", "Integer", QgsProcessingParameterNumber, "Integer")
 DOUBLE = _pick("ProcessingNumberParameterType", "Double", QgsProcessingParameterNumber, "Double")
 FOLDER = _pick("ProcessingFileParameterBehavior", "Folder", QgsProcessingParameterFile, "Folder")
 OPTIONAL = _pick("ProcessingParameterFlag", "Optional", QgsProcessingParameterDefinition, "FlagOptional")
 ADVANCED = _pick("ProcessingParameterFlag", "Advanced", QgsProcessingParameterDefinition, "FlagAdvanced")
 CRITICAL = _pick("MessageLevel", "Critical", Qgis, "Critical")
+
+
+def data_providers() -> set[str]:
+    """The data providers of the running QGIS (read once QGIS is initialised)."""
+    from qgis.core import QgsProviderRegistry
+
+    return set(QgsProviderRegistry.instance().providerList())
+
+
+def reads_vpc() -> bool:
+    """Whether this QGIS opens virtual point clouds (.vpc) as layers: its "vpc" provider, QGIS 3.32+."""
+    return "vpc" in data_providers()
+
+
+def reads_las() -> bool:
+    """Whether this QGIS opens LAS/LAZ files as point cloud layers: its PDAL provider ("pdal"; Debian's 3.22 has none)."""
+    return "pdal" in data_providers()

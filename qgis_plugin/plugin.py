@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+from pathlib import Path
 
 from qgis.core import QgsApplication, QgsMessageLog
 from .compat import CRITICAL
@@ -57,7 +58,8 @@ def missing_message(missing: list[str]) -> str:
             "(Debian's system pip is externally managed)")
     if pure:
         text += "; the pure-Python ones alone: `python3 -m pip install --user --break-system-packages " + " ".join(
-            f"'{m}'" for m in pure) + "`"
+            f"'{m}'" for m in pure) + "`, or from QGIS's Python console, into the profile: `from gistools_qgis.install " \
+            "import install_dependencies; print(install_dependencies().message)`"
     if bound:
         text += ". Debian's own packages work too: `sudo apt-get install " + " ".join(
             f"python3-{m.split('>')[0]}" for m in bound) + "`"
@@ -71,7 +73,7 @@ def _major_minor(version: str) -> tuple[int, ...]:
 
 def library_mismatches() -> list[str]:
     """Where shapely / pyproj / rasterio / pyogrio use another GEOS / PROJ / GDAL than QGIS links: their own copy
-    from a binary wheel (seen in the process's mapped libraries, on Linux) or another version. Two copies of one
+    from a binary wheel (its folder of libraries beside the package) or another version. Two copies of one
     library in QGIS's process fail (GEOS: 'WKB output dimension must be 2 or 3') or crash QGIS on exit."""
     from qgis.core import Qgis, QgsProjUtils
 
@@ -98,15 +100,29 @@ def library_mismatches() -> list[str]:
     for package, lib, version, want in checks:
         if want is not None and _major_minor(version)[: 1 if lib == "PROJ" else 2] != tuple(want)[: 1 if lib == "PROJ" else 2]:
             found.append(f"{package} uses {lib} {version}, QGIS {'.'.join(map(str, want))}.x")
-    try:
-        with open("/proc/self/maps") as f:
-            maps = f.read()
-    except OSError:  # not Linux
-        maps = ""
     for package in sorted(_BOUND):
-        if f"/{package}.libs/" in maps:
-            found.append(f"{package} carries its own libraries ({package}.libs, a binary wheel)")
+        folder = bundled_libraries(importlib.import_module(package))
+        if folder is not None:
+            found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
     return found
+
+
+def bundled_libraries(module) -> Path | None:
+    """The folder of shared libraries a binary wheel brought with ``module``, None where it uses the system's.
+
+    Read from the installed files, on every platform (no /proc): auditwheel (Linux) and delvewheel (Windows) put
+    them in ``<site-packages>/<name>.libs``, delocate (macOS) in ``<package>/.dylibs``."""
+    where = getattr(module, "__file__", None)
+    if not where:
+        return None
+    package = Path(where).parent
+    for folder in (package.parent / f"{package.name}.libs", package / ".dylibs"):
+        try:
+            if folder.is_dir() and any(folder.iterdir()):
+                return folder
+        except OSError:
+            continue
+    return None
 
 
 def mismatch_message(found: list[str]) -> str:
@@ -125,6 +141,9 @@ class GistoolsPlugin:
         self.mismatches: list[str] = []
 
     def initProcessing(self):  # noqa: N802 (QGIS's name)
+        from .install import add_to_path, default_target
+
+        add_to_path(default_target())  # what install_dependencies() put in the profile, after QGIS's own packages
         self.missing = missing_requirements()
         if self.missing:
             QgsMessageLog.logMessage(missing_message(self.missing), "gistools", CRITICAL)

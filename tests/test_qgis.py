@@ -534,6 +534,39 @@ def test_point_cloud_layers_as_input(qgis, reference, sample_tiles, tmp_path):
     assert "No tiles" in str(err.value) and "'Folder of LAS/LAZ tiles'" in str(err.value) and "POINT_CLOUDS" not in str(err.value)
 
 
+def test_where_qgis_cannot_open_point_clouds_the_tiles_are_a_file_list_and_vpcs_are_not_loaded(qgis, reference,
+                                                                                               sample_tiles, tmp_path):
+    """QGIS 3.22 (Debian: no "pdal", no "vpc" provider; "vpc" came in 3.32): the tile input is a list of files, a .vpc
+    among them read by gistools, and the .vpc outputs are not put on the map (QGIS would fail to open them)."""
+    from qgis.core import QgsApplication, QgsProcessing, QgsProcessingContext, QgsProviderRegistry, QgsProject
+
+    providers = set(QgsProviderRegistry.instance().providerList())
+    if "vpc" in providers or "pdal" in providers:
+        pytest.skip(f"this QGIS opens point clouds ({sorted(providers & {'vpc', 'pdal'})})")
+    alg = QgsApplication.processingRegistry().algorithmById("gistools:dsm")
+    files = alg.parameterDefinition("POINT_CLOUDS")
+    assert files.layerType() == QgsProcessing.TypeFile and "files" in files.description()
+    result = qgis.run("gistools:dsm", {"POINT_CLOUDS": [str(p) for p in sample_tiles], "OUTPUT_FOLDER": str(tmp_path / "f")})
+    same_cells(result["OUTPUT"], reference / "dsm.vrt")
+
+    context = QgsProcessingContext()
+    context.setProject(QgsProject.instance())
+    feedback = Feedback()
+    ground = qgis.run("gistools:ground", {"INPUT": str(SAMPLE), "OUTPUT_FOLDER": str(tmp_path / "g")},
+                      context=context, feedback=feedback)
+    vpc = Path(ground["VPC"])
+    assert vpc.is_file() and vpc.suffix == ".vpc"
+    assert not any(str(k).endswith(".vpc") for k in context.layersToLoadOnCompletion()), context.layersToLoadOnCompletion()
+    assert any("cannot open virtual point clouds" in line for line in feedback.infos), feedback.infos
+
+    from gistools.products.rasters import rasters_from_tiles
+
+    lib = rasters_from_tiles([vpc], tmp_path / "lib")  # the library on the same .vpc
+    from_vpc = qgis.run("gistools:dsm", {"POINT_CLOUDS": [str(vpc)], "OUTPUT_FOLDER": str(tmp_path / "v")})
+    assert lib["counts"]["ok"] == 4
+    same_cells(from_vpc["OUTPUT"], tmp_path / "lib" / "dsm.vrt")
+
+
 def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
     import geopandas as gpd
     import shapely as shp
@@ -562,6 +595,55 @@ def test_aquifer_algorithms_equal_the_library(qgis, tmp_path):
         qgis.run("gistools:aquifer", {"INPUT": f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "LAYERS": "LS,AU,AD",
                                       "OUTPUT_FOLDER": str(tmp_path / "bad")})
     assert "layer 'AQ' is not in 'Layer names, top to bottom (comma-separated)'" in str(err.value)  # the dialog's label
+
+
+def test_aquifer_with_the_systems_older_matplotlib_first_and_the_csv_picked_as_a_file(plugin_zip, tmp_path):
+    """QGIS's Python as users run it (Debian's python3, PYTHONPATH = the venv's site-packages and the plugin): Debian's
+    python3-matplotlib 3.6 puts its mpl_toolkits first (its -nspkg.pth), so the newer matplotlib has no 3D projection
+    ("'3d' is not a valid value for projection"). The aquifer algorithm still succeeds, draws its surfaces in 2D with
+    a warning on the feedback; and a contacts CSV picked as a file (a table, no geometry) is read as the CSV."""
+    from gistools.aquifer.synthetic import synthetic_aquifer
+    from gistools.products.aquifer import AquiferSettings, aquifer_model
+
+    system_python = Path("/usr/bin/python3")
+    if not (Path("/usr/lib/python3/dist-packages/mpl_toolkits").is_dir() and system_python.exists()):
+        pytest.skip("Debian's python3-matplotlib is not installed: nothing shadows the venv's matplotlib")
+    points, _ = synthetic_aquifer(2012)
+    points.to_csv(tmp_path / "contacts.csv", index=False)
+    lib = aquifer_model(tmp_path / "contacts.csv", ["LS", "AU", "AD", "AQ"], tmp_path / "lib", crs="EPSG:3003",
+                        settings=AquiferSettings(figures=False))
+    plugin_dir = build_plugin.install(plugin_zip, tmp_path / "profile")
+    script = f"""
+import json, sys
+sys.path.insert(0, {str(plugin_dir.parent)!r})
+from qgis.core import QgsApplication, QgsProcessingFeedback
+app = QgsApplication([], False); app.initQgis()
+sys.path.append("/usr/share/qgis/python/plugins")
+from processing.core.Processing import Processing
+Processing.initialize()
+import gistools_qgis, processing
+plugin = gistools_qgis.classFactory(None)
+plugin.initProcessing()
+import matplotlib, mpl_toolkits
+print("MPL", matplotlib.__version__, list(mpl_toolkits.__path__))
+class Feedback(QgsProcessingFeedback):
+    def pushWarning(self, text): print("WARNING-ON-FEEDBACK", text)
+result = processing.run("gistools:aquifer", {{"INPUT": {str(tmp_path / 'contacts.csv')!r}, "LAYERS": "LS,AU,AD,AQ",
+                        "CRS": "EPSG:3003", "OUTPUT_FOLDER": {str(tmp_path / 'q')!r}}}, feedback=Feedback())
+print("RESULT", json.dumps(result))
+"""
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen",
+           "PYTHONPATH": os.pathsep.join([sysconfig.get_paths()["purelib"], str(ROOT)])}
+    run = subprocess.run([str(system_python), "-c", script], capture_output=True, text=True, timeout=300, env=env)
+    mpl = next((line for line in run.stdout.splitlines() if line.startswith("MPL ")), "")
+    assert "/usr/lib/python3/dist-packages/mpl_toolkits" in mpl.split(" ", 2)[-1].split(",")[0], mpl + run.stderr[-3000:]
+    assert "Traceback" not in run.stdout + run.stderr and "RESULT" in run.stdout, run.stdout[-3000:] + run.stderr[-3000:]
+    assert "WARNING-ON-FEEDBACK WARNING surfaces_3d.png drawn as a 2D oblique view" in run.stdout, run.stdout
+    rep = json.loads((tmp_path / "q" / "report.json").read_text())
+    assert rep["crs"] == "EPSG:3003" and any("2D oblique view" in w for w in rep["warnings"])
+    assert (tmp_path / "q" / "surfaces_3d.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    for name, unit in lib["units"].items():
+        assert rep["units"][name]["volume"] == pytest.approx(unit["volume"], rel=1e-12)
 
 
 def test_runway_algorithm_equals_the_library(qgis, tmp_path):

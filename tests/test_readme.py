@@ -26,6 +26,8 @@ _NOT_RUN = {
                         "polygons and rasters in out/"): "repeats README.md",
     ("docs/quickstart.md", "gistools info tiles                              # CRS, units, points by class and "
                            "return: check before a long run"): "repeats README.md",
+    ("docs/qgis.md", "from gistools_qgis.install import install_dependencies"):
+        "runs in QGIS's Python console and installs packages (network, minutes); tests/test_qgis_install.py runs it",
     ("docs/performance.md", "python benchmarks/bench_rasters.py --repeat 3"):
         "benchmark: generates 20 M points and runs WhiteboxTools (several minutes)",
     ("docs/performance.md", "python benchmarks/bench_rasters.py --density levy --repeat 3 --laz14"):

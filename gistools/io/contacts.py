@@ -79,6 +79,9 @@ def _sniff(path: Path) -> str:
         return ","
 
 
+TABLE_SUFFIXES = (".csv", ".txt", ".tsv", ".xyz", ".dat")
+
+
 def _read_table_spec(spec: str):
     return _read_table(Path(spec), spec)
 
@@ -86,7 +89,7 @@ def _read_table_spec(spec: str):
 def _read_table(path: Path, spec: str | None = None) -> tuple[pd.DataFrame, np.ndarray]:
     """A CSV or vector layer as a frame of strings, with the file line of each row."""
     text = spec or str(path)
-    if spec is None and path.suffix.lower() in (".csv", ".txt", ".tsv", ".xyz", ".dat"):
+    if spec is None and path.suffix.lower() in TABLE_SUFFIXES:
         check_text_file(path, "contacts table")
         try:
             df = pd.read_csv(path, sep=_sniff(path), encoding="utf-8-sig", skipinitialspace=True, keep_default_na=False, low_memory=False)
@@ -158,11 +161,12 @@ def _per_layer_files(source, swap_xy) -> list[pd.DataFrame]:
 def _one_table(source, swap_xy, fields=None) -> tuple[pd.DataFrame, object]:
     src = str(source[0] if isinstance(source, (list, tuple)) and len(source) == 1 else source)
     path = Path(src)
-    if not path.exists() and ":" in src:
+    if not path.exists():
         path = split_layer_spec(src)[0]
     if not path.exists():
         raise DataFileError("file not found", path=path, hint="Check the path")
-    df, lines = _read_table(Path(src)) if Path(src).exists() else _read_table_spec(src)
+    table = path.suffix.lower() in TABLE_SUFFIXES  # a CSV, also as QGIS names it (contacts.csv|layername=contacts)
+    df, lines = _read_table(path) if table or Path(src).exists() else _read_table_spec(src)
     out = _from_frame(df, lines, path, swap_xy, fields)
     out["source"] = str(path)
     return out, df.attrs.get("crs")

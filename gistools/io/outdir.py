@@ -38,17 +38,52 @@ _HELD: dict[str, int] = {}  # output folders this process holds, with a nesting 
 _HELD_LOCK = threading.Lock()
 
 
-def _process_start(pid: int) -> str | None:
-    """Start time of process ``pid`` (Linux /proc, clock ticks since boot): tells a reused pid apart."""
+PROC = Path("/proc")  # Linux's process table; absent on Windows and macOS (and in some containers)
+
+
+def _psutil():
+    """psutil where installed (not a dependency: the platform's own calls are used without it), else None."""
     try:
-        text = Path(f"/proc/{pid}/stat").read_text()
-        return text.rsplit(")", 1)[1].split()[19]
-    except (OSError, IndexError):
+        import psutil
+    except ImportError:
+        return None
+    return psutil
+
+
+def _process_start(pid: int) -> str | None:
+    """Start time of process ``pid``, to tell a reused pid apart: Linux /proc clock ticks since boot, else psutil's
+    creation time (``t<seconds>``); None where neither is available (the pid alone then decides)."""
+    if (PROC / "self" / "stat").exists():
+        try:
+            text = (PROC / str(pid) / "stat").read_text()
+            return text.rsplit(")", 1)[1].split()[19]
+        except (OSError, IndexError):
+            return None
+    psutil = _psutil()
+    if psutil is None:
+        return None
+    try:
+        return f"t{psutil.Process(pid).create_time():.3f}"
+    except (psutil.Error, OSError, ValueError):
         return None
 
 
 def _alive(pid: int, start: str | None) -> bool:
     """Whether the process ``pid`` that took a lock (started at ``start``, where known) still runs."""
+    if pid <= 0:
+        return False
+    if not _pid_exists(pid):
+        return False
+    now = _process_start(pid)
+    if start is None or now is None or str(start)[:1].isdigit() != now[:1].isdigit():  # unknown, or another clock
+        return True
+    return now == str(start)
+
+
+def _pid_exists(pid: int) -> bool:
+    psutil = _psutil()
+    if psutil is not None:
+        return psutil.pid_exists(pid)
     if sys.platform == "win32":  # os.kill(pid, 0) would terminate the process there
         return _alive_windows(pid)
     try:
@@ -59,8 +94,7 @@ def _alive(pid: int, start: str | None) -> bool:
         return True
     except OSError:
         return False
-    now = _process_start(pid)  # None without /proc (macOS): the pid alone then decides
-    return start is None or now is None or now == start
+    return True
 
 
 def _alive_windows(pid: int) -> bool:  # pragma: no cover - Windows

@@ -20,7 +20,11 @@ _ALIASES = {"id": ("id",), "type": ("type", "kind", "code"), "x": ("x", "east", 
 
 def _raw_table(text: str) -> tuple[pd.DataFrame, np.ndarray, object]:
     """(table as read, file line of each row, crs or None) of a CSV or a point layer."""
+    from .vector import read_layer, split_layer_spec
+
     p = Path(text)
+    if not p.exists():
+        p = split_layer_spec(text)[0]  # a CSV as QGIS names it (survey.csv|layername=survey) is read as a CSV
     if p.suffix.lower() in (".csv", ".txt"):
         if not p.is_file():
             raise DataFileError("file not found", path=p, hint="Check the path")
@@ -31,8 +35,6 @@ def _raw_table(text: str) -> tuple[pd.DataFrame, np.ndarray, object]:
             raise DataFileError(f"not a readable CSV table ({str(err).splitlines()[0]})", path=p,
                                 hint="Give a CSV with a header row id, type, x, y, z and one point per row") from None
         return df, np.arange(len(df)) + 2, None
-    from .vector import read_layer
-
     gdf = read_layer(text)
     df = pd.DataFrame(gdf.drop(columns="geometry"))
     low = {c.lower() for c in df.columns}

@@ -22,30 +22,45 @@ __all__ = ["absolute_spec", "read_layer", "check_crs", "write_layer", "write_lay
 VECTOR_SUFFIXES = (".gpkg", ".shp", ".geojson", ".json", ".fgb", ".gml", ".kml", ".sqlite", ".gdb", ".parquet", ".tab")
 
 
-def _qgis_layer_spec(text: str) -> tuple[Path, str | None]:
-    """``file.gpkg|layername=LAYER`` (QGIS's form; other ``|key=value`` options are left out)."""
-    path, _, options = text.partition("|")
-    names = [value for key, _, value in (item.partition("=") for item in options.split("|"))
-             if key.strip().lower() == "layername"]
-    return Path(path), (names[-1] if names else None)
+def _qgis_options(text: str) -> dict[str, str]:
+    """The ``|key=value`` options of a layer as QGIS names it (keys lower-cased)."""
+    return {key.strip().lower(): value for key, _, value in (item.partition("=") for item in text.split("|")[1:])}
 
 
-def split_layer_spec(spec) -> tuple[Path, str | None]:
+def _qgis_layer_spec(text: str) -> tuple[Path, str | int | None]:
+    """``file.gpkg|layername=LAYER`` or ``file.gpkg|layerid=N`` (QGIS's forms; a layer id is the layer's index in
+    the file, returned as an int); other ``|key=value`` options are left out."""
+    options = _qgis_options(text)
+    path = Path(text.partition("|")[0])
+    if "layername" in options:
+        return path, options["layername"]
+    if options.get("layerid", "").strip().isdigit():
+        return path, int(options["layerid"])
+    return path, None
+
+
+def split_layer_spec(spec) -> tuple[Path, str | int | None]:
     """(file, layer) of a layer as the user names it: ``file.gpkg:LAYER`` (the command line's form),
-    ``file.gpkg|layername=LAYER`` (QGIS's), or a file alone. A Windows drive (``C:\\data\\b.gpkg``) is part of the
-    path, and a layer name may hold ":" (``b.gpkg:ROADS:2020``): the file is the first part ending in a vector
-    file's suffix (or naming a file that exists), the layer all after it."""
+    ``file.gpkg|layername=LAYER`` or ``file.gpkg|layerid=N`` (QGIS's), or a file alone. A Windows drive
+    (``C:\\data\\b.gpkg``) is part of the path, and a layer name may hold ":" (``b.gpkg:ROADS:2020``): the file is the
+    first part ending in a vector file's suffix (or naming a file that exists), the layer all after it. This is the
+    one place a layer's name is parsed."""
     text = str(spec)
     if "|" in text:
         return _qgis_layer_spec(text)
     if Path(text).exists():
         return Path(text), None
-    cuts = [i for i, c in enumerate(text) if c == ":" and i > 0]
+    cuts = [i for i, c in enumerate(text) if c == ":" and not _is_drive(text, i)]
     for i in cuts:
         left = text[:i]
         if left.lower().endswith(VECTOR_SUFFIXES) or Path(left).is_file():
             return Path(left), text[i + 1:] or None
     return Path(text), None
+
+
+def _is_drive(text: str, i: int) -> bool:
+    """The ":" at ``i`` ends a Windows drive letter (``C:\\...``, ``C:/...``, ``C:``)."""
+    return i == 1 and text[0].isalpha() and (len(text) == 2 or text[2] in "\\/")
 
 
 _split = split_layer_spec
@@ -54,6 +69,8 @@ _split = split_layer_spec
 def absolute_spec(spec) -> str:
     """``path`` or ``path:LAYER`` with the path made absolute (to record where a layer came from)."""
     path, layer = _split(spec)
+    if isinstance(layer, int):
+        return f"{path.resolve()}|layerid={layer}"
     return str(path.resolve()) + (f":{layer}" if layer is not None else "")
 
 
@@ -100,13 +117,19 @@ def _repaired(gdf: gpd.GeoDataFrame, spec: str, what: str) -> gpd.GeoDataFrame:
 
 def _read_layer(spec) -> gpd.GeoDataFrame:
     path, layer = _split(spec)
+    if "subset" in _qgis_options(str(spec)):
+        raise InputError("a QGIS filter (|subset=...) is not applied outside QGIS", path=spec,
+                         hint="Save the filtered features as their own layer and give that one")
     if not path.exists():
         raise DataFileError("file not found", path=path, hint="Check the path (GeoPackage layers are written file.gpkg:LAYER)")
     try:
-        gdf = gpd.read_file(path, layer=layer) if layer else gpd.read_file(path)
+        gdf = gpd.read_file(path, layer=layer) if layer is not None else gpd.read_file(path)
     except Exception as err:
-        raise DataFileError(f"cannot read layer {layer or '(first)'} ({err})", path=path,
+        raise DataFileError(f"cannot read layer {'(first)' if layer is None else layer} ({err})", path=path,
                             hint="Name an existing layer, e.g. breaklines.gpkg:ROADBREAKLINE") from None
+    if not isinstance(gdf, gpd.GeoDataFrame):  # a table (a CSV, a GeoPackage attribute table): no geometry
+        raise InputError(f"layer {'(first)' if layer is None else layer} is a table without geometry", path=spec,
+                         hint="Give a point, line or polygon layer (a contacts or survey table: the CSV file itself)")
     if gdf.crs is None:
         raise InputError("layer has no CRS", path=spec, hint="Assign one in QGIS or with ogr2ogr -a_srs")
     return gdf

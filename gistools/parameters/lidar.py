@@ -83,7 +83,7 @@ declare(
               default="exact", choices=BAND_PRESETS, advanced=True, qgis="PRESET"),
     Parameter("noise_floor", "length", "Heights above ground up to this are bare ground (band B0), not vegetation.",
               "Heights up to this are bare ground", default="0.1m", minimum=0.0, advanced=True, example="0.1m"),
-    Parameter("roads", "layer", "Edge-of-pavement lines (file.gpkg:LAYER or a shapefile).",
+    Parameter("roads", "layer", "Edge-of-pavement lines (file.gpkg:LAYER, file.gpkg|layername=LAYER, or a shapefile).",
               "Road breaklines (edge of pavement)", geometry="line", metavar="LAYER"),
     Parameter("hydro", "layer", "Hydrographic breaklines: dual-line banks and single-line features.",
               "Hydrographic breaklines", geometry="line", metavar="LAYER"),

@@ -8,6 +8,7 @@ written atomically. Lengths take a unit ("0.5m") or are CRS units; volumes are c
 from __future__ import annotations
 
 import json
+import logging
 import os
 import time
 from dataclasses import dataclass, field
@@ -37,6 +38,8 @@ from ..validation import check_count, check_length, check_number
 from ..io.vector import check_crs, read_layer, write_layers
 from ..progress import ProgressCallback, report
 from ..units import horizontal_unit, length_to_crs_units
+
+log = logging.getLogger(__name__)
 
 __all__ = ["AquiferSettings", "aquifer_model", "aquifer_query", "load_model", "query_model", "unit_name"]
 
@@ -288,28 +291,40 @@ def _layers_gpkg(model: Model) -> dict:
     return out
 
 
-def _figures(model: Model, out: Path) -> list[Path]:
+def _figures(model: Model, out: Path, warnings: list) -> list[Path]:
     import matplotlib
     from matplotlib.colors import TwoSlopeNorm
 
-    from ..plot import new_figure, plain_axes
+    from ..plot import axes_3d, new_figure, oblique_surfaces, plain_axes
 
     unit = horizontal_unit(model.crs).name if model.crs is not None else "CRS units"
     paths = []
     fig = new_figure((9, 7))
-    ax = fig.add_subplot(projection="3d")
+    ax = axes_3d(fig)
     cmap = matplotlib.colormaps["viridis"].resampled(len(model.layers))
-    for k, layer in enumerate(model.layers):
+    surfaces = []
+    for layer in model.layers:
         s = model.surfaces[layer]
         t = s.triangles
         if len(t) > 4000:  # a readable view (and a quick one): every n-th triangle
             t = t[:: int(np.ceil(len(t) / 4000))]
-        ax.plot_trisurf(s.x, s.y, s.z, triangles=t, color=cmap(k), alpha=0.6, linewidth=0, label=layer)
-    ax.set_xlabel(f"x ({unit})")
-    ax.set_ylabel(f"y ({unit})")
-    ax.set_zlabel(f"z ({unit})")
-    plain_axes(ax)
-    ax.set_title("Aquifer surfaces: " + ", ".join(model.layers))
+        surfaces.append((layer, s.x, s.y, s.z, t))
+    if ax is not None:
+        for k, (layer, x, y, z, t) in enumerate(surfaces):
+            ax.plot_trisurf(x, y, z, triangles=t, color=cmap(k), alpha=0.6, linewidth=0, label=layer)
+        ax.set_xlabel(f"x ({unit})")
+        ax.set_ylabel(f"y ({unit})")
+        ax.set_zlabel(f"z ({unit})")
+        plain_axes(ax)
+        ax.set_title("Aquifer surfaces: " + ", ".join(model.layers))
+    else:  # this matplotlib's mpl_toolkits is another version's: the same view drawn in 2D
+        warnings.append(f"surfaces_3d.png drawn as a 2D oblique view: this matplotlib {matplotlib.__version__} has no "
+                        "3D projection (its mpl_toolkits is another matplotlib's, e.g. the system's python3-matplotlib "
+                        "on the path before it)")
+        log.warning("%s", warnings[-1])
+        ax = fig.subplots()
+        oblique_surfaces(ax, surfaces, [cmap(k) for k in range(len(surfaces))])
+        ax.set_title("Aquifer surfaces (oblique view, vertical exaggerated): " + ", ".join(model.layers))
     target = out / "surfaces_3d.png"
     with atomic_path(target, overwrite=True) as tmp:
         fig.savefig(tmp, dpi=110, format="png")
@@ -437,11 +452,15 @@ def _write_model(model, s: "AquiferSettings", out: Path, started: float, progres
         files["thickness"][name] = str(write_raster(out / f"thickness_{slug}.tif", grid_t, grid, overwrite=True,
                                                     tags={"GISTOOLS_PRODUCT": "thickness", "GISTOOLS_UNIT": name},
                                                     description=f"thickness of {name}"))
+    warnings: list[str] = []
     if s.figures:
         try:
-            files["figures"] = [str(p) for p in _figures(model, out)]
-        except ImportError:
+            files["figures"] = [str(p) for p in _figures(model, out, warnings)]
+        except Exception as err:  # a figure never stops the model: matplotlib missing, or a broken mix of two
             files["figures"] = []
+            warnings.append(f"no figures: matplotlib failed ({type(err).__name__}: {str(err).splitlines()[0] if str(err) else ''}); "
+                            "the model's files are complete")
+            log.warning("%s", warnings[-1])
     counts = model.flags[~model.flags["kept"].astype(bool)].groupby("layer").size() if len(model.flags) else pd.Series(dtype=int)
     by_flag = model.flags.groupby(["layer", "flag"]).size() if len(model.flags) else pd.Series(dtype=int)
     unit_len = horizontal_unit(model.crs)
@@ -456,6 +475,7 @@ def _write_model(model, s: "AquiferSettings", out: Path, started: float, progres
         "settings": {**{k: v for k, v in s.__dict__.items()}, "swap_xy": swap_xy, "within": str(within) if within else None,
                      "clip": str(clip) if clip else None},
         "outputs": files,
+        "warnings": warnings,
     }
     for layer in model.layers:
         surf = model.surfaces[layer]

@@ -38,8 +38,9 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points with a layer name field)",
                                                    [VECTOR_POINT]))
         self.add_fields("INPUT", CONTACT_FIELDS)
-        # the command line's settings (gistools.parameters.aquifer) but the CRS (the layer's) and --no-figures
-        self.add_spec("layers", "within", "clip", "swap_xy", "xy_tol", "abs_thr", "order", "mesh_format",
+        # the command line's settings (gistools.parameters.aquifer) but --no-figures; the CRS where the layer has
+        # none (a CSV picked as a file)
+        self.add_spec("layers", "crs", "within", "clip", "swap_xy", "xy_tol", "abs_thr", "order", "mesh_format",
                       "concave_ratio", "k", "c", "f_nn", "order_tol", "n_per_edge", "densify", "thickness_cell_size",
                       "matching", labels={"k": f"Neighbours of the outlier plane fit (at least 3; empty: {AQUIFER.k})"},
                       defaults={"layers": "LS,AU,AD,AQ"})  # the dissertation's Milan layers, as the dialog offered
@@ -54,7 +55,7 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
         values = self.spec_values(parameters, context, feedback)
         layers = [x.strip() for x in (values.pop("layers") or "").split(",") if x.strip()]
-        run = {k: values.pop(k) for k in ("within", "clip", "swap_xy")}
+        run = {k: values.pop(k) for k in ("within", "clip", "swap_xy", "crs")}
         values["cell_size"] = values.pop("thickness_cell_size")
         return layers, run, AquiferSettings(**{k: v for k, v in values.items() if v is not None})
 
@@ -65,11 +66,13 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
         out = Path(self.output_folder(parameters, context))
         layers, run, settings = self._model_settings(parameters, context, feedback)
-        source = self.layer_spec(parameters, "INPUT", context, feedback)
-        crs = self.layer_crs(parameters, "INPUT", context)
+        source = self.layer_spec(parameters, "INPUT", context, feedback, tables=True)
+        crs = run.pop("crs") or self.layer_crs(parameters, "INPUT", context)
         rep = aquifer_model(source, layers, out, crs=crs, settings=settings, overwrite=True,
                             progress=self.progress(feedback), **run,
                             fields=self.chosen_fields(parameters, context, "INPUT", CONTACT_FIELDS))
+        for w in rep.get("warnings") or []:
+            feedback.pushWarning(f"WARNING {w}") if hasattr(feedback, "pushWarning") else feedback.reportError(f"WARNING {w}")
         for name, u in rep["units"].items():
             feedback.pushInfo(f"{name}: volume {u['volume']:,.0f} (+{u['volume_positive']:,.0f} / "
                               f"{u['volume_negative']:,.0f}) {rep['volume_unit']}; thickness {u['thickness_min']:.2f} / "

@@ -8,6 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from qgis.core import (
+    QgsMapLayer,
     QgsProcessingAlgorithm,
     QgsProcessingContext,
     QgsProcessingException,
@@ -18,13 +19,14 @@ from qgis.core import (
 from qgis.PyQt.QtGui import QIcon
 
 from gistools.products.aquifer import AquiferSettings
-from ..compat import ADVANCED, FOLDER, POINT_CLOUD
+from ..compat import ADVANCED, FILE, FOLDER, POINT_CLOUD, reads_las, reads_vpc
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
 
 TILE_FOLDER_LABEL = "Folder of LAS/LAZ tiles"
 TILE_FILES_LABEL = "Or LAS/LAZ files or point cloud layers"
-NO_TILES = f"No tiles: choose a '{TILE_FOLDER_LABEL}', or files in '{TILE_FILES_LABEL}' (the ... button, then Add File(s))"
+TILE_LIST_LABEL = "Or LAS/LAZ (or .vpc) files"  # where this QGIS cannot open LAS/LAZ as layers: a list of files
+NO_TILES = "No tiles: choose a '{folder}', or files in '{files}' (the ... button, then Add File(s))"
 
 
 GROUP_LIDAR = ("LiDAR", "lidar")
@@ -162,8 +164,12 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         """The tiles: a folder, and / or LAS/LAZ files (the layer list's file button) or point cloud layers. QGIS has
         no "one of two is required": checkParameterValues refuses a run with neither, naming both by their labels."""
         self.add(QgsProcessingParameterFile("INPUT", TILE_FOLDER_LABEL, behavior=FOLDER, optional=True))
-        self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_FILES_LABEL, layerType=POINT_CLOUD,
-                                                      optional=True))
+        if reads_las():
+            self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_FILES_LABEL, layerType=POINT_CLOUD,
+                                                          optional=True))
+        else:  # no PDAL provider (Debian's QGIS 3.22): point cloud layers cannot be made, files can be listed
+            self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_LIST_LABEL, layerType=FILE,
+                                                          optional=True))
 
     # parameters renamed when one name came to mean one thing in every algorithm: a saved model or script that
     # still gives the old name is refused with the new one (QGIS would otherwise ignore it and run the default)
@@ -176,7 +182,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
                                f"give {new} instead of {old}")
         if self.parameterDefinition("POINT_CLOUDS") is not None and not parameters.get("INPUT") \
                 and not parameters.get("POINT_CLOUDS"):
-            return False, NO_TILES
+            return False, self.no_tiles()
         return super().checkParameterValues(parameters, context)
 
     def tiles(self, parameters, context):
@@ -186,11 +192,32 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         if folder:
             inputs.append(folder)
         if parameters.get("POINT_CLOUDS"):
-            for layer in self.parameterAsLayerList(parameters, "POINT_CLOUDS", context):
-                inputs.append(layer.source().split("|")[0])
+            inputs += self.point_cloud_files(parameters, context)
         if not inputs:
-            raise QgsProcessingException(NO_TILES)
+            raise QgsProcessingException(self.no_tiles())
         return inputs
+
+    def no_tiles(self) -> str:
+        files = self.parameterDefinition("POINT_CLOUDS")
+        return NO_TILES.format(folder=TILE_FOLDER_LABEL, files=files.description() if files else TILE_FILES_LABEL)
+
+    def point_cloud_files(self, parameters, context) -> list[str]:
+        """The files of POINT_CLOUDS: point cloud layers' sources, and files given by name (LAS/LAZ/COPC, or a .vpc,
+        which gistools reads even where this QGIS cannot open it as a layer)."""
+        values = parameters.get("POINT_CLOUDS") or []
+        values = list(values) if isinstance(values, (list, tuple)) else [values]
+        files, others = [], []
+        for value in values:
+            if isinstance(value, QgsMapLayer):
+                files.append(value.source().split("|")[0])
+            elif isinstance(value, str) and Path(value.split("|")[0]).is_file():
+                files.append(value.split("|")[0])
+            else:
+                others.append(value)
+        if others:
+            for layer in self.parameterAsLayerList({**parameters, "POINT_CLOUDS": others}, "POINT_CLOUDS", context):
+                files.append(layer.source().split("|")[0])
+        return files
 
     def add_fields(self, layer: str, fields: dict):
         """Field pickers on ``layer`` ({NAME: (label, usual column)}), as QGIS's own algorithms offer them; left
@@ -223,15 +250,18 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             return None
         return crs.authid() or crs.toWkt()
 
-    def layer_spec(self, parameters, name, context, feedback):
-        """A vector input as gistools reads it (``file.gpkg:LAYER``); memory or filtered layers are exported first."""
+    def layer_spec(self, parameters, name, context, feedback, tables=False):
+        """A vector input as gistools reads it (``file.gpkg|layername=LAYER``, unambiguous on Windows paths too);
+        memory or filtered layers are exported first. ``tables``: a CSV file is passed as it is (the contacts and
+        survey readers read its columns; exported to a GeoPackage it would be a table without geometry)."""
         if parameters.get(name) in (None, ""):
             return None
+        formats = ["gpkg", "shp"] + (["csv", "txt"] if tables else [])  # a CSV is read as the table it is
         path, layer = self.parameterAsCompatibleSourceLayerPathAndLayerName(
-            parameters, name, context, ["gpkg", "shp"], "gpkg", feedback)
+            parameters, name, context, formats, "gpkg", feedback)
         if not path:
             return None
-        return f"{path}:{layer}" if layer and path.lower().endswith(".gpkg") else path
+        return f"{path}|layername={layer}" if layer and path.lower().endswith(".gpkg") else path
 
     def output_path(self, parameters, name, context, optional=False):
         """A destination's file; None for an optional one left out; a temporary file when a model leaves it empty."""
@@ -317,6 +347,13 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             raise QgsProcessingException(failed[0].get("error") or "every tile failed")
         return len(failed)
 
-    def load_on_completion(self, context, path, name, output):
+    def load_on_completion(self, context, path, name, output, feedback=None):
+        """Add ``path`` to the layers QGIS opens when the run ends; a virtual point cloud only where this QGIS opens
+        them (3.32+), else a line on the feedback says where it is."""
+        if path and str(path).lower().endswith(".vpc") and not reads_vpc():
+            if feedback is not None:
+                feedback.pushInfo(f"{path}: this QGIS cannot open virtual point clouds (.vpc, QGIS 3.32+), so it is not "
+                                  "loaded; gistools reads it as an input, and its tiles open one by one")
+            return
         if path and Path(path).exists():
             context.addLayerToLoadOnCompletion(str(path), QgsProcessingContext.LayerDetails(name, context.project(), output))

@@ -44,5 +44,5 @@ class GroundAlgorithm(GistoolsAlgorithm):
         changed = sum(t.get("changed") or 0 for t in result["tiles"])
         feedback.pushInfo(f"{changed:,} points changed class; virtual point cloud: {result['vpc']}")
         if result["vpc"]:
-            self.load_on_completion(context, result["vpc"], "Classified tiles", "VPC")
+            self.load_on_completion(context, result["vpc"], "Classified tiles", "VPC", feedback)
         return {"OUTPUT_FOLDER": out, "VPC": result["vpc"], "CHANGED": changed}

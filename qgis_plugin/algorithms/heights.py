@@ -63,7 +63,7 @@ class NormalizeAlgorithm(GistoolsAlgorithm):
         self.report_tiles(result, feedback)
         feedback.pushInfo(f"virtual point cloud: {result['vpc']}")
         if result["vpc"]:
-            self.load_on_completion(context, result["vpc"], "Heights above ground", "VPC")
+            self.load_on_completion(context, result["vpc"], "Heights above ground", "VPC", feedback)
         return {"OUTPUT_FOLDER": out, "VPC": result["vpc"]}
 
 

@@ -36,8 +36,8 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         self.add_fields("INPUT", SURVEY_FIELDS)
         # the code: a text on the command line (the library's refusal lists the valid ones), a list here
         self.add_spec("code")
-        # the command line's settings (gistools.parameters.runway) but the CRS (the layer's)
-        self.add_spec("runway_type", "template", "spacing", "f_cut", "f_fill", "free_haul", "origin", "profile_window",
+        # the command line's settings (gistools.parameters.runway); the CRS where the layer has none (a CSV)
+        self.add_spec("crs", "runway_type", "template", "spacing", "f_cut", "f_fill", "free_haul", "origin", "profile_window",
                       "area_method", "max_offset", "min_offset", "z_max")
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputRasterLayer("DESIGN", "Design surface"))
@@ -58,9 +58,9 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         checks = {name: values.pop(name) for name in ("z_max", "max_offset", "min_offset")}
         checks = SurveyChecks(**{name: value if name == "z_max" else runway_metres(value, name)
                                  for name, value in checks.items() if value is not None})
+        crs = values.pop("crs") or self.layer_crs(parameters, "INPUT", context)
         settings = RunwaySettings(checks=checks, **values)
-        crs = self.layer_crs(parameters, "INPUT", context)
-        rep = runway_earthworks(self.layer_spec(parameters, "INPUT", context, feedback), out, settings, crs=crs,
+        rep = runway_earthworks(self.layer_spec(parameters, "INPUT", context, feedback, tables=True), out, settings, crs=crs,
                                 overwrite=True, progress=self.progress(feedback),
                                 fields=self.chosen_fields(parameters, context, "INPUT", SURVEY_FIELDS))
         feedback.pushInfo(f"cut {rep['cut']:,.1f} m3, fill {rep['fill']:,.1f} m3, net {rep['net']:,.1f} m3; "

@@ -1,0 +1,90 @@
+"""The plugin's dependency installer (qgis_plugin/install.py), lightly: a real pip run with QGIS's Python into a
+profile folder (a local wheel, no network), the packages it must never pip-install, and the one command it gives
+when it cannot install. (Installing the whole set into a fresh QGIS is the chroot's business, not run here.)"""
+
+from __future__ import annotations
+
+import sys
+import zipfile
+from pathlib import Path
+
+import pytest
+
+qgis_core = pytest.importorskip("qgis.core")
+
+from qgis_plugin import install  # noqa: E402
+
+
+def _wheel(folder: Path, name: str = "gistools_probe", version: str = "1.0") -> Path:
+    """A minimal pure-Python wheel (PEP 427 layout) holding ``name/__init__.py``."""
+    path = folder / f"{name}-{version}-py3-none-any.whl"
+    info = f"{name}-{version}.dist-info"
+    files = {f"{name}/__init__.py": "VALUE = 42\n",
+             f"{info}/METADATA": f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n",
+             f"{info}/WHEEL": "Wheel-Version: 1.0\nGenerator: gistools-tests\nRoot-Is-Purelib: true\nTag: py3-none-any\n"}
+    files[f"{info}/RECORD"] = "".join(f"{k},,\n" for k in files) + f"{info}/RECORD,,\n"
+    with zipfile.ZipFile(path, "w") as z:
+        for k, v in files.items():
+            z.writestr(k, v)
+    return path
+
+
+def test_the_interpreter_found_is_this_pythons_version():
+    exe = install.qgis_python()
+    assert exe is not None and install._version_of(exe) == f"{sys.version_info.major}.{sys.version_info.minor}"
+
+
+def test_pip_installs_into_the_profile_folder_which_goes_last_on_the_path(tmp_path, monkeypatch):
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    target = tmp_path / "profile" / "python" / install.DEPS_FOLDER
+    result = install.install_dependencies(target, requirements=[str(_wheel(tmp_path))])
+    assert result.ok and result.missing == [], result.message
+    assert "--target" in result.command and str(target) in result.command and "--constraint" in result.command
+    assert (target / "gistools_probe" / "__init__.py").is_file() and sys.path[-1] == str(target)
+    import gistools_probe
+
+    assert gistools_probe.VALUE == 42 and Path(gistools_probe.__file__).parent.parent == target
+    sys.modules.pop("gistools_probe", None)
+
+
+def test_gdal_bound_packages_are_never_pip_installed_and_a_failure_gives_the_command(tmp_path, monkeypatch):
+    for name in ("laspy", "rasterio"):  # as if QGIS's Python lacked them
+        monkeypatch.setitem(sys.modules, name, None)
+    target = tmp_path / install.DEPS_FOLDER
+    result = install.install_dependencies(target, python=tmp_path / "no-python")  # cannot run pip
+    assert not result.ok and "laspy" in result.missing and "rasterio" in result.missing
+    assert result.installed == ["laspy"] and result.command == []  # rasterio is not given to pip
+    run_this, bound = result.message.split("; ", 1)
+    assert run_this.endswith(f"Run this once, then restart QGIS: {tmp_path / 'no-python'} -m pip install "
+                             f"--disable-pip-version-check --no-input --target {target} laspy"), result.message
+    assert "rasterio must be QGIS's own builds" in bound and "sudo apt-get install python3-rasterio" in bound
+    assert "\n" not in result.message
+
+
+def test_the_plugin_puts_the_profiles_folder_on_the_path_when_it_starts(tmp_path):
+    """A QGIS started on a profile whose python/gistools_deps holds a package: the plugin's start adds that folder
+    after QGIS's own packages, so what install_dependencies put there imports."""
+    import os
+    import subprocess
+
+    from conftest import ROOT
+
+    profile = tmp_path / "profiles" / "default"
+    deps = profile / "python" / install.DEPS_FOLDER
+    (deps / "gistools_probe").mkdir(parents=True)
+    (deps / "gistools_probe" / "__init__.py").write_text("VALUE = 7\n")
+    script = f"""
+import sys
+sys.path.insert(0, {str(ROOT)!r})
+from qgis.core import QgsApplication
+app = QgsApplication([], False, {str(profile)!r}); app.initQgis()
+import qgis_plugin
+plugin = qgis_plugin.classFactory(None)
+plugin.initProcessing()
+import gistools_probe
+print("DEPS", sys.path.index({str(deps)!r}) == len(sys.path) - 1, gistools_probe.VALUE, plugin.provider is not None)
+plugin.unload()
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
+                         env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    assert "DEPS True 7 True" in run.stdout, run.stdout + run.stderr[-3000:]
