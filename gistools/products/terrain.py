@@ -166,38 +166,69 @@ def _kept(previous, tool: str, source: str, settings: dict, targets: dict) -> li
 def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: float = 315.0, altitude: float = 45.0,
                      z_unit: str | None = "raster", overwrite: bool = False, block: int = BLOCK,
                      progress: ProgressCallback | None = None) -> dict:
-    """Slope, aspect, hillshade and ruggedness of a DEM, as gdaldem, into ``out/<product>.tif`` and ``out/report.json``.
+    """Slope, aspect, hillshade and ruggedness of a DEM, as gdaldem: ``gistools terrain``.
+
+    Writes ``out/<product>.tif`` (float32, nodata -9999) for each of ``products`` and ``out/report.json``. The DEM is
+    read window by window, so a VRT mosaic of tiles gives the same cells as one merged raster. Cells on the raster's
+    outer ring, and cells whose 3 x 3 window holds a nodata cell, are nodata (gdaldem without ``-compute_edges``).
 
     Parameters
     ----------
-    dem : path
+    dem : str or path
         A DEM raster (GeoTIFF or VRT mosaic), or a folder written by ``gistools rasters`` (its ``dem.vrt``).
-    out : path
-        Output folder: ``slope.tif`` (degrees), ``slope_percent.tif`` (percent), ``aspect.tif`` (degrees clockwise
-        from north; flat cells nodata), ``hillshade.tif`` (1-255), ``tri.tif`` (Riley's TRI, the DEM's vertical unit);
-        float32, nodata -9999.
+    out : str or path
+        Output folder, made when missing: ``slope.tif`` (degrees), ``slope_percent.tif`` (percent), ``aspect.tif``
+        (degrees clockwise from north; flat cells nodata), ``hillshade.tif`` (1-255), ``tri.tif`` (Riley's terrain
+        ruggedness index, in the DEM's vertical unit).
     products : sequence of str
-        Which of slope, slope_percent, aspect, hillshade, tri to write.
-    azimuth, altitude : float
-        Hillshade light, degrees (gdaldem's 315 and 45).
+        Which of ``"slope"``, ``"slope_percent"``, ``"aspect"``, ``"hillshade"``, ``"tri"`` to write (default: all).
+    azimuth : float
+        Direction the hillshade's light comes from, degrees clockwise from north, 0-360 (gdaldem's 315).
+    altitude : float
+        Height of the hillshade's light above the horizon, degrees, 0-90 (gdaldem's 45).
     z_unit : str
-        The elevations' unit (m, ft, ftUS), or "raster": the band's unit, else the CRS's vertical unit, else the
-        horizontal unit. Elevations in another unit than x and y are scaled (gdaldem ``-s``).
+        The elevations' unit, ``"m"``, ``"ft"`` or ``"ftUS"``; or ``"raster"``: the band's unit, else the CRS's
+        vertical unit, else the horizontal unit. Elevations in another unit than x and y are scaled (gdaldem ``-s``).
     overwrite : bool
-        Replace existing outputs; else outputs of an earlier run with the same settings are kept, and one of other
-        settings is refused.
+        Replace existing outputs. Without it, the outputs of an earlier run with the same settings on the same DEM
+        are kept (listed in ``kept``), and an output of other settings is refused.
     block : int
         Cells a side of the windows read at once (0: the whole raster).
+    progress : callable, optional
+        ``progress(fraction, message)``, told after each window; returning False cancels the run.
 
     Returns
     -------
     dict
-        The report (also written as ``out/report.json``): outputs, units, scale, seconds.
+        The report, also written to ``out/report.json``: ``outputs`` ({product: path}), ``kept``, ``settings``,
+        ``units`` (``horizontal``, ``vertical``, ``vertical_from``: where the vertical unit was read, and
+        ``scale``: the gdaldem ``-s`` applied), ``cells`` ([width, height]), ``seconds``, ``warnings`` (one when
+        the DEM carries no vertical unit).
+
+    Raises
+    ------
+    InputError
+        An option is not valid, the DEM is not found (or the folder has no ``dem.vrt``), has no CRS, is rotated,
+        or an output would overwrite it.
+    DataFileError
+        The DEM cannot be read.
+    OutputExistsError
+        An output is there from a run with other settings, and ``overwrite`` is False; or ``out`` holds another
+        command's outputs.
+    OutputError
+        ``out`` cannot be made, or another run is writing in it.
+    Cancelled
+        ``progress`` returned False.
 
     Examples
     --------
-    >>> from gistools.products.terrain import terrain_from_dem
-    >>> rep = terrain_from_dem("out/dem.vrt", "out/terrain", products=("slope", "hillshade"))  # doctest: +SKIP
+    >>> from gistools import rasters_from_tiles, terrain_from_dem
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> report = terrain_from_dem("rasters", "terrain", products=("slope", "hillshade"))  # doctest: +SKIP
+    >>> report["outputs"]  # doctest: +SKIP
+    {'slope': 'terrain/slope.tif', 'hillshade': 'terrain/hillshade.tif'}
+    >>> report["units"]  # doctest: +SKIP
+    {'horizontal': 'ftUS', 'vertical': 'ftUS', 'vertical_from': 'band', 'scale': 1.0}
     """
     started = time.time()
     products = _check(products, azimuth, altitude, z_unit)

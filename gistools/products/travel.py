@@ -88,30 +88,61 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
                    tobler: tuple = TOBLER, max_memory: float = 4e9, progress=None) -> np.ndarray:
     """Minutes to walk from the nearest of ``sources`` to each cell of ``dem``.
 
+    A directed graph of the grid's cells, each step weighted by its length times the mean slowness (1 / speed) of
+    the cells it crosses on the step's slope (uphill one way, downhill the other), solved by scipy's Dijkstra.
+    Speeds in km/h.
+
     Parameters
     ----------
-    dem : 2-D array of heights (NaN: no data, impassable but at a ``fixed_speed``; a step to or from such a cell is
-        taken as level), rows north to south, square cells of ``cell_size``.
-    cell_size : the cell's side in CRS units (``xy_metres`` metres each); ``z_metres``: metres per height unit
-        (default ``xy_metres``).
-    sources : (row, column) pairs of the start cells.
-    factor : multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). Default 1 everywhere.
-    fixed_speed : km/h per cell, NaN where Tobler's function applies (roads at a road speed, water waded).
-    neighbours : 8 or 16 moves. A step costs its length times the mean slowness (1 / speed) of the cells it
-        crosses on the step's slope: its two ends, and for a knight's move the two cells between.
-    isotropic : each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours
-        the cost of ``skimage.graph.MCP_Geometric``).
-    tobler : (a km/h, b, c) of ``v = a exp(-b |s + c|)``.
-    max_memory : bytes; a larger grid is refused (OutOfMemoryError) before any work.
-    progress : a gistools progress callback, told after each move's edges (False from it cancels); the shortest
-        paths themselves (scipy) run without a word.
+    dem : numpy.ndarray
+        2-D array of heights, rows north to south, square cells. NaN: no data, impassable unless at a
+        ``fixed_speed`` (a step to or from such a cell is taken as level).
+    cell_size : float
+        The cell's side in CRS units (``xy_metres`` metres each).
+    sources : sequence of (int, int)
+        (row, column) of the start cells.
+    factor : numpy.ndarray, optional
+        Multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). None: 1 everywhere.
+    fixed_speed : numpy.ndarray, optional
+        Speed in km/h per cell that replaces Tobler's (roads at a road speed, water waded); NaN where Tobler's
+        function applies. None: NaN everywhere.
+    xy_metres : float
+        Metres per CRS unit (1 for metres, 0.3048 for feet, 1200 / 3937 for US survey feet).
+    z_metres : float, optional
+        Metres per height unit. None: ``xy_metres``.
+    neighbours : int
+        8 (the king's moves) or 16 (and the knight's, closer to straight walks). A knight's move crosses two more
+        cells, whose slowness counts in its mean.
+    isotropic : bool
+        Each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours, the cost of
+        ``skimage.graph.MCP_Geometric``).
+    tobler : tuple of float
+        (a in km/h, b, c) of Tobler's hiking function ``v = a exp(-b |s + c|)``, s the slope (rise over run).
+    max_memory : float
+        Bytes the graph may take; a larger grid is refused before any work.
+    progress : callable, optional
+        ``progress(fraction, message)``, told after each move's edges are built (returning False cancels); the
+        shortest paths themselves (scipy) run without a word.
 
     Returns
     -------
-    float64 array of minutes, ``inf`` where no path reaches (water, no data, cut off).
+    numpy.ndarray
+        float64 minutes, the shape of ``dem``: 0 at the sources, ``inf`` where no walk reaches (water, no data, cut
+        off).
+
+    Raises
+    ------
+    InputError
+        ``neighbours`` is not 8 or 16.
+    OutOfMemoryError
+        The graph's estimate (``BYTES_PER_CELL`` a cell) is above ``max_memory``.
+    Cancelled
+        ``progress`` returned False.
 
     Examples
     --------
+    >>> import numpy as np
+    >>> from gistools import travel_minutes
     >>> t = travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8)
     >>> round(float(t[1, 40]), 4)  # 40 m on flat ground at 6 exp(-0.175) km/h
     0.4765
@@ -526,30 +557,78 @@ def _write_outputs(out: Path, minutes, grid, settings, points, xy, top: float):
 
 def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None, *, classes=None, roads=None,
                     hydro=None, waterbodies=None, overwrite: bool = False, progress=None) -> dict:
-    """Minutes for a walker to reach every cell of ``dem`` from the nearest point last seen.
+    """Minutes for a walker to reach every cell of a DEM from the nearest point last seen: ``gistools travel``.
+
+    Tobler's hiking function on the slope of each step, slowed by the shrub classes, with roads and water from the
+    classes raster and the breakline layers (``travel_minutes``). Writes under ``out``: ``travel_minutes.tif``
+    (float32 minutes, nodata -9999 where no walk reaches, with the QGIS style ``travel_minutes.qml``),
+    ``isochrone_bands.tif`` (uint8: 1 within the first isochrone, 2 within the second, ..., one more beyond the
+    last, 255 not reached; with a colour table), ``travel.gpkg`` (layers ``isochrones`` and ``last_seen``) and
+    ``report.json``.
 
     Parameters
     ----------
-    dem : a DEM raster or VRT, or an output folder of ``gistools rasters`` / ``gistools shrub`` (its ``dem.vrt``,
-        and its ``classes.vrt`` for shrub, roads and water).
-    out : the output folder.
-    last_seen : "X,Y" (the DEM's CRS), an (x, y) pair, a point layer (``file.gpkg:LAYER``), or a list of them.
-    settings : :class:`TravelSettings` (speeds in km/h, isochrones in minutes).
-    classes : a shrub classes raster (0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water); default: the folder's.
-    roads, hydro, waterbodies : breakline layers (``file.gpkg:LAYER``) made into road and water polygons as the
-        shrub chain makes them (added to the classes' roads and water).
+    dem : str or path
+        A DEM raster or VRT (square cells, with a CRS), or an output folder of ``gistools rasters`` or ``gistools
+        shrub`` (its ``dem.vrt``, and its ``classes.vrt`` when there).
+    out : str or path
+        Output folder, made when missing.
+    last_seen : str, tuple or list
+        The points last seen: ``"X,Y"`` in the DEM's CRS, an (x, y) pair, a point layer (a path or
+        ``file.gpkg:LAYER``), or a list of them.
+    settings : TravelSettings, optional
+        The options (``tobler``, ``shrub_factors``, ``road_speed`` and ``wade_speed`` in km/h, ``isochrones`` in
+        minutes, ``neighbours``, ``max_memory`` in GB, breakline widths, ...). None: the defaults.
+    classes : str or path, optional
+        A shrub classes raster (0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water), in the DEM's CRS. None: the
+        folder's ``classes.vrt``, if any.
+    roads : str, optional
+        Edge-of-pavement lines (a path or ``file.gpkg:LAYER``), made into road polygons as the shrub chain makes
+        them (added to the classes' roads).
+    hydro : str, optional
+        Water lines (streams, canals), likewise made into water polygons.
+    waterbodies : str, optional
+        Water polygons, likewise.
+    overwrite : bool
+        Replace the outputs of an earlier run in ``out`` (else they are refused).
+    progress : callable, optional
+        ``progress(fraction, message)``, called as the work goes; returning False cancels the run.
 
     Returns
     -------
-    The report (also ``out/report.json``): ``isochrones`` (minutes, area in CRS units squared, hectares, acres),
-    ``last_seen``, ``reached_share``, ``max_minutes``, the units and the speed model. Files: ``travel_minutes.tif``
-    (float32 minutes, nodata -9999, with ``travel_minutes.qml``), ``isochrone_bands.tif`` (uint8 bands with a
-    colour table), ``travel.gpkg`` (layers ``isochrones`` and ``last_seen``).
+    dict
+        The report, also written to ``out/report.json``: ``isochrones`` (per isochrone ``minutes``, ``area`` in
+        ``area_unit``, the CRS unit squared, ``hectares``, ``acres``), ``last_seen``, ``reached_share`` (the share
+        of the DEM's cells a walk reaches), ``max_minutes``, ``unit`` and ``vertical_unit``, ``cell_size``,
+        ``speed_model`` (with the ``road_cells`` and ``water_cells`` counted), ``outputs``, ``settings``,
+        ``seconds``.
+
+    Raises
+    ------
+    InputError
+        An option is not valid; the folder has no ``dem.vrt``; the DEM has no CRS or its cells are not square; no
+        point last seen is given, or one is outside the DEM or on a cell the walker cannot be on (water, no data);
+        the classes raster is in another CRS.
+    CRSMismatchError
+        A layer is in another CRS than the DEM (``settings.reproject_vectors`` reprojects it).
+    DataFileError
+        The DEM is not found, or the classes raster cannot be read.
+    OutOfMemoryError
+        The travel graph's estimate is above ``settings.max_memory``.
+    OutputExistsError
+        ``out`` holds the outputs of an earlier run and ``overwrite`` is False.
+    Cancelled
+        ``progress`` returned False.
 
     Examples
     --------
-    >>> rep = travel_from_dem("out", "out/travel", "431000,1811000")  # doctest: +SKIP
-    >>> [round(i["hectares"], 1) for i in rep["isochrones"]]  # doctest: +SKIP
+    >>> from gistools import TravelSettings, rasters_from_tiles, travel_from_dem
+    >>> B = "sample_tiles/breaklines.gpkg"
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> report = travel_from_dem("rasters", "travel", "431000,1811000", TravelSettings(isochrones=(2, 4, 6)),
+    ...                          roads=f"{B}:ROADBREAKLINE", waterbodies=f"{B}:WATERBODY")  # doctest: +SKIP
+    >>> [(i["minutes"], round(i["hectares"], 1)) for i in report["isochrones"]]  # doctest: +SKIP
+    [(2.0, 8.5), (4.0, 29.4), (6.0, 35.1)]
     """
     from ..engine.record import write_folder_report
     from ..errors import OutputExistsError

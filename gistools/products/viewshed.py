@@ -167,41 +167,81 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
                           target_height="0", surface_kind: str = "dsm", max_distance="0", curvature: bool = False,
                           curvature_coefficient: float = 0.85714, z_unit: str | None = "raster",
                           overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
-    """Cells seen from one or several observers, as gdal_viewshed, into ``out/viewshed.tif`` and ``out/report.json``.
+    """Cells seen from one or several observers, as gdal_viewshed: ``gistools viewshed``.
+
+    Writes ``out/viewshed.tif``, ``out/viewshed_count.tif`` and ``out/report.json``. The surface is the DSM by default
+    (trees and buildings hide a person) or the DEM; a cell is seen when a point ``target_height`` above it is in
+    sight of an eye ``observer_height`` above the observer's cell (gdal_viewshed's default mode).
 
     Parameters
     ----------
-    surface : path
-        A surface raster (GeoTIFF or VRT mosaic; read whole into memory, 8 bytes a cell), or a folder written by
-        ``gistools rasters`` (its ``dsm.vrt``, or ``dem.vrt`` with ``surface_kind="dem"``).
-    out : path
-        Output folder: ``viewshed.tif`` (uint8: 1 seen by at least one observer, 0 hidden, 255 nodata where the
-        surface has none) and ``viewshed_count.tif`` (uint16: how many observers see each cell, 65535 nodata).
-    observers : str or sequence
-        Positions in the surface's CRS: "X,Y" (several separated by ;) or (x, y) pairs.
-    observers_layer : path
-        A point layer of observers (``file.gpkg:LAYER``), in the surface's CRS.
-    observer_height, target_height : str or float
-        The eye above the surface, and the height above a cell that must be seen (lengths with a unit; a bare number
-        in the vertical unit). Default eye: 6ft on data in feet, 2m on metre data.
+    surface : str or path
+        A surface raster (GeoTIFF or VRT mosaic), or a folder written by ``gistools rasters`` (its ``dsm.vrt``, or
+        its ``dem.vrt`` with ``surface_kind="dem"``). The part read is held in memory, 8 bytes a cell.
+    out : str or path
+        Output folder, made when missing: ``viewshed.tif`` (uint8: 1 seen by at least one observer, 0 hidden, 255
+        where the surface has no value) and ``viewshed_count.tif`` (uint16: how many observers see each cell, 65535
+        nodata).
+    observers : str or sequence, optional
+        Observer positions in the surface's CRS: ``"X,Y"`` (several separated by ``;``), or (x, y) pairs.
+    observers_layer : str, optional
+        A point layer of observers (a path or ``file.gpkg:LAYER``) in the surface's CRS, added to ``observers``.
+    observer_height : str or float, optional
+        The eye above the surface at the observer: a length with its unit (``"6ft"``, ``"2m"``) or a number in the
+        surface's vertical unit. None: 6ft on data in feet, 2m on metre data.
+    target_height : str or float
+        Height above a cell that must be in sight for the cell to be seen, likewise (default 0).
+    surface_kind : str
+        With a folder: ``"dsm"`` (its ``dsm.vrt``) or ``"dem"`` (its ``dem.vrt``).
     max_distance : str or float
-        Only cells within this distance of an observer are computed (gdal_viewshed -md): the output covers the
-        observers' ranges only (cells beyond every range 0), and only that part of the surface is read. "0": the
-        whole raster, read into memory (8 bytes a cell).
+        Only cells within this distance of an observer are computed (gdal_viewshed ``-md``): a length with its unit,
+        or a number in CRS units. The outputs then cover the observers' ranges only (cells beyond every range 0),
+        and only that part of the surface is read. ``"0"``: no limit, the whole raster.
     curvature : bool
-        Lower distant cells by curvature_coefficient x distance^2 / the ellipsoid's diameter (gdal_viewshed -cc).
+        Lower distant cells for the earth's curvature (gdal_viewshed ``-cc``).
+    curvature_coefficient : float
+        With ``curvature``: a cell at distance d is lowered by coefficient x d^2 / the ellipsoid's diameter; 0-1,
+        1 minus the refraction coefficient (gdal_viewshed's 0.85714: a refraction of 1/7).
     z_unit : str
-        The surface's vertical unit (m, ft, ftUS), or "raster": its band unit, else its CRS's.
+        The surface's vertical unit, ``"m"``, ``"ft"`` or ``"ftUS"``; or ``"raster"``: its band's unit, else its
+        CRS's vertical unit, else the horizontal unit.
+    overwrite : bool
+        Replace existing outputs. Without it, the outputs of an earlier run with the same settings on the same
+        surface are kept (its report is returned), and outputs of other settings are refused.
+    progress : callable, optional
+        ``progress(fraction, message)``, told as each observer's sweep goes; returning False cancels the run.
 
     Returns
     -------
     dict
-        The report (also ``out/report.json``): observers (position, cell, eye elevation, cells seen), outputs.
+        The report, also written to ``out/report.json``: ``observers`` (per observer ``x``, ``y``, ``row``, ``col``,
+        ``eye_elevation`` in the vertical unit, ``cells_seen``), ``cells_seen`` and ``area_seen`` (in
+        ``area_unit``, the CRS unit squared) seen by at least one observer, ``outputs``, ``settings``, ``units``
+        (heights and distance as used, in the data's units), ``extent`` (the window of the surface written).
+
+    Raises
+    ------
+    InputError
+        An option is not valid, no observer is given, an observer is outside the surface or on a cell without a
+        value, the surface is not found, has no CRS or is rotated, or an output would overwrite it.
+    DataFileError
+        The surface cannot be read.
+    OutputExistsError
+        An output is there from a run with other settings, and ``overwrite`` is False; or ``out`` holds another
+        command's outputs.
+    OutputError
+        ``out`` cannot be made, or another run is writing in it.
+    Cancelled
+        ``progress`` returned False.
 
     Examples
     --------
-    >>> from gistools.products.viewshed import viewshed_from_surface
-    >>> rep = viewshed_from_surface("out", "out/viewshed", observers="565300,654400", observer_height="6ft")  # doctest: +SKIP
+    >>> from gistools import rasters_from_tiles, viewshed_from_surface
+    >>> report = rasters_from_tiles("sample_tiles", "rasters")  # doctest: +SKIP
+    >>> report = viewshed_from_surface("rasters", "viewshed", observers="431000,1811000",
+    ...                                observer_height="6ft")  # doctest: +SKIP
+    >>> report["cells_seen"], report["area_seen"], report["area_unit"]  # doctest: +SKIP
+    (42236, 1055900.0, 'square ftUS')
     """
     started = time.time()
     _check_options(surface_kind, curvature_coefficient)
