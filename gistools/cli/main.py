@@ -119,6 +119,7 @@ from . import chm as _chm  # noqa: E402
 from . import deliver as _deliver  # noqa: E402
 from . import info as _info  # noqa: E402
 from . import metrics as _metrics  # noqa: E402
+from . import fuels as _fuels  # noqa: E402
 from . import normalize as _normalize  # noqa: E402
 from . import rasters as _rasters  # noqa: E402
 from . import points as _points  # noqa: E402
@@ -134,6 +135,7 @@ cli.add_command(_rasters.rasters)
 cli.add_command(_normalize.normalize)
 cli.add_command(_metrics.metrics)
 cli.add_command(_chm.chm)
+cli.add_command(_fuels.fuels)
 cli.add_command(_deliver.webmap)
 cli.add_command(_deliver.scene)
 cli.add_command(_deliver.mapbook)
