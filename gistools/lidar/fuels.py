@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["layer_counts", "lad_profile", "running_mean", "cbd_cbh", "horn_slope_aspect", "fuel_model_codes"]
+__all__ = ["layer_counts", "lad_profile", "ratio_profile", "running_mean", "cbd_cbh", "horn_slope_aspect", "fuel_model_codes"]
 
 
 def layer_counts(cell, n: int, h, ground, *, dz: float, layers: int | None = None) -> np.ndarray:
@@ -41,6 +41,31 @@ def lad_profile(counts: np.ndarray, *, dz: float, k: float) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore"):
         lad = np.where(n_in > 0, np.log(n_in / np.maximum(n_out, 1.0)), 0.0) / (k * dz)
     return lad
+
+
+def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers: int | None = None) -> np.ndarray:
+    """Leaf area density per cell and layer by the ratio estimator over the pulses' path (Pimont et al. 2018,
+    vertical pulses): every return above the ground is an interception; a pulse is exposed in a layer from the
+    layer's top down to its last return (the whole layer when it ends on the ground or below):
+    ``LAD_i = returns_i / (k * exposure_i)``, exposure in metres of path (``dz`` the layer in metres over its
+    heights' unit factor is the caller's: heights and dz share a unit here, the result is per that unit)."""
+    cell = np.asarray(cell, np.int64)
+    h = np.asarray(h, np.float64)
+    ground = np.asarray(ground, bool)
+    hv = np.where(ground, -np.inf, np.maximum(h, 0.0))
+    top = int(np.floor(hv[np.isfinite(hv)].max(initial=0.0) / dz)) + 1 if layers is None else layers
+    events = np.zeros((n, top))
+    veg = ~ground
+    li = np.minimum(np.floor(hv[veg] / dz).astype(np.int64), top - 1)
+    np.add.at(events, (cell[veg], li), 1.0)
+    exposure = np.zeros((n, top))
+    lasts = np.asarray(last, bool)
+    hl, cl = hv[lasts], cell[lasts]
+    tops = (np.arange(top) + 1) * dz
+    for i in range(top):  # a pulse's path in layer i: from its top to the pulse's last return, at most dz
+        np.add.at(exposure[:, i], cl, np.clip(tops[i] - hl, 0.0, dz))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(exposure > 0, events / (k * exposure), 0.0)
 
 
 def running_mean(profile: np.ndarray, window: int) -> np.ndarray:

@@ -8,6 +8,9 @@ Every constant of the method is one of these parameters (docs/commands/fuels.md 
 from .core import COMMAND_DEFAULTS, ByUnits, Parameter, command, declare, option
 from . import common, lidar, rasters, shrub  # noqa: F401  (declared there)
 
+PROFILES = {"ratio": "Returns over path length (Pimont et al. 2018)",
+            "macarthur-horn": "ln(N_in / N_out) of first returns (MacArthur-Horn)"}
+
 declare(
     Parameter("canopy_floor", "length", "Returns higher than this above the ground are canopy: canopy cover is the "
               "share of first returns above it, and the canopy bulk density profile starts at it (LANDFIRE, FVS: 2 m).",
@@ -32,6 +35,10 @@ declare(
     Parameter("column", "length", "The profile is computed in columns this wide, then averaged over the cell, so that "
               "gaps between crowns do not dilute the crowns' density (0: one profile per cell).", "Profile column width",
               default="2m", minimum=0.0, example="2m", advanced=True),
+    Parameter("profile", "choice", "The leaf area density estimator of each layer: ratio, every return in the layer "
+              "over k times the pulses' path through it down to their last return (Pimont et al. 2018); "
+              "macarthur-horn, ln(N_in / N_out) / (k dz) of the first returns (MacArthur and Horn 1969).",
+              "Leaf area density estimator", default="ratio", choices=PROFILES, advanced=True),
     Parameter("fuel_raster", "raster", "A fuel-model raster (Scott and Burgan 40 codes, e.g. LANDFIRE FBFM40), "
               f"sampled at the cell centres; without it the codes of {option('fuel_codes')} follow the shrub class.",
               "Fuel-model raster (FBFM40 codes)", metavar="RASTER"),
@@ -45,7 +52,7 @@ declare(
 )
 
 FUELS = command("fuels", "cell_size", "canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area",
-                "running_mean", "cbh_threshold", "column", "bands", "noise_floor", "class_breaks", "fuel_raster", "fuel_codes",
+                "running_mean", "cbh_threshold", "column", "profile", "bands", "noise_floor", "class_breaks", "fuel_raster", "fuel_codes",
                 "latitude", "buffer", "crs", "jobs", "overwrite", "scheduler")
 
 # LANDFIRE's 30 m lattice; 100 ft on data in feet (30.48 m) reads naturally there

@@ -26,7 +26,7 @@ from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, re
 from ..io.raster import crs_from_wkt, write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.bands import band_thresholds
-from ..lidar.fuels import cbd_cbh, fuel_model_codes, horn_slope_aspect, lad_profile, layer_counts
+from ..lidar.fuels import cbd_cbh, lad_profile, layer_counts, ratio_profile
 from ..lidar.metrics import MetricSpec, cell_metrics
 from ..lidar.normalize import ground_height_at, height_above_ground
 from ..parameters import check_all, default_for
@@ -75,12 +75,13 @@ class FuelsSettings:
     fuel_codes: tuple = _fuel_default("fuel_codes")
     latitude: float | None = None
     column: str | float = _fuel_default("column")
+    profile: str = _fuel_default("profile")
     buffer: str | float = COMMAND_DEFAULTS["fuels"]["buffer"]
     crs: str | None = None
 
     def validate(self) -> None:
         names = ["canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area", "running_mean",
-                 "cbh_threshold", "column", "bands", "noise_floor", "class_breaks", "fuel_codes", "buffer"]
+                 "cbh_threshold", "column", "profile", "bands", "noise_floor", "class_breaks", "fuel_codes", "buffer"]
         if self.cell_size is not None:
             names.append("cell_size")
         if self.latitude is not None:
@@ -111,6 +112,7 @@ class _Run:
     z_unit: str
     xy_metres: float  # metres per xy unit
     column: float = 0.0  # xy unit
+    profile: str = "ratio"
 
 
 def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
@@ -126,7 +128,8 @@ def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
                 name="canopy floor"), float(settings.height_percentile), dz, float(settings.extinction),
                 float(settings.leaf_mass_area), max(1, int(round(depth / dz))), float(settings.cbh_threshold),
                 (floor, t1, t2, t3), length_to_crs_units(settings.buffer, xy, name="buffer"), str(out), crs.to_wkt(),
-                z.metres, z.short, xy.metres, length_to_crs_units(settings.column, xy, name="column"))
+                z.metres, z.short, xy.metres, length_to_crs_units(settings.column, xy, name="column"),
+                settings.profile)
 
 
 def _percentile(cell, v, n, p) -> np.ndarray:
@@ -135,7 +138,7 @@ def _percentile(cell, v, n, p) -> np.ndarray:
     return cell_metrics(cell, n, [spec], hag=v, thresholds={"p": [p]})["p"]
 
 
-def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None) -> dict:
+def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=None) -> dict:
     """{layer name: float64 array of ``n`` cells} from the points in cells ``cell`` (flat 0..n-1) with heights above
     ground ``hag`` (z unit), ``first`` (first returns) and ``ground`` (ground / water class). NaN where a cell has
     no point; cells without canopy have height, CBH and CBD 0. Heights out in the z unit, CBD in kg/m3."""
@@ -153,24 +156,27 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None) -> dict
     if canopy.any():
         top = _percentile(cell[canopy], hag[canopy], n, run.percentile)
         height = np.where(np.isfinite(top), top, height)
-    # the profile of the first returns (one per pulse)
+    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell
     f = np.asarray(first, bool)
     if column is None:
-        counts = layer_counts(cell[f], n, hag[f], ground[f], dz=run.dz)
-        lad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)  # m2/m3
-    else:  # the profile of each column, then the columns' mean in each cell
-        cols, inv = np.unique(np.column_stack([cell[f], column[f]]), axis=0, return_inverse=True)
-        inv = inv.ravel()
-        ccounts = layer_counts(inv, len(cols), hag[f], ground[f], dz=run.dz)
-        clad = lad_profile(ccounts, dz=run.dz * run.z_metres, k=run.k)
-        per = np.bincount(cols[:, 0], minlength=n)
-        lad = np.zeros((n, clad.shape[1]))
-        np.add.at(lad, cols[:, 0], clad)
-        lad /= np.maximum(per, 1)[:, None]
-        counts = np.zeros((n, 1))
-        np.add.at(counts, cols[:, 0], ccounts.sum(axis=1, keepdims=True))
+        colcell, col_of = np.arange(n), np.asarray(cell, np.int64)
+    else:
+        colcell, col_of = np.unique(np.column_stack([cell, column]), axis=0, return_inverse=True)
+        colcell, col_of = colcell[:, 0], col_of.ravel()
+    m = len(colcell)
+    if run.profile == "ratio":
+        clad = ratio_profile(col_of, m, hag, ground, last, dz=run.dz, k=run.k) / run.z_metres
+        seen = np.bincount(col_of, minlength=m)
+    else:
+        counts = layer_counts(col_of[f], m, hag[f], ground[f], dz=run.dz)
+        clad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)
+        seen = counts.sum(axis=1)
+    per = np.bincount(colcell, weights=(seen > 0).astype(float), minlength=n)
+    lad = np.zeros((n, clad.shape[1]))
+    np.add.at(lad, colcell, clad)
+    lad /= np.maximum(per, 1)[:, None]
+    no_first = per == 0
     cbd, cbh = cbd_cbh(lad * run.lma, dz=run.dz, floor=run.floor, window=run.window, threshold=run.threshold)
-    no_first = counts.sum(axis=1) == 0
     cbd = np.where(has, np.where(no_first, np.nan, cbd), np.nan)
     cbh = np.where(has, np.where(no_first, np.nan, cbh), np.nan)
     return {"cover": cover, "height": height, "cbh": cbh, "cbd": cbd, "strata_b1": shares["b1"],
@@ -194,7 +200,8 @@ def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict
     if run.column > 0:
         cx_, cy_ = np.floor(allp["x"][use] / run.column), np.floor(allp["y"][use] / run.column)
         column = (cx_ - cx_.min()).astype(np.int64) * (int(cy_.max() - cy_.min()) + 1) + (cy_ - cy_.min()).astype(np.int64)
-    out = cell_fuels(flat[use], n, hag, allp["return_number"][use] <= 1, g[use], run, column)
+    last = allp["return_number"][use] >= allp["number_of_returns"][use]
+    out = cell_fuels(flat[use], n, hag, allp["return_number"][use] <= 1, g[use], run, column, last)
     cx, cy = np.meshgrid(*cell_centres(grid))
     elev, _ = ground_height_at(allp["x"][g], allp["y"][g], allp["z"][g], cx.ravel(), cy.ravel())
     out["elevation"] = np.asarray(elev, np.float64)
