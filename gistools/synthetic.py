@@ -344,11 +344,13 @@ def write_breaklines(scene: Scene, footprints: list[dict], gpkg, crs) -> None:
 # --- a forest stand for canopy fuels (gistools fuels) --------------------------------------------------------------
 @dataclass
 class Stand:
-    """Cone-shaped crowns (apex up, widest at the base) on a lattice of ``cell``-metre cells (metres, a UTM CRS).
+    """Crowns on a lattice of ``cell``-metre cells (metres, a UTM CRS): cones (apex up, widest at the base) or
+    half-ellipsoids (a dome on a flat base), one shape per cell.
 
-    ``cells``: one row per cell: col, row, crown base (m above ground), top (m), radius (m), tree spacing (m) and
-    foliage bulk density inside the crowns (kg/m3); spacing 0 is a cell without trees. ``trees``: x, y, radius,
-    base, top, density, one row per tree; every crown lies inside its cell and no two crowns overlap.
+    ``cells``: one row per cell: col, row, crown base (m above ground), top (m), radius (m), tree spacing (m),
+    foliage bulk density inside the crowns (kg/m3) and shape (0 cone, 1 half-ellipsoid); spacing 0 is a cell
+    without trees. ``trees``: x, y, radius, base, top, density, shape, one row per tree; every crown lies inside its
+    cell and no two crowns overlap.
     """
 
     origin: tuple[float, float]
@@ -379,21 +381,22 @@ def make_stand(origin=(500010.0, 4100010.0), shape=(4, 3), cell: float = 30.0, s
     for row in range(shape[1]):
         for col in range(shape[0]):
             if (col, row) == (0, 0):
-                cells.append((col, row, 0, 0, 0, 0, 0))
+                cells.append((col, row, 0, 0, 0, 0, 0, 0))
                 continue
             base = rng.uniform(2.5, 12.0)
             top = base + rng.uniform(4.0, 12.0)
             radius = rng.uniform(1.5, 3.0)
             spacing = 2 * radius * rng.uniform(1.02, 1.6)
             rho = rng.uniform(0.08, 0.3)
-            cells.append((col, row, base, top, radius, spacing, rho))
+            shape_ = (col + row) % 2
+            cells.append((col, row, base, top, radius, spacing, rho, shape_))
             n = int(cell // spacing)
             off = (cell - n * spacing) / 2 + spacing / 2
             gx = origin[0] + col * cell + off + spacing * np.arange(n)
             gy = origin[1] + row * cell + off + spacing * np.arange(n)
             tx, ty = np.meshgrid(gx, gy)
             for x, y in zip(tx.ravel(), ty.ravel()):
-                trees.append((x, y, radius, base, top, rho))
+                trees.append((x, y, radius, base, top, rho, shape_))
     return Stand(origin, cell, shape, np.asarray(cells, float), np.asarray(trees, float))
 
 
@@ -420,7 +423,9 @@ def stand_points(stand: Stand, *, density: float = 20.0, extinction: float = 0.5
         d, i = cKDTree(t[:, :2]).query(np.column_stack([px, py]))
         r, base, top = t[i, 2], t[i, 3], t[i, 4]
         hit = d < r
-        entry[hit] = (top - (top - base) * d / r)[hit]
+        u = np.minimum(d / r, 1.0)
+        depth_ = np.where(t[i, 6] > 0, np.sqrt(1 - u ** 2), 1 - u) * (top - base)  # the crown's height above its base
+        entry[hit] = (base + depth_)[hit]
         path[hit] = entry[hit] - base[hit]
         rate[hit] = extinction * t[i, 5][hit] / leaf_mass_area
     xs, ys, zs, ret, cls = [], [], [], [], []
@@ -456,38 +461,48 @@ def stand_points(stand: Stand, *, density: float = 20.0, extinction: float = 0.5
 
 def stand_truth(stand: Stand, *, floor: float = 2.0, layer: float = 1.0, window: int = 3, threshold: float = 0.012,
                 extinction: float = 0.5, leaf_mass_area: float = 0.141, step: float = 0.05) -> dict:
-    """Per cell (arrays over stand.cells' rows) the answers, computed from the crowns' geometry: ``cbh`` the crown
+    """Per cell (arrays over stand.cells' rows) the answers, computed from the crowns' geometry: ``base`` the crown
     base (0 without trees), ``height`` the crown top, ``cbd`` the largest centred ``window``-layer running mean of
     the layers' bulk density (foliage mass of the crowns' slices over the cell's layer volume; layers under
-    ``floor`` left out), ``cover`` the expected share (percent) of first returns above ``floor``, integrated over
+    ``floor`` left out), ``cbh`` the middle of the lowest layer whose running mean exceeds ``threshold`` (FVS's
+    rule on the exact profile; 0 where none does), ``cover`` the expected share (percent) of first returns above ``floor``, integrated over
     the cell on a ``step`` raster (1 - exp(-k LAD path) per position)."""
     c = stand.cells
     ncell = len(c)
-    out = {k: np.zeros(ncell) for k in ("cbh", "height", "cbd", "cover")}
+    out = {k: np.zeros(ncell) for k in ("cbh", "base", "height", "cbd", "cover")}
     area = stand.cell ** 2
-    for j, (col, row, base, top, radius, spacing, rho) in enumerate(c):
+    for j, (col, row, base, top, radius, spacing, rho, shape) in enumerate(c):
         if spacing == 0:
             continue
         ntree = int(stand.cell // spacing) ** 2
-        out["cbh"][j], out["height"][j] = base, top
+        out["base"][j], out["height"][j] = base, top
         layers = int(np.ceil(top / layer)) + window
         profile = np.zeros(layers)
         for i in range(layers):
             lo, hi = max(i * layer, base), min((i + 1) * layer, top)
             if hi <= lo or i * layer < floor - 1e-9:
                 continue
-            # volume of a cone's slice between lo and hi: the integral of pi (R (top - z) / L)^2
+            # volume of a crown's slice between lo and hi: the integral of its cross-section, pi (R (top - z) / L)^2
+            # for a cone, pi R^2 (1 - ((z - base) / L)^2) for a half-ellipsoid
             length = top - base
-            vol = np.pi * radius ** 2 / length ** 2 * ((top - lo) ** 3 - (top - hi) ** 3) / 3
+            if shape:
+                a, b = (lo - base) / length, (hi - base) / length
+                vol = np.pi * radius ** 2 * length * ((b - b ** 3 / 3) - (a - a ** 3 / 3))
+            else:
+                vol = np.pi * radius ** 2 / length ** 2 * ((top - lo) ** 3 - (top - hi) ** 3) / 3
             profile[i] = rho * ntree * vol / (area * layer)
         half = window // 2
         padded = np.concatenate([np.zeros(half), profile, np.zeros(half)])
         means = np.array([padded[i:i + window].mean() for i in range(layers)])
         means[np.arange(layers) * layer < floor - 1e-9] = 0
         out["cbd"][j] = means.max()
+        over = np.flatnonzero(means > threshold)
+        out["cbh"][j] = (over[0] + 0.5) * layer if len(over) else 0.0
         # cover: one tree's disc, the share of pulses stopped, times the trees' share of the cell
         r = np.arange(step / 2, radius, step)
-        p = 1 - np.exp(-extinction * rho / leaf_mass_area * (top - base) * (1 - r / radius))
+        u = r / radius
+        path = (top - base) * (np.sqrt(1 - u ** 2) if shape else 1 - u)
+        p = 1 - np.exp(-extinction * rho / leaf_mass_area * path)
         stopped = np.sum(p * 2 * np.pi * r * step)  # m2 of a tree's disc, ring by ring
         out["cover"][j] = 100 * ntree * stopped / area
     return out

@@ -45,7 +45,10 @@ LANDSCAPE_BANDS = (("elevation", "m"), ("slope", "degrees"), ("aspect", "degrees
                    ("canopy_height", "m x 10"), ("canopy_base_height", "m x 10"), ("canopy_bulk_density", "kg/m3 x 100"))
 LCP_OPTIONS = {"ELEVATION_UNIT": "METERS", "SLOPE_UNIT": "DEGREES", "ASPECT_UNIT": "AZIMUTH_DEGREES",
                "FUEL_MODEL_OPTION": "NO_CUSTOM_AND_NO_FILE", "CANOPY_COV_UNIT": "PERCENT", "CANOPY_HT_UNIT": "METERS_X_10",
-               "CBH_UNIT": "METERS_X_10", "CBD_UNIT": "KG_PER_CUBIC_METER_X_100"}
+               "CBH_UNIT": "METERS_X_10", "CBD_UNIT": "KG_PER_CUBIC_METER_X_100",
+               # the header's lists of each band's values: GDAL's driver writes past its buffer when a band has many
+               # (a crash on a 30 m landscape of one forest plot); FlamMap reads the bands without them
+               "CLASSIFY_DATA": "NO"}
 NODATA16 = -9999
 
 
@@ -195,6 +198,10 @@ def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict
     vertex[g] = np.arange(int(np.count_nonzero(g)))
     hag, inside = height_above_ground(allp["x"][use], allp["y"][use], allp["z"][use], allp["x"][g], allp["y"][g],
                                       allp["z"][g], vertex=vertex[use])
+    # a return of the pulse whose ground return is a TIN vertex has a height that is a difference of two
+    # quantised z: on a layer's boundary up to the last bits of the TIN's arithmetic, which a TIN of other
+    # neighbours may round the other way; rounded to 1e-9 of the unit, it falls on one side in every run
+    hag = np.round(hag, 9)
     n = grid.width * grid.height
     column = None
     if run.column > 0:
