@@ -45,7 +45,7 @@ declare(
     Parameter("fuel_codes", "numbers", "Scott and Burgan fuel-model codes for light, medium and heavy shrub (the class "
               f"of the share of returns between {option('noise_floor')} and 2 m by {option('class_breaks')}); the "
               "same code three times is a constant fuel model.", "Fuel models for light / medium / heavy shrub",
-              default=(121.0, 142.0, 145.0), count=3, minimum=0.0, maximum=32767.0, example="121,142,145"),
+              default=(121, 142, 145), count=3, minimum=0.0, maximum=32767.0, example="121,142,145"),
     Parameter("latitude", "float", "The landscape's latitude for the .lcp header (degrees).",
               "Latitude for the .lcp", default_text="the centre of the tiles, from their CRS", minimum=-90.0, maximum=90.0,
               advanced=True, example="44.1"),

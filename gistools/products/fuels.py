@@ -33,23 +33,13 @@ from ..parameters import check_all, default_for
 from ..parameters.core import COMMAND_DEFAULTS
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
+from .landscape import LANDSCAPE_BANDS, write_landscape
 
 __all__ = ["FuelsSettings", "fuels_from_tiles", "tile_fuels", "LAYERS", "LANDSCAPE_BANDS", "GROUND_CLASSES"]
 
 GROUND_CLASSES = (2, 9)  # the TIN of heights above ground, as gistools metrics
 # the per-cell rasters (float32, in the data's units; kg/m3 for cbd, percent for cover, 0-1 shares)
 LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2", "strata_b3", "shrub_share")
-# LANDFIRE / FlamMap order: name, encoding (what one unit of the int16 is), GDAL's LCP creation option
-LANDSCAPE_BANDS = (("elevation", "m"), ("slope", "degrees"), ("aspect", "degrees clockwise from north, -1 flat"),
-                   ("fuel_model", "Scott and Burgan 40 code"), ("canopy_cover", "percent"),
-                   ("canopy_height", "m x 10"), ("canopy_base_height", "m x 10"), ("canopy_bulk_density", "kg/m3 x 100"))
-LCP_OPTIONS = {"ELEVATION_UNIT": "METERS", "SLOPE_UNIT": "DEGREES", "ASPECT_UNIT": "AZIMUTH_DEGREES",
-               "FUEL_MODEL_OPTION": "NO_CUSTOM_AND_NO_FILE", "CANOPY_COV_UNIT": "PERCENT", "CANOPY_HT_UNIT": "METERS_X_10",
-               "CBH_UNIT": "METERS_X_10", "CBD_UNIT": "KG_PER_CUBIC_METER_X_100",
-               # the header's lists of each band's values: GDAL's driver writes past its buffer when a band has many
-               # (a crash on a 30 m landscape of one forest plot); FlamMap reads the bands without them
-               "CLASSIFY_DATA": "NO"}
-NODATA16 = -9999
 
 
 def _fuel_default(name):
@@ -301,8 +291,6 @@ def _fuels_in(paths, out: Path, settings: FuelsSettings, override, jobs, schedul
         if tifs:
             mosaics[name] = str(write_vrt(out / f"{name}.vrt", sorted(tifs)))
     if run is not None and "elevation" in mosaics:
-        from .landscape import write_landscape
-
         landscape = write_landscape(out, mosaics, run, settings)
     first = next(iter(infos.values()), None)
     units = None if run is None else {

@@ -22,9 +22,19 @@ from ..io.atomic import atomic_path
 from ..io.raster import crs_from_wkt
 from ..lidar.fuels import fuel_model_codes, horn_slope_aspect
 
-__all__ = ["write_landscape", "landscape_arrays", "sample_fuel_raster"]
+__all__ = ["write_landscape", "landscape_arrays", "sample_fuel_raster", "LANDSCAPE_BANDS", "LCP_OPTIONS"]
 
 NODATA16 = -9999
+# LANDFIRE / FlamMap order: name, encoding (what one unit of the int16 is), GDAL's LCP creation option
+LANDSCAPE_BANDS = (("elevation", "m"), ("slope", "degrees"), ("aspect", "degrees clockwise from north, -1 flat"),
+                   ("fuel_model", "Scott and Burgan 40 code"), ("canopy_cover", "percent"),
+                   ("canopy_height", "m x 10"), ("canopy_base_height", "m x 10"), ("canopy_bulk_density", "kg/m3 x 100"))
+LCP_OPTIONS = {"ELEVATION_UNIT": "METERS", "SLOPE_UNIT": "DEGREES", "ASPECT_UNIT": "AZIMUTH_DEGREES",
+               "FUEL_MODEL_OPTION": "NO_CUSTOM_AND_NO_FILE", "CANOPY_COV_UNIT": "PERCENT", "CANOPY_HT_UNIT": "METERS_X_10",
+               "CBH_UNIT": "METERS_X_10", "CBD_UNIT": "KG_PER_CUBIC_METER_X_100",
+               # the header's lists of each band's values: GDAL's driver writes past its buffer when a band has many
+               # (a crash on a 30 m landscape of one forest plot); FlamMap reads the bands without them
+               "CLASSIFY_DATA": "NO"}
 
 
 def _read(path) -> tuple[np.ndarray, object, object]:
@@ -87,8 +97,6 @@ def _latitude(transform, shape, crs) -> int:
 def write_landscape(out: Path, mosaics: dict, run, settings) -> dict:
     """landscape.tif and landscape.lcp (with landscape.prj) in ``out`` from the mosaics; returns their paths and the
     bands' names and encodings."""
-    from .fuels import LANDSCAPE_BANDS, LCP_OPTIONS
-
     layers, transform, crs = {}, None, None
     for name in ("elevation", "cover", "height", "cbh", "cbd", "shrub_share"):
         layers[name], transform, crs = _read(mosaics[name])
