@@ -54,16 +54,19 @@ def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers:
     ground = np.asarray(ground, bool)
     hv = np.where(ground, -np.inf, np.maximum(h, 0.0))
     top = int(np.floor(hv[np.isfinite(hv)].max(initial=0.0) / dz)) + 1 if layers is None else layers
-    events = np.zeros((n, top))
     veg = ~ground
     li = np.minimum(np.floor(hv[veg] / dz).astype(np.int64), top - 1)
-    np.add.at(events, (cell[veg], li), 1.0)
-    exposure = np.zeros((n, top))
+    events = np.bincount(cell[veg] * top + li, minlength=n * top).reshape(n, top).astype(np.float64)
+    # a pulse's path in layer i: dz in the layers above its last return's layer, (i + 1) dz - h in that layer
     lasts = np.asarray(last, bool)
     hl, cl = hv[lasts], cell[lasts]
-    tops = (np.arange(top) + 1) * dz
-    for i in range(top):  # a pulse's path in layer i: from its top to the pulse's last return, at most dz
-        np.add.at(exposure[:, i], cl, np.clip(tops[i] - hl, 0.0, dz))
+    lj = np.where(np.isfinite(hl), np.minimum(np.floor(np.where(np.isfinite(hl), hl, 0.0) / dz), top - 1), -1).astype(np.int64)
+    width = top + 1  # column 0: the pulses that end on the ground, below every layer
+    ended = np.bincount(cl * width + lj + 1, minlength=n * width).reshape(n, width)
+    inside = np.bincount(cl * width + lj + 1, weights=np.where(lj >= 0, (lj + 1) * dz - np.where(np.isfinite(hl), hl, 0.0),
+                                                               0.0), minlength=n * width).reshape(n, width)
+    below = np.cumsum(ended, axis=1)[:, :-1]  # pulses whose last return is below layer i
+    exposure = dz * below + inside[:, 1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(exposure > 0, events / (k * exposure), 0.0)
 

@@ -154,8 +154,9 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
     if column is None:
         colcell, col_of = np.arange(n), np.asarray(cell, np.int64)
     else:
-        colcell, col_of = np.unique(np.column_stack([cell, column]), axis=0, return_inverse=True)
-        colcell, col_of = colcell[:, 0], col_of.ravel()
+        span = int(column.max(initial=0)) + 1
+        keys, col_of = np.unique(np.asarray(cell, np.int64) * span + column, return_inverse=True)
+        colcell, col_of = keys // span, col_of.ravel()
     m = len(colcell)
     if run.profile == "ratio":
         clad = ratio_profile(col_of, m, hag, ground, last, dz=run.dz, k=run.k) / run.z_metres
@@ -165,8 +166,9 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
         clad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)
         seen = counts.sum(axis=1)
     per = np.bincount(colcell, weights=(seen > 0).astype(float), minlength=n)
-    lad = np.zeros((n, clad.shape[1]))
-    np.add.at(lad, colcell, clad)
+    layers = clad.shape[1]
+    flat_ = (colcell[:, None] * layers + np.arange(layers)).ravel()
+    lad = np.bincount(flat_, weights=clad.ravel(), minlength=n * layers).reshape(n, layers)
     lad /= np.maximum(per, 1)[:, None]
     no_first = per == 0
     cbd, cbh = cbd_cbh(lad * run.lma, dz=run.dz, floor=run.floor, window=run.window, threshold=run.threshold)
