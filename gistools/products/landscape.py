@@ -16,6 +16,7 @@ import numpy as np
 import pyproj
 import rasterio
 import rasterio.shutil
+import rasterio.windows
 
 from ..errors import InputError
 from ..io.atomic import atomic_path
@@ -60,10 +61,13 @@ def sample_fuel_raster(path, transform, shape, crs_wkt) -> np.ndarray:
                                                always_xy=True).transform(x, y)
         r, c = rasterio.transform.rowcol(src.transform, x, y)
         r, c = np.asarray(r), np.asarray(c)
-        band = src.read(1)
         ok = (r >= 0) & (r < src.height) & (c >= 0) & (c < src.width)
         out = np.full(len(x), np.nan)
-        out[ok] = band[r[ok], c[ok]]
+        if ok.any():  # only the window under the cells (a national fuel-model raster is read in part)
+            r0, c0 = int(r[ok].min()), int(c[ok].min())
+            window = rasterio.windows.Window(c0, r0, int(c[ok].max()) - c0 + 1, int(r[ok].max()) - r0 + 1)
+            band = src.read(1, window=window)
+            out[ok] = band[r[ok] - r0, c[ok] - c0]
         if src.nodata is not None:
             out[out == src.nodata] = np.nan
     return out.reshape(shape)
