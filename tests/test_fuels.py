@@ -205,3 +205,33 @@ def test_a_fuel_raster_is_sampled_at_the_cell_centres(tmp_path):
     valid = fuel != -9999
     assert valid.mean() > 0.9
     np.testing.assert_array_equal(fuel[valid], want[valid])
+
+
+def test_feet_data_keep_their_units_and_the_landscape_is_metric(tmp_path):
+    """The sample (US survey feet): 100 ft cells, heights in feet in the layers, metres in the landscape; the .lcp
+    says its linear unit is the foot; the command line writes the same as the library, in one line."""
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    ftus = 1200 / 3937
+    run = CliRunner().invoke(cli, ["fuels", str(SAMPLE), "--out", str(tmp_path / "c"), "-q"])
+    assert run.exit_code == 0, run.output
+    assert len(run.output.strip().splitlines()) == 1 and "landscape" in run.output
+    report = fuels_from_tiles(SAMPLE, tmp_path / "f")
+    assert report["units"]["cell_size"] == pytest.approx(100.0) and report["units"]["layer"] == pytest.approx(1 / ftus)
+    out = tmp_path / "f"
+    with rasterio.open(out / "landscape.tif") as src, rasterio.open(tmp_path / "c" / "landscape.tif") as cli_tif:
+        land = src.read()
+        np.testing.assert_array_equal(land, cli_tif.read())
+        assert src.res == (100.0, 100.0)
+    with rasterio.open(out / "cover.vrt") as src:
+        empty = src.read(1, masked=True).mask
+    for band, name, scale in ((0, "elevation", ftus), (5, "height", 10 * ftus), (6, "cbh", 10 * ftus)):
+        with rasterio.open(out / f"{name}.vrt") as src:
+            want = np.rint(src.read(1).astype(float) * scale)
+        np.testing.assert_array_equal(land[band][~empty], want[~empty].astype(np.int16), err_msg=name)
+    assert land[5][~empty].max() > 50  # shrubs and trees several metres tall
+    assert set(np.unique(land[3][~empty])) <= {121, 142, 145} and len(np.unique(land[3][~empty])) >= 2
+    info = subprocess.run(["gdalinfo", str(out / "landscape.lcp")], capture_output=True, text=True, check=True).stdout
+    assert "LINEAR_UNIT=Feet" in info and "LATITUDE=29" in info
