@@ -1,10 +1,11 @@
 """Canopy fuels of a cell from its returns' heights above ground (pure functions over numpy arrays).
 
-The vertical profile follows MacArthur and Horn (1969) as lidR's ``LAD()`` and LidarForFuel (Martin-Ducup et al.
-2024) use it: in layers of thickness dz from the ground up, ``N_in(i)`` is the number of pulses that reach layer i
-(first returns in it or below it, ground returns included) and ``N_out(i)`` the number that leave it (first returns
-below it); the leaf area density is ``LAD_i = ln(N_in / N_out) / (k dz)`` (Beer-Lambert, extinction k). A layer no
-pulse leaves takes ``N_out = 1``; a layer no pulse reaches has LAD 0. Bulk density is LAD times the leaf mass per
+The vertical profile, in layers of thickness dz from the ground up, by one of two estimators. The ratio estimator
+(Pimont et al. 2018, for vertical pulses): every return above the ground in a layer is an interception, divided by
+k times the pulses' path through the layer down to their last return. MacArthur and Horn (1969): ``N_in(i)`` is the
+number of pulses that reach layer i (first returns in it or below it, ground returns included) and ``N_out(i)`` the
+number that leave it (first returns below it); ``LAD_i = ln(N_in / N_out) / (k dz)`` (Beer-Lambert, extinction k);
+a layer no pulse leaves takes ``N_out = 1``, a layer no pulse reaches has LAD 0. Bulk density is LAD times the leaf mass per
 area (LMA). Canopy bulk density (CBD) is the largest centred running mean of the bulk density above the canopy
 floor, canopy base height (CBH) the middle of the lowest layer whose running mean exceeds a threshold (Reinhardt and
 Crookston 2003, FVS-FFE; LANDFIRE). Canopy cover is the share of first returns above the canopy floor (percent),
@@ -17,7 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["layer_counts", "lad_profile", "ratio_profile", "running_mean", "cbd_cbh", "horn_slope_aspect", "fuel_model_codes"]
+__all__ = ["layer_counts", "lad_profile", "ratio_profile", "running_mean", "cbd_cbh", "horn_slope_aspect",
+           "fuel_model_codes"]
 
 
 def layer_counts(cell, n: int, h, ground, *, dz: float, layers: int | None = None) -> np.ndarray:
@@ -47,8 +49,8 @@ def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers:
     """Leaf area density per cell and layer by the ratio estimator over the pulses' path (Pimont et al. 2018,
     vertical pulses): every return above the ground is an interception; a pulse is exposed in a layer from the
     layer's top down to its last return (the whole layer when it ends on the ground or below):
-    ``LAD_i = returns_i / (k * exposure_i)``, exposure in metres of path (``dz`` the layer in metres over its
-    heights' unit factor is the caller's: heights and dz share a unit here, the result is per that unit)."""
+    ``LAD_i = returns_i / (k * exposure_i)``. Heights and ``dz`` share a unit; the result is per that unit (the
+    caller divides by the unit's metres for m2/m3). ``last``: True for each pulse's last return."""
     cell = np.asarray(cell, np.int64)
     h = np.asarray(h, np.float64)
     ground = np.asarray(ground, bool)

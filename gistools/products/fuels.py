@@ -42,10 +42,6 @@ GROUND_CLASSES = (2, 9)  # the TIN of heights above ground, as gistools metrics
 LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2", "strata_b3", "shrub_share")
 
 
-def _fuel_default(name):
-    return default_for(name)
-
-
 @dataclass(frozen=True)
 class FuelsSettings:
     """Parameters of ``gistools fuels`` (declared in gistools.parameters.fuels: names, defaults, help). Lengths take a
@@ -54,21 +50,21 @@ class FuelsSettings:
     (``fuel_codes`` follow the shrub class); ``latitude`` None: the tiles' centre."""
 
     cell_size: str | float | None = None
-    canopy_floor: str | float = _fuel_default("canopy_floor")
-    height_percentile: float = _fuel_default("height_percentile")
-    layer: str | float = _fuel_default("layer")
-    extinction: float = _fuel_default("extinction")
-    leaf_mass_area: float = _fuel_default("leaf_mass_area")
-    running_mean: str | float = _fuel_default("running_mean")
-    cbh_threshold: float = _fuel_default("cbh_threshold")
-    bands: str = _fuel_default("bands")
-    noise_floor: str | float = _fuel_default("noise_floor")
-    class_breaks: tuple = _fuel_default("class_breaks")
+    canopy_floor: str | float = default_for("canopy_floor")
+    height_percentile: float = default_for("height_percentile")
+    layer: str | float = default_for("layer")
+    extinction: float = default_for("extinction")
+    leaf_mass_area: float = default_for("leaf_mass_area")
+    running_mean: str | float = default_for("running_mean")
+    cbh_threshold: float = default_for("cbh_threshold")
+    bands: str = default_for("bands")
+    noise_floor: str | float = default_for("noise_floor")
+    class_breaks: tuple = default_for("class_breaks")
     fuel_raster: str | None = None
-    fuel_codes: tuple = _fuel_default("fuel_codes")
+    fuel_codes: tuple = default_for("fuel_codes")
     latitude: float | None = None
-    column: str | float = _fuel_default("column")
-    profile: str = _fuel_default("profile")
+    column: str | float = default_for("column")
+    profile: str = default_for("profile")
     buffer: str | float = COMMAND_DEFAULTS["fuels"]["buffer"]
     crs: str | None = None
 
@@ -133,8 +129,10 @@ def _percentile(cell, v, n, p) -> np.ndarray:
 
 def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=None) -> dict:
     """{layer name: float64 array of ``n`` cells} from the points in cells ``cell`` (flat 0..n-1) with heights above
-    ground ``hag`` (z unit), ``first`` (first returns) and ``ground`` (ground / water class). NaN where a cell has
-    no point; cells without canopy have height, CBH and CBD 0. Heights out in the z unit, CBD in kg/m3."""
+    ground ``hag`` (z unit), ``first`` (first returns), ``ground`` (ground / water class) and ``last`` (each pulse's
+    last return; the ratio profile needs it); ``column``: per point, an integer key of its profile column (None:
+    one profile per cell). NaN where a cell has no point; cells without canopy have height, CBH and CBD 0. Heights
+    out in the z unit, CBD in kg/m3."""
     count = np.bincount(cell, minlength=n)
     has = count > 0
     canopy = (hag > run.floor) & ~ground
@@ -196,7 +194,7 @@ def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict
     hag = np.round(hag, 9)
     n = grid.width * grid.height
     column = None
-    if run.column > 0:
+    if run.column > 0 and use.any():
         cx_, cy_ = np.floor(allp["x"][use] / run.column), np.floor(allp["y"][use] / run.column)
         column = (cx_ - cx_.min()).astype(np.int64) * (int(cy_.max() - cy_.min()) + 1) + (cy_ - cy_.min()).astype(np.int64)
     last = allp["return_number"][use] >= allp["number_of_returns"][use]
