@@ -235,3 +235,26 @@ def test_feet_data_keep_their_units_and_the_landscape_is_metric(tmp_path):
     assert set(np.unique(land[3][~empty])) <= {121, 142, 145} and len(np.unique(land[3][~empty])) >= 2
     info = subprocess.run(["gdalinfo", str(out / "landscape.lcp")], capture_output=True, text=True, check=True).stdout
     assert "LINEAR_UNIT=Feet" in info and "LATITUDE=29" in info
+
+
+def test_the_web_map_holds_the_canopy_base_classes(stand):
+    """fuels_map.html: one polygon set per CBH class whose areas add up to the cells of that class in cbh.vrt
+    (counted here), the gistools web map's page (its generator mark, Leaflet inlined, no basemap request)."""
+    import json
+    import re
+
+    _, _, folder, whole, _ = stand
+    page = (folder / "whole" / "fuels_map.html").read_text()
+    assert whole["landscape"]["web_map"] == str(folder / "whole" / "fuels_map.html")
+    assert "gistools web map" in page and "tile.openstreetmap" not in page
+    data = json.loads(re.search(r"var data = (.*?), classes = ", page, re.S).group(1))
+    assert data["type"] == "FeatureCollection"
+    with rasterio.open(folder / "whole" / "cbh.vrt") as src:
+        cbh = src.read(1, masked=True).filled(0)
+    want = {1: np.count_nonzero((cbh > 0) & (cbh < 4)), 2: np.count_nonzero((cbh >= 4) & (cbh < 8)),
+            3: np.count_nonzero(cbh >= 8)}
+    areas = {}
+    for f in data["features"]:
+        p = f["properties"]
+        areas[p["class_code"]] = areas.get(p["class_code"], 0.0) + p["area"]
+    assert {k: round(v / 900.0) for k, v in areas.items()} == {k: v for k, v in want.items() if v}

@@ -102,6 +102,7 @@ class _Run:
     xy_metres: float  # metres per xy unit
     column: float = 0.0  # xy unit
     profile: str = "ratio"
+    xy_unit: str = ""
 
 
 def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
@@ -118,7 +119,7 @@ def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
                 float(settings.leaf_mass_area), max(1, int(round(depth / dz))), float(settings.cbh_threshold),
                 (floor, t1, t2, t3), length_to_crs_units(settings.buffer, xy, name="buffer"), str(out), crs.to_wkt(),
                 z.metres, z.short, xy.metres, length_to_crs_units(settings.column, xy, name="column"),
-                settings.profile)
+                settings.profile, xy.short)
 
 
 def _percentile(cell, v, n, p) -> np.ndarray:
@@ -292,6 +293,13 @@ def _fuels_in(paths, out: Path, settings: FuelsSettings, override, jobs, schedul
             mosaics[name] = str(write_vrt(out / f"{name}.vrt", sorted(tifs)))
     if run is not None and "elevation" in mosaics:
         landscape = write_landscape(out, mosaics, run, settings)
+        from ..deliver.fuelsmap import fuels_web_map
+
+        landscape["web_map"] = fuels_web_map(out, mosaics["cbh"], z_metres=run.z_metres, xy_metres=run.xy_metres,
+                                             parameters={"CRS": crs_label(common_crs(list(infos.values()))),
+                                                         "cell size": f"{run.cell_size:g} {run.xy_unit}",
+                                                         "profile": run.profile,
+                                                         "CBH threshold": f"{run.threshold:g} kg/m3"})["html"]
     first = next(iter(infos.values()), None)
     units = None if run is None else {
         "cell_size": run.cell_size, "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
