@@ -28,6 +28,7 @@ _PRODUCTS = {
     "products.normalize": ("NormalizeSettings", "normalize_from_tiles"),
     "products.metrics": ("MetricsSettings", "metrics_from_tiles"),
     "products.chm": ("ChmSettings", "chm_from_tiles"),
+    "products.fuels": ("FuelsSettings", "fuels_from_tiles"),
     "products.points": ("points_from_tiles",),
     "products.info": ("tile_summary", "tiles_summary"),
     "products.shrub": ("ShrubSettings", "shrub_from_tiles", "map_from_classes"),

@@ -22,7 +22,8 @@ from shapely.geometry import LineString, Point, Polygon, box
 
 from .units import US_SURVEY_FOOT
 
-__all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "write_breaklines", "BANDS_M", "COVER"]
+__all__ = ["Scene", "ShrubPatch", "make_scene", "scene_points", "ground_z", "write_breaklines", "BANDS_M", "COVER", "Stand",
+           "make_stand", "stand_points", "stand_truth", "stand_ground", "write_stand"]
 
 M = 1.0 / US_SURVEY_FOOT  # ftUS per metre
 BANDS_M = {"B1": (0.25, 0.9), "B2": (1.2, 1.85), "B3": (2.35, 5.6)}  # crown top heights per band (m)
@@ -338,3 +339,194 @@ def write_breaklines(scene: Scene, footprints: list[dict], gpkg, crs) -> None:
         gpkg, layer="WATERBODY")
     gpd.GeoDataFrame({"NAME": ["wetland"] * len(scene.wetland)}, geometry=scene.wetland, crs=crs).to_file(
         gpkg, layer="WETLAND")
+
+
+# --- a forest stand for canopy fuels (gistools fuels) --------------------------------------------------------------
+@dataclass
+class Stand:
+    """Crowns on a lattice of ``cell``-metre cells (metres, a UTM CRS): cones (apex up, widest at the base) or
+    half-ellipsoids (a dome on a flat base), one shape per cell.
+
+    ``cells``: one row per cell: col, row, crown base (m above ground), top (m), radius (m), tree spacing (m),
+    foliage bulk density inside the crowns (kg/m3) and shape (0 cone, 1 half-ellipsoid); spacing 0 is a cell
+    without trees. ``trees``: x, y, radius, base, top, density, shape, one row per tree; every crown lies inside its
+    cell and no two crowns overlap.
+    """
+
+    origin: tuple[float, float]
+    cell: float
+    shape: tuple[int, int]  # cells (cols, rows)
+    cells: np.ndarray
+    trees: np.ndarray
+    margin: float = 30.0  # bare ground around the cells
+
+    @property
+    def bounds(self):
+        x0, y0 = self.origin
+        return (x0 - self.margin, y0 - self.margin, x0 + self.shape[0] * self.cell + self.margin,
+                y0 + self.shape[1] * self.cell + self.margin)
+
+
+def stand_ground(x, y, origin):
+    """The stand's ground elevation (m): a plane rising 6 % to the north-east with a gentle swell."""
+    dx, dy = np.asarray(x) - origin[0], np.asarray(y) - origin[1]
+    return 120.0 + 0.04 * dx + 0.045 * dy + 1.5 * np.sin(dx / 23.0) * np.cos(dy / 31.0)
+
+
+def make_stand(origin=(500010.0, 4100010.0), shape=(4, 3), cell: float = 30.0, seed: int = 7) -> Stand:
+    """A stand of ``shape`` cells of varied crowns, one cell bare. Bases 2.5-12 m, crown lengths 4-12 m, radii
+    1.5-3 m, foliage 0.08-0.3 kg/m3 (leaf area density 0.6-2 m2/m3 at 0.141 kg/m2), crown cover 30-75 %."""
+    rng = np.random.default_rng(seed)
+    cells, trees = [], []
+    for row in range(shape[1]):
+        for col in range(shape[0]):
+            if (col, row) == (0, 0):
+                cells.append((col, row, 0, 0, 0, 0, 0, 0))
+                continue
+            base = rng.uniform(2.5, 12.0)
+            top = base + rng.uniform(4.0, 12.0)
+            radius = rng.uniform(1.5, 3.0)
+            spacing = 2 * radius * rng.uniform(1.02, 1.6)
+            rho = rng.uniform(0.08, 0.3)
+            shape_ = (col + row) % 2
+            cells.append((col, row, base, top, radius, spacing, rho, shape_))
+            n = int(cell // spacing)
+            off = (cell - n * spacing) / 2 + spacing / 2
+            gx = origin[0] + col * cell + off + spacing * np.arange(n)
+            gy = origin[1] + row * cell + off + spacing * np.arange(n)
+            tx, ty = np.meshgrid(gx, gy)
+            for x, y in zip(tx.ravel(), ty.ravel()):
+                trees.append((x, y, radius, base, top, rho, shape_))
+    return Stand(origin, cell, shape, np.asarray(cells, float), np.asarray(trees, float))
+
+
+def stand_points(stand: Stand, *, density: float = 20.0, extinction: float = 0.5, leaf_mass_area: float = 0.141,
+                 seed: int = 0) -> dict:
+    """Returns of vertical pulses at ``density`` per square metre, uniformly placed (metres).
+
+    Through a crown the pulse meets foliage as a Beer-Lambert medium: interceptions are a Poisson process of rate
+    ``extinction`` x leaf area density (= foliage density / ``leaf_mass_area``) per metre of path; each interception
+    is a return (up to 4), and a pulse that leaves the crown with fewer than 4 returns ends on the ground (class 2;
+    vegetation returns are class 1)."""
+    from scipy.spatial import cKDTree
+
+    rng = np.random.default_rng(seed)
+    w, s, e, n = stand.bounds
+    count = rng.poisson(density * (e - w) * (n - s))
+    px, py = rng.uniform(w, e, count), rng.uniform(s, n, count)
+    gz = stand_ground(px, py, stand.origin)
+    t = stand.trees
+    entry = np.zeros(count)  # height above ground where the pulse enters a crown, and the path through it
+    path = np.zeros(count)
+    rate = np.zeros(count)
+    if len(t):
+        d, i = cKDTree(t[:, :2]).query(np.column_stack([px, py]))
+        r, base, top = t[i, 2], t[i, 3], t[i, 4]
+        hit = d < r
+        u = np.minimum(d / r, 1.0)
+        depth_ = np.where(t[i, 6] > 0, np.sqrt(1 - u ** 2), 1 - u) * (top - base)  # the crown's height above its base
+        entry[hit] = (base + depth_)[hit]
+        path[hit] = entry[hit] - base[hit]
+        rate[hit] = extinction * t[i, 5][hit] / leaf_mass_area
+    xs, ys, zs, ret, cls = [], [], [], [], []
+    depth = np.zeros(count)
+    alive = np.ones(count, bool)  # still inside its crown
+    nret = np.zeros(count, np.int64)
+    for k in range(4):
+        with np.errstate(divide="ignore"):
+            depth = depth + np.where(rate > 0, rng.exponential(1.0, count) / np.where(rate > 0, rate, 1.0), np.inf)
+        stop = alive & (depth < path)
+        alive &= stop
+        nret[stop] += 1
+        xs.append(px[stop]), ys.append(py[stop]), zs.append((gz + entry - depth)[stop])
+        ret.append(np.full(int(stop.sum()), k + 1)), cls.append(np.full(int(stop.sum()), 1))
+        idx = np.flatnonzero(stop)
+        if k == 0:
+            pulse_of = [idx]
+        else:
+            pulse_of.append(idx)
+    ground = nret < 4
+    nret[ground] += 1
+    xs.append(px[ground]), ys.append(py[ground]), zs.append(gz[ground])
+    ret.append(nret[ground]), cls.append(np.full(int(ground.sum()), 2))
+    pulse_of.append(np.flatnonzero(ground))
+    pulse = np.concatenate(pulse_of)
+    out = {"x": np.concatenate(xs), "y": np.concatenate(ys), "z": np.concatenate(zs),
+           "return_number": np.concatenate(ret).astype(np.uint8), "classification": np.concatenate(cls).astype(np.uint8)}
+    out["number_of_returns"] = nret[pulse].astype(np.uint8)
+    out["intensity"] = np.full(len(pulse), 100, np.uint16)
+    out["gps_time"] = pulse.astype(np.float64)
+    return out
+
+
+def stand_truth(stand: Stand, *, floor: float = 2.0, layer: float = 1.0, window: int = 3, threshold: float = 0.012,
+                extinction: float = 0.5, leaf_mass_area: float = 0.141, step: float = 0.05) -> dict:
+    """Per cell (arrays over stand.cells' rows) the answers, computed from the crowns' geometry: ``base`` the crown
+    base (0 without trees), ``height`` the crown top, ``cbd`` the largest centred ``window``-layer running mean of
+    the layers' bulk density (foliage mass of the crowns' slices over the cell's layer volume; layers under
+    ``floor`` left out), ``cbh`` the middle of the lowest layer whose running mean exceeds ``threshold`` (FVS's
+    rule on the exact profile; 0 where none does), ``cover`` the expected share (percent) of first returns above ``floor``, integrated over
+    the cell on a ``step`` raster (1 - exp(-k LAD path) per position)."""
+    c = stand.cells
+    ncell = len(c)
+    out = {k: np.zeros(ncell) for k in ("cbh", "base", "height", "cbd", "cover")}
+    area = stand.cell ** 2
+    for j, (col, row, base, top, radius, spacing, rho, shape) in enumerate(c):
+        if spacing == 0:
+            continue
+        ntree = int(stand.cell // spacing) ** 2
+        out["base"][j], out["height"][j] = base, top
+        layers = int(np.ceil(top / layer)) + window
+        profile = np.zeros(layers)
+        for i in range(layers):
+            lo, hi = max(i * layer, base), min((i + 1) * layer, top)
+            if hi <= lo or i * layer < floor - 1e-9:
+                continue
+            # volume of a crown's slice between lo and hi: the integral of its cross-section, pi (R (top - z) / L)^2
+            # for a cone, pi R^2 (1 - ((z - base) / L)^2) for a half-ellipsoid
+            length = top - base
+            if shape:
+                a, b = (lo - base) / length, (hi - base) / length
+                vol = np.pi * radius ** 2 * length * ((b - b ** 3 / 3) - (a - a ** 3 / 3))
+            else:
+                vol = np.pi * radius ** 2 / length ** 2 * ((top - lo) ** 3 - (top - hi) ** 3) / 3
+            profile[i] = rho * ntree * vol / (area * layer)
+        half = window // 2
+        padded = np.concatenate([np.zeros(half), profile, np.zeros(half)])
+        means = np.array([padded[i:i + window].mean() for i in range(layers)])
+        means[np.arange(layers) * layer < floor - 1e-9] = 0
+        out["cbd"][j] = means.max()
+        over = np.flatnonzero(means > threshold)
+        out["cbh"][j] = (over[0] + 0.5) * layer if len(over) else 0.0
+        # cover: one tree's disc, the share of pulses stopped, times the trees' share of the cell
+        r = np.arange(step / 2, radius, step)
+        u = r / radius
+        path = (top - base) * (np.sqrt(1 - u ** 2) if shape else 1 - u)
+        p = 1 - np.exp(-extinction * rho / leaf_mass_area * path)
+        stopped = np.sum(p * 2 * np.pi * r * step)  # m2 of a tree's disc, ring by ring
+        out["cover"][j] = 100 * ntree * stopped / area
+    return out
+
+
+def write_stand(stand: Stand, points: dict, folder, *, tiles=(2, 2), epsg: int = 32610) -> list:
+    """The stand's points as ``tiles`` LAS tiles (split at the middle of cells, not on their edges) and as one file
+    ``stand.las`` in ``folder``; returns the tiles' paths (``folder/tiles/``)."""
+    import pyproj
+    from pathlib import Path
+
+    from .io.points import write_tile
+
+    folder = Path(folder)
+    crs = pyproj.CRS.from_epsg(epsg)
+    write_tile(folder / "stand.las", points, crs, version="1.2", point_format=1, overwrite=True)
+    w, s, e, n = stand.bounds
+    xs = np.linspace(w, e, tiles[0] + 1)
+    ys = np.linspace(s, n, tiles[1] + 1)
+    paths = []
+    for a in range(tiles[0]):
+        for b in range(tiles[1]):
+            keep = (points["x"] >= xs[a]) & (points["x"] < xs[a + 1]) & (points["y"] >= ys[b]) & (points["y"] < ys[b + 1])
+            part = {k: v[keep] for k, v in points.items()}
+            paths.append(write_tile(folder / "tiles" / f"stand_{a}_{b}.las", part, crs, version="1.2", point_format=1,
+                                    overwrite=True))
+    return paths

@@ -866,7 +866,7 @@ def test_a_library_call_whose_every_tile_failed_raises_with_the_report(tmp_path)
 # ------------------------------------------------------------------ the record never replaces a user's file
 
 @pytest.mark.parametrize("command", [["rasters", "-q"], ["ground", "-q"], ["metrics", "-q"], ["chm", "-q"],
-                                     ["normalize", "-q"], ["points"], ["shrub", "-q", *SHRUB_VECTORS]])
+                                     ["fuels", "-q"], ["normalize", "-q"], ["points"], ["shrub", "-q", *SHRUB_VECTORS]])
 def test_a_report_json_gistools_did_not_write_is_kept_and_the_run_refused(tiles, tmp_path, command):
     out = tmp_path / "out"
     out.mkdir()
@@ -1072,8 +1072,8 @@ def test_coordinates_outside_the_crs_area_of_use_are_a_warning(tmp_path, caplog)
 
 # ------------------------------------------------------------------ commands sharing a folder
 
-@pytest.mark.parametrize("command", [["metrics", "-q"], ["ground", "-q"], ["chm", "-q"], ["normalize", "-q"],
-                                     ["points"]])
+@pytest.mark.parametrize("command", [["metrics", "-q"], ["ground", "-q"], ["chm", "-q"], ["fuels", "-q"],
+                                     ["normalize", "-q"], ["points"]])
 def test_another_command_into_a_chains_folder_changes_no_byte(shrub_out, tiles, command):
     """gistools metrics into a chain's folder rewrote its density/ and report.json, after which the chain's steps
     refused the folder as damaged: now every other command is refused in one line naming the folder's owner."""

@@ -37,7 +37,7 @@ import build_plugin  # noqa: E402
 B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
-ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
+ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "fuels", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
               "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel"}
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -819,6 +819,23 @@ def test_metrics_in_processing_equals_the_library(qgis, tmp_path):
         qgis.run("gistools:metrics", {"INPUT": str(SAMPLE), "MORE_METRICS": "z_p101", "OUTPUT_FOLDER": str(tmp_path / "bad")})
 
 
+def test_fuels_in_processing_equals_the_library(qgis, tmp_path):
+    """gistools:fuels: the same fuel layers and the same landscape (GeoTIFF and .lcp) as the library's."""
+    from gistools.products.fuels import FuelsSettings, fuels_from_tiles
+
+    lib = fuels_from_tiles(SAMPLE, tmp_path / "lib", FuelsSettings(cell_size="50ft", fuel_codes=(102, 142, 145)))
+    alg = qgis.run("gistools:fuels", {"INPUT": str(SAMPLE), "CELL_SIZE": "50ft", "FUEL_CODES": "102,142,145",
+                                      "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert alg["LCP"] == str(tmp_path / "q" / "landscape.lcp")
+    for name in ("elevation", "cover", "height", "cbh", "cbd", "strata_b1"):
+        for t in lib["tiles"]:
+            same_cells(t["outputs"][name], tmp_path / "q" / name / f"{t['name']}.tif")
+    for f in ("landscape.tif", "landscape.lcp"):
+        with rasterio.open(tmp_path / "lib" / f) as a, rasterio.open(tmp_path / "q" / f) as b:
+            assert a.count == b.count == 8 and a.transform == b.transform
+            np.testing.assert_array_equal(a.read(), b.read())
+
+
 def test_chm_in_processing_equals_the_library(qgis, tmp_path):
     """gistools:chm (p2r and pit-free) gives the library's cells and its pit count, and loads the CHM."""
     from gistools.products.chm import ChmSettings, chm_from_tiles
@@ -885,7 +902,7 @@ def test_mapbook_in_processing_writes_a_page_per_tile(qgis, reference, tmp_path)
 
 # the algorithms' command on the command line (None: a step the command line runs only inside the chain)
 COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize": "normalize", "metrics": "metrics",
-              "chm": "chm", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
+              "chm": "chm", "fuels": "fuels", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
               "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
               "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
               "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed", "travel": "travel"}

@@ -58,9 +58,10 @@ def test_the_chain_and_its_deliverables_share_one_record(tmp_path):
                                                          "gistools mapbook", "gistools map"]
 
 
-@pytest.mark.parametrize("command", ["rasters", "ground", "normalize", "metrics", "chm", "points"])
+@pytest.mark.parametrize("command", ["rasters", "ground", "normalize", "metrics", "chm", "fuels", "points"])
 def test_every_tile_command_writes_the_one_record(command, tmp_path):
     from gistools.products.chm import ChmSettings, chm_from_tiles
+    from gistools.products.fuels import fuels_from_tiles
     from gistools.products.ground import ground_from_tiles
     from gistools.products.metrics import MetricsSettings, metrics_from_tiles
     from gistools.products.normalize import normalize_from_tiles
@@ -72,6 +73,7 @@ def test_every_tile_command_writes_the_one_record(command, tmp_path):
            "normalize": lambda o, **kw: normalize_from_tiles(SAMPLE, o, **kw),
            "metrics": lambda o, **kw: metrics_from_tiles(SAMPLE, o, MetricsSettings(metrics=("count", "z_max")), **kw),
            "chm": lambda o, **kw: chm_from_tiles(SAMPLE, o, ChmSettings(cell_size="5ft"), **kw),
+           "fuels": lambda o, **kw: fuels_from_tiles(SAMPLE, o, **kw),
            "points": lambda o, **kw: points_from_tiles(SAMPLE, o, **kw)}[command]
     out = tmp_path / command
     run(out)

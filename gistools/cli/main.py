@@ -135,7 +135,7 @@ COMMANDS = {
     "webmap": ("deliver", "webmap"), "scene": ("deliver", "scene"), "mapbook": ("deliver", "mapbook"),
     "aquifer": ("aquifer", "aquifer"), "runway": ("runway", "runway"), "structure": ("structure", "structure"),
     "examples": ("examples", "examples"), "terrain": ("terrain", "terrain"), "viewshed": ("terrain", "viewshed"),
-    "travel": ("travel", "travel"),
+    "travel": ("travel", "travel"), "fuels": ("fuels", "fuels"),
 }
 
 

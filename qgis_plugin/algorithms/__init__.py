@@ -4,7 +4,7 @@ defaults read from the library), makes one gistools call and returns the output 
 base       the shared plumbing (GistoolsAlgorithm) and the library's choices and defaults
 tiles      info, points                    rasters    dsm, dem, rasters
 ground     ground (ground and noise classes)
-heights    normalize, metrics, chm (heights above ground, cell metrics, canopy height)
+heights    normalize, metrics, chm, fuels (heights above ground, cell metrics, canopy height, canopy fuels)
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
@@ -18,7 +18,7 @@ A new algorithm goes in its group's module and into ALGORITHMS below.
 from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
 from .deliver import MapBookAlgorithm, SceneAlgorithm, WebMapAlgorithm
 from .ground import GroundAlgorithm
-from .heights import ChmAlgorithm, MetricsAlgorithm, NormalizeAlgorithm
+from .heights import ChmAlgorithm, FuelsAlgorithm, MetricsAlgorithm, NormalizeAlgorithm
 from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
 from .runway import RunwayAlgorithm
 from .shrub import ShrubChainAlgorithm
@@ -28,7 +28,7 @@ from .terrain import TerrainAlgorithm, ViewshedAlgorithm
 from .tiles import InfoAlgorithm, PointsAlgorithm
 from .travel import TravelAlgorithm
 
-ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
+ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, FuelsAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
               BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
               SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm,

@@ -1,4 +1,5 @@
-"""Heights above ground and what is made of them: gistools normalize, gistools metrics and gistools chm."""
+"""Heights above ground and what is made of them: gistools normalize, gistools metrics, gistools chm and gistools
+fuels."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ from qgis.core import (
 
 from gistools.parameters.lidar import COMMAND_DEFAULTS
 from gistools.products import chm as _chm
+from gistools.products import fuels as _fuels
 from gistools.products import metrics as _metrics
 from gistools.products import normalize as _normalize
 
@@ -132,3 +134,39 @@ class ChmAlgorithm(GistoolsAlgorithm):
         feedback.pushInfo(f"{result['pits']:,} pits left")
         self.load_on_completion(context, result["mosaic"], "Canopy height model", "CHM")
         return {"OUTPUT_FOLDER": out, "CHM": result["mosaic"], "PITS": result["pits"]}
+
+
+class FuelsAlgorithm(GistoolsAlgorithm):
+    _name, _display = "fuels", "Canopy fuels and FlamMap landscape"
+    _page = "commands/fuels"
+    _tags = ("fuels", "fire", "canopy", "cbh", "cbd", "canopy base height", "canopy bulk density", "landfire", "flammap",
+             "lcp", "landscape")
+    _help = ("Canopy fuels of LAS/LAZ tiles (gistools fuels) on LANDFIRE's 30 m lattice (100 ft on data in feet): "
+             "ground elevation, canopy cover (share of first returns above 2 m, percent), canopy height, canopy base "
+             "height and canopy bulk density from the leaf area density profile of the returns (1 m layers, 2 m "
+             "columns, bulk density = leaf area density x leaf mass per area, 3 m running mean; base height where it "
+             "first exceeds 0.012 kg/m3, as FVS and LANDFIRE), and the surface strata shares of the height bands. "
+             "Writes a VRT per layer, landscape.tif (eight int16 bands in LANDFIRE's order and encodings) and "
+             "landscape.lcp (FlamMap's landscape file, loaded). Neighbouring tiles' points are read, so tiles equal "
+             "one merged run.")
+
+    def initAlgorithm(self, config=None):  # noqa: N802
+        self.add_tiles()
+        self.add_spec(command="fuels", defaults=COMMAND_DEFAULTS["fuels"])
+        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (a VRT per layer, landscape.tif "
+                                                                          "and landscape.lcp)"))
+        self.addOutput(QgsProcessingOutputRasterLayer("LANDSCAPE", "Landscape (8 bands, LANDFIRE encodings)"))
+        self.addOutput(QgsProcessingOutputFile("LCP", "FlamMap landscape file (.lcp)"))
+
+    def run_gistools(self, parameters, context, feedback):
+        out = self.output_folder(parameters, context)
+        values = self.spec_values(parameters, context, feedback)
+        run = {k: values.pop(k) for k in ("jobs", "scheduler")}
+        settings = _fuels.FuelsSettings(**{k: v for k, v in values.items() if v is not None})
+        result = _fuels.fuels_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+                                         progress=self.progress(feedback), **run)
+        self.report_tiles(result, feedback)
+        land = result.get("landscape") or {}
+        if land.get("tif"):
+            self.load_on_completion(context, land["tif"], "Fuels landscape", "LANDSCAPE")
+        return {"OUTPUT_FOLDER": out, "LANDSCAPE": land.get("tif"), "LCP": land.get("lcp")}

@@ -1,0 +1,42 @@
+"""``gistools fuels``: canopy fuels (cover, height, base height, bulk density) and the FlamMap landscape."""
+
+from __future__ import annotations
+
+import click
+
+from ..products.fuels import FuelsSettings, fuels_from_tiles
+from .options import batch_report, finish_batch, out_opt, overwrite_opt, progress_bar
+from .spec import spec_options
+
+
+@click.command()
+@click.argument("inputs", nargs=-1, required=True)
+@out_opt()
+@spec_options("fuels", skip=("overwrite",))
+@overwrite_opt
+@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinction, leaf_mass_area, running_mean,
+          cbh_threshold, column, profile, bands, noise_floor, class_breaks, fuel_raster, fuel_codes, latitude, buffer, crs, jobs,
+          overwrite, scheduler, quiet):
+    """Canopy fuels of every tile of INPUTS (files, folders, globs or a .vpc) on LANDFIRE's 30 m lattice (100 ft on
+    data in feet): OUT/<layer>/<tile>.tif and OUT/<layer>.vrt for elevation, cover, height, cbh, cbd and the strata
+    shares; OUT/landscape.tif (8 int16 bands, LANDFIRE's order and encodings) and OUT/landscape.lcp (FlamMap);
+    OUT/report.json. Neighbouring tiles' points are read, so tiles equal one merged run.
+
+    \b
+    Examples:
+      $ gistools fuels sample_tiles --out out/fuels
+      $ gistools fuels tiles --out f --cell-size 20m --fuel-codes 102,142,145 --jobs 2
+    """
+    settings = FuelsSettings(cell_size=cell_size, canopy_floor=canopy_floor, height_percentile=height_percentile,
+                             layer=layer, extinction=extinction, leaf_mass_area=leaf_mass_area, running_mean=running_mean,
+                             cbh_threshold=cbh_threshold, column=column, profile=profile, bands=bands, noise_floor=noise_floor,
+                             class_breaks=class_breaks, fuel_raster=fuel_raster, fuel_codes=fuel_codes,
+                             latitude=latitude, buffer=buffer, crs=crs)
+    with progress_bar(quiet) as progress:
+        report = batch_report(lambda: fuels_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                                                       overwrite=overwrite, progress=progress))
+    counts = report["counts"]
+    land = report.get("landscape") or {}
+    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} "
+                 f"failed; landscape {land.get('lcp', 'not written')}; report: {out}/report.json")

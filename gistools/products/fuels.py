@@ -1,0 +1,310 @@
+"""Canopy fuels and the FlamMap landscape of LAS/LAZ tiles (``gistools fuels``, ``gistools:fuels``).
+
+Each tile is read with its neighbours' points (engine.buffered, as gistools metrics): heights above ground come from
+the TIN of the ground points of the tile and its neighbours within the buffer, so a tiled run equals a run on the
+merged tiles. Per cell of the snapped lattice (default LANDFIRE's 30 m; 100 ft on data in feet): ground elevation
+(the TIN at the cell centre), canopy cover, canopy height, canopy base height, canopy bulk density and the surface
+strata shares of the height bands (definitions: ``lidar.fuels``, ``lidar.metrics`` fuel_A_B). Then the landscape:
+slope and aspect (Horn) of the elevation mosaic, the fuel model, all eight bands in LANDFIRE's order and encodings
+(landscape.tif, int16) and the same as FlamMap's landscape file (landscape.lcp, GDAL's LCP driver).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo,
+                               points_around, read_headers, write_batch_report)
+from ..errors import InputError, raise_if_every_tile_failed
+from ..grid import cell_centres, cell_index, snapped_grid
+from ..io.outdir import claim_output, output_folder
+from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
+from ..io.raster import crs_from_wkt, write_raster, write_vrt
+from ..lidar.accumulate import NOISE_CLASSES
+from ..lidar.bands import band_thresholds
+from ..lidar.fuels import cbd_cbh, lad_profile, layer_counts, ratio_profile
+from ..lidar.metrics import MetricSpec, cell_metrics
+from ..lidar.normalize import ground_height_at, height_above_ground
+from ..parameters import check_all, default_for
+from ..parameters.core import COMMAND_DEFAULTS
+from ..progress import ProgressCallback
+from ..units import length_to_crs_units
+from .landscape import LANDSCAPE_BANDS, write_landscape
+
+__all__ = ["FuelsSettings", "fuels_from_tiles", "tile_fuels", "LAYERS", "LANDSCAPE_BANDS", "GROUND_CLASSES"]
+
+GROUND_CLASSES = (2, 9)  # the TIN of heights above ground, as gistools metrics
+# the per-cell rasters (float32, in the data's units; kg/m3 for cbd, percent for cover, 0-1 shares)
+LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2", "strata_b3", "shrub_share")
+
+
+@dataclass(frozen=True)
+class FuelsSettings:
+    """Parameters of ``gistools fuels`` (declared in gistools.parameters.fuels: names, defaults, help). Lengths take a
+    unit or are in the tiles' CRS units; ``cell_size`` None is 30 m (100 ft on data in feet). ``extinction`` k,
+    ``leaf_mass_area`` kg/m2, ``cbh_threshold`` kg/m3; ``fuel_raster`` a raster of fuel-model codes or None
+    (``fuel_codes`` follow the shrub class); ``latitude`` None: the tiles' centre."""
+
+    cell_size: str | float | None = None
+    canopy_floor: str | float = default_for("canopy_floor")
+    height_percentile: float = default_for("height_percentile")
+    layer: str | float = default_for("layer")
+    extinction: float = default_for("extinction")
+    leaf_mass_area: float = default_for("leaf_mass_area")
+    running_mean: str | float = default_for("running_mean")
+    cbh_threshold: float = default_for("cbh_threshold")
+    bands: str = default_for("bands")
+    noise_floor: str | float = default_for("noise_floor")
+    class_breaks: tuple = default_for("class_breaks")
+    fuel_raster: str | None = None
+    fuel_codes: tuple = default_for("fuel_codes")
+    latitude: float | None = None
+    column: str | float = default_for("column")
+    profile: str = default_for("profile")
+    buffer: str | float = COMMAND_DEFAULTS["fuels"]["buffer"]
+    crs: str | None = None
+
+    def validate(self) -> None:
+        names = ["canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area", "running_mean",
+                 "cbh_threshold", "column", "profile", "bands", "noise_floor", "class_breaks", "fuel_codes", "buffer"]
+        if self.cell_size is not None:
+            names.append("cell_size")
+        if self.latitude is not None:
+            names.append("latitude")
+        check_all(self, names)
+        if self.fuel_raster is not None and not Path(self.fuel_raster).is_file():
+            raise InputError(f"the fuel-model raster {self.fuel_raster} does not exist",
+                             hint="Give an existing raster of Scott and Burgan codes, or leave it out")
+
+
+@dataclass(frozen=True)
+class _Run:
+    """One run's settings in the tiles' units (picklable)."""
+
+    cell_size: float
+    floor: float  # canopy floor, z unit
+    percentile: float
+    dz: float  # layer, z unit
+    k: float
+    lma: float  # kg/m2
+    window: int  # layers of the running mean
+    threshold: float  # kg/m3
+    bands: tuple  # noise floor, T1, T2, T3 (z unit)
+    buffer: float
+    out: str
+    crs_wkt: str
+    z_metres: float  # metres per z unit
+    z_unit: str
+    xy_metres: float  # metres per xy unit
+    column: float = 0.0  # xy unit
+    profile: str = "ratio"
+    xy_unit: str = ""
+
+
+def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
+    xy, z = info.unit, info.z_unit
+    cell = settings.cell_size
+    if cell is None:
+        cell = COMMAND_DEFAULTS["fuels"]["cell_size"].ft if xy.metres < 0.5 else COMMAND_DEFAULTS["fuels"]["cell_size"].m
+    dz = length_to_crs_units(settings.layer, z, name="layer")
+    depth = length_to_crs_units(settings.running_mean, z, name="running mean")
+    t1, t2, t3 = band_thresholds(z, settings.bands)
+    floor = length_to_crs_units(settings.noise_floor, z, name="noise floor")
+    return _Run(length_to_crs_units(cell, xy, name="cell size"), length_to_crs_units(settings.canopy_floor, z,
+                name="canopy floor"), float(settings.height_percentile), dz, float(settings.extinction),
+                float(settings.leaf_mass_area), max(1, int(round(depth / dz))), float(settings.cbh_threshold),
+                (floor, t1, t2, t3), length_to_crs_units(settings.buffer, xy, name="buffer"), str(out), crs.to_wkt(),
+                z.metres, z.short, xy.metres, length_to_crs_units(settings.column, xy, name="column"),
+                settings.profile, xy.short)
+
+
+def _percentile(cell, v, n, p) -> np.ndarray:
+    """Per cell, percentile ``p`` of ``v`` (linear interpolation, numpy's default); NaN where a cell has none."""
+    spec = MetricSpec("p", "hag", "percentile", ((p, ""),))
+    return cell_metrics(cell, n, [spec], hag=v, thresholds={"p": [p]})["p"]
+
+
+def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=None) -> dict:
+    """{layer name: float64 array of ``n`` cells} from the points in cells ``cell`` (flat 0..n-1) with heights above
+    ground ``hag`` (z unit), ``first`` (first returns), ``ground`` (ground / water class) and ``last`` (each pulse's
+    last return; the ratio profile needs it); ``column``: per point, an integer key of its profile column (None:
+    one profile per cell). NaN where a cell has no point; cells without canopy have height, CBH and CBD 0. Heights
+    out in the z unit, CBD in kg/m3."""
+    count = np.bincount(cell, minlength=n)
+    has = count > 0
+    canopy = (hag > run.floor) & ~ground
+    floor_, t1, t2, t3 = run.bands
+    specs = [MetricSpec("cover", None, "cover", ((run.floor, ""),)), MetricSpec("b1", None, "fuel", ()),
+             MetricSpec("b2", None, "fuel", ()), MetricSpec("b3", None, "fuel", ()), MetricSpec("shrub", None, "fuel", ())]
+    h_strata = np.where(ground, 0.0, hag)  # a ground return is at the ground, whatever the TIN says
+    shares = cell_metrics(cell, n, specs, hag=h_strata, first=first, thresholds={
+        "cover": [run.floor], "b1": [floor_, t1], "b2": [t1, t2], "b3": [t2, t3], "shrub": [floor_, t2]})
+    cover = 100.0 * shares["cover"]
+    height = np.where(has, 0.0, np.nan)
+    if canopy.any():
+        top = _percentile(cell[canopy], hag[canopy], n, run.percentile)
+        height = np.where(np.isfinite(top), top, height)
+    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell
+    f = np.asarray(first, bool)
+    if column is None:
+        colcell, col_of = np.arange(n), np.asarray(cell, np.int64)
+    else:
+        span = int(column.max(initial=0)) + 1
+        keys, col_of = np.unique(np.asarray(cell, np.int64) * span + column, return_inverse=True)
+        colcell, col_of = keys // span, col_of.ravel()
+    m = len(colcell)
+    if run.profile == "ratio":
+        clad = ratio_profile(col_of, m, hag, ground, last, dz=run.dz, k=run.k) / run.z_metres
+        seen = np.bincount(col_of, minlength=m)
+    else:
+        counts = layer_counts(col_of[f], m, hag[f], ground[f], dz=run.dz)
+        clad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)
+        seen = counts.sum(axis=1)
+    per = np.bincount(colcell, weights=(seen > 0).astype(float), minlength=n)
+    layers = clad.shape[1]
+    flat_ = (colcell[:, None] * layers + np.arange(layers)).ravel()
+    lad = np.bincount(flat_, weights=clad.ravel(), minlength=n * layers).reshape(n, layers)
+    lad /= np.maximum(per, 1)[:, None]
+    no_first = per == 0
+    cbd, cbh = cbd_cbh(lad * run.lma, dz=run.dz, floor=run.floor, window=run.window, threshold=run.threshold)
+    cbd = np.where(has, np.where(no_first, np.nan, cbd), np.nan)
+    cbh = np.where(has, np.where(no_first, np.nan, cbh), np.nan)
+    return {"cover": cover, "height": height, "cbh": cbh, "cbd": cbd, "strata_b1": shares["b1"],
+            "strata_b2": shares["b2"], "strata_b3": shares["b3"], "shrub_share": shares["shrub"]}
+
+
+def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict]:
+    """(layer name -> 2-D float array on ``grid``, counts) from a tile's points and its neighbours' (dicts of
+    STRIP_FIELDS arrays)."""
+    allp = {k: np.concatenate([own[k], *(p[k] for p in neighbours)]) for k in STRIP_FIELDS}
+    flat = cell_index(grid, allp["x"], allp["y"])
+    cls = allp["classification"]
+    use = (flat >= 0) & ~np.isin(cls, NOISE_CLASSES)
+    g = np.isin(cls, GROUND_CLASSES)
+    vertex = np.full(len(g), -1, np.int64)
+    vertex[g] = np.arange(int(np.count_nonzero(g)))
+    hag, inside = height_above_ground(allp["x"][use], allp["y"][use], allp["z"][use], allp["x"][g], allp["y"][g],
+                                      allp["z"][g], vertex=vertex[use])
+    # a return of the pulse whose ground return is a TIN vertex has a height that is a difference of two
+    # quantised z: on a layer's boundary up to the last bits of the TIN's arithmetic, which a TIN of other
+    # neighbours may round the other way; rounded to 1e-9 of the unit, it falls on one side in every run
+    hag = np.round(hag, 9)
+    n = grid.width * grid.height
+    column = None
+    if run.column > 0 and use.any():
+        cx_, cy_ = np.floor(allp["x"][use] / run.column), np.floor(allp["y"][use] / run.column)
+        column = (cx_ - cx_.min()).astype(np.int64) * (int(cy_.max() - cy_.min()) + 1) + (cy_ - cy_.min()).astype(np.int64)
+    last = allp["return_number"][use] >= allp["number_of_returns"][use]
+    out = cell_fuels(flat[use], n, hag, allp["return_number"][use] <= 1, g[use], run, column, last)
+    cx, cy = np.meshgrid(*cell_centres(grid))
+    elev, _ = ground_height_at(allp["x"][g], allp["y"][g], allp["z"][g], cx.ravel(), cy.ravel())
+    out["elevation"] = np.asarray(elev, np.float64)
+    counts = {"points_used": int(np.count_nonzero(use)), "heights_outside_tin": int(np.count_nonzero(~inside)),
+              "cells_with_points": int(np.count_nonzero(np.bincount(flat[use], minlength=n)))}
+    return {k: np.asarray(v, np.float64).reshape(grid.shape) for k, v in out.items()}, counts
+
+
+_DESCRIPTIONS = {"elevation": "ground elevation ({z})", "cover": "canopy cover (percent)", "height": "canopy height ({z})",
+                 "cbh": "canopy base height ({z})", "cbd": "canopy bulk density (kg/m3)",
+                 "strata_b1": "share of returns in band B1", "strata_b2": "share of returns in band B2",
+                 "strata_b3": "share of returns in band B3", "shrub_share": "share of returns up to 2 m above the floor"}
+
+
+def _fuels_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
+    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+    grid = snapped_grid(info.bounds, run.cell_size, crs_from_wkt(run.crs_wkt))
+    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    w, s, e, n = grid.bounds
+    b = run.buffer
+    arrays, counts = tile_fuels(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
+    outputs = {}
+    for name in LAYERS:
+        target = Path(run.out) / name / f"{info.name}.tif"
+        write_raster(target, arrays[name], grid, overwrite=True, tags={"GISTOOLS_PRODUCT": f"fuels_{name}",
+                     "GISTOOLS_Z_UNIT": run.z_unit}, description=_DESCRIPTIONS[name].format(z=run.z_unit))
+        outputs[name] = str(target)
+    return {"outputs": outputs, "points": int(len(own["x"])), "neighbours": [nb for _k, nb, _s in sources], **counts}
+
+
+@dataclass
+class _TileState(TileState):
+    outputs: dict = field(default_factory=dict)
+    points: int = 0
+    points_used: int = 0
+    cells_with_points: int = 0
+    heights_outside_tin: int | None = None
+
+
+def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
+                     overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
+    """Canopy fuels and the FlamMap landscape of the tiles of ``inputs`` (files, folders, globs, a .vpc).
+
+    Writes ``out/<layer>/<tile>.tif`` and ``out/<layer>.vrt`` for each of :data:`LAYERS` (float32 in the data's
+    units: elevation, canopy height and base height in the tiles' vertical unit, canopy bulk density in kg/m3,
+    cover in percent, strata shares 0-1), ``out/landscape.tif`` (eight int16 bands in LANDFIRE's order and
+    encodings: :data:`LANDSCAPE_BANDS`, metric whatever the data's unit), ``out/landscape.lcp`` (the same, FlamMap's
+    landscape file) and ``out/report.json``; returns the report. One bad tile is reported and the others go on.
+
+    Examples
+    --------
+    >>> from gistools.products.fuels import FuelsSettings, fuels_from_tiles
+    >>> report = fuels_from_tiles("sample_tiles", "out/fuels", FuelsSettings(cell_size="100ft"))  # doctest: +SKIP
+    >>> report["landscape"]["lcp"]  # doctest: +SKIP
+    'out/fuels/landscape.lcp'
+    """
+    settings = settings or FuelsSettings()
+    paths, override = batch_inputs(inputs, settings, jobs, scheduler)
+    out = output_folder(out)
+    with claim_output(out, "gistools fuels"):
+        return raise_if_every_tile_failed(_fuels_in(paths, out, settings, override, jobs, scheduler, overwrite, progress))
+
+
+def _fuels_in(paths, out: Path, settings: FuelsSettings, override, jobs, scheduler, overwrite, progress) -> dict:
+    started = time.time()
+    states, infos = read_headers(paths, override, _TileState)
+    run, landscape = None, None
+    if infos:
+        run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
+
+        def keep(state, targets):
+            state.outputs = {k: str(v) for k, v in targets.items()}
+
+        todo = gridded_todo(infos, states, run.cell_size, lambda name: {k: out / k / f"{name}.tif" for k in LAYERS},
+                            overwrite, keep)
+
+        def on_done(name, value, seconds):
+            st = states[name]
+            for k in ("outputs", "points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours"):
+                setattr(st, k, value[k])
+            st.seconds = round(seconds, 3)
+
+        buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size), crs_text=settings.crs, out=out,
+                        jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_fuels_tile,
+                        tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,
+                        verb="done", tag="fuels")
+    mosaics = {}
+    for name in LAYERS if run is not None else ():
+        tifs = [Path(st.outputs[name]) for st in states.values() if st.status in ("ok", "skipped") and name in st.outputs]
+        if tifs:
+            mosaics[name] = str(write_vrt(out / f"{name}.vrt", sorted(tifs)))
+    if run is not None and "elevation" in mosaics:
+        landscape = write_landscape(out, mosaics, run, settings)
+        from ..deliver.fuelsmap import fuels_web_map
+
+        landscape["web_map"] = fuels_web_map(out, mosaics["cbh"], z_metres=run.z_metres, xy_metres=run.xy_metres,
+                                             parameters={"CRS": crs_label(common_crs(list(infos.values()))),
+                                                         "cell size": f"{run.cell_size:g} {run.xy_unit}",
+                                                         "profile": run.profile,
+                                                         "CBH threshold": f"{run.threshold:g} kg/m3"})["html"]
+    first = next(iter(infos.values()), None)
+    units = None if run is None else {
+        "cell_size": run.cell_size, "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
+        "canopy_floor": run.floor, "layer": run.dz, "running_mean_layers": run.window, "extinction": run.k,
+        "leaf_mass_area_kg_m2": run.lma, "cbh_threshold_kg_m3": run.threshold, "height_percentile": run.percentile,
+        "band_limits": list(run.bands)}
+    return write_batch_report(out, "gistools fuels", crs_label(first.crs) if first else None, settings, states, started,
+                              layers=list(LAYERS), units=units, mosaics=mosaics, landscape=landscape)
