@@ -249,6 +249,40 @@ def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs
     encodings: :data:`LANDSCAPE_BANDS`, metric whatever the data's unit), ``out/landscape.lcp`` (the same, FlamMap's
     landscape file) and ``out/report.json``; returns the report. One bad tile is reported and the others go on.
 
+    Parameters
+    ----------
+    inputs : str, path or list
+        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``; ground classified (class 2).
+    out : str or path
+        Output folder, made when missing.
+    settings : FuelsSettings, optional
+        The options (``cell_size``, the profile's constants, the fuel model mapping; lengths as text with their
+        unit). None: the defaults (30 m cells on metre data, 100 ft on data in feet).
+    jobs : int or "auto"
+        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
+        points repay starting workers (``gistools.engine.batch.auto_workers``).
+    scheduler : str, optional
+        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
+    overwrite : bool
+        Remake tiles whose outputs exist.
+    progress : callable, optional
+        ``progress(fraction, message)``; returning False cancels the run.
+
+    Returns
+    -------
+    dict
+        The run's report, also written to ``out/report.json``: ``counts``, each tile's entry in ``tiles``, the
+        settings, units and the ``landscape`` files.
+
+    Raises
+    ------
+    InputError
+        An option is not valid, or ``inputs`` holds no tile.
+    TilesFailed
+        Every tile failed.
+    Cancelled
+        ``progress`` returned False.
+
     Examples
     --------
     >>> from gistools.products.fuels import FuelsSettings, fuels_from_tiles
