@@ -91,7 +91,7 @@ def isprs_classify(path: Path, method: str) -> tuple[np.ndarray, np.ndarray, flo
     t = time.perf_counter()
     with _quiet_stdout():  # the CSF library prints its steps on the C stdout
         cls = classify_ground_and_noise(x, y, z, rn, nr, np.ones(len(x), np.uint8), method=p.method, smrf=p.smrf,
-                                        csf=p.csf, noise=p.noise, **_extra(p))
+                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise)
     return truth, cls == 2, time.perf_counter() - t
 
 
@@ -108,11 +108,6 @@ def _quiet_stdout():
         os.dup2(saved, 1)
         os.close(saved)
         os.close(devnull)
-
-
-def _extra(p) -> dict:
-    """Parameters of methods beyond smrf / csf, when the settings carry them."""
-    return {k: getattr(p, k) for k in ("ptd",) if hasattr(p, k)}
 
 
 def _published() -> dict:

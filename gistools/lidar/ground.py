@@ -28,7 +28,7 @@ from .. import kernel
 from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
-__all__ = ["SmrfParams", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
+__all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "GROUND_METHODS"]
 
 FILL_RINGS = 32
@@ -53,6 +53,16 @@ class SmrfParams:
     scalar: float = _metres("scalar")
     z_per_xy: float = 1.0
     refine: bool = True  # measure the points again against the mean of the ground found (see smrf_ground)
+    tin: bool = False  # then against a TIN of the ground found (the smrftin method, see smrf_ground)
+
+
+def smrftin_params(**lengths) -> SmrfParams:
+    """The smrftin method's parameters (SMRF, then the TIN of its ground) with its declared defaults, for data in
+    metres; ``lengths`` override them in the data's units (as SmrfParams' fields)."""
+    base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
+                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), tin=True)
+    base.update(lengths)
+    return SmrfParams(**base)
 
 
 def min_surface(x, y, z, cell: float):
@@ -290,6 +300,21 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         zifin = fill_gaps(cell_mean(cell_of, cz, ground[candidates], zimin.size).reshape(zimin.shape))
         dem = at.sample(zifin)
         ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
+    if p.tin and np.count_nonzero(ground) >= 3:
+        # smrftin: a lattice blurs ridges, terrace edges and steep slopes by up to a cell; a TIN of the ground
+        # found follows them. Its vertices keep their class (each is its own height there); the other
+        # candidates within the same slope-scaled threshold of the TIN join the ground (Axelsson's
+        # densification, one step, the threshold as the iteration distance).
+        from .tin import tin_at_points
+
+        g = np.flatnonzero(ground)
+        ask = np.flatnonzero(candidates & ~ground)
+        zt = tin_at_points(x[g], y[g], z[g], x[ask], y[ask])
+        inside = np.isfinite(zt)
+        d = np.where(inside, z[ask] - zt, z[ask] - dem[ask])
+        ground[ask] = np.abs(d) <= cell_thresh[ask]
+        dem = dem.copy()
+        dem[ask[inside]] = zt[inside]
     return ground, dem
 
 
@@ -366,6 +391,7 @@ def _noise_points(x, y, z, noise: NoiseParams) -> np.ndarray:
 
 def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
                               smrf: SmrfParams | None = None, csf: CsfParams | None = None,
+                              smrftin: SmrfParams | None = None,
                               noise: NoiseParams = NoiseParams(), keep_classes: bool = False) -> np.ndarray:
     """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
     noise above it; the 5-bit class field of point formats 0-5 holds 18 too), then ground (2) among the last
@@ -383,6 +409,8 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
     if method == "csf":
         ground = csf_ground(x, y, z, candidates, csf or CsfParams())
         surface = None
+    elif method == "smrftin":
+        ground, surface = smrf_ground(x, y, z, candidates, smrftin or smrftin_params())
     else:
         ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())
     new = old.copy()

@@ -30,7 +30,8 @@ DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p9
 # --- gistools ground: noise, then SMRF (Pingel et al. 2013; PDAL's names) or CSF (lidR csf()) -------------------
 declare(
     Parameter("ground_method", "choice", "smrf: Simple Morphological Filter (Pingel et al. 2013); csf: Cloth Simulation "
-              "Filter (needs cloth-simulation-filter).", "Ground filter", default="smrf", choices=GROUND_METHODS,
+              "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, then the points measured "
+              "again against a TIN of the ground it found.", "Ground filter", default="smrf", choices=GROUND_METHODS,
               flag="--method", qgis="METHOD"),
     Parameter("noise", "choice", "Noise first: ivf (isolated points in voxels, lasR classify_with_ivf), sor "
               "(statistical outliers) or none.", "Noise filter", default="ivf", choices=NOISE_METHODS),
@@ -44,6 +45,18 @@ declare(
     Parameter("scalar", "length", "SMRF elevation scalar: threshold added per unit of slope.",
               "SMRF elevation scalar (threshold per unit of slope)", default="0.5m", minimum=0.0, advanced=True,
               example="0.5m"),
+    Parameter("smrftin_cell", "length", "smrftin: SMRF cell size.", "SMRF+TIN cell size", default="1.5m", advanced=True,
+              example="1.5m"),
+    Parameter("smrftin_slope", "float", "smrftin: SMRF slope (rise over run).", "SMRF+TIN slope (rise over run)",
+              default=0.15, minimum=0.0, advanced=True, example="0.15"),
+    Parameter("smrftin_window", "length", "smrftin: largest window radius.", "SMRF+TIN largest window radius",
+              default="18m", advanced=True, example="18m"),
+    Parameter("smrftin_threshold", "length", "smrftin: a point within threshold + scalar x local slope of the ground "
+              "surface (then of the TIN of the ground found) is ground.", "SMRF+TIN elevation threshold",
+              default="0.3m", advanced=True, example="0.3m"),
+    Parameter("smrftin_scalar", "length", "smrftin: threshold added per unit of slope.",
+              "SMRF+TIN elevation scalar (threshold per unit of slope)", default="1.25m", minimum=0.0, advanced=True,
+              example="1.25m"),
     Parameter("csf_resolution", "length", "CSF cloth resolution.", "CSF cloth resolution", default="0.5m",
               advanced=True, example="0.5m"),
     Parameter("csf_threshold", "length", "CSF class threshold.", "CSF class threshold", default="0.5m", advanced=True,
@@ -132,7 +145,8 @@ declare(
               "TIN longest triangle edge (0: no limit)", default="0", minimum=0.0, advanced=True, example="0"),
 )
 
-GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", "threshold", "scalar", "csf_resolution",
+GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell",
+                 "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "csf_resolution",
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
                  "overwrite", "scheduler")
