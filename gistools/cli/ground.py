@@ -32,7 +32,7 @@ def own_default_texts(texts: dict):
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, scalar, smrftin_cell, smrftin_slope,
-           smrftin_window, smrftin_threshold, smrftin_scalar, csf_resolution, csf_threshold,
+           smrftin_window, smrftin_threshold, smrftin_scalar, smrftin_step, smrftin_patch, csf_resolution, csf_threshold,
            csf_rigidness, csf_iterations, csf_time_step, csf_slope_smooth, ivf_res, ivf_n, sor_k, sor_multiplier,
            low_noise_depth, buffer, keep_classes, format, crs, jobs, overwrite, scheduler, quiet):  # noqa: A002
     """Classify ground (2) and noise (7 low, 18 high) of every tile of INPUTS (files, folders, globs or a .vpc).
@@ -54,6 +54,7 @@ def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, sc
                               threshold=threshold, scalar=scalar, smrftin_cell=smrftin_cell,
                               smrftin_slope=smrftin_slope, smrftin_window=smrftin_window,
                               smrftin_threshold=smrftin_threshold, smrftin_scalar=smrftin_scalar,
+                              smrftin_step=smrftin_step, smrftin_patch=smrftin_patch,
                               csf_resolution=csf_resolution,
                               csf_threshold=csf_threshold, csf_rigidness=csf_rigidness, csf_iterations=csf_iterations,
                               csf_time_step=csf_time_step, csf_slope_smooth=csf_slope_smooth, ivf_res=ivf_res,

@@ -29,7 +29,7 @@ from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
 __all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
-           "progressive_filter", "min_surface", "GROUND_METHODS"]
+           "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS"]
 
 FILL_RINGS = 32
 
@@ -54,13 +54,16 @@ class SmrfParams:
     z_per_xy: float = 1.0
     refine: bool = True  # measure the points again against the mean of the ground found (see smrf_ground)
     tin: bool = False  # then against a TIN of the ground found (the smrftin method, see smrf_ground)
+    step: float = 0.0  # smrftin: a height step above this (vertical units per cell) parts ground patches; 0: none
+    patch: float = 0.0  # smrftin: raised ground patches narrower than this (CRS units) are removed; 0: none
 
 
 def smrftin_params(**lengths) -> SmrfParams:
     """The smrftin method's parameters (SMRF, then the TIN of its ground) with its declared defaults, for data in
     metres; ``lengths`` override them in the data's units (as SmrfParams' fields)."""
     base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
-                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), tin=True)
+                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), tin=True,
+                step=_metres("smrftin_step"), patch=_metres("smrftin_patch"))
     base.update(lengths)
     return SmrfParams(**base)
 
@@ -315,7 +318,80 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         ground[ask] = np.abs(d) <= cell_thresh[ask]
         dem = dem.copy()
         dem[ask[inside]] = zt[inside]
+    if p.step > 0 and p.patch > 0 and ground.any():
+        ground &= ~raised_patches(x, y, z, ground, p.cell, p.step, p.patch)
     return ground, dem
+
+
+PATCH_REACH = 2  # cells: ground cells this far apart (a wall's empty cells between) are neighbours
+PATCH_FLOOR = 100  # cells: a lower patch smaller than this (low points, a pit) does not vote
+
+
+def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch: float) -> np.ndarray:
+    """The ground points of patches standing above every ground around them: roofs and decks the morphological
+    filter kept (buildings wider than its window, buildings at the data's edge, bridges).
+
+    The lowest ground point of each cell of ``cell`` (absolute lattice); cells up to PATCH_REACH cells apart are
+    one patch when their heights differ by at most ``step`` per cell of distance (the terrain's slopes join,
+    walls part). A patch narrower than ``patch`` (CRS units, its longest side) is an object when at least 90 %
+    of its height differences with the patches around it (cell pairs within reach, at least 8) go down, counting
+    only neighbours of PATCH_FLOOR cells or more or as wide as ``patch`` (low points do not make a roof of the
+    terrain). Terraces and embankments join the terrain on one side or along their length, so they stay.
+    Tiled == merged when the buffer exceeds twice ``patch`` plus the ground filter's own reach."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    out = np.zeros(len(x), bool)
+    gi = np.flatnonzero(ground)
+    if len(gi) < 3:
+        return out
+    zimin, _col0, _row_top, flat = min_surface(x[gi], y[gi], z[gi], cell)
+    h, w = zimin.shape
+    zc = zimin.ravel()
+    ids = np.flatnonzero(np.isfinite(zc))
+    rr, cc = np.divmod(ids, w)
+    pos = np.full(zc.size, -1, np.int64)
+    pos[ids] = np.arange(len(ids))
+    a_list, b_list, dz_list, dist_list = [], [], [], []
+    reach = PATCH_REACH
+    for dr in range(0, reach + 1):
+        for dc in range(-reach, reach + 1):
+            if dr == 0 and dc <= 0:
+                continue
+            r2, c2 = rr + dr, cc + dc
+            ok = (r2 < h) & (c2 >= 0) & (c2 < w)
+            a, b = ids[ok], r2[ok] * w + c2[ok]
+            keep = pos[b] >= 0
+            a, b = a[keep], b[keep]
+            a_list.append(pos[a])
+            b_list.append(pos[b])
+            dz_list.append(zc[a] - zc[b])
+            dist_list.append(np.full(len(a), math.hypot(dr, dc)))
+    a, b, dz, dist = (np.concatenate(v) for v in (a_list, b_list, dz_list, dist_list))
+    joined = np.abs(dz) <= step * dist
+    graph = coo_matrix((np.ones(int(joined.sum())), (a[joined], b[joined])), shape=(len(ids), len(ids)))
+    n, label = connected_components(graph, directed=False)
+    size = np.bincount(label, minlength=n)
+    lo_c = np.full(n, np.iinfo(np.int64).max)
+    hi_c = np.full(n, np.iinfo(np.int64).min)
+    lo_r, hi_r = lo_c.copy(), hi_c.copy()
+    np.minimum.at(lo_c, label, cc)
+    np.maximum.at(hi_c, label, cc)
+    np.minimum.at(lo_r, label, rr)
+    np.maximum.at(hi_r, label, rr)
+    extent = np.maximum(hi_c - lo_c, hi_r - lo_r) * cell
+    la, lb = label[a], label[b]
+    higher = np.where(dz > 0, la, lb)
+    lower = np.where(dz > 0, lb, la)
+    vote = (la != lb) & ((size[lower] >= PATCH_FLOOR) | (extent[lower] >= patch))
+    down = np.bincount(higher[vote], minlength=n)
+    up = np.bincount(lower[vote], minlength=n)
+    total = down + up
+    roof = (total >= 8) & (down >= 0.9 * total) & (extent < patch)
+    cell_roof = np.zeros(zc.size, bool)
+    cell_roof[ids[roof[label]]] = True
+    out[gi[cell_roof[flat]]] = True
+    return out
 
 
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1

@@ -57,6 +57,13 @@ declare(
     Parameter("smrftin_scalar", "length", "smrftin: threshold added per unit of slope.",
               "SMRF+TIN elevation scalar (threshold per unit of slope)", default="1.25m", minimum=0.0, advanced=True,
               example="1.25m"),
+    Parameter("smrftin_step", "length", "smrftin: ground cells whose heights differ by more than this per cell are "
+              "parted (walls); a patch of ground standing above all around it and narrower than "
+              f"{option('smrftin_patch')} is an object (roofs, decks).", "SMRF+TIN height step that parts patches",
+              default="1m", minimum=0.0, advanced=True, example="1m"),
+    Parameter("smrftin_patch", "length", "smrftin: raised ground patches narrower than this are objects (0: keep "
+              "them).", "SMRF+TIN widest raised patch removed", default="60m", minimum=0.0, advanced=True,
+              example="60m"),
     Parameter("csf_resolution", "length", "CSF cloth resolution.", "CSF cloth resolution", default="0.5m",
               advanced=True, example="0.5m"),
     Parameter("csf_threshold", "length", "CSF class threshold.", "CSF class threshold", default="0.5m", advanced=True,
@@ -146,7 +153,7 @@ declare(
 )
 
 GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell",
-                 "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "csf_resolution",
+                 "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution",
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
                  "overwrite", "scheduler")
@@ -164,7 +171,8 @@ BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer
 COMMAND_DEFAULTS.update({"ground": {}, "normalize": BUFFER_30M, "metrics": {"cell_size": "5m", **BUFFER_30M},
                          "chm": {"cell_size": "0.5m", **BUFFER_30M}, "points": {"classes": (1, 2)}, "info": {}})
 # what the shared parameters' help says of their default, where a command's own default is computed
-DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells"}})
+DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells (smrftin: 2 x {option('smrftin_window')} "
+                                            f"+ 2 x {option('smrftin_patch')} + 12 cells)"}})
 
 
 def current_word(name: str, value):

@@ -78,6 +78,8 @@ class GroundSettings:
     smrftin_window: str | float = default_for("smrftin_window")
     smrftin_threshold: str | float = default_for("smrftin_threshold")
     smrftin_scalar: str | float = default_for("smrftin_scalar")
+    smrftin_step: str | float = default_for("smrftin_step")
+    smrftin_patch: str | float = default_for("smrftin_patch")
     csf_resolution: str | float = default_for("csf_resolution")
     csf_threshold: str | float = default_for("csf_threshold")
     csf_rigidness: int = default_for("csf_rigidness")
@@ -95,7 +97,7 @@ class GroundSettings:
     crs: str | None = None
 
     CHECKED = ("noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell", "smrftin_slope",
-               "smrftin_window", "smrftin_threshold", "smrftin_scalar", "csf_resolution", "csf_threshold",
+               "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution", "csf_threshold",
                "csf_rigidness", "csf_time_step", "csf_iterations", "ivf_res", "ivf_n", "sor_k", "sor_multiplier",
                "low_noise_depth", "buffer")
 
@@ -139,14 +141,18 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
     smrftin = smrftin_params(cell=h(s.smrftin_cell, "smrftin cell"), slope=float(s.smrftin_slope),
                              window=h(s.smrftin_window, "smrftin window"),
                              threshold=v(s.smrftin_threshold, "smrftin threshold"),
-                             scalar=v(s.smrftin_scalar, "smrftin scalar"), z_per_xy=xy.metres / z.metres)
+                             scalar=v(s.smrftin_scalar, "smrftin scalar"), step=v(s.smrftin_step, "smrftin step"),
+                             patch=h(s.smrftin_patch, "smrftin patch"), z_per_xy=xy.metres / z.metres)
     csf = CsfParams(resolution=h(s.csf_resolution, "CSF resolution"), threshold=v(s.csf_threshold, "CSF threshold"),
                     rigidness=int(s.csf_rigidness), time_step=float(s.csf_time_step), iterations=int(s.csf_iterations),
                     slope_smooth=bool(s.csf_slope_smooth))
     noise = NoiseParams(method=s.noise, res=h(s.ivf_res, "IVF resolution"), n=int(s.ivf_n), k=int(s.sor_k),
                         multiplier=float(s.sor_multiplier), low_depth=v(s.low_noise_depth, "low noise depth"))
     used = smrftin if s.method == "smrftin" else smrf
-    buffer = h(s.buffer, "buffer") if s.buffer is not None else 2 * used.window + 10 * used.cell
+    buffer = 2 * used.window + 10 * used.cell
+    if s.method == "smrftin":  # raised patches are judged whole: up to a patch's width, and its neighbours'
+        buffer += 2 * smrftin.patch + 2 * smrftin.cell
+    buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
     return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer)
 
 
