@@ -62,7 +62,7 @@ def smrftin_params(**lengths) -> SmrfParams:
     """The smrftin method's parameters (SMRF, then the TIN of its ground) with its declared defaults, for data in
     metres; ``lengths`` override them in the data's units (as SmrfParams' fields)."""
     base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
-                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), tin=True,
+                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), refine=False, tin=True,
                 step=_metres("smrftin_step"), patch=_metres("smrftin_patch"))
     base.update(lengths)
     return SmrfParams(**base)

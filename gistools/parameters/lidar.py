@@ -50,13 +50,13 @@ declare(
     Parameter("smrftin_slope", "float", "smrftin: SMRF slope (rise over run).", "SMRF+TIN slope (rise over run)",
               default=0.15, minimum=0.0, advanced=True, example="0.15"),
     Parameter("smrftin_window", "length", "smrftin: largest window radius.", "SMRF+TIN largest window radius",
-              default="18m", advanced=True, example="18m"),
+              default="24m", advanced=True, example="24m"),
     Parameter("smrftin_threshold", "length", "smrftin: a point within threshold + scalar x local slope of the ground "
               "surface (then of the TIN of the ground found) is ground.", "SMRF+TIN elevation threshold",
-              default="0.3m", advanced=True, example="0.3m"),
+              default="0.4m", advanced=True, example="0.4m"),
     Parameter("smrftin_scalar", "length", "smrftin: threshold added per unit of slope.",
-              "SMRF+TIN elevation scalar (threshold per unit of slope)", default="1.25m", minimum=0.0, advanced=True,
-              example="1.25m"),
+              "SMRF+TIN elevation scalar (threshold per unit of slope)", default="1m", minimum=0.0, advanced=True,
+              example="1m"),
     Parameter("smrftin_step", "length", "smrftin: ground cells whose heights differ by more than this per cell are "
               "parted (walls); a patch of ground standing above all around it and narrower than "
               f"{option('smrftin_patch')} is an object (roofs, decks).", "SMRF+TIN height step that parts patches",
