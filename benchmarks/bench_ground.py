@@ -239,24 +239,26 @@ def quality(path: Path, rng, only=None) -> list[dict]:
     return rows
 
 
-def speed(workdir: Path, points: float) -> list[tuple[int, float, int, float]]:
-    """(jobs, wall seconds, points, CPU seconds of the run: every process and thread, LAZ compression included)."""
+def speed(workdir: Path, points: float, methods=("smrf",)) -> list[tuple[str, int, float, int, float]]:
+    """(method, jobs, wall seconds, points, CPU seconds of the run: every process and thread, LAZ compression
+    included)."""
     import resource
 
     import bench_shrub
 
     info = bench_shrub.generate(workdir, points)
     rows = []
-    for jobs in (1, 2):
-        out = workdir / f"ground_out_{jobs}"
-        before = resource.getrusage(resource.RUSAGE_CHILDREN)
-        t = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "gistools.cli.main", "ground", str(workdir / "tiles"), "--out", str(out), "-q",
-                        "--overwrite", "--jobs", str(jobs)], check=True, cwd=ROOT)
-        seconds = time.perf_counter() - t
-        after = resource.getrusage(resource.RUSAGE_CHILDREN)
-        cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
-        rows.append((jobs, seconds, info["points"], cpu))
+    for method in methods:
+        for jobs in (1, 2):
+            out = workdir / f"ground_out_{method}_{jobs}"
+            before = resource.getrusage(resource.RUSAGE_CHILDREN)
+            t = time.perf_counter()
+            subprocess.run([sys.executable, "-m", "gistools.cli.main", "ground", str(workdir / "tiles"), "--out", str(out),
+                            "-q", "--overwrite", "--jobs", str(jobs), "--method", method], check=True, cwd=ROOT)
+            seconds = time.perf_counter() - t
+            after = resource.getrusage(resource.RUSAGE_CHILDREN)
+            cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+            rows.append((method, jobs, seconds, info["points"], cpu))
     return rows
 
 
@@ -292,9 +294,10 @@ def main(argv=None) -> int:
         print()
         print("| gistools ground on the block | points | seconds | M points/s | per job | CPU seconds | M points per CPU second |")
         print("|---|---:|---:|---:|---:|---:|---:|")
-        for jobs, seconds, n, cpu in speed(Path(args.workdir), args.points):
-            print(f"| --jobs {jobs} | {n:,} | {seconds:.1f} | {n / seconds / 1e6:.2f} | {n / seconds / 1e6 / jobs:.2f} | "
-                  f"{cpu:.1f} | {n / cpu / 1e6:.2f} |")
+        methods = [m for m in (only or ("smrf", "smrftin")) if m in ("smrf", "smrftin")] or ["smrf"]
+        for method, jobs, seconds, n, cpu in speed(Path(args.workdir), args.points, methods):
+            print(f"| --method {method} --jobs {jobs} | {n:,} | {seconds:.1f} | {n / seconds / 1e6:.2f} | "
+                  f"{n / seconds / 1e6 / jobs:.2f} | {cpu:.1f} | {n / cpu / 1e6:.2f} |")
     return 0
 
 

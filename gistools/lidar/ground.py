@@ -323,7 +323,7 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     return ground, dem
 
 
-PATCH_REACH = 2  # cells: ground cells this far apart (a wall's empty cells between) are neighbours
+PATCH_REACH = 3  # cells: ground cells this far apart (a wall's empty cells between) are neighbours
 PATCH_FLOOR = 100  # cells: a lower patch smaller than this (low points, a pit) does not vote
 
 

@@ -172,7 +172,7 @@ COMMAND_DEFAULTS.update({"ground": {}, "normalize": BUFFER_30M, "metrics": {"cel
                          "chm": {"cell_size": "0.5m", **BUFFER_30M}, "points": {"classes": (1, 2)}, "info": {}})
 # what the shared parameters' help says of their default, where a command's own default is computed
 DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells (smrftin: 2 x {option('smrftin_window')} "
-                                            f"+ 2 x {option('smrftin_patch')} + 12 cells)"}})
+                                            f"+ 2 x {option('smrftin_patch')} + 13 cells)"}})
 
 
 def current_word(name: str, value):

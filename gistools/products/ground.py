@@ -151,7 +151,7 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
     used = smrftin if s.method == "smrftin" else smrf
     buffer = 2 * used.window + 10 * used.cell
     if s.method == "smrftin":  # raised patches are judged whole: up to a patch's width, and its neighbours'
-        buffer += 2 * smrftin.patch + 2 * smrftin.cell
+        buffer += 2 * smrftin.patch + 3 * smrftin.cell
     buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
     return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer)
 
