@@ -310,20 +310,29 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         # densification, one step, the threshold as the iteration distance).
         from .tin import tin_at_points
 
-        g = np.flatnonzero(ground)
-        ask = np.flatnonzero(candidates & ~ground)
-        zt = tin_at_points(x[g], y[g], z[g], x[ask], y[ask])
+        cand = np.flatnonzero(candidates)
+        open_ = ~ground[cand] & (np.abs(cz - dem[cand]) <= TIN_REACH * cell_thresh[cand])
+        ask = cand[open_]
+        # the TIN of the ground in the cells around those points only (its triangles there are the same)
+        near = np.zeros(zimin.size, bool)
+        near[cell_of[open_]] = True
+        near = ndimage.maximum_filter(near.reshape(zimin.shape), size=2 * TIN_RING + 1, mode="constant").ravel()
+        g = cand[ground[cand] & near[cell_of]]
+        zt = tin_at_points(x[g], y[g], z[g], x[ask], y[ask]) if len(g) >= 3 else np.full(len(ask), np.nan)
         inside = np.isfinite(zt)
         d = np.where(inside, z[ask] - zt, z[ask] - dem[ask])
         ground[ask] = np.abs(d) <= cell_thresh[ask]
         dem = dem.copy()
         dem[ask[inside]] = zt[inside]
     if p.step > 0 and p.patch > 0 and ground.any():
-        ground &= ~raised_patches(x, y, z, ground, p.cell, p.step, p.patch)
+        ground &= ~raised_patches(x, y, z, ground, PATCH_CELL * p.cell, PATCH_CELL * p.step, p.patch)
     return ground, dem
 
 
-PATCH_REACH = 3  # cells: ground cells this far apart (a wall's empty cells between) are neighbours
+PATCH_REACH = 2  # patch cells: ground cells this far apart (a wall's empty cells between) are neighbours
+PATCH_CELL = 1.5  # patch cells are this many SMRF cells
+TIN_REACH = 5.0  # smrftin's TIN step tests the points within this many thresholds of the lattice surface
+TIN_RING = 2  # cells: the TIN is built of the ground points this near to a tested point's cell
 PATCH_FLOOR = 100  # cells: a lower patch smaller than this (low points, a pit) does not vote
 
 
