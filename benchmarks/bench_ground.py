@@ -220,7 +220,8 @@ def quality(path: Path, rng, only=None) -> list[dict]:
         if only and not any(name.startswith(o) or o in name for o in only):
             continue
         t = time.perf_counter()
-        cls = run()
+        with _quiet_stdout():  # the CSF library prints its steps on the C stdout
+            cls = run()
         seconds = time.perf_counter() - t
         g = cls[: len(x)] == 2
         new = dem_from_ground_points(x[g], y[g], z[g], grid, max_distance=10 * m)
