@@ -160,7 +160,7 @@ def isprs(methods) -> dict:
                 print(f"| {s} | published: {name} | {fmt(v[0])} | {fmt(v[1])} | {fmt(v[2])} | {fmt(v[3])} |")
     print()
     print(f"{points:,} points in all; seconds per method (classification only, noise step included): "
-          + ", ".join(f"{m} {seconds[m]:.2f} s ({points / seconds[m] / 1e6:.2f} M points/s)" for m in methods))
+          + ", ".join(f"{m} {seconds[m]:.2f} s ({points / seconds[m] / 1e6:.3g} M points/s)" for m in methods))
     return {m: {k: float(np.mean([scores[m][q][k] for q in ISPRS_SAMPLES])) for k in ("type I", "type II", "total", "kappa")}
             for m in methods}
 
