@@ -30,8 +30,8 @@ DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p9
 # --- gistools ground: noise, then SMRF (Pingel et al. 2013; PDAL's names) or CSF (lidR csf()) -------------------
 declare(
     Parameter("ground_method", "choice", "smrf: Simple Morphological Filter (Pingel et al. 2013); csf: Cloth Simulation "
-              "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, then the points measured "
-              "again against a TIN of the ground it found.", "Ground filter", default="smrf", choices=GROUND_METHODS,
+              "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, one step of TIN "
+              "densification, raised patches (roofs, decks) removed: best on the ISPRS filter test.", "Ground filter", default="smrf", choices=GROUND_METHODS,
               flag="--method", qgis="METHOD"),
     Parameter("noise", "choice", "Noise first: ivf (isolated points in voxels, lasR classify_with_ivf), sor "
               "(statistical outliers) or none.", "Noise filter", default="ivf", choices=NOISE_METHODS),
