@@ -11,6 +11,10 @@ caller converts the metre defaults (``products.ground``). The steps, as in the p
 4. ZIpro: ZImin without objects and low cells, inpainted; a point is ground when it lies within
    ``threshold + scalar x slope of ZIpro`` of ZIpro (bilinear at the point).
 
+The smrftin method (``smrftin_params``: 1.5 m cells, no mean-surface pass) adds two steps: the candidates measured
+again against a TIN of the ground found (one step of Axelsson's densification), and ``raised_patches``: ground
+patches standing above all around them (roofs, decks) removed.
+
 Empty cells are filled by the mean of their filled 3 x 3 neighbours, grown ring by ring (deterministic,
 so a tiled run equals a merged one; PDAL averages the 8 nearest filled cells, whose ties depend on
 the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
