@@ -84,16 +84,17 @@ def _wiped(tiles, folder: Path) -> list[Path]:
     return out
 
 
-def test_a_tiled_run_equals_the_run_on_the_merged_tiles(tmp_path):
+@pytest.mark.parametrize("method", ["smrf", "smrftin"])
+def test_a_tiled_run_equals_the_run_on_the_merged_tiles(tmp_path, method):
     tiles = sorted(SAMPLE.glob("*.la[sz]"))
     wiped = _wiped(tiles, tmp_path / "tiles")
     merged = {k: np.concatenate([np.asarray(getattr(laspy.read(p), k)) for p in wiped]) for k in FIELDS}
     write_tile(tmp_path / "merged" / "all.las", merged, read_tile_info(tiles[0]).crs, version="1.2", point_format=1,
                offsets=[430000.0, 1810000.0, 0.0])
-    tiled = ground_from_tiles(tmp_path / "tiles", tmp_path / "out_tiled")
+    tiled = ground_from_tiles(tmp_path / "tiles", tmp_path / "out_tiled", GroundSettings(method=method))
     assert tiled["counts"]["ok"] == 4
     assert all(len(t["neighbours"]) == 3 for t in tiled["tiles"])
-    ground_from_tiles(tmp_path / "merged", tmp_path / "out_merged")
+    ground_from_tiles(tmp_path / "merged", tmp_path / "out_merged", GroundSettings(method=method))
     a = np.concatenate([np.asarray(laspy.read(tmp_path / "out_tiled" / f"{p.stem}.laz").classification) for p in wiped])
     b = np.asarray(laspy.read(tmp_path / "out_merged" / "all.laz").classification)
     assert np.array_equal(a, b)

@@ -31,7 +31,8 @@ def own_default_texts(texts: dict):
 @spec_options("ground", skip=("overwrite",))
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
-def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, scalar, csf_resolution, csf_threshold,
+def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, scalar, smrftin_cell, smrftin_slope,
+           smrftin_window, smrftin_threshold, smrftin_scalar, smrftin_step, smrftin_patch, csf_resolution, csf_threshold,
            csf_rigidness, csf_iterations, csf_time_step, csf_slope_smooth, ivf_res, ivf_n, sor_k, sor_multiplier,
            low_noise_depth, buffer, keep_classes, format, crs, jobs, overwrite, scheduler, quiet):  # noqa: A002
     """Classify ground (2) and noise (7 low, 18 high) of every tile of INPUTS (files, folders, globs or a .vpc).
@@ -46,10 +47,15 @@ def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, sc
     Examples:
       $ gistools ground sample_tiles --out classified
       $ gistools ground tiles --out classified --method csf --jobs 2
+      $ gistools ground tiles --out classified --method smrftin
       $ gistools ground tiles.vpc --out classified --noise sor --format las
     """
     settings = GroundSettings(method=ground_method, noise=noise, cell=cell, slope=slope, window=window,
-                              threshold=threshold, scalar=scalar, csf_resolution=csf_resolution,
+                              threshold=threshold, scalar=scalar, smrftin_cell=smrftin_cell,
+                              smrftin_slope=smrftin_slope, smrftin_window=smrftin_window,
+                              smrftin_threshold=smrftin_threshold, smrftin_scalar=smrftin_scalar,
+                              smrftin_step=smrftin_step, smrftin_patch=smrftin_patch,
+                              csf_resolution=csf_resolution,
                               csf_threshold=csf_threshold, csf_rigidness=csf_rigidness, csf_iterations=csf_iterations,
                               csf_time_step=csf_time_step, csf_slope_smooth=csf_slope_smooth, ivf_res=ivf_res,
                               ivf_n=ivf_n, sor_k=sor_k, sor_multiplier=sor_multiplier, low_noise_depth=low_noise_depth,

@@ -11,6 +11,10 @@ caller converts the metre defaults (``products.ground``). The steps, as in the p
 4. ZIpro: ZImin without objects and low cells, inpainted; a point is ground when it lies within
    ``threshold + scalar x slope of ZIpro`` of ZIpro (bilinear at the point).
 
+The smrftin method (``smrftin_params``: 1.5 m cells, no mean-surface pass) adds two steps: the candidates measured
+again against a TIN of the ground found (one step of Axelsson's densification), and ``raised_patches``: ground
+patches standing above all around them (roofs, decks) removed.
+
 Empty cells are filled by the mean of their filled 3 x 3 neighbours, grown ring by ring (deterministic,
 so a tiled run equals a merged one; PDAL averages the 8 nearest filled cells, whose ties depend on
 the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
@@ -28,8 +32,8 @@ from .. import kernel
 from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
-__all__ = ["SmrfParams", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
-           "progressive_filter", "min_surface", "GROUND_METHODS"]
+__all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
+           "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS"]
 
 FILL_RINGS = 32
 
@@ -53,6 +57,19 @@ class SmrfParams:
     scalar: float = _metres("scalar")
     z_per_xy: float = 1.0
     refine: bool = True  # measure the points again against the mean of the ground found (see smrf_ground)
+    tin: bool = False  # then against a TIN of the ground found (the smrftin method, see smrf_ground)
+    step: float = 0.0  # smrftin: a height step above this (vertical units per cell) parts ground patches; 0: none
+    patch: float = 0.0  # smrftin: raised ground patches narrower than this (CRS units) are removed; 0: none
+
+
+def smrftin_params(**lengths) -> SmrfParams:
+    """The smrftin method's parameters (SMRF, then the TIN of its ground) with its declared defaults, for data in
+    metres; ``lengths`` override them in the data's units (as SmrfParams' fields)."""
+    base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
+                threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), refine=False, tin=True,
+                step=_metres("smrftin_step"), patch=_metres("smrftin_patch"))
+    base.update(lengths)
+    return SmrfParams(**base)
 
 
 def min_surface(x, y, z, cell: float):
@@ -290,7 +307,104 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         zifin = fill_gaps(cell_mean(cell_of, cz, ground[candidates], zimin.size).reshape(zimin.shape))
         dem = at.sample(zifin)
         ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
+    if p.tin and np.count_nonzero(ground) >= 3:
+        # smrftin: a lattice blurs ridges, terrace edges and steep slopes by up to a cell; a TIN of the ground
+        # found follows them. Its vertices keep their class (each is its own height there); the other
+        # candidates within the same slope-scaled threshold of the TIN join the ground (Axelsson's
+        # densification, one step, the threshold as the iteration distance).
+        from .tin import tin_at_points
+
+        cand = np.flatnonzero(candidates)
+        open_ = ~ground[cand] & (np.abs(cz - dem[cand]) <= TIN_REACH * cell_thresh[cand])
+        ask = cand[open_]
+        # the TIN of the ground in the cells around those points only (its triangles there are the same)
+        near = np.zeros(zimin.size, bool)
+        near[cell_of[open_]] = True
+        near = ndimage.maximum_filter(near.reshape(zimin.shape), size=2 * TIN_RING + 1, mode="constant").ravel()
+        g = cand[ground[cand] & near[cell_of]]
+        zt = tin_at_points(x[g], y[g], z[g], x[ask], y[ask]) if len(g) >= 3 else np.full(len(ask), np.nan)
+        inside = np.isfinite(zt)
+        d = np.where(inside, z[ask] - zt, z[ask] - dem[ask])
+        ground[ask] = np.abs(d) <= cell_thresh[ask]
+        dem = dem.copy()
+        dem[ask[inside]] = zt[inside]
+    if p.step > 0 and p.patch > 0 and ground.any():
+        ground &= ~raised_patches(x, y, z, ground, PATCH_CELL * p.cell, PATCH_CELL * p.step, p.patch)
     return ground, dem
+
+
+PATCH_REACH = 2  # patch cells: ground cells this far apart (a wall's empty cells between) are neighbours
+PATCH_CELL = 1.5  # patch cells are this many SMRF cells
+TIN_REACH = 5.0  # smrftin's TIN step tests the points within this many thresholds of the lattice surface
+TIN_RING = 2  # cells: the TIN is built of the ground points this near to a tested point's cell
+PATCH_FLOOR = 100  # cells: a lower patch smaller than this (low points, a pit) does not vote
+
+
+def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch: float) -> np.ndarray:
+    """The ground points of patches standing above every ground around them: roofs and decks the morphological
+    filter kept (buildings wider than its window, buildings at the data's edge, bridges).
+
+    The lowest ground point of each cell of ``cell`` (absolute lattice); cells up to PATCH_REACH cells apart are
+    one patch when their heights differ by at most ``step`` per cell of distance (the terrain's slopes join,
+    walls part). A patch narrower than ``patch`` (CRS units, its longest side) is an object when at least 90 %
+    of its height differences with the patches around it (cell pairs within reach, at least 8) go down, counting
+    only neighbours of PATCH_FLOOR cells or more or as wide as ``patch`` (low points do not make a roof of the
+    terrain). Terraces and embankments join the terrain on one side or along their length, so they stay.
+    Tiled == merged when the buffer exceeds twice ``patch`` plus the ground filter's own reach."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    out = np.zeros(len(x), bool)
+    gi = np.flatnonzero(ground)
+    if len(gi) < 3:
+        return out
+    zimin, _col0, _row_top, flat = min_surface(x[gi], y[gi], z[gi], cell)
+    h, w = zimin.shape
+    zc = zimin.ravel()
+    ids = np.flatnonzero(np.isfinite(zc))
+    rr, cc = np.divmod(ids, w)
+    pos = np.full(zc.size, -1, np.int64)
+    pos[ids] = np.arange(len(ids))
+    a_list, b_list, dz_list, dist_list = [], [], [], []
+    reach = PATCH_REACH
+    for dr in range(0, reach + 1):
+        for dc in range(-reach, reach + 1):
+            if dr == 0 and dc <= 0:
+                continue
+            r2, c2 = rr + dr, cc + dc
+            ok = (r2 < h) & (c2 >= 0) & (c2 < w)
+            a, b = ids[ok], r2[ok] * w + c2[ok]
+            keep = pos[b] >= 0
+            a, b = a[keep], b[keep]
+            a_list.append(pos[a])
+            b_list.append(pos[b])
+            dz_list.append(zc[a] - zc[b])
+            dist_list.append(np.full(len(a), math.hypot(dr, dc)))
+    a, b, dz, dist = (np.concatenate(v) for v in (a_list, b_list, dz_list, dist_list))
+    joined = np.abs(dz) <= step * dist
+    graph = coo_matrix((np.ones(int(joined.sum())), (a[joined], b[joined])), shape=(len(ids), len(ids)))
+    n, label = connected_components(graph, directed=False)
+    size = np.bincount(label, minlength=n)
+    lo_c = np.full(n, np.iinfo(np.int64).max)
+    hi_c = np.full(n, np.iinfo(np.int64).min)
+    lo_r, hi_r = lo_c.copy(), hi_c.copy()
+    np.minimum.at(lo_c, label, cc)
+    np.maximum.at(hi_c, label, cc)
+    np.minimum.at(lo_r, label, rr)
+    np.maximum.at(hi_r, label, rr)
+    extent = np.maximum(hi_c - lo_c, hi_r - lo_r) * cell
+    la, lb = label[a], label[b]
+    higher = np.where(dz > 0, la, lb)
+    lower = np.where(dz > 0, lb, la)
+    vote = (la != lb) & ((size[lower] >= PATCH_FLOOR) | (extent[lower] >= patch))
+    down = np.bincount(higher[vote], minlength=n)
+    up = np.bincount(lower[vote], minlength=n)
+    total = down + up
+    roof = (total >= 8) & (down >= 0.9 * total) & (extent < patch)
+    cell_roof = np.zeros(zc.size, bool)
+    cell_roof[ids[roof[label]]] = True
+    out[gi[cell_roof[flat]]] = True
+    return out
 
 
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
@@ -366,6 +480,7 @@ def _noise_points(x, y, z, noise: NoiseParams) -> np.ndarray:
 
 def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
                               smrf: SmrfParams | None = None, csf: CsfParams | None = None,
+                              smrftin: SmrfParams | None = None,
                               noise: NoiseParams = NoiseParams(), keep_classes: bool = False) -> np.ndarray:
     """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
     noise above it; the 5-bit class field of point formats 0-5 holds 18 too), then ground (2) among the last
@@ -383,6 +498,8 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
     if method == "csf":
         ground = csf_ground(x, y, z, candidates, csf or CsfParams())
         surface = None
+    elif method == "smrftin":
+        ground, surface = smrf_ground(x, y, z, candidates, smrftin or smrftin_params())
     else:
         ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())
     new = old.copy()

@@ -30,7 +30,8 @@ DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p9
 # --- gistools ground: noise, then SMRF (Pingel et al. 2013; PDAL's names) or CSF (lidR csf()) -------------------
 declare(
     Parameter("ground_method", "choice", "smrf: Simple Morphological Filter (Pingel et al. 2013); csf: Cloth Simulation "
-              "Filter (needs cloth-simulation-filter).", "Ground filter", default="smrf", choices=GROUND_METHODS,
+              "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, one step of TIN "
+              "densification, raised patches (roofs, decks) removed: best on the ISPRS filter test.", "Ground filter", default="smrf", choices=GROUND_METHODS,
               flag="--method", qgis="METHOD"),
     Parameter("noise", "choice", "Noise first: ivf (isolated points in voxels, lasR classify_with_ivf), sor "
               "(statistical outliers) or none.", "Noise filter", default="ivf", choices=NOISE_METHODS),
@@ -44,6 +45,25 @@ declare(
     Parameter("scalar", "length", "SMRF elevation scalar: threshold added per unit of slope.",
               "SMRF elevation scalar (threshold per unit of slope)", default="0.5m", minimum=0.0, advanced=True,
               example="0.5m"),
+    Parameter("smrftin_cell", "length", "smrftin: SMRF cell size.", "SMRF+TIN cell size", default="1.5m", advanced=True,
+              example="1.5m"),
+    Parameter("smrftin_slope", "float", "smrftin: SMRF slope (rise over run).", "SMRF+TIN slope (rise over run)",
+              default=0.15, minimum=0.0, advanced=True, example="0.15"),
+    Parameter("smrftin_window", "length", "smrftin: largest window radius.", "SMRF+TIN largest window radius",
+              default="24m", advanced=True, example="24m"),
+    Parameter("smrftin_threshold", "length", "smrftin: a point within threshold + scalar x local slope of the ground "
+              "surface (then of the TIN of the ground found) is ground.", "SMRF+TIN elevation threshold",
+              default="0.4m", advanced=True, example="0.4m"),
+    Parameter("smrftin_scalar", "length", "smrftin: threshold added per unit of slope.",
+              "SMRF+TIN elevation scalar (threshold per unit of slope)", default="1m", minimum=0.0, advanced=True,
+              example="1m"),
+    Parameter("smrftin_step", "length", "smrftin: ground cells whose heights differ by more than this per cell are "
+              "parted (walls); a patch of ground standing above all around it and narrower than "
+              f"{option('smrftin_patch')} is an object (roofs, decks).", "SMRF+TIN height step that parts patches",
+              default="1m", minimum=0.0, advanced=True, example="1m"),
+    Parameter("smrftin_patch", "length", "smrftin: raised ground patches narrower than this are objects (0: keep "
+              "them).", "SMRF+TIN widest raised patch removed", default="60m", minimum=0.0, advanced=True,
+              example="60m"),
     Parameter("csf_resolution", "length", "CSF cloth resolution.", "CSF cloth resolution", default="0.5m",
               advanced=True, example="0.5m"),
     Parameter("csf_threshold", "length", "CSF class threshold.", "CSF class threshold", default="0.5m", advanced=True,
@@ -132,7 +152,8 @@ declare(
               "TIN longest triangle edge (0: no limit)", default="0", minimum=0.0, advanced=True, example="0"),
 )
 
-GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", "threshold", "scalar", "csf_resolution",
+GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell",
+                 "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution",
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
                  "overwrite", "scheduler")
@@ -150,7 +171,8 @@ BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer
 COMMAND_DEFAULTS.update({"ground": {}, "normalize": BUFFER_30M, "metrics": {"cell_size": "5m", **BUFFER_30M},
                          "chm": {"cell_size": "0.5m", **BUFFER_30M}, "points": {"classes": (1, 2)}, "info": {}})
 # what the shared parameters' help says of their default, where a command's own default is computed
-DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells"}})
+DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells (smrftin: 2 x {option('smrftin_window')} "
+                                            f"+ 2 x {option('smrftin_patch')} + 13 cells)"}})
 
 
 def current_word(name: str, value):

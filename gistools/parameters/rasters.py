@@ -10,7 +10,8 @@ DSM_FILLS = {"none": "Leave them empty", "nearest": "The nearest return's height
              "tin": "A TIN of the highest returns around them (holes up to 3 cells)",
              "subcircle": "Each return on a circle (lidR p2r(subcircle))"}
 PRODUCTS = {"dsm": "DSM", "dem": "DEM", "ndsm": "nDSM", "topclass": "Class of the highest first return"}
-GROUND_METHODS = {"smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Cloth Simulation Filter)"}
+GROUND_METHODS = {"smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Cloth Simulation Filter)",
+                  "smrftin": "SMRF, then a TIN of its ground (densification)"}
 
 declare(
     Parameter("cell_size", "length", "Side of the raster cells, with its unit (5ft, 1.5m; a bare number is in CRS "

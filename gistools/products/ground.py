@@ -24,7 +24,7 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise
+from ..lidar.ground import RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise, smrftin_params
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -73,6 +73,13 @@ class GroundSettings:
     window: str | float = default_for("window")
     threshold: str | float = default_for("threshold")
     scalar: str | float = default_for("scalar")
+    smrftin_cell: str | float = default_for("smrftin_cell")
+    smrftin_slope: float = default_for("smrftin_slope")
+    smrftin_window: str | float = default_for("smrftin_window")
+    smrftin_threshold: str | float = default_for("smrftin_threshold")
+    smrftin_scalar: str | float = default_for("smrftin_scalar")
+    smrftin_step: str | float = default_for("smrftin_step")
+    smrftin_patch: str | float = default_for("smrftin_patch")
     csf_resolution: str | float = default_for("csf_resolution")
     csf_threshold: str | float = default_for("csf_threshold")
     csf_rigidness: int = default_for("csf_rigidness")
@@ -89,7 +96,8 @@ class GroundSettings:
     format: str = default_for("format")
     crs: str | None = None
 
-    CHECKED = ("noise", "cell", "slope", "window", "threshold", "scalar", "csf_resolution", "csf_threshold",
+    CHECKED = ("noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell", "smrftin_slope",
+               "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution", "csf_threshold",
                "csf_rigidness", "csf_time_step", "csf_iterations", "ivf_res", "ivf_n", "sor_k", "sor_multiplier",
                "low_noise_depth", "buffer")
 
@@ -112,6 +120,7 @@ class _Params:
 
     method: str
     smrf: SmrfParams
+    smrftin: SmrfParams
     csf: CsfParams
     noise: NoiseParams
     keep_classes: bool
@@ -129,13 +138,22 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
 
     smrf = SmrfParams(cell=h(s.cell, "cell"), slope=float(s.slope), window=h(s.window, "window"),
                       threshold=v(s.threshold, "threshold"), scalar=v(s.scalar, "scalar"), z_per_xy=xy.metres / z.metres)
+    smrftin = smrftin_params(cell=h(s.smrftin_cell, "smrftin cell"), slope=float(s.smrftin_slope),
+                             window=h(s.smrftin_window, "smrftin window"),
+                             threshold=v(s.smrftin_threshold, "smrftin threshold"),
+                             scalar=v(s.smrftin_scalar, "smrftin scalar"), step=v(s.smrftin_step, "smrftin step"),
+                             patch=h(s.smrftin_patch, "smrftin patch"), z_per_xy=xy.metres / z.metres)
     csf = CsfParams(resolution=h(s.csf_resolution, "CSF resolution"), threshold=v(s.csf_threshold, "CSF threshold"),
                     rigidness=int(s.csf_rigidness), time_step=float(s.csf_time_step), iterations=int(s.csf_iterations),
                     slope_smooth=bool(s.csf_slope_smooth))
     noise = NoiseParams(method=s.noise, res=h(s.ivf_res, "IVF resolution"), n=int(s.ivf_n), k=int(s.sor_k),
                         multiplier=float(s.sor_multiplier), low_depth=v(s.low_noise_depth, "low noise depth"))
-    buffer = h(s.buffer, "buffer") if s.buffer is not None else 2 * smrf.window + 10 * smrf.cell
-    return _Params(s.method, smrf, csf, noise, bool(s.keep_classes), buffer)
+    used = smrftin if s.method == "smrftin" else smrf
+    buffer = 2 * used.window + 10 * used.cell
+    if s.method == "smrftin":  # raised patches are judged whole: up to a patch's width, and its neighbours'
+        buffer += 2 * smrftin.patch + 3 * smrftin.cell
+    buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
+    return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer)
 
 
 def _output_name(path: Path, fmt: str) -> str:
@@ -165,7 +183,7 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     with _quiet_stdout(p.method == "csf"):  # the CSF library prints its progress to the C stdout
         new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"],
                                         allp["number_of_returns"], allp["classification"], method=p.method, smrf=p.smrf,
-                                        csf=p.csf, noise=p.noise, keep_classes=p.keep_classes)
+                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, keep_classes=p.keep_classes)
     before = own["classification"].copy()
     after = before.copy()
     after[~withheld] = new[: int(np.count_nonzero(~withheld))]
@@ -320,8 +338,9 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
 def _ground_report(out, settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc,
                    started) -> dict:
     first = next(iter(infos.values()), None)
-    units = None if p is None else {"cell": p.smrf.cell, "window": p.smrf.window, "threshold": p.smrf.threshold,
-                                    "scalar": p.smrf.scalar, "buffer": p.buffer, "horizontal_unit": first.unit.name,
+    used = None if p is None else (p.smrftin if p.method == "smrftin" else p.smrf)
+    units = None if p is None else {"cell": used.cell, "window": used.window, "threshold": used.threshold,
+                                    "scalar": used.scalar, "buffer": p.buffer, "horizontal_unit": first.unit.name,
                                     "vertical_unit": first.z_unit.name}
     return write_batch_report(out, "gistools ground", crs_label(crs) if crs is not None else None, settings, states,
                               started, units=units, vpc=str(vpc) if vpc else None)

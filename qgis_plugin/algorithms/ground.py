@@ -11,7 +11,7 @@ from .spec import method_labelled, own_default_text
 class GroundAlgorithm(GistoolsAlgorithm):
     _name, _display = "ground", "Classify ground and noise"
     _page = "commands/ground"
-    _tags = ("classification", "ground", "noise", "smrf", "csf", "copc", "dtm")
+    _tags = ("classification", "ground", "noise", "smrf", "smrftin", "tin", "csf", "copc", "dtm")
     _help = ("Ground (2) and noise (7 low, 18 high) classes of LAS/LAZ tiles (gistools ground): noise first (isolated "
              "voxels or a statistical rule, and points far below the ground surface), then ground by the Simple "
              "Morphological Filter (SMRF) or the Cloth Simulation Filter (CSF). Only the classification changes; every "
