@@ -44,6 +44,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
 SHARED = ROOT.parent / "shared" / "data" / "lidar"
 PY = sys.executable
+FEET = 1 / 0.3048  # every case is in feet (international or US survey: the same to 2 ppm)
 CORES = 2
 
 GISTOOLS = {
@@ -62,7 +63,9 @@ LASR = {
                'ofile = file.path(out, "*_metrics.tif"))',
     "chm": 'reader() + (chm <- rasterize({res}, "max", filter = keep_first())) + '
            'pit_fill(chm, ofile = file.path(out, "*_chm.tif"))',
-    "ground": 'reader() + classify_with_csf() + write_las(file.path(out, "*.las"))',
+    # CSF's lengths (0.5 m cloth, 0.5 m threshold) in the data's unit: {m} is a metre in CRS units
+    "ground": 'reader() + classify_with_csf(cloth_resolution = 0.5 * {m}, class_threshold = 0.5 * {m}) + '
+              'write_las(file.path(out, "*.las"))',
 }
 
 
@@ -86,11 +89,11 @@ def gistools_cmd(product: str, src: Path, out: Path, cell: str, jobs: str | None
     return args + (["--jobs", jobs] if jobs else [])
 
 
-def lasr_cmd(product: str, files: list[Path], out: Path, res: float) -> list:
+def lasr_cmd(product: str, files: list[Path], out: Path, res: float, metre: float) -> list:
     strategy = f"concurrent_files({CORES})" if len(files) > 1 else f"concurrent_points({CORES})"
     script = (f'suppressMessages(library(lasR)); out <- "{out}"; dir.create(out, showWarnings = FALSE); '
               f'f <- c({", ".join(repr(str(p)) for p in files)}); '
-              f'pipeline <- {LASR[product].format(res=res)}; '
+              f'pipeline <- {LASR[product].format(res=res, m=metre)}; '
               f'invisible(exec(pipeline, on = f, ncores = {strategy}, progress = FALSE))')
     return ["Rscript", "-e", script]
 
@@ -126,7 +129,7 @@ def shifted_copies(sources: list[Path], into: Path, nx: int, ny: int) -> Path:
 
 
 def cases(work: Path, wanted: list[str]) -> dict:
-    """{case: (folder of tiles, cell size text, cell size in CRS units)}."""
+    """{case: (folder of tiles, cell size text, cell size in CRS units, a metre in CRS units)}."""
     found = {}
     if "sample" in wanted:  # copies: lasR writes a .lax index beside the files it reads
         sample = work / "sample"
@@ -134,25 +137,25 @@ def cases(work: Path, wanted: list[str]) -> dict:
         for tile in tiles_of(ROOT / "sample_tiles"):
             if not (sample / tile.name).exists():
                 shutil.copy(tile, sample / tile.name)
-        found["sample (4 tiles, 0.3 M points)"] = (sample, "5ft", 5.0)
+        found["sample (4 tiles, 0.3 M points)"] = (sample, "5ft", 5.0, FEET)
     autzen = SHARED / "autzen" / "autzen_trim.las"
     if autzen.exists() and "autzen" in wanted:
         one = work / "autzen1"
         one.mkdir(parents=True, exist_ok=True)
         if not (one / autzen.name).exists():
             shutil.copy(autzen, one / autzen.name)
-        found["autzen, 1 real tile"] = (one, "5ft", 5.0)
+        found["autzen, 1 real tile"] = (one, "5ft", 5.0, FEET)
     if autzen.exists() and "autzen4" in wanted:
-        found["autzen, 2 x 2 copies"] = (shifted_copies([autzen], work / "autzen4", 2, 2), "5ft", 5.0)
+        found["autzen, 2 x 2 copies"] = (shifted_copies([autzen], work / "autzen4", 2, 2), "5ft", 5.0, FEET)
     if "levy" in wanted or "levy16" in wanted:
         import bench_rasters
 
         info = bench_rasters.generate_levy(work)
         if "levy" in wanted:
-            found[f"Levy density, 4 tiles, {info['points'] / 1e6:.1f} M points"] = (work / "levy_las", "5ft", 5.0)
+            found[f"Levy density, 4 tiles, {info['points'] / 1e6:.1f} M points"] = (work / "levy_las", "5ft", 5.0, FEET)
         if "levy16" in wanted:
             block = shifted_copies(tiles_of(work / "levy_las"), work / "levy16", 2, 2)
-            found[f"Levy density, 16 tiles, {4 * info['points'] / 1e6:.1f} M points"] = (block, "5ft", 5.0)
+            found[f"Levy density, 16 tiles, {4 * info['points'] / 1e6:.1f} M points"] = (block, "5ft", 5.0, FEET)
     return found
 
 
@@ -174,7 +177,7 @@ def main(argv=None) -> None:
     print("| case | product | gistools (auto) | lasR | lasR / gistools |", flush=True)
     print("|---|---|---:|---:|---:|", flush=True)
     jobs_rows = []
-    for case, (folder, cell, res) in cases(work, args.cases.split(",")).items():
+    for case, (folder, cell, res, metre) in cases(work, args.cases.split(",")).items():
         files = tiles_of(folder)
         for product in products:
             ours, theirs = [], []
@@ -183,7 +186,7 @@ def main(argv=None) -> None:
                 if peers:
                     out = work / f"out_lasr_{product}"
                     shutil.rmtree(out, ignore_errors=True)
-                    theirs.append(timed(lasr_cmd(product, files, out, res)))
+                    theirs.append(timed(lasr_cmd(product, files, out, res, metre)))
             mo = statistics.median(ours)
             mt = statistics.median(theirs) if theirs else None
             print(f"| {case} | {product} | {mo:.2f} s | " + (f"{mt:.2f} s | {mt / mo:.2f}x |" if mt else "- | - |"),
