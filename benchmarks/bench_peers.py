@@ -31,6 +31,7 @@ Cases: the sample tiles (4 LAS tiles, US survey feet, 5 ft cells), ``../shared/d
 from __future__ import annotations
 
 import argparse
+import copy
 import os
 import shutil
 import statistics
@@ -117,14 +118,14 @@ def shifted_copies(sources: list[Path], into: Path, nx: int, ny: int) -> Path:
     width, height = np.ceil(east - west + 1), np.ceil(north - south + 1)
     for p in sources:
         las = laspy.read(p)
-        x, y = np.asarray(las.x), np.asarray(las.y)
         for i in range(nx):
-            for j in range(ny):
-                copy = laspy.LasData(las.header)
-                copy.points = las.points.copy()
-                copy.header.offsets = las.header.offsets + np.array([i * width, j * height, 0])
-                copy.x, copy.y = x + i * width, y + j * height
-                copy.write(into / f"{p.stem}_{i}{j}.las")
+            for j in range(ny):  # the same integer records, the offsets moved by whole copies of the block
+                header = copy.deepcopy(las.header)
+                header.offsets = np.array(las.header.offsets) + np.array([i * width, j * height, 0])
+                shifted = laspy.LasData(header)
+                shifted.points = laspy.ScaleAwarePointRecord(las.points.array.copy(), header.point_format,
+                                                             header.scales, header.offsets)
+                shifted.write(into / f"{p.stem}_{i}{j}.las")
     return into
 
 
