@@ -11,6 +11,28 @@ from qgis.PyQt.QtGui import QIcon
 from .algorithms import ALGORITHMS
 
 HERE = Path(__file__).resolve().parent
+# each shipped model's name in the toolbox and its group (its id stays gistools:<file's model name>)
+MODEL_NAMES = {"shrub_density": ("Shrub model (the steps wired)", "Shrub chain", "shrub")}
+
+
+class ShippedModel(QgsProcessingModelAlgorithm):
+    """A model of models/, listed under a readable name in its group's place of the toolbox (a model's own name is
+    its id's word)."""
+
+    def displayName(self):  # noqa: N802
+        return MODEL_NAMES.get(self.name(), (super().displayName(),))[0]
+
+    def group(self):
+        return MODEL_NAMES[self.name()][1] if self.name() in MODEL_NAMES else super().group()
+
+    def groupId(self):  # noqa: N802
+        return MODEL_NAMES[self.name()][2] if self.name() in MODEL_NAMES else super().groupId()
+
+    def createInstance(self):  # noqa: N802
+        model = ShippedModel()
+        model.loadVariant(self.toVariant())
+        model.setSourceFilePath(self.sourceFilePath())
+        return model
 
 
 class GistoolsProvider(QgsProcessingProvider):
@@ -40,7 +62,7 @@ class GistoolsProvider(QgsProcessingProvider):
         for cls in ALGORITHMS:
             self.addAlgorithm(cls())
         for path in sorted((HERE / "models").glob("*.model3")):
-            model = QgsProcessingModelAlgorithm()
+            model = ShippedModel()
             if model.fromFile(os.fspath(path)):
                 self.addAlgorithm(model)
             else:

@@ -137,7 +137,7 @@ class ChmAlgorithm(GistoolsAlgorithm):
 
 
 class FuelsAlgorithm(GistoolsAlgorithm):
-    _name, _display = "fuels", "Canopy fuels and FlamMap landscape"
+    _name, _display = "fuels", "Canopy fuels, FlamMap landscape"
     _page = "commands/fuels"
     _tags = ("fuels", "fire", "canopy", "cbh", "cbd", "canopy base height", "canopy bulk density", "landfire", "flammap",
              "lcp", "landscape")
