@@ -13,7 +13,7 @@ import numpy as np
 from .._version import __version__
 from .webmap import GENERATOR, _leaflet, _rounded, _write_page
 
-__all__ = ["fuels_web_map", "CBH_CLASSES"]
+__all__ = ["fuels_web_map", "cbh_features", "CBH_CLASSES"]
 
 # canopy base height classes (metres): code -> (name, colour, upper limit)
 CBH_CLASSES = {1: ("canopy base below 4 m (crown fire starts easily)", "#d7301f", 4.0),
@@ -27,14 +27,13 @@ def cbh_class(cbh_m: np.ndarray) -> np.ndarray:
     return np.where(cbh > 0, 1 + (cbh >= 4.0) + (cbh >= 8.0), 0).astype(np.uint8)
 
 
-def fuels_web_map(out: Path, cbh_vrt, *, z_metres: float, xy_metres: float, parameters: dict) -> dict:
-    """Write ``out/fuels_map.html`` from the CBH mosaic (in the data's vertical unit); returns {"html", "features"}."""
+def cbh_features(cbh_vrt, *, z_metres: float, xy_metres: float) -> list[dict]:
+    """GeoJSON features (WGS84) of the canopy base height classes of a CBH mosaic (in the data's vertical unit);
+    ``area`` in square metres."""
     import rasterio
     import rasterio.features
     import shapely
     from pyproj import Transformer
-
-    from ..web.page import web_map_html
 
     with rasterio.open(cbh_vrt) as src:
         cls = cbh_class(src.read(1, masked=True).filled(np.nan) * z_metres)
@@ -49,6 +48,14 @@ def fuels_web_map(out: Path, cbh_vrt, *, z_metres: float, xy_metres: float, para
         features.append({"type": "Feature", "geometry": {"type": wgs["type"], "coordinates": _rounded(wgs["coordinates"])},
                          "properties": {"tile": "all", "class_code": int(code), "class": name, "area": area_m2,
                                         "area_acres": area_m2 / 4046.8564224, "area_ha": area_m2 / 1e4}})
+    return features
+
+
+def fuels_web_map(out: Path, cbh_vrt, *, z_metres: float, xy_metres: float, parameters: dict) -> dict:
+    """Write ``out/fuels_map.html`` from the CBH mosaic (in the data's vertical unit); returns {"html", "features"}."""
+    from ..web.page import web_map_html
+
+    features = cbh_features(cbh_vrt, z_metres=z_metres, xy_metres=xy_metres)
     js, css = _leaflet()
     classes = [{"code": c, "name": n, "colour": colour} for c, (n, colour, _top) in CBH_CLASSES.items()]
     params = {**parameters, "polygons": len(features), "made by": f"gistools {__version__}, {time.strftime('%Y-%m-%d')}"}

@@ -1,0 +1,198 @@
+"""The search-and-rescue and fire layers of the web map and the map book: the isochrones and points last seen of a
+``gistools travel`` folder, the viewshed of a ``gistools viewshed`` folder and the canopy base height of a
+``gistools fuels`` folder, each read from the folder the user names (``--travel``, ``--viewshed``, ``--fuels``).
+
+The web map gets them in WGS84 (polygons and points as GeoJSON) or, for the rasters, warped to Web Mercator (the
+map's own projection, so an image overlay and a grid of minutes line up with the polygons) at a bounded size.
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import math
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from ..parameters import option
+
+__all__ = ["check_folders", "travel_frames", "travel_web", "minutes_grid", "viewshed_png", "cbh_web", "cbh_classes_on",
+           "MAX_GRID_SIDE", "MAX_IMAGE_SIDE", "LAST_SEEN_COLOUR", "VIEWSHED_RGBA"]
+
+MAX_GRID_SIDE = 400  # the grid of minutes inlined for the cursor readout: at most 400 x 400 values (about 0.6 MB)
+MAX_IMAGE_SIDE = 1024  # the viewshed's image overlay: at most 1024 pixels a side
+LAST_SEEN_COLOUR = "#ff00ff"  # the points last seen: magenta, a colour no class or band has
+VIEWSHED_RGBA = (0, 229, 255, 110)  # seen cells: cyan, semi-transparent; hidden ones are left clear
+NEEDS = {"travel": ("travel.gpkg", "travel_minutes.tif"), "viewshed": ("viewshed.tif",), "fuels": ("cbh.vrt",)}
+MAKER = {"travel": "gistools travel", "viewshed": "gistools viewshed", "fuels": "gistools fuels"}
+
+
+def check_folders(**folders) -> dict:
+    """{name: Path} of the folders given (None left out), each checked to hold its command's outputs."""
+    found = {}
+    for name, folder in folders.items():
+        if folder is None or str(folder) == "":
+            continue
+        path = Path(folder)
+        missing = [f for f in NEEDS[name] if not (path / f).exists()]
+        if not path.is_dir() or missing:
+            what = "no such folder" if not path.is_dir() else f"no {', '.join(missing)} in it"
+            raise InputError(f"{option(name, str(folder))}: {what}",
+                             hint=f"Give the output folder of {MAKER[name]}")
+        found[name] = path
+    return found
+
+
+def _isochrones(folder: Path):
+    import geopandas as gpd
+
+    iso = gpd.read_file(folder / "travel.gpkg", layer="isochrones").sort_values("minutes")
+    seen = gpd.read_file(folder / "travel.gpkg", layer="last_seen")
+    return iso, seen
+
+
+def travel_frames(folder: Path, crs=None):
+    """(bands, last seen): GeoDataFrames of a travel folder, in ``crs`` when given. ``bands``: one polygon per
+    isochrone band (the cells reached between the previous isochrone and this one), with ``minutes``, ``name``
+    ("2-4 min") and ``colour`` (gistools travel's band colours)."""
+    import geopandas as gpd
+
+    from ..products.travel import band_categories
+
+    iso, seen = _isochrones(folder)
+    minutes = [float(m) for m in iso["minutes"]]
+    cats = band_categories(minutes)
+    rows, inner = [], None
+    for i, (m, geom) in enumerate(zip(minutes, iso.geometry)):
+        band = geom if inner is None else geom.difference(inner)
+        rows.append({"minutes": m, "name": cats[i + 1][0], "colour": cats[i + 1][1], "hectares": float(iso["hectares"].iloc[i]),
+                     "acres": float(iso["acres"].iloc[i]), "geometry": band})
+        inner = geom
+    bands = gpd.GeoDataFrame(rows, geometry="geometry", crs=iso.crs)
+    if crs is not None:
+        bands, seen = bands.to_crs(crs), seen.to_crs(crs)
+    return bands, seen
+
+
+def _cell(path) -> float:
+    import rasterio
+
+    with rasterio.open(path) as src:
+        return abs(src.transform.a)
+
+
+def travel_web(folder: Path) -> dict:
+    """The isochrone bands (GeoJSON in WGS84, simplified within half a cell) and the points last seen, for the page."""
+    import shapely
+
+    from .webmap import _rounded
+
+    bands, seen = travel_frames(folder)
+    half = _cell(folder / "travel_minutes.tif") / 2
+    bands = bands.set_geometry(shapely.simplify(np.asarray(bands.geometry.values), half, preserve_topology=True))
+    bands, seen = bands.to_crs(4326), seen.to_crs(4326)
+    feats = []
+    for row, geom in zip(bands.drop(columns="geometry").to_dict("records"), bands.geometry):
+        if geom is None or geom.is_empty:
+            continue
+        g = geom.__geo_interface__
+        feats.append({"type": "Feature", "geometry": {"type": g["type"], "coordinates": _rounded(g["coordinates"])},
+                      "properties": {"minutes": row["minutes"], "name": str(row["name"]), "colour": row["colour"],
+                                     "hectares": row["hectares"], "acres": row["acres"]}})
+    points = [{"lon": round(float(p.x), 7), "lat": round(float(p.y), 7), "label": str(src)}
+              for p, src in zip(seen.geometry, seen["source"] if "source" in seen else [""] * len(seen))
+              if p is not None and not p.is_empty]
+    legend = [{"name": str(f["properties"]["name"]), "colour": f["properties"]["colour"]} for f in feats]
+    return {"isochrones": {"type": "FeatureCollection", "features": feats}, "last_seen": points, "legend": legend}
+
+
+def _warped(path, max_side: int, resampling):
+    """(array, [[south, west], [north, east]], (west, north, dx, dy) in metres of Web Mercator) of a raster's first
+    band warped to EPSG:3857 with at most ``max_side`` cells a side; no-data cells NaN."""
+    import rasterio
+    from pyproj import Transformer
+    from rasterio.transform import from_origin
+    from rasterio.warp import calculate_default_transform, reproject
+
+    with rasterio.open(path) as src:
+        data = src.read(1, masked=True).astype("float64").filled(np.nan)
+        transform, width, height = calculate_default_transform(src.crs, "EPSG:3857", src.width, src.height, *src.bounds)
+        k = max(1.0, max(width, height) / max_side)
+        width, height = max(1, math.ceil(width / k)), max(1, math.ceil(height / k))
+        dx, dy = transform.a * k, -transform.e * k
+        west, north = transform.c, transform.f
+        dst_transform = from_origin(west, north, dx, dy)
+        out = np.full((height, width), np.nan)
+        reproject(data, out, src_transform=src.transform, src_crs=src.crs, src_nodata=np.nan, dst_transform=dst_transform,
+                  dst_crs="EPSG:3857", dst_nodata=np.nan, resampling=resampling)
+    to_wgs = Transformer.from_crs("EPSG:3857", "EPSG:4326", always_xy=True)
+    lon0, lat0 = to_wgs.transform(west, north - dy * height)
+    lon1, lat1 = to_wgs.transform(west + dx * width, north)
+    return out, [[lat0, lon0], [lat1, lon1]], (west, north, dx, dy)
+
+
+def minutes_grid(folder: Path, max_side: int = MAX_GRID_SIDE) -> dict:
+    """The travel minutes on a coarse Web Mercator grid (nearest cell; at most ``max_side`` a side) for the readout
+    under the cursor: ``values`` in tenths of a minute, row by row from the north-west, -1 where no path reaches."""
+    from rasterio.enums import Resampling
+
+    grid, _bounds, (west, north, dx, dy) = _warped(folder / "travel_minutes.tif", max_side, Resampling.nearest)
+    tenths = np.where(np.isfinite(grid), np.round(grid * 10), -1).astype(np.int64)
+    return {"west": west, "north": north, "dx": dx, "dy": dy, "cols": int(grid.shape[1]), "rows": int(grid.shape[0]),
+            "values": tenths.ravel().tolist()}
+
+
+def viewshed_png(folder: Path, max_side: int = MAX_IMAGE_SIDE) -> dict:
+    """The viewshed as a PNG (data: URL) warped to Web Mercator, seen cells in :data:`VIEWSHED_RGBA`, the rest clear;
+    with its bounds in latitude / longitude."""
+    from PIL import Image
+    from rasterio.enums import Resampling
+
+    seen, bounds, _ = _warped(folder / "viewshed.tif", max_side, Resampling.nearest)
+    rgba = np.zeros(seen.shape + (4,), np.uint8)
+    rgba[seen == 1] = VIEWSHED_RGBA
+    buf = io.BytesIO()
+    Image.fromarray(rgba, "RGBA").save(buf, format="PNG", optimize=True)
+    return {"url": "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii"), "bounds": bounds}
+
+
+def _z_metres(folder: Path, which: str = "vertical_unit") -> float:
+    from ..engine.record import read_folder_report
+    from ..units import unit_from_word
+
+    report = read_folder_report(folder) or {}
+    word = (report.get("units") or {}).get(which) or report.get(which)
+    if not word:
+        raise InputError(f"{option('fuels', str(folder))}: its report.json has no {which.replace('_', ' ')}",
+                         hint="Run gistools fuels into it again")
+    return unit_from_word(word).metres
+
+
+def cbh_web(folder: Path) -> dict:
+    """The canopy base height classes of a fuels folder as GeoJSON polygons in WGS84 and their legend."""
+    from .fuelsmap import CBH_CLASSES, cbh_features
+
+    feats = cbh_features(folder / "cbh.vrt", z_metres=_z_metres(folder), xy_metres=_z_metres(folder, "horizontal_unit"))
+    return {"cbh": {"type": "FeatureCollection", "features": feats},
+            "legend": [{"name": n, "colour": c} for n, c, _top in CBH_CLASSES.values()]}
+
+
+def cbh_classes_on(folder: Path, crs, bounds, shape) -> np.ndarray:
+    """The canopy base height classes (0 none, 1, 2, 3: :data:`~gistools.deliver.fuelsmap.CBH_CLASSES`) of a fuels
+    folder on a grid of ``shape`` over ``bounds`` in ``crs`` (nearest cell)."""
+    import rasterio
+    from rasterio.enums import Resampling
+    from rasterio.transform import from_bounds
+    from rasterio.warp import reproject
+
+    from .fuelsmap import cbh_class
+
+    with rasterio.open(folder / "cbh.vrt") as src:
+        data = src.read(1, masked=True).astype("float64").filled(np.nan)
+        out = np.full(shape, np.nan)
+        reproject(data, out, src_transform=src.transform, src_crs=src.crs, src_nodata=np.nan,
+                  dst_transform=from_bounds(*bounds, shape[1], shape[0]), dst_crs=crs, dst_nodata=np.nan,
+                  resampling=Resampling.nearest)
+    return cbh_class(out * _z_metres(folder))
