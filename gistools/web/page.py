@@ -215,6 +215,9 @@ _SCRIPT = """
   };
   if (/[#&]popups(&|$)/.test(location.hash)) {  // #popups: open every polygon's popup (the injection test)
     layer.eachLayer(function (l) { l.openPopup(); });
+    Object.keys(overlays).forEach(function (k) {  // then the overlays' (the points last seen last)
+      if (overlays[k].eachLayer) { overlays[k].eachLayer(function (l) { if (l.getPopup()) { l.openPopup(); } }); }
+    });
   }
   var cursor = /[#&]cursor=([-0-9.]+),([-0-9.]+)/.exec(location.hash);  // #cursor=lon,lat: the mouse moved there
   if (cursor) {
