@@ -19,14 +19,57 @@ from ..errors import InputError
 from ..parameters import option
 
 __all__ = ["check_folders", "travel_frames", "travel_web", "minutes_grid", "viewshed_png", "cbh_web", "cbh_classes_on",
-           "MAX_GRID_SIDE", "MAX_IMAGE_SIDE", "LAST_SEEN_COLOUR", "VIEWSHED_RGBA"]
+           "MAX_GRID_SIDE", "rounded", "cbh_class", "cbh_features", "CBH_CLASSES", "MAX_IMAGE_SIDE", "VIEWSHED_RGBA"]
 
 MAX_GRID_SIDE = 400  # the grid of minutes inlined for the cursor readout: at most 400 x 400 values (about 0.6 MB)
+COORD_DIGITS = 7  # decimal degrees: 1 cm
 MAX_IMAGE_SIDE = 1024  # the viewshed's image overlay: at most 1024 pixels a side
-LAST_SEEN_COLOUR = "#ff00ff"  # the points last seen: magenta, a colour no class or band has
 VIEWSHED_RGBA = (0, 229, 255, 110)  # seen cells: cyan, semi-transparent; hidden ones are left clear
 NEEDS = {"travel": ("travel.gpkg", "travel_minutes.tif"), "viewshed": ("viewshed.tif",), "fuels": ("cbh.vrt",)}
 MAKER = {"travel": "gistools travel", "viewshed": "gistools viewshed", "fuels": "gistools fuels"}
+
+
+def rounded(coords):
+    """GeoJSON coordinates to :data:`COORD_DIGITS` decimals (degrees: 1 cm)."""
+    if isinstance(coords, (list, tuple)) and coords and isinstance(coords[0], (int, float)):
+        return [round(float(c), COORD_DIGITS) for c in coords]
+    return [rounded(c) for c in coords]
+
+
+# canopy base height classes (metres): code -> (name, colour, upper limit)
+CBH_CLASSES = {1: ("canopy base below 4 m (crown fire starts easily)", "#d7301f", 4.0),
+               2: ("canopy base 4-8 m", "#fdae61", 8.0),
+               3: ("canopy base above 8 m", "#1a9641", np.inf)}
+
+
+def cbh_class(cbh_m: np.ndarray) -> np.ndarray:
+    """0 (no canopy fuel layer: CBH 0 or no data), 1, 2, 3 by :data:`CBH_CLASSES` of CBH in metres."""
+    cbh = np.nan_to_num(np.asarray(cbh_m, np.float64), nan=0.0)
+    return np.where(cbh > 0, 1 + (cbh >= 4.0) + (cbh >= 8.0), 0).astype(np.uint8)
+
+
+def cbh_features(cbh_vrt, *, z_metres: float, xy_metres: float) -> list[dict]:
+    """GeoJSON features (WGS84) of the canopy base height classes of a CBH mosaic (in the data's vertical unit);
+    ``area`` in square metres."""
+    import rasterio
+    import rasterio.features
+    import shapely
+    from pyproj import Transformer
+
+    with rasterio.open(cbh_vrt) as src:
+        cls = cbh_class(src.read(1, masked=True).filled(np.nan) * z_metres)
+        transform, crs = src.transform, src.crs
+    to_wgs = Transformer.from_crs(crs.to_wkt(), "EPSG:4326", always_xy=True)
+    features = []
+    for geom, code in rasterio.features.shapes(cls, mask=cls > 0, transform=transform, connectivity=4):
+        shape = shapely.geometry.shape(geom)
+        area_m2 = shape.area * xy_metres ** 2
+        wgs = shapely.transform(shape, lambda c: np.column_stack(to_wgs.transform(c[:, 0], c[:, 1]))).__geo_interface__
+        name = CBH_CLASSES[int(code)][0]
+        features.append({"type": "Feature", "geometry": {"type": wgs["type"], "coordinates": rounded(wgs["coordinates"])},
+                         "properties": {"tile": "all", "class_code": int(code), "class": name, "area": area_m2,
+                                        "area_acres": area_m2 / 4046.8564224, "area_ha": area_m2 / 1e4}})
+    return features
 
 
 def check_folders(**folders) -> dict:
@@ -72,7 +115,10 @@ def travel_frames(folder: Path, crs=None):
         inner = geom
     bands = gpd.GeoDataFrame(rows, geometry="geometry", crs=iso.crs)
     if crs is not None:
-        bands, seen = bands.to_crs(crs), seen.to_crs(crs)
+        import pyproj
+
+        if not pyproj.CRS.from_user_input(crs).equals(iso.crs):
+            bands, seen = bands.to_crs(crs), seen.to_crs(crs)
     return bands, seen
 
 
@@ -86,24 +132,26 @@ def _cell(path) -> float:
 def travel_web(folder: Path) -> dict:
     """The isochrone bands (GeoJSON in WGS84, simplified within half a cell) and the points last seen, for the page."""
     import shapely
-
-    from .webmap import _rounded
+    from pyproj import Transformer
 
     bands, seen = travel_frames(folder)
     half = _cell(folder / "travel_minutes.tif") / 2
     bands = bands.set_geometry(shapely.simplify(np.asarray(bands.geometry.values), half, preserve_topology=True))
-    bands, seen = bands.to_crs(4326), seen.to_crs(4326)
+    bands = bands.to_crs(4326)
+    to_wgs = Transformer.from_crs(seen.crs, "EPSG:4326", always_xy=True)  # point by point: one point is a scalar
     feats = []
     for row, geom in zip(bands.drop(columns="geometry").to_dict("records"), bands.geometry):
         if geom is None or geom.is_empty:
             continue
         g = geom.__geo_interface__
-        feats.append({"type": "Feature", "geometry": {"type": g["type"], "coordinates": _rounded(g["coordinates"])},
+        feats.append({"type": "Feature", "geometry": {"type": g["type"], "coordinates": rounded(g["coordinates"])},
                       "properties": {"minutes": row["minutes"], "name": str(row["name"]), "colour": row["colour"],
                                      "hectares": row["hectares"], "acres": row["acres"]}})
-    points = [{"lon": round(float(p.x), 7), "lat": round(float(p.y), 7), "label": str(src)}
-              for p, src in zip(seen.geometry, seen["source"] if "source" in seen else [""] * len(seen))
-              if p is not None and not p.is_empty]
+    points = []
+    for p, src in zip(seen.geometry, seen["source"] if "source" in seen else [""] * len(seen)):
+        if p is not None and not p.is_empty:
+            lon, lat = to_wgs.transform(float(p.x), float(p.y))
+            points.append({"lon": round(lon, COORD_DIGITS), "lat": round(lat, COORD_DIGITS), "label": str(src)})
     legend = [{"name": str(f["properties"]["name"]), "colour": f["properties"]["colour"]} for f in feats]
     return {"isochrones": {"type": "FeatureCollection", "features": feats}, "last_seen": points, "legend": legend}
 
@@ -172,8 +220,6 @@ def _z_metres(folder: Path, which: str = "vertical_unit") -> float:
 
 def cbh_web(folder: Path) -> dict:
     """The canopy base height classes of a fuels folder as GeoJSON polygons in WGS84 and their legend."""
-    from .fuelsmap import CBH_CLASSES, cbh_features
-
     feats = cbh_features(folder / "cbh.vrt", z_metres=_z_metres(folder), xy_metres=_z_metres(folder, "horizontal_unit"))
     return {"cbh": {"type": "FeatureCollection", "features": feats},
             "legend": [{"name": n, "colour": c} for n, c, _top in CBH_CLASSES.values()]}
@@ -186,8 +232,6 @@ def cbh_classes_on(folder: Path, crs, bounds, shape) -> np.ndarray:
     from rasterio.enums import Resampling
     from rasterio.transform import from_bounds
     from rasterio.warp import reproject
-
-    from .fuelsmap import cbh_class
 
     with rasterio.open(folder / "cbh.vrt") as src:
         data = src.read(1, masked=True).astype("float64").filled(np.nan)

@@ -159,8 +159,7 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
     from matplotlib.backends.backend_pdf import PdfPages
 
     from ..plot import fuels_page, map_frame_inches, map_parameters, mapbook_page
-    from .fuelsmap import CBH_CLASSES
-    from .layers import cbh_classes_on, travel_frames
+    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames
 
     _check(scale, paper, max_pages)
     out = output_folder(out)

@@ -25,13 +25,12 @@ from ..io.atomic import atomic_path
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import option
 from ..web.page import web_map_html
-from .layers import check_folders
+from .layers import COORD_DIGITS, check_folders, rounded as _rounded  # noqa: F401 (COORD_DIGITS: where it was)
 from ..engine.record import add_run, read_folder_report
 
 __all__ = ["web_map", "check_options", "GENERATOR"]
 
 GENERATOR = "<meta name='generator' content='gistools web map'>"  # the mark of a page gistools wrote
-COORD_DIGITS = 7  # decimal degrees: 1 cm
 
 
 def _leaflet() -> tuple[str, str]:
@@ -49,12 +48,6 @@ def check_options(basemap=None, split_mb=40.0) -> None:
     if not (isinstance(split_mb, (int, float)) and split_mb > 0):
         raise InputError(f"{option('split_mb')} {split_mb!r} must be a positive number of megabytes",
                          hint=f"e.g. {option('split_mb', '40')}")
-
-
-def _rounded(coords):
-    if isinstance(coords, (list, tuple)) and coords and isinstance(coords[0], (int, float)):
-        return [round(float(c), COORD_DIGITS) for c in coords]
-    return [_rounded(c) for c in coords]
 
 
 def _features(gdf, tolerance: float) -> list[dict]:
