@@ -238,11 +238,12 @@ def map_frame_inches(paper: str) -> tuple[float, float]:
 
 def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs, scale: float, locator: np.ndarray,
                  locator_bounds, pages: list, page_index: int, parameters: str, paper: str = "letter",
-                 travel=None):
+                 travel=None, seen: np.ndarray | None = None):
     """One map book page (a matplotlib Figure): the classes of ``data`` (a class raster over ``bounds``) at 1:``scale``,
     a grid with coordinates, a locator map (``locator``: the whole area's classes, ``pages``: every page's bounds,
     this one outlined), legend, scale bar, north arrow and what made the map. ``travel``: (isochrone bands, points
-    last seen), GeoDataFrames in the page's CRS (gistools.deliver.layers.travel_frames), drawn over the classes."""
+    last seen), GeoDataFrames in the page's CRS (gistools.deliver.layers.travel_frames), drawn over the classes;
+    ``seen``: the cells seen of a viewshed on ``data``'s grid, a semi-transparent cyan."""
     from matplotlib.patches import Rectangle
     from matplotlib.ticker import FuncFormatter, MultipleLocator
 
@@ -251,6 +252,13 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     west, south, east, north = bounds
     ax.imshow(class_rgb(data), extent=(west, east, south, north), interpolation="nearest")
     handles = legend_handles(data)
+    if seen is not None:
+        from matplotlib.patches import Patch
+
+        wash = np.zeros(seen.shape + (4,), np.uint8)
+        wash[seen] = VIEWSHED_RGBA
+        ax.imshow(wash, extent=(west, east, south, north), interpolation="nearest")
+        handles.append(Patch(facecolor=np.array(VIEWSHED_RGBA) / 255, edgecolor="black", label="seen (viewshed)"))
     if travel is not None:
         handles += draw_travel(ax, *travel)
     ax.set_xlim(west, east)
@@ -289,6 +297,7 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     return fig
 
 
+VIEWSHED_RGBA = (0, 229, 255, 110)  # the cells seen: cyan, semi-transparent (as the web map's overlay)
 LAST_SEEN = "#ff00ff"  # the points last seen: magenta, a colour no class or isochrone band has
 
 

@@ -188,3 +188,42 @@ def test_the_fuels_page_shows_the_canopy_base_height_classes(chain, layers, tmp_
         assert pixels[code] / sum(pixels.values()) == pytest.approx(cells[code] / sum(cells.values()), abs=0.03), pixels
     with pytest.raises(InputError, match="^fuels=.*no cbh.vrt"):
         map_book(chain, fuels=layers / "travel")
+
+
+def test_the_cells_seen_are_washed_in_cyan_on_the_pages(chain, layers, tmp_path):
+    """Over no-vegetation cells (white), a cell deep inside the viewshed (viewshed.tif == 1, read by rasterio) is
+    cyan at 110/255 over white on its page, one deep inside the hidden part stays white."""
+    from scipy import ndimage
+
+    from gistools.plot import MAP_FRAME
+    from gistools.products.viewshed import viewshed_from_surface
+
+    viewshed_from_surface(chain / "dsm.vrt", tmp_path / "viewshed", observers=[f"{START[0]},{START[1]}"],
+                          observer_height="6ft")
+    result = map_book(chain, tile_index=FOOTPRINT, viewshed=tmp_path / "viewshed")
+    pages = rendered(result["pdf"], tmp_path / "pages")
+    with rasterio.open(tmp_path / "viewshed" / "viewshed.tif") as vs, rasterio.open(chain / "classes.vrt") as cl:
+        assert vs.transform == cl.transform
+        seen, white = vs.read(1), cl.read(1) == 0
+        deep = {True: ndimage.binary_erosion(white & (seen == 1), iterations=2),
+                False: ndimage.binary_erosion(white & (seen == 0), iterations=2)}
+        alpha = 110 / 255
+        want = {True: alpha * np.array([0, 229, 255]) + (1 - alpha) * 255, False: np.array([255, 255, 255])}
+        checked = {True: 0, False: 0}
+        for i, (w, s, e, n) in enumerate(result["bounds"]):
+            h, wpx = pages[i].shape[:2]
+            x0, y0, fw, fh = MAP_FRAME
+            for is_seen, mask in deep.items():
+                rows, cols = np.nonzero(mask)
+                xs, ys = vs.xy(rows[::37], cols[::37])
+                for x, y in zip(xs, ys):
+                    if not (w < x < e and s < y < n):
+                        continue
+                    px = int(round(wpx * (x0 + fw * (x - w) / (e - w))))
+                    py = int(round(h * (1 - y0 - fh * (y - s) / (n - s))))
+                    if (np.abs(pages[i][py - 2:py + 3, px - 2:px + 3] - pages[i][py, px]).max() > 0
+                            or abs(px - wpx * x0) < 6 or abs(py - h * (1 - y0)) < 6):
+                        continue  # a grid line, or the frame's edge
+                    assert np.abs(pages[i][py, px] - want[is_seen]).max() <= 8, (is_seen, pages[i][py, px])
+                    checked[is_seen] += 1
+    assert checked[True] >= 20 and checked[False] >= 20, checked

@@ -925,7 +925,7 @@ def test_webmap_and_mapbook_in_processing_take_the_travel_viewshed_and_fuels_fol
     assert extra.search(page).group(1) == extra.search(lib).group(1)
     assert '"isochrones":' in page and '"minutes":' in page and "data:image/png;base64," in page and '"cbh":' in page
     res = qgis.run("gistools:mapbook", {"FOLDER": str(copy), "TILE_INDEX": layer("FOOTPRINT"),
-                                        "TRAVEL": folders["travel"], "FUELS": folders["fuels"]})
+                                        **{k.upper(): v for k, v in folders.items()}})
     assert res["PAGES"] == 5
 
 # the algorithms' command on the command line (None: a step the command line runs only inside the chain)

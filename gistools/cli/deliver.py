@@ -54,21 +54,21 @@ def scene(out, exaggeration, max_mb, surface):
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
 @spec_options("mapbook")
-def mapbook(out, tile_index, tile_field, travel, fuels, scale, paper, max_pages):
+def mapbook(out, tile_index, tile_field, travel, viewshed, fuels, scale, paper, max_pages):
     """Write OUT/map_book.pdf: a page per tile of --tile-index, each fitted to it (without it: per sheet of a grid
     at 1:SCALE) of a gistools shrub folder's classes, with the roads and water, a coordinate grid, a locator map,
     legend, scale bar, north arrow and the parameters: what a field team prints. With the output folder of gistools
-    travel, the isochrones and points last seen on every page; of gistools fuels, a last page of the canopy base
-    height classes.
+    travel, the isochrones and points last seen on every page; of gistools viewshed, the cells seen; of gistools
+    fuels, a last page of the canopy base height classes.
 
     \b
     Examples:
       $ gistools mapbook out --tile-index sample_tiles/breaklines.gpkg:FOOTPRINT
-      $ gistools mapbook out --travel travel --fuels fuels
+      $ gistools mapbook out --travel travel --viewshed viewshed --fuels fuels
       $ gistools mapbook out --scale 5000 --paper a4
     """
     from ..deliver.mapbook import map_book
 
-    r = map_book(out, tile_index=tile_index, tile_field=tile_field, travel=travel, fuels=fuels, scale=scale,
-                 paper=paper, max_pages=max_pages)
+    r = map_book(out, tile_index=tile_index, tile_field=tile_field, travel=travel, viewshed=viewshed, fuels=fuels,
+                 scale=scale, paper=paper, max_pages=max_pages)
     click.echo(f"wrote {r['pdf']} ({r['pages']} pages, 1:{min(r['scales']):,.0f} to 1:{max(r['scales']):,.0f})")

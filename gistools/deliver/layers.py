@@ -17,14 +17,15 @@ import numpy as np
 
 from ..errors import InputError
 from ..parameters import option
+from ..plot import VIEWSHED_RGBA  # the cells seen: cyan, semi-transparent; hidden ones are left clear
 
 __all__ = ["check_folders", "travel_frames", "travel_web", "minutes_grid", "viewshed_png", "cbh_web", "cbh_classes_on",
-           "MAX_GRID_SIDE", "rounded", "cbh_class", "cbh_features", "CBH_CLASSES", "MAX_IMAGE_SIDE", "VIEWSHED_RGBA"]
+           "viewshed_on", "rounded", "cbh_class", "cbh_features", "CBH_CLASSES", "MAX_GRID_SIDE", "MAX_IMAGE_SIDE",
+           "VIEWSHED_RGBA"]
 
 MAX_GRID_SIDE = 400  # the grid of minutes inlined for the cursor readout: at most 400 x 400 values (about 0.6 MB)
 COORD_DIGITS = 7  # decimal degrees: 1 cm
 MAX_IMAGE_SIDE = 1024  # the viewshed's image overlay: at most 1024 pixels a side
-VIEWSHED_RGBA = (0, 229, 255, 110)  # seen cells: cyan, semi-transparent; hidden ones are left clear
 NEEDS = {"travel": ("travel.gpkg", "travel_minutes.tif"), "viewshed": ("viewshed.tif",), "fuels": ("cbh.vrt",)}
 MAKER = {"travel": "gistools travel", "viewshed": "gistools viewshed", "fuels": "gistools fuels"}
 
@@ -225,18 +226,28 @@ def cbh_web(folder: Path) -> dict:
             "legend": [{"name": n, "colour": c} for n, c, _top in CBH_CLASSES.values()]}
 
 
-def cbh_classes_on(folder: Path, crs, bounds, shape) -> np.ndarray:
-    """The canopy base height classes (0 none, 1, 2, 3: :data:`~gistools.deliver.fuelsmap.CBH_CLASSES`) of a fuels
-    folder on a grid of ``shape`` over ``bounds`` in ``crs`` (nearest cell)."""
+def _on_grid(path, crs, bounds, shape) -> np.ndarray:
+    """A raster's first band on a grid of ``shape`` over ``bounds`` in ``crs`` (nearest cell; no data NaN)."""
     import rasterio
     from rasterio.enums import Resampling
     from rasterio.transform import from_bounds
     from rasterio.warp import reproject
 
-    with rasterio.open(folder / "cbh.vrt") as src:
+    with rasterio.open(path) as src:
         data = src.read(1, masked=True).astype("float64").filled(np.nan)
         out = np.full(shape, np.nan)
         reproject(data, out, src_transform=src.transform, src_crs=src.crs, src_nodata=np.nan,
                   dst_transform=from_bounds(*bounds, shape[1], shape[0]), dst_crs=crs, dst_nodata=np.nan,
                   resampling=Resampling.nearest)
-    return cbh_class(out * _z_metres(folder))
+    return out
+
+
+def cbh_classes_on(folder: Path, crs, bounds, shape) -> np.ndarray:
+    """The canopy base height classes (0 none, 1, 2, 3: :data:`CBH_CLASSES`) of a fuels folder on a grid of
+    ``shape`` over ``bounds`` in ``crs`` (nearest cell)."""
+    return cbh_class(_on_grid(folder / "cbh.vrt", crs, bounds, shape) * _z_metres(folder))
+
+
+def viewshed_on(folder: Path, crs, bounds, shape) -> np.ndarray:
+    """The cells seen (True) of a viewshed folder on a grid of ``shape`` over ``bounds`` in ``crs`` (nearest cell)."""
+    return _on_grid(folder / "viewshed.tif", crs, bounds, shape) == 1

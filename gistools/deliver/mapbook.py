@@ -2,7 +2,7 @@
 one page per tile of a tile index (each fitted to the page), or per sheet of a grid at a scale (1:10,000 by
 default), what a field team prints: the classes with the roads and water, a coordinate grid, a locator map, legend,
 scale bar, north arrow and the parameters (gistools.plot.mapbook_page). Given a ``gistools travel`` folder, every page
-also draws its isochrones and points last seen; given a ``gistools fuels`` folder, a last page shows its canopy base
+also draws its isochrones and points last seen (a ``gistools viewshed`` folder: the cells seen); given a ``gistools fuels`` folder, a last page shows its canopy base
 height classes.
 """
 
@@ -88,8 +88,8 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tupl
     return pages, labels, None
 
 
-def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, fuels=None, scale: float = 10000,
-             paper: str = "letter", max_pages: int = MAX_PAGES) -> dict:
+def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, viewshed=None, fuels=None,
+             scale: float = 10000, paper: str = "letter", max_pages: int = MAX_PAGES) -> dict:
     """A PDF map book of a shrub chain's classes, what a field team prints: ``gistools mapbook``.
 
     Writes ``out/map_book.pdf``: a page per tile of ``tile_index`` (each fitted to its page), or per sheet of a grid at
@@ -105,6 +105,8 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
         The tile index's field holding the tile number, printed on each page.
     travel : str or path, optional
         The output folder of ``gistools travel``: its isochrones and points last seen drawn on every page.
+    viewshed : str or path, optional
+        The output folder of ``gistools viewshed``: the cells seen, semi-transparent cyan on every page.
     fuels : str or path, optional
         The output folder of ``gistools fuels``: a last page of its canopy base height classes over the whole area.
     scale : float
@@ -138,7 +140,7 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
 
     started = time.time()
     _check(scale, paper, max_pages)  # every option before the folder is touched
-    layers = check_folders(travel=travel, fuels=fuels)
+    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels)
     out = output_folder(out)
     if not out.is_dir():
         raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
@@ -152,14 +154,14 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
 
 
 def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
-              max_pages: int = MAX_PAGES, travel=None, fuels=None) -> dict:
+              max_pages: int = MAX_PAGES, travel=None, viewshed=None, fuels=None) -> dict:
     """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
     per sheet of a grid at 1:``scale`` (with a travel folder's isochrones and points last seen), and a fuels folder's
     canopy base height page; returns {"pdf", "pages", "scales"}."""
     from matplotlib.backends.backend_pdf import PdfPages
 
     from ..plot import fuels_page, map_frame_inches, map_parameters, mapbook_page
-    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames
+    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames, viewshed_on
 
     _check(scale, paper, max_pages)
     out = output_folder(out)
@@ -193,9 +195,12 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
                 for i, (bounds, label) in enumerate(zip(pages, labels)):
                     page_scale = fixed or (bounds[2] - bounds[0]) * unit.metres / (frame_w * 0.0254)
                     scales.append(page_scale)
-                    fig = mapbook_page(_read(src, bounds, 1500), bounds, title=f"{title} - {label}", unit=unit,
+                    data = _read(src, bounds, 1500)
+                    seen = None if viewshed is None else viewshed_on(viewshed, src.crs, bounds, data.shape)
+                    fig = mapbook_page(data, bounds, title=f"{title} - {label}", unit=unit,
                                        crs=src.crs, scale=page_scale, locator=locator, locator_bounds=locator_bounds,
-                                       pages=pages, page_index=i, parameters=parameters, paper=paper, travel=drawn)
+                                       pages=pages, page_index=i, parameters=parameters, paper=paper, travel=drawn,
+                                       seen=seen)
                     pdf.savefig(fig)
                 if fuels is not None:
                     whole = _fitted(locator_bounds, frame_w, frame_h)

@@ -22,7 +22,7 @@ declare(
               "Travel time folder (gistools travel; empty: none)", metavar="DIR", default_text="none",
               example="travel"),
     Parameter("viewshed", "folder", "The output folder of gistools viewshed: the cells seen drawn as a semi-transparent "
-              "layer of the web map.", "Viewshed folder (gistools viewshed; empty: none)", metavar="DIR",
+              "layer of the web map and on the map book's pages.", "Viewshed folder (gistools viewshed; empty: none)", metavar="DIR",
               default_text="none", example="viewshed"),
     Parameter("fuels", "folder", "The output folder of gistools fuels: its canopy base height classes as a layer of "
               "the web map, and a page of the map book.", "Fuels folder (gistools fuels; empty: none)", metavar="DIR",
@@ -52,4 +52,4 @@ declare(
 
 WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb")
 SCENE = command("scene", "exaggeration", "max_mb", "surface")
-MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "fuels", "scale", "paper", "max_pages")
+MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages")

@@ -82,6 +82,7 @@ class MapBookAlgorithm(_DeliverableAlgorithm):
              "the tile index (each fitted to the page), or per sheet of a grid at a scale, each with the classes, "
              "roads and water, a coordinate grid, a locator map, the legend, a scale bar, a north arrow and the "
              "parameters; with a gistools travel folder, the isochrones and points last seen on every page; with a "
+             "gistools viewshed folder, the cells seen; with a "
              "gistools fuels folder, a last page of the canopy base height classes. The PDF opens from the Results "
              "Viewer.")
 
