@@ -903,7 +903,7 @@ def test_mapbook_in_processing_writes_a_page_per_tile(qgis, reference, tmp_path)
 
 def test_webmap_and_mapbook_in_processing_take_the_travel_viewshed_and_fuels_folders(qgis, reference, tmp_path):
     """gistools:webmap with the travel, viewshed and fuels folders: the library's layers in the page; gistools:mapbook
-    with the travel and fuels folders: the tile pages and the fuels page."""
+    with the travel, viewshed and fuels folders: the tile pages and the fuels page."""
     import re
 
     from gistools.deliver.webmap import web_map
