@@ -237,10 +237,13 @@ def map_frame_inches(paper: str) -> tuple[float, float]:
 
 
 def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs, scale: float, locator: np.ndarray,
-                 locator_bounds, pages: list, page_index: int, parameters: str, paper: str = "letter"):
+                 locator_bounds, pages: list, page_index: int, parameters: str, paper: str = "letter",
+                 travel=None, seen: np.ndarray | None = None):
     """One map book page (a matplotlib Figure): the classes of ``data`` (a class raster over ``bounds``) at 1:``scale``,
     a grid with coordinates, a locator map (``locator``: the whole area's classes, ``pages``: every page's bounds,
-    this one outlined), legend, scale bar, north arrow and what made the map."""
+    this one outlined), legend, scale bar, north arrow and what made the map. ``travel``: (isochrone bands, points
+    last seen), GeoDataFrames in the page's CRS (gistools.deliver.layers.travel_frames), drawn over the classes;
+    ``seen``: the cells seen of a viewshed on ``data``'s grid, a semi-transparent cyan."""
     from matplotlib.patches import Rectangle
     from matplotlib.ticker import FuncFormatter, MultipleLocator
 
@@ -248,6 +251,16 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     ax = fig.add_axes(MAP_FRAME)
     west, south, east, north = bounds
     ax.imshow(class_rgb(data), extent=(west, east, south, north), interpolation="nearest")
+    handles = legend_handles(data)
+    if seen is not None:
+        from matplotlib.patches import Patch
+
+        wash = np.zeros(seen.shape + (4,), np.uint8)
+        wash[seen] = VIEWSHED_RGBA
+        ax.imshow(wash, extent=(west, east, south, north), interpolation="nearest")
+        handles.append(Patch(facecolor=np.array(VIEWSHED_RGBA) / 255, edgecolor="black", label="seen (viewshed)"))
+    if travel is not None:
+        handles += draw_travel(ax, *travel)
     ax.set_xlim(west, east)
     ax.set_ylim(south, north)
     step = _nice_length((east - west) / 5)
@@ -277,8 +290,83 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     loc.set_xticks([])
     loc.set_yticks([])
     loc.set_title(f"page {page_index + 1} of {len(pages)}", fontsize=8)
-    fig.legend(handles=legend_handles(data), loc="upper left", bbox_to_anchor=(0.72, 0.52), title="Shrub density",
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.72, 0.52), title="Shrub density",
                fontsize=8, title_fontsize=9, frameon=False)
     fig.text(0.72, 0.08, plain(f"Scale 1:{scale:,.0f} on {paper} paper\nCRS: {crs_label(crs)}\nunits: {unit.name}\n"
                                f"grid every {step:g} {unit.short}\n{parameters}"), fontsize=7, va="bottom", wrap=True)
+    return fig
+
+
+VIEWSHED_RGBA = (0, 229, 255, 110)  # the cells seen: cyan, semi-transparent (as the web map's overlay)
+LAST_SEEN = "#ff00ff"  # the points last seen: magenta, a colour no class or isochrone band has
+
+
+def draw_travel(ax, bands, seen) -> list:
+    """The isochrones (each band's outline in its colour, over a light wash of it) and the points last seen
+    (magenta dots) on ``ax``; returns their legend handles."""
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import PathPatch
+    from matplotlib.path import Path
+    from shapely.geometry.polygon import orient
+
+    handles = []
+    for geom, colour, name in zip(bands.geometry, bands["colour"], bands["name"]):
+        if geom is None or geom.is_empty:
+            continue
+        for poly in getattr(geom, "geoms", [geom]):
+            if poly.geom_type != "Polygon":
+                continue
+            poly = orient(poly)  # holes wound against the exterior: the wash leaves them clear
+            rings = [np.asarray(r.coords) for r in (poly.exterior, *poly.interiors)]
+            codes = np.concatenate([[Path.MOVETO] + [Path.LINETO] * (len(r) - 2) + [Path.CLOSEPOLY] for r in rings])
+            ax.add_patch(PathPatch(Path(np.concatenate(rings), codes), facecolor=colour, alpha=0.2, linewidth=0))
+            for r in rings:
+                ax.plot(r[:, 0], r[:, 1], color=colour, linewidth=1.6)
+        handles.append(Line2D([], [], color=colour, linewidth=2.5, label=plain(name)))
+    pts = [(p.x, p.y) for p in seen.geometry if p is not None and not p.is_empty]
+    if pts:
+        xs, ys = zip(*pts)
+        ax.plot(xs, ys, linestyle="none", marker="o", markersize=9, markerfacecolor=LAST_SEEN, markeredgecolor="black",
+                markeredgewidth=1.2)
+        handles.append(Line2D([], [], linestyle="none", marker="o", markersize=8, markerfacecolor=LAST_SEEN,
+                              markeredgecolor="black", label="point last seen"))
+    return handles
+
+
+def fuels_page(cbh_classes: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs, classes: dict, parameters: str,
+               paper: str = "letter"):
+    """The map book's fuels page (a matplotlib Figure): the canopy base height classes of ``cbh_classes`` (0 none,
+    codes of ``classes`` = {code: (name, colour, top)}) over ``bounds``, a grid, legend, scale bar and north arrow."""
+    import matplotlib
+    from matplotlib.patches import Patch
+    from matplotlib.ticker import FuncFormatter, MultipleLocator
+
+    fig = new_figure(PAPER_IN[paper])
+    ax = fig.add_axes(MAP_FRAME)
+    west, south, east, north = bounds
+    lut = np.full((256, 4), 255, np.uint8)
+    for code, (_name, colour, _top) in classes.items():
+        lut[code, :3] = np.round(np.array(matplotlib.colors.to_rgb(colour)) * 255)
+    ax.imshow(lut[cbh_classes], extent=(west, east, south, north), interpolation="nearest")
+    ax.set_xlim(west, east)
+    ax.set_ylim(south, north)
+    step = _nice_length((east - west) / 5)
+    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MultipleLocator(step))
+        axis.set_major_formatter(fmt)
+    ax.tick_params(labelsize=7, top=True, right=True, labeltop=True, labelright=True)
+    ax.grid(True, color="black", linewidth=0.4, alpha=0.5)
+    ax.set_title(plain(title), fontsize=12, pad=18)
+    scale_bar(ax, bounds, unit, fontsize=8)
+    north_arrow(ax, size=12)
+    import textwrap
+
+    handles = [Patch(facecolor=c, edgecolor="black", label=plain("\n".join(textwrap.wrap(n, 30))))
+               for n, c, _top in classes.values()]
+    handles.append(Patch(facecolor="white", edgecolor="black", label="no canopy fuel layer"))
+    fig.legend(handles=handles, loc="upper left", bbox_to_anchor=(0.72, 0.9), title="Canopy base height",
+               fontsize=8, title_fontsize=9, frameon=False)
+    fig.text(0.72, 0.08, plain(f"CRS: {crs_label(crs)}\nunits: {unit.name}\ngrid every {step:g} {unit.short}\n"
+                               f"{parameters}"), fontsize=7, va="bottom", wrap=True)
     return fig

@@ -97,3 +97,133 @@ def test_a_pdf_gistools_did_not_write_is_kept(chain, tmp_path):
     (copy / "map_book.pdf").unlink()
     map_book(copy, tile_index=FOOTPRINT)
     assert map_book(copy, tile_index=FOOTPRINT)["pages"] == 4  # its own book is replaced
+
+
+START = (430500.0, 1811500.0)  # the point last seen, in tile 35712 (US survey feet)
+BANDS = {"0-2 min": "#1a9850", "2-4 min": "#91cf60", "4-6 min": "#fee08b"}  # gistools travel's band colours
+MAGENTA = np.array([255, 0, 255])
+
+
+@pytest.fixture(scope="module")
+def layers(chain, tmp_path_factory):
+    from gistools.products.fuels import fuels_from_tiles
+    from gistools.products.travel import TravelSettings, travel_from_dem
+
+    root = tmp_path_factory.mktemp("layers")
+    b = SAMPLE / "breaklines.gpkg"
+    travel_from_dem(chain, root / "travel", [f"{START[0]},{START[1]}"], TravelSettings(isochrones=(2, 4, 6)),
+                    roads=f"{b}:ROADBREAKLINE", hydro=f"{b}:HYDROGRAPHICFEATURE", waterbodies=f"{b}:WATERBODY")
+    fuels_from_tiles(SAMPLE, root / "fuels")
+    return root
+
+
+def rendered(pdf, folder, dpi=100) -> list:
+    from PIL import Image
+
+    folder.mkdir()
+    subprocess.run(["pdftoppm", "-r", str(dpi), "-png", str(pdf), str(folder / "page")], check=True)
+    return [np.asarray(Image.open(p).convert("RGB")).astype(int) for p in sorted(folder.glob("page*.png"))]
+
+
+def in_frame(img) -> np.ndarray:
+    """The map's frame of a page (gistools.plot.MAP_FRAME, figure fractions from the lower left)."""
+    from gistools.plot import MAP_FRAME
+
+    h, w = img.shape[:2]
+    x0, y0, fw, fh = MAP_FRAME
+    return img[int(h * (1 - y0 - fh)) + 2:int(h * (1 - y0)) - 2, int(w * x0) + 2:int(w * (x0 + fw)) - 2]
+
+
+def near(img, colour, tol=8) -> np.ndarray:
+    rgb = np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)]) if isinstance(colour, str) else colour
+    return np.abs(img - rgb).max(axis=2) <= tol
+
+
+def test_the_isochrones_and_the_point_last_seen_are_on_the_pages(chain, layers, tmp_path):
+    """Each isochrone's colour is drawn in the map frames, which the book without --travel never shows; the magenta
+    dot of the point last seen is on the one page whose footprint holds it, where the point falls on that page."""
+    from gistools.plot import MAP_FRAME
+
+    plain = map_book(chain, tile_index=FOOTPRINT)
+    before = [in_frame(p) for p in rendered(plain["pdf"], tmp_path / "plain")]
+    result = map_book(chain, tile_index=FOOTPRINT, travel=layers / "travel")
+    assert result["pages"] == 4 == pages_of(result["pdf"])
+    pages = rendered(result["pdf"], tmp_path / "travel")
+    after = [in_frame(p) for p in pages]
+    for name, colour in BANDS.items():
+        assert sum(near(p, colour).sum() for p in before) < 5, name
+        assert sum(near(p, colour).sum() for p in after) > 100, name
+    holding = [i for i, (w, s, e, n) in enumerate(result["bounds"]) if w < START[0] < e and s < START[1] < n]
+    assert len(holding) == 1
+    for i, img in enumerate(after):
+        dots = near(img, MAGENTA, 12)
+        if i != holding[0]:
+            assert dots.sum() == 0
+            continue
+        assert dots.sum() > 20
+        # where the point is on the page: its place in the page's bounds, in the map frame (no margin: the bounds
+        # are fitted to the frame)
+        w, s, e, n = result["bounds"][i]
+        h, wpx = pages[i].shape[:2]
+        x0, y0, fw, fh = MAP_FRAME
+        px = wpx * (x0 + fw * (START[0] - w) / (e - w)) - (int(wpx * x0) + 2)
+        py = h * (1 - y0 - fh * (START[1] - s) / (n - s)) - (int(h * (1 - y0 - fh)) + 2)
+        rows, cols = np.nonzero(dots)
+        assert abs(cols.mean() - px) < 3 and abs(rows.mean() - py) < 3, (cols.mean(), px, rows.mean(), py)
+
+
+def test_the_fuels_page_shows_the_canopy_base_height_classes(chain, layers, tmp_path):
+    """A last page of the canopy base height classes: each class's share of the coloured map equals its share of
+    the cells of cbh.vrt (classed here at 4 and 8 m, US survey feet to metres)."""
+    result = map_book(chain, tile_index=FOOTPRINT, travel=layers / "travel", fuels=layers / "fuels")
+    assert result["pages"] == 5 == pages_of(result["pdf"]) and result["labels"][-1] == "canopy base height"
+    page = in_frame(rendered(result["pdf"], tmp_path / "fuels")[-1])
+    with rasterio.open(layers / "fuels" / "cbh.vrt") as src:
+        cbh_m = src.read(1, masked=True).filled(0) * 1200 / 3937
+    cells = {1: np.count_nonzero((cbh_m > 0) & (cbh_m < 4)), 2: np.count_nonzero((cbh_m >= 4) & (cbh_m < 8)),
+             3: np.count_nonzero(cbh_m >= 8)}
+    pixels = {code: near(page, colour, 6).sum() for code, colour in {1: "#d7301f", 2: "#fdae61", 3: "#1a9641"}.items()}
+    assert sum(cells.values()) > 5
+    for code in cells:
+        assert pixels[code] / sum(pixels.values()) == pytest.approx(cells[code] / sum(cells.values()), abs=0.03), pixels
+    with pytest.raises(InputError, match="^fuels=.*no cbh.vrt"):
+        map_book(chain, fuels=layers / "travel")
+
+
+def test_the_cells_seen_are_washed_in_cyan_on_the_pages(chain, layers, tmp_path):
+    """Over no-vegetation cells (white), a cell deep inside the viewshed (viewshed.tif == 1, read by rasterio) is
+    cyan at 110/255 over white on its page, one deep inside the hidden part stays white."""
+    from scipy import ndimage
+
+    from gistools.plot import MAP_FRAME
+    from gistools.products.viewshed import viewshed_from_surface
+
+    viewshed_from_surface(chain / "dsm.vrt", tmp_path / "viewshed", observers=[f"{START[0]},{START[1]}"],
+                          observer_height="6ft")
+    result = map_book(chain, tile_index=FOOTPRINT, viewshed=tmp_path / "viewshed")
+    pages = rendered(result["pdf"], tmp_path / "pages")
+    with rasterio.open(tmp_path / "viewshed" / "viewshed.tif") as vs, rasterio.open(chain / "classes.vrt") as cl:
+        assert vs.transform == cl.transform
+        seen, white = vs.read(1), cl.read(1) == 0
+        deep = {True: ndimage.binary_erosion(white & (seen == 1), iterations=2),
+                False: ndimage.binary_erosion(white & (seen == 0), iterations=2)}
+        alpha = 110 / 255
+        want = {True: alpha * np.array([0, 229, 255]) + (1 - alpha) * 255, False: np.array([255, 255, 255])}
+        checked = {True: 0, False: 0}
+        for i, (w, s, e, n) in enumerate(result["bounds"]):
+            h, wpx = pages[i].shape[:2]
+            x0, y0, fw, fh = MAP_FRAME
+            for is_seen, mask in deep.items():
+                rows, cols = np.nonzero(mask)
+                xs, ys = vs.xy(rows[::37], cols[::37])
+                for x, y in zip(xs, ys):
+                    if not (w < x < e and s < y < n):
+                        continue
+                    px = int(round(wpx * (x0 + fw * (x - w) / (e - w))))
+                    py = int(round(h * (1 - y0 - fh * (y - s) / (n - s))))
+                    if (np.abs(pages[i][py - 2:py + 3, px - 2:px + 3] - pages[i][py, px]).max() > 0
+                            or abs(px - wpx * x0) < 6 or abs(py - h * (1 - y0)) < 6):
+                        continue  # a grid line, or the frame's edge
+                    assert np.abs(pages[i][py, px] - want[is_seen]).max() <= 8, (is_seen, pages[i][py, px])
+                    checked[is_seen] += 1
+    assert checked[True] >= 20 and checked[False] >= 20, checked

@@ -902,6 +902,34 @@ def test_mapbook_in_processing_writes_a_page_per_tile(qgis, reference, tmp_path)
     assert res["PAGES"] == 4 and Path(res["PDF"]).read_bytes().startswith(b"%PDF")
 
 
+
+def test_webmap_and_mapbook_in_processing_take_the_travel_viewshed_and_fuels_folders(qgis, reference, tmp_path):
+    """gistools:webmap with the travel, viewshed and fuels folders: the library's layers in the page; gistools:mapbook
+    with the travel, viewshed and fuels folders: the tile pages and the fuels page."""
+    import re
+
+    from gistools.deliver.webmap import web_map
+    from gistools.products.fuels import fuels_from_tiles
+    from gistools.products.travel import TravelSettings, travel_from_dem
+    from gistools.products.viewshed import viewshed_from_surface
+
+    travel_from_dem(reference, tmp_path / "travel", ["430500,1811500"], TravelSettings(isochrones=(2, 4)))
+    viewshed_from_surface(reference / "dsm.vrt", tmp_path / "viewshed", observers=["430500,1811500"],
+                          observer_height="6ft")
+    fuels_from_tiles(SAMPLE, tmp_path / "fuels")
+    folders = {"travel": str(tmp_path / "travel"), "viewshed": str(tmp_path / "viewshed"), "fuels": str(tmp_path / "fuels")}
+    copy = tmp_path / "chain"
+    shutil.copytree(reference, copy)
+    lib = Path(web_map(copy, **folders)["html"]).read_text()
+    res = qgis.run("gistools:webmap", {"FOLDER": str(copy), **{k.upper(): v for k, v in folders.items()}})
+    extra = re.compile(r", extra = (\{.*?\});\n", re.S)
+    page = Path(res["HTML"]).read_text()
+    assert extra.search(page).group(1) == extra.search(lib).group(1)
+    assert '"isochrones":' in page and '"minutes":' in page and "data:image/png;base64," in page and '"cbh":' in page
+    res = qgis.run("gistools:mapbook", {"FOLDER": str(copy), "TILE_INDEX": layer("FOOTPRINT"),
+                                        **{k.upper(): v for k, v in folders.items()}})
+    assert res["PAGES"] == 5
+
 # the algorithms' command on the command line (None: a step the command line runs only inside the chain)
 COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize": "normalize", "metrics": "metrics",
               "chm": "chm", "fuels": "fuels", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",

@@ -14,7 +14,10 @@ from pathlib import Path
 import geopandas as gpd
 import numpy as np
 import pytest
+import rasterio
+import rasterio.features
 import shapely
+from shapely.geometry import box
 
 from conftest import SAMPLE
 from gistools.errors import InputError, OutputExistsError
@@ -241,3 +244,225 @@ def test_no_markup_from_the_data_runs_in_the_page(chain, tmp_path):
     guarded = tmp_path / "guarded.html"
     guarded.write_text(re.sub(r"content=\"[^\"]*\"", lambda m: f'content="{policy}"', unsafe, count=1))
     assert not ran_script(guarded, tmp_path)[0]
+
+
+# search and rescue and fire layers: gistools travel, viewshed and fuels folders drawn on the page
+
+START = (430500.0, 1811500.0)  # the point last seen, on land in tile 35712 (US survey feet, EPSG:2882)
+SAFE = (230, 60, 680, 740)  # page pixels clear of the controls (layer switcher, legends, readout, panel)
+
+
+@pytest.fixture(scope="module")
+def sar(chain, tmp_path_factory):
+    """The chain's travel time from a point last seen (isochrones 2, 4, 6 min), its viewshed from there and the
+    fuels of the same tiles."""
+    from gistools.products.fuels import fuels_from_tiles
+    from gistools.products.travel import TravelSettings, travel_from_dem
+    from gistools.products.viewshed import viewshed_from_surface
+
+    out, _ = chain
+    root = tmp_path_factory.mktemp("sar")
+    b = SAMPLE / "breaklines.gpkg"
+    travel_from_dem(out, root / "travel", [f"{START[0]},{START[1]}"], TravelSettings(isochrones=(2, 4, 6)),
+                    roads=f"{b}:ROADBREAKLINE", hydro=f"{b}:HYDROGRAPHICFEATURE", waterbodies=f"{b}:WATERBODY")
+    viewshed_from_surface(out / "dsm.vrt", root / "viewshed", observers=[f"{START[0]},{START[1]}"],
+                          observer_height="6ft")
+    fuels_from_tiles(SAMPLE, root / "fuels")
+    return root
+
+
+def shot(folder, tmp_path, name, **layers) -> tuple[np.ndarray, dict, Path]:
+    """A copy of the chain folder's web map with ``layers``, its screenshot and its inlined polygons."""
+    from PIL import Image
+
+    result = web_map(folder, **layers)
+    page = Path(result["html"])
+    chromium(f"--screenshot={tmp_path / name}", page.resolve().as_uri(), home=tmp_path)
+    return np.asarray(Image.open(tmp_path / name).convert("RGB")).astype(int), inlined(page.read_text()), page
+
+
+def probes_in(region, crs, data, count=6, step=4.0) -> list:
+    """Up to ``count`` points of ``region`` (a shapely geometry in ``crs``) drawn on the page within SAFE, as
+    (x, y in crs, pixel)."""
+    if region.is_empty:
+        return []
+    w, s, e, n = region.bounds
+    xs, ys = np.meshgrid(np.arange(w, e, step), np.arange(s, n, step))
+    xs, ys = xs.ravel(), ys.ravel()
+    keep = shapely.contains_xy(region, xs, ys)
+    xs, ys = xs[keep], ys[keep]
+    if not len(xs):
+        return []
+    lonlat = gpd.GeoSeries(gpd.points_from_xy(xs, ys), crs=crs).to_crs(4326)
+    pixels = leaflet_pixels(data, SIZE, [(p.x, p.y) for p in lonlat])
+    ok = [i for i, (px, py) in enumerate(pixels) if SAFE[0] <= px <= SAFE[2] and SAFE[1] <= py <= SAFE[3]]
+    pick = [ok[int(k)] for k in np.linspace(0, len(ok) - 1, min(count, len(ok)))] if ok else []
+    return [(xs[i], ys[i], pixels[i]) for i in pick]
+
+
+def rgb(colour: str) -> np.ndarray:
+    return np.array([int(colour[i:i + 2], 16) for i in (1, 3, 5)])
+
+
+def test_the_isochrones_are_drawn_in_their_colours_over_the_map(chain, sar, tmp_path):
+    """Each isochrone band (0-2, 2-4, 4-6 min), well inside its polygon, is its colour at 35 % over what the map
+    without the travel layers shows there (the same fit: the page fits the shrub polygons)."""
+    from gistools.deliver.layers import travel_frames
+
+    out, _ = chain
+    under, data, _ = shot(out, tmp_path, "under.png")
+    copy = tmp_path / "with_travel"
+    shutil.copytree(out, copy)
+    img, data2, page = shot(copy, tmp_path, "travel.png", travel=sar / "travel")
+    assert data2 == data  # the same polygons, the same fit
+    bands, seen = travel_frames(sar / "travel")
+    with rasterio.open(sar / "travel" / "travel_minutes.tif") as src:
+        cell = src.res[0]
+    shrub = gpd.read_file(out / "shrub_classes.gpkg")
+    edges = shapely.union_all([g.boundary for g in shrub.geometry]).buffer(3 * cell)
+    spot = shapely.union_all(list(seen.geometry)).buffer(40.0)
+    assert list(bands["name"]) == ["0-2 min", "2-4 min", "4-6 min"]
+    drawn = 0
+    for geom, colour in zip(bands.geometry, bands["colour"]):
+        inner = geom.buffer(-3 * cell).difference(edges).difference(spot)
+        probes = probes_in(inner, bands.crs, data)
+        assert probes, colour
+        for _, _, (px, py) in probes:
+            r, c = int(round(py)), int(round(px))
+            want = 0.35 * rgb(colour) + 0.65 * under[r, c]
+            assert np.abs(img[r, c] - want).max() <= 12, (colour, img[r, c], want)
+            drawn += 1
+    assert drawn >= 12
+    # and outside every isochrone (beyond 6 min, or not reached) the map is unchanged
+    outside = box(*shrub.total_bounds).buffer(-3 * cell).difference(shapely.union_all(list(bands.geometry)).buffer(
+        3 * cell)).difference(edges)
+    for _, _, (px, py) in probes_in(outside, bands.crs, data):
+        r, c = int(round(py)), int(round(px))
+        assert np.abs(img[r, c] - under[r, c]).max() <= 3
+    # the point last seen is a magenta dot
+    p = gpd.GeoSeries(list(seen.geometry), crs=seen.crs).to_crs(4326).iloc[0]
+    px, py = leaflet_pixels(data, SIZE, [(p.x, p.y)])[0]
+    assert np.abs(img[int(round(py)), int(round(px))] - rgb("#ff00ff")).max() <= 12
+    legend = chromium("--dump-dom", page.resolve().as_uri(), home=tmp_path).stdout
+    for name in ("0-2 min", "2-4 min", "4-6 min", "point last seen", "Isochrones", "Points last seen"):
+        assert name in legend
+
+
+def readout(page: Path, lon: float, lat: float, tmp_path) -> str:
+    dom = chromium("--dump-dom", f"{page.resolve().as_uri()}#cursor={lon:.7f},{lat:.7f}", home=tmp_path).stdout
+    return re.search(r'id="gt-travel">([^<]*)<', dom).group(1)
+
+
+def test_the_travel_time_under_the_cursor_is_the_rasters(chain, sar, tmp_path):
+    """The mouse moved over a point: the readout shows the minutes of travel_minutes.tif there (rasterio) within
+    the cells around it (the page's grid is warped to Web Mercator); over water, "not reached"."""
+    out, _ = chain
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    page = Path(web_map(copy, travel=sar / "travel")["html"])
+    points = [(START[0] + 150, START[1] - 90), (START[0] - 230, START[1] + 310), (START[0] + 700, START[1] - 600)]
+    with rasterio.open(sar / "travel" / "travel_minutes.tif") as src:
+        t = src.read(1, masked=True).filled(np.nan)
+        shown = 0
+        for x, y in points:
+            r, c = src.index(x, y)
+            around = t[r - 1:r + 2, c - 1:c + 2]
+            assert np.isfinite(around).all()
+            p = gpd.GeoSeries(gpd.points_from_xy([x], [y]), crs=src.crs.to_wkt()).to_crs(4326).iloc[0]
+            text = readout(page, p.x, p.y, tmp_path)
+            minutes = float(re.fullmatch(r"travel time: ([0-9.]+) min", text).group(1))
+            assert np.nanmin(around) - 0.05 <= minutes <= np.nanmax(around) + 0.05, (x, y, text, around)
+            assert minutes > 0.5
+            shown += 1
+        assert shown == 3
+        # the middle of the water body: no path reaches it
+        water = gpd.read_file(SAMPLE / "breaklines.gpkg", layer="WATERBODY").to_crs(src.crs.to_wkt())
+        lake = max(water.geometry, key=lambda g: g.area)
+        inner = lake.buffer(-15.0)
+        x, y = inner.representative_point().x, inner.representative_point().y
+        r, c = src.index(x, y)
+        assert np.isnan(t[r - 1:r + 2, c - 1:c + 2]).all()
+    p = gpd.GeoSeries(gpd.points_from_xy([x], [y]), crs=src.crs.to_wkt()).to_crs(4326).iloc[0]
+    assert readout(page, p.x, p.y, tmp_path) == "travel time: not reached"
+
+
+def test_the_viewshed_and_the_canopy_base_height_are_drawn(chain, sar, tmp_path):
+    """The cells seen (viewshed.tif == 1, read by rasterio) are cyan at 110/255 over the map; the canopy base height
+    cells (cbh.vrt, classed here at 4 and 8 m) are their class colour at 60 %."""
+    out, _ = chain
+    under, data, _ = shot(out, tmp_path, "under.png")
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    img, _, page = shot(copy, tmp_path, "viewshed.png", viewshed=sar / "viewshed")
+    html = page.read_text()
+    assert html.count("data:image/png;base64,") == 1
+    with rasterio.open(sar / "viewshed" / "viewshed.tif") as src:
+        seen = src.read(1)
+        crs = src.crs.to_wkt()
+        solid = scipy_ndimage_erosion(seen == 1, 4)
+        hidden = scipy_ndimage_erosion(seen == 0, 4)
+        regions = [shapely.union_all([shapely.geometry.shape(g) for g, v in rasterio.features.shapes(
+            m.astype(np.uint8), mask=m, transform=src.transform)]) for m in (solid, hidden)]
+    shrub = gpd.read_file(out / "shrub_classes.gpkg")
+    edges = shapely.union_all([g.boundary for g in shrub.geometry]).buffer(15.0)
+    alpha = 110 / 255
+    for region, expect_seen in zip(regions, (True, False)):
+        probes = probes_in(region.difference(edges), crs, data)
+        assert probes
+        for _, _, (px, py) in probes:
+            r, c = int(round(py)), int(round(px))
+            want = alpha * np.array([0, 229, 255]) + (1 - alpha) * under[r, c] if expect_seen else under[r, c]
+            assert np.abs(img[r, c] - want).max() <= 12, (expect_seen, img[r, c], want)
+    # the canopy base height classes
+    copy2 = tmp_path / "copy2"
+    shutil.copytree(out, copy2)
+    img, _, page = shot(copy2, tmp_path, "fuels.png", fuels=sar / "fuels")
+    colours = {1: "#d7301f", 2: "#fdae61", 3: "#1a9641"}
+    with rasterio.open(sar / "fuels" / "cbh.vrt") as src:
+        cbh_m = src.read(1, masked=True).filled(0) * 1200 / 3937
+        classes = np.where(cbh_m > 0, 1 + (cbh_m >= 4) + (cbh_m >= 8), 0)
+        checked = 0
+        for code, colour in colours.items():
+            for r, c in zip(*np.nonzero(classes == code)):
+                x, y = src.xy(r, c)
+                cell = box(x - 20, y - 20, x + 20, y + 20).difference(edges)  # the middle of the 100 ft cell
+                for _, _, (px, py) in probes_in(cell, src.crs.to_wkt(), data, count=1):
+                    rr, cc = int(round(py)), int(round(px))
+                    want = 0.6 * rgb(colour) + 0.4 * under[rr, cc]
+                    assert np.abs(img[rr, cc] - want).max() <= 12, (code, img[rr, cc], want)
+                    checked += 1
+    assert checked >= 5
+
+
+def scipy_ndimage_erosion(mask: np.ndarray, cells: int) -> np.ndarray:
+    from scipy import ndimage
+
+    return ndimage.binary_erosion(mask, iterations=cells)
+
+
+def test_bad_layer_folders_are_refused_before_anything_is_written(chain, sar, tmp_path):
+    out, _ = chain
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    (copy / "shrub_map.html").unlink()
+    for kw, words in ((dict(travel=tmp_path / "none"), "^travel=.*no such folder"),
+                      (dict(viewshed=sar / "travel"), "^viewshed=.*no viewshed.tif"),
+                      (dict(fuels=sar / "viewshed"), "^fuels=.*no cbh.vrt")):
+        with pytest.raises(InputError, match=words):
+            web_map(copy, **kw)
+    assert not (copy / "shrub_map.html").exists()
+
+
+def test_no_markup_of_the_points_last_seen_runs(chain, sar, tmp_path):
+    out, _ = chain
+    travel = tmp_path / "travel"
+    shutil.copytree(sar / "travel", travel)
+    seen = gpd.read_file(travel / "travel.gpkg", layer="last_seen")
+    seen["source"] = PAYLOADS[0]
+    seen.to_file(travel / "travel.gpkg", layer="last_seen", driver="GPKG")
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    page = Path(web_map(copy, travel=travel)["html"])
+    ran, dom = ran_script(page, tmp_path)
+    assert not ran
+    assert "<b>Last seen</b><br>&lt;img src=x onerror=" in dom  # the last popup opened: shown as text

@@ -1,12 +1,15 @@
 """The map book of a shrub chain's output folder (``gistools mapbook OUT``, ``gistools:mapbook``): ``OUT/map_book.pdf``,
 one page per tile of a tile index (each fitted to the page), or per sheet of a grid at a scale (1:10,000 by
 default), what a field team prints: the classes with the roads and water, a coordinate grid, a locator map, legend,
-scale bar, north arrow and the parameters (gistools.plot.mapbook_page).
+scale bar, north arrow and the parameters (gistools.plot.mapbook_page). Given a ``gistools travel`` folder, every page
+also draws its isochrones and points last seen (a ``gistools viewshed`` folder: the cells seen); given a ``gistools fuels`` folder, a last page shows its canopy base
+height classes.
 """
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import rasterio
@@ -19,6 +22,7 @@ from ..io.atomic import atomic_path
 from ..parameters import check, choices, default_for, option, render
 from ..units import LinearUnit
 from ..engine.record import add_run, read_folder_report
+from .layers import check_folders
 
 __all__ = ["map_book", "PAPERS"]
 
@@ -84,8 +88,8 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tupl
     return pages, labels, None
 
 
-def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
-             max_pages: int = MAX_PAGES) -> dict:
+def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, viewshed=None, fuels=None,
+             scale: float = 10000, paper: str = "letter", max_pages: int = MAX_PAGES) -> dict:
     """A PDF map book of a shrub chain's classes, what a field team prints: ``gistools mapbook``.
 
     Writes ``out/map_book.pdf``: a page per tile of ``tile_index`` (each fitted to its page), or per sheet of a grid at
@@ -99,6 +103,12 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
         Tile footprints, a path or ``file.gpkg:LAYER``; None: a grid of sheets.
     tile_field : str
         The tile index's field holding the tile number, printed on each page.
+    travel : str or path, optional
+        The output folder of ``gistools travel``: its isochrones and points last seen drawn on every page.
+    viewshed : str or path, optional
+        The output folder of ``gistools viewshed``: the cells seen, semi-transparent cyan on every page.
+    fuels : str or path, optional
+        The output folder of ``gistools fuels``: a last page of its canopy base height classes over the whole area.
     scale : float
         The n of 1:n, for the grid of sheets.
     paper : str
@@ -109,7 +119,8 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
     Returns
     -------
     dict
-        ``pdf`` (the path, as text), ``pages``, ``labels`` and ``scales`` (the n of 1:n of each page).
+        ``pdf`` (the path, as text), ``pages`` (with the fuels page), ``labels`` and ``scales`` (the n of 1:n of each
+        map page).
 
     Raises
     ------
@@ -129,22 +140,28 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float 
 
     started = time.time()
     _check(scale, paper, max_pages)  # every option before the folder is touched
+    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels)
     out = output_folder(out)
     if not out.is_dir():
         raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
     with claim_output(out, "gistools mapbook"):  # the folder's lock; a killed run's partial file is removed first
-        result = _map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper, max_pages=max_pages)
-        add_run(out, {"tool": "gistools mapbook", "seconds": round(time.time() - started, 3), "settings": {"tile_index": tile_index, "tile_field": tile_field, "scale": scale, "paper": paper}})
+        result = _map_book(out, tile_index=tile_index, tile_field=tile_field, scale=scale, paper=paper, max_pages=max_pages,
+                           **layers)
+        add_run(out, {"tool": "gistools mapbook", "seconds": round(time.time() - started, 3),
+                      "settings": {"tile_index": tile_index, "tile_field": tile_field, "scale": scale, "paper": paper,
+                                   **{k: str(v) for k, v in layers.items()}}})
     return result
 
 
 def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
-             max_pages: int = MAX_PAGES) -> dict:
+              max_pages: int = MAX_PAGES, travel=None, viewshed=None, fuels=None) -> dict:
     """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
-    per sheet of a grid at 1:``scale``; returns {"pdf", "pages", "scales"}."""
+    per sheet of a grid at 1:``scale`` (with a travel folder's isochrones and points last seen), and a fuels folder's
+    canopy base height page; returns {"pdf", "pages", "scales"}."""
     from matplotlib.backends.backend_pdf import PdfPages
 
-    from ..plot import map_frame_inches, map_parameters, mapbook_page
+    from ..plot import fuels_page, map_frame_inches, map_parameters, mapbook_page
+    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames, viewshed_on
 
     _check(scale, paper, max_pages)
     out = output_folder(out)
@@ -171,15 +188,27 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
                                   f"{option('max_pages')}")
         locator_bounds = tuple(src.bounds)
         locator = _read(src, locator_bounds, 400)
+        drawn = None if travel is None else travel_frames(travel, src.crs.to_wkt())
         scales = []
         with atomic_path(out / "map_book.pdf", overwrite=True) as tmp:
             with PdfPages(tmp, metadata={"Creator": CREATOR, "Title": title}) as pdf:
                 for i, (bounds, label) in enumerate(zip(pages, labels)):
                     page_scale = fixed or (bounds[2] - bounds[0]) * unit.metres / (frame_w * 0.0254)
                     scales.append(page_scale)
-                    fig = mapbook_page(_read(src, bounds, 1500), bounds, title=f"{title} - {label}", unit=unit,
+                    data = _read(src, bounds, 1500)
+                    seen = None if viewshed is None else viewshed_on(viewshed, src.crs, bounds, data.shape)
+                    fig = mapbook_page(data, bounds, title=f"{title} - {label}", unit=unit,
                                        crs=src.crs, scale=page_scale, locator=locator, locator_bounds=locator_bounds,
-                                       pages=pages, page_index=i, parameters=parameters, paper=paper)
+                                       pages=pages, page_index=i, parameters=parameters, paper=paper, travel=drawn,
+                                       seen=seen)
                     pdf.savefig(fig)
-    return {"pdf": str(out / "map_book.pdf"), "pages": len(pages), "labels": labels, "scales": scales,
+                if fuels is not None:
+                    whole = _fitted(locator_bounds, frame_w, frame_h)
+                    shape = (int(round(1500 * frame_h / frame_w)), 1500)
+                    fig = fuels_page(cbh_classes_on(fuels, src.crs, whole, shape), whole,
+                                     title=f"{title} - canopy base height", unit=unit, crs=src.crs, classes=CBH_CLASSES,
+                                     parameters=f"from {Path(fuels).name}", paper=paper)
+                    pdf.savefig(fig)
+    return {"pdf": str(out / "map_book.pdf"), "pages": len(pages) + (fuels is not None),
+            "labels": labels + (["canopy base height"] if fuels is not None else []), "scales": scales,
             "bounds": pages}

@@ -4,7 +4,9 @@
 The class polygons (``OUT/shrub_classes.gpkg``) are simplified within half a cell in their CRS, reprojected to WGS84
 and inlined as GeoJSON with Leaflet's script and style (gistools/web/vendor, the npm package leaflet@1.9.4); a
 county whose polygons pass ``split_mb`` is split by tile into parts of at most that size, ``shrub_map.html`` then
-linking them (``shrub_map_01.html`` ...).
+linking them (``shrub_map_01.html`` ...). Given the folders of ``gistools travel``, ``viewshed`` or ``fuels``, the
+page also draws their layers (gistools.deliver.layers): the isochrones and points last seen with the travel time
+under the cursor, the cells seen, the canopy base height classes.
 """
 
 from __future__ import annotations
@@ -23,12 +25,12 @@ from ..io.atomic import atomic_path
 from ..lidar.shrub import CLASS_STYLE
 from ..parameters import option
 from ..web.page import web_map_html
+from .layers import COORD_DIGITS, check_folders, rounded as _rounded  # noqa: F401 (COORD_DIGITS: where it was)
 from ..engine.record import add_run, read_folder_report
 
 __all__ = ["web_map", "check_options", "GENERATOR"]
 
 GENERATOR = "<meta name='generator' content='gistools web map'>"  # the mark of a page gistools wrote
-COORD_DIGITS = 7  # decimal degrees: 1 cm
 
 
 def _leaflet() -> tuple[str, str]:
@@ -46,12 +48,6 @@ def check_options(basemap=None, split_mb=40.0) -> None:
     if not (isinstance(split_mb, (int, float)) and split_mb > 0):
         raise InputError(f"{option('split_mb')} {split_mb!r} must be a positive number of megabytes",
                          hint=f"e.g. {option('split_mb', '40')}")
-
-
-def _rounded(coords):
-    if isinstance(coords, (list, tuple)) and coords and isinstance(coords[0], (int, float)):
-        return [round(float(c), COORD_DIGITS) for c in coords]
-    return [_rounded(c) for c in coords]
 
 
 def _features(gdf, tolerance: float) -> list[dict]:
@@ -113,7 +109,8 @@ def _parts(features: list[dict], limit: int) -> list[list[dict]]:
     return parts
 
 
-def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
+def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None = None,
+            basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
     """One HTML file of a shrub chain's outputs, for a tablet in the field: ``gistools webmap``.
 
     Writes ``out/shrub_map.html`` (and parts by tile past ``split_mb``): the class polygons, the legend and the
@@ -123,6 +120,13 @@ def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None 
     ----------
     out : str or path
         The folder of a shrub chain run.
+    travel : str or path, optional
+        The output folder of ``gistools travel``: its isochrone bands (a legend in minutes) and points last seen are
+        drawn, and the travel time under the cursor is shown (from a grid of at most 400 x 400 cells).
+    viewshed : str or path, optional
+        The output folder of ``gistools viewshed``: the cells seen, a semi-transparent image overlay.
+    fuels : str or path, optional
+        The output folder of ``gistools fuels``: its canopy base height classes (below 4 m, 4-8 m, above 8 m).
     basemap : str, optional
         An XYZ tile URL drawn under the polygons, for users who are online. None: no basemap, and the page makes no
         request to any network address.
@@ -154,16 +158,35 @@ def web_map(out, *, basemap: str | None = None, basemap_attribution: str | None 
 
     started = time.time()
     check_options(basemap, split_mb)  # every option before the folder is touched
+    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels)
     out = output_folder(out)
     if not out.is_dir():
         raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
     with claim_output(out, "gistools webmap"):  # the folder's lock; a killed run's partial file is removed first
-        result = _web_map(out, basemap=basemap, basemap_attribution=basemap_attribution, split_mb=split_mb)
-        add_run(out, {"tool": "gistools webmap", "seconds": round(time.time() - started, 3), "settings": {"basemap": basemap, "split_mb": split_mb}})
+        result = _web_map(out, basemap=basemap, basemap_attribution=basemap_attribution, split_mb=split_mb, **layers)
+        add_run(out, {"tool": "gistools webmap", "seconds": round(time.time() - started, 3),
+                      "settings": {"basemap": basemap, "split_mb": split_mb,
+                                   **{k: str(v) for k, v in layers.items()}}})
     return result
 
 
-def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
+def _layers(travel=None, viewshed=None, fuels=None) -> dict:
+    """The page's extra layers from the folders given (see gistools.deliver.layers)."""
+    from . import layers
+
+    extra = {}
+    if travel is not None:
+        extra.update(layers.travel_web(travel), minutes=layers.minutes_grid(travel))
+    if viewshed is not None:
+        extra["viewshed"] = layers.viewshed_png(viewshed)
+    if fuels is not None:
+        cbh = layers.cbh_web(fuels)
+        extra.update(cbh=cbh["cbh"], cbh_legend=cbh["legend"])
+    return extra
+
+
+def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0,
+             travel=None, viewshed=None, fuels=None) -> dict:
     """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
     ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
     (off by default: the page then makes no request to any network address)."""
@@ -183,7 +206,7 @@ def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None
     title = report.get("map_title") or f"Shrub density - {out.name}"
     params = _parameters(report, len(features))
     common = dict(classes=classes, leaflet_js=js, leaflet_css=css, basemap=basemap,
-                  basemap_attribution=basemap_attribution)
+                  basemap_attribution=basemap_attribution, layers=_layers(travel, viewshed, fuels))
     size = len(json.dumps({"type": "FeatureCollection", "features": features}))
     parts = _parts(features, int(split_mb * 1e6)) if size > split_mb * 1e6 else [features]
     written = []

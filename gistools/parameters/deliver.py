@@ -16,6 +16,17 @@ declare(
     Parameter("split_mb", "float", "Above this many megabytes of polygons the map is split by tile into parts (and an "
               "index page).", "Split the map by tile above (MB of polygons)", default=40.0, minimum=0.001,
               advanced=True, example="40"),
+    # search-and-rescue and fire layers of the web map and the map book
+    Parameter("travel", "folder", "The output folder of gistools travel: the isochrones (a legend in minutes) and the "
+              "points last seen drawn on the map; the web map also shows the travel time under the cursor.",
+              "Travel time folder (gistools travel; empty: none)", metavar="DIR", default_text="none",
+              example="travel"),
+    Parameter("viewshed", "folder", "The output folder of gistools viewshed: the cells seen drawn as a semi-transparent "
+              "layer of the web map and on the map book's pages.", "Viewshed folder (gistools viewshed; empty: none)", metavar="DIR",
+              default_text="none", example="viewshed"),
+    Parameter("fuels", "folder", "The output folder of gistools fuels: its canopy base height classes as a layer of "
+              "the web map, and a page of the map book.", "Fuels folder (gistools fuels; empty: none)", metavar="DIR",
+              default_text="none", example="fuels"),
     # 3D scene
     Parameter("exaggeration", "float", "Heights times this.", "Vertical exaggeration", default=1.0, minimum=0.01,
               example="2"),
@@ -39,6 +50,6 @@ declare(
               default=1000, minimum=1, advanced=True, example="1000"),
 )
 
-WEBMAP = command("webmap", "basemap", "split_mb")
+WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb")
 SCENE = command("scene", "exaggeration", "max_mb", "surface")
-MAPBOOK = command("mapbook", "tile_index", "tile_field", "scale", "paper", "max_pages")
+MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages")

@@ -31,7 +31,7 @@ details.gt-box summary { cursor: pointer; font-weight: 600; }
 
 _SCRIPT = """
 (function () {
-  var data = %(data)s, classes = %(classes)s, options = %(options)s;
+  var data = %(data)s, classes = %(classes)s, options = %(options)s, extra = %(extra)s;
   var map = L.map("map", {zoomSnap: 0.25, preferCanvas: true});  // canvas: thousands of polygons stay fluid on a tablet
   if (options.basemap) {
     L.tileLayer(options.basemap, {maxZoom: 22, attribution: options.basemap_attribution || ""}).addTo(map);
@@ -64,6 +64,73 @@ _SCRIPT = """
       l.bindPopup(function () { return popup(f.properties); });
     }
   }).addTo(map);
+  var overlays = {}, hex = /^#[0-9a-fA-F]{6}$/;
+  function safe(c) { return hex.test(c) ? c : "#000000"; }
+  if (extra.viewshed) {  // the cells seen: an inlined PNG in Web Mercator, its corners in latitude / longitude
+    overlays["Viewshed (cells seen)"] = L.imageOverlay(extra.viewshed.url, extra.viewshed.bounds,
+                                                       {opacity: 1, interactive: false}).addTo(map);
+  }
+  if (extra.cbh) {
+    overlays["Canopy base height"] = L.geoJSON(extra.cbh, {
+      style: function (f) {
+        var c = extra.cbh_legend[f.properties.class_code - 1];
+        return {color: "#333333", weight: 0.4, fillColor: safe(c ? c.colour : ""), fillOpacity: 0.6};
+      },
+      onEachFeature: function (f, l) { l.bindPopup(function () { return el("b", f.properties["class"]); }); }
+    }).addTo(map);
+  }
+  if (extra.isochrones) {
+    overlays["Isochrones"] = L.geoJSON(extra.isochrones, {
+      style: function (f) {
+        var c = safe(f.properties.colour);
+        return {color: c, weight: 1.5, fillColor: c, fillOpacity: options.isochrone_opacity};
+      },
+      onEachFeature: function (f, l) {
+        l.bindPopup(function () {
+          var div = el("div");
+          div.appendChild(el("b", f.properties.name));
+          div.appendChild(el("br"));
+          div.appendChild(document.createTextNode("within " + fmt(f.properties.minutes, 1) + " min: " +
+            fmt(f.properties.acres, 1) + " acres, " + fmt(f.properties.hectares, 1) + " ha"));
+          return div;
+        });
+      }
+    }).addTo(map);
+  }
+  if (extra.last_seen) {
+    var seen = L.layerGroup();
+    extra.last_seen.forEach(function (p) {
+      L.circleMarker([p.lat, p.lon], {radius: 7, color: "#000000", weight: 2, fillColor: options.last_seen_colour,
+                                      fillOpacity: 1}).bindPopup(function () {
+        var div = el("div");
+        div.appendChild(el("b", "Last seen"));
+        div.appendChild(el("br"));
+        div.appendChild(document.createTextNode(p.label));
+        return div;
+      }).addTo(seen);
+    });
+    overlays["Points last seen"] = seen.addTo(map);
+  }
+  if (Object.keys(overlays).length) {
+    L.control.layers(null, overlays, {collapsed: false, position: "topleft"}).addTo(map);
+  }
+  if (extra.minutes) {  // the travel time under the cursor, from the grid of minutes (tenths) in Web Mercator
+    var g = extra.minutes, readout = L.control({position: "bottomleft"}), box;
+    readout.onAdd = function () {
+      box = L.DomUtil.create("div", "gt-box");
+      box.id = "gt-travel";
+      box.textContent = "travel time: move the cursor over the map";
+      return box;
+    };
+    readout.addTo(map);
+    map.on("mousemove", function (e) {
+      var m = L.CRS.EPSG3857.project(e.latlng), col = Math.floor((m.x - g.west) / g.dx),
+          row = Math.floor((g.north - m.y) / g.dy), v = -1;
+      if (col >= 0 && row >= 0 && col < g.cols && row < g.rows) { v = g.values[row * g.cols + col]; }
+      box.textContent = v < 0 ? "travel time: not reached" :
+        "travel time: " + (v < 100 ? (v / 10).toFixed(1) : Math.round(v / 10)) + " min";
+    });
+  }
   function fit() {
     if (layer.getLayers().length) { map.fitBounds(layer.getBounds(), {padding: [8, 8], animate: false}); }
     else { map.setView([0, 0], 2); }
@@ -90,6 +157,31 @@ _SCRIPT = """
     return div;
   };
   legend.addTo(map);
+  [["Travel time", extra.legend], ["Canopy base height", extra.cbh_legend]].forEach(function (pair) {
+    if (!pair[1]) { return; }
+    var more = L.control({position: "bottomright"});
+    more.onAdd = function () {
+      var div = L.DomUtil.create("div", "gt-box");
+      div.appendChild(el("h3", pair[0]));
+      pair[1].forEach(function (c) {
+        var row = el("div"), swatch = el("span", undefined, "gt-swatch");
+        swatch.style.background = safe(c.colour);
+        row.appendChild(swatch);
+        row.appendChild(document.createTextNode(c.name));
+        div.appendChild(row);
+      });
+      if (pair[0] === "Travel time" && extra.last_seen) {
+        var row = el("div"), dot = el("span", undefined, "gt-swatch");
+        dot.style.background = options.last_seen_colour;
+        dot.style.borderRadius = "50%%";
+        row.appendChild(dot);
+        row.appendChild(document.createTextNode("point last seen"));
+        div.appendChild(row);
+      }
+      return div;
+    };
+    more.addTo(map);
+  });
   var info = L.control({position: "topright"});
   info.onAdd = function () {
     var div = L.DomUtil.create("details", "gt-box"), table = el("table");
@@ -123,6 +215,18 @@ _SCRIPT = """
   };
   if (/[#&]popups(&|$)/.test(location.hash)) {  // #popups: open every polygon's popup (the injection test)
     layer.eachLayer(function (l) { l.openPopup(); });
+    Object.keys(overlays).forEach(function (k) {  // then the overlays' (the points last seen last)
+      if (overlays[k].eachLayer) { overlays[k].eachLayer(function (l) { if (l.getPopup()) { l.openPopup(); } }); }
+    });
+  }
+  var cursor = /[#&]cursor=([-0-9.]+),([-0-9.]+)/.exec(location.hash);  // #cursor=lon,lat: the mouse moved there
+  if (cursor) {
+    window.setTimeout(function () {
+      var p = map.latLngToContainerPoint([Number(cursor[2]), Number(cursor[1])]),
+          r = map.getContainer().getBoundingClientRect();
+      map.getContainer().dispatchEvent(new MouseEvent("mousemove", {clientX: r.left + p.x, clientY: r.top + p.y,
+                                                                    bubbles: true}));
+    }, 1000);
   }
   var probe = /[#&]probe=([^&]+)/.exec(location.hash);  // #probe=lon,lat;lon,lat: their pixels into the page
   if (probe) {
@@ -173,19 +277,25 @@ def content_security_policy(scripts: list[str], basemap: str | None = None) -> s
 
 def web_map_html(*, title: str, geojson: dict, classes: list, parameters: dict, leaflet_js: str, leaflet_css: str,
                  basemap: str | None = None, basemap_attribution: str | None = None, pages: list | None = None,
-                 fill_opacity: float = 0.75, legend_title: str = "Shrub density") -> str:
+                 fill_opacity: float = 0.75, legend_title: str = "Shrub density", layers: dict | None = None) -> str:
     """The page's HTML. ``classes``: [{"code", "name", "colour"}] in legend order; ``parameters``: what made the
     map (shown in a panel); ``pages``: [(label, href)] of the other parts of a split map; ``basemap``: an XYZ tile
-    URL template for users who are online (None: no request to any network address).
+    URL template for users who are online (None: no request to any network address); ``layers``: the search-and-rescue
+    and fire layers (gistools.deliver.layers: ``isochrones``, ``legend``, ``last_seen``, ``minutes``, ``viewshed``,
+    ``cbh``, ``cbh_legend``), drawn over the polygons with a layer switcher.
 
     Every value from the data (class names, tile names, parameters, the title) reaches the page as DOM text, never
     as markup, and a Content-Security-Policy lets only the page's own two scripts run."""
-    options = {"basemap": basemap, "fill_opacity": fill_opacity, "title": str(title), "legend_title": str(legend_title),
+    extra = dict(layers or {})
+    if "viewshed" in extra and not str(extra["viewshed"].get("url", "")).startswith("data:image/png;base64,"):
+        raise ValueError("the viewshed overlay must be an inlined PNG (a data: URL)")
+    options = {"basemap": basemap, "fill_opacity": fill_opacity, "last_seen_colour": "#ff00ff", "isochrone_opacity": 0.35, "title": str(title), "legend_title": str(legend_title),
                # Leaflet shows the attribution as markup: given as text, it is escaped
                "basemap_attribution": html.escape(basemap_attribution) if basemap_attribution else None,
                "parameters": [[str(k), str(v)] for k, v in parameters.items()],
                "pages": [[str(label), str(href)] for label, href in (pages or [])]}
-    script = _SCRIPT % {"data": script_json(geojson), "classes": script_json(classes), "options": script_json(options)}
+    script = _SCRIPT % {"data": script_json(geojson), "classes": script_json(classes), "options": script_json(options),
+                       "extra": script_json(extra)}
     leaflet = f"\n{leaflet_js}\n"
     ours = f"\n{script}\n"
     policy = html.escape(content_security_policy([leaflet, ours], basemap))

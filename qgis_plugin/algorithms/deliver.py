@@ -30,7 +30,10 @@ class WebMapAlgorithm(_DeliverableAlgorithm):
              "(simplified within half a cell, in WGS84) with Leaflet inlined, a legend, a scale bar, the parameters "
              "that made the map and a popup per polygon (class, area in acres and hectares, tile). It asks the network "
              "for nothing unless a basemap URL is given, so it works from a USB stick or a tablet in the field. A "
-             "county past the size limit is split by tile into parts, the first page linking them. The page is "
+             "county past the size limit is split by tile into parts, the first page linking them. Given the output "
+             "folders of gistools travel, viewshed or fuels, the page also draws their layers (switchable): the "
+             "isochrones with a legend in minutes and the points last seen, the travel time under the cursor, the "
+             "cells seen (semi-transparent) and the canopy base height classes. The page is "
              "written into the folder (shrub_map.html) and listed in the Results Viewer, which opens it in the "
              "browser.")
 
@@ -78,7 +81,10 @@ class MapBookAlgorithm(_DeliverableAlgorithm):
     _help = ("A PDF of a shrub chain's output folder to print for field teams (gistools mapbook): a page per tile of "
              "the tile index (each fitted to the page), or per sheet of a grid at a scale, each with the classes, "
              "roads and water, a coordinate grid, a locator map, the legend, a scale bar, a north arrow and the "
-             "parameters. The PDF opens from the Results Viewer.")
+             "parameters; with a gistools travel folder, the isochrones and points last seen on every page; with a "
+             "gistools viewshed folder, the cells seen; with a "
+             "gistools fuels folder, a last page of the canopy base height classes. The PDF opens from the Results "
+             "Viewer.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_folder("classes.vrt")
