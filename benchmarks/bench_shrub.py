@@ -15,6 +15,8 @@ Levy density, < 10 min), with the seconds by stage from the reports' own timers.
 
 The county projection is made twice: at the 16-tile throughput (per-run costs counted 46 times over) and from
 the 8-tile and 16-tile runs apart (a cost a tile plus a cost a run, each measured).
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the same runs on 16 tiles of 300 ft (about 30,000 points), one repeat.
 """
 
 from __future__ import annotations
@@ -31,9 +33,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
+
 PY = sys.executable
 CODE = ROOT  # the gistools checkout the runs time (--code: another one, e.g. an earlier commit, with this script)
-TILE_FT = 5000.0
+TILE_FT = scaled(5000.0, 300.0)
 COUNTY_TILES = 733
 
 
@@ -108,10 +113,12 @@ def main(argv=None):
                                                           "alternating, and project from their medians")
     ap.add_argument("--code", default=None, help="the gistools checkout to time (default: this one)")
     args = ap.parse_args(argv)
+    announce("bench_shrub")
+    args.repeat = scaled(args.repeat, 1)
     global CODE
     CODE = Path(args.code).resolve() if args.code else ROOT
-    points = args.points or (25.5e6 if args.levy else 40e6)
-    work = Path(args.workdir or ("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
+    points = args.points or scaled(25.5e6 if args.levy else 40e6, 1.6e4 if args.levy else 2.5e4)
+    work = Path(args.workdir or workdir("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
     work.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
