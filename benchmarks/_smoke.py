@@ -26,7 +26,7 @@ def scaled(n, small):
 def announce(name: str) -> None:
     """In a smoke run, print the line that says so (the first line of the script's output)."""
     if smoke():
-        print(f"{name}: smoke run ({ENV}=1): a tiny problem, one repeat, peers skipped; the figures are meaningless",
+        print(f"{name}: smoke run ({ENV}=1): a tiny problem, the figures are meaningless",
               flush=True)
 
 
