@@ -18,8 +18,8 @@ Prints points per second, peak RSS per worker and the ratios the targets are sta
     python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench] [--repeat 3]
     python benchmarks/bench_rasters.py --density levy [--repeat 3] [--laz14]   # the Levy delivery's density
 
-GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the same runs on a tiny block (20,000 points at 5 ft pulse spacing; Levy tiles of 300 ft),
-one repeat, without WhiteboxTools.
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the same runs on a tiny block (20,000 points at 5 ft pulse spacing;
+Levy tiles of 300 ft), one repeat, without WhiteboxTools.
 """
 
 from __future__ import annotations
@@ -260,7 +260,8 @@ for f in sys.argv[2:]:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=float, default=scaled(20e6, 2e4), help="points in the 4-tile block")
-    ap.add_argument("--big-tile", type=float, default=scaled(20e6, 1e4), help="points in the single big tile (RSS check)")
+    ap.add_argument("--big-tile", type=float, default=scaled(20e6, 1e4),
+                    help="points in the single big tile (RSS check)")
     ap.add_argument("--workdir", default=workdir("/tmp/gistools-bench"))
     ap.add_argument("--skip-whitebox", action="store_true")
     ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")

@@ -129,7 +129,8 @@ def main(argv=None):
         check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
     n = info["points"]
     print(f"block: {TILES} tiles of {TILE_FT:.0f} ft, {n:,} points, {info['spacing_ft']:.2f} ft pulse spacing, "
-          f"{n / TILES / (TILE_FT / 5) ** 2:.2f} points per 5 ft cell [{time.perf_counter() - t:.0f} s to prepare]", flush=True)
+          f"{n / TILES / (TILE_FT / 5) ** 2:.2f} points per 5 ft cell [{time.perf_counter() - t:.0f} s to prepare]",
+          flush=True)
     g = work / "breaklines.gpkg"
     vectors = dict(roads=f"{g}:ROADBREAKLINE", hydro=f"{g}:HYDROGRAPHICFEATURE", waterbodies=f"{g}:WATERBODY",
                    wetlands=f"{g}:WETLAND", tile_index=f"{g}:FOOTPRINT")
@@ -141,7 +142,8 @@ def main(argv=None):
             r = rows[f"{kind} --jobs {jobs}"] = chain_run(kind, [work / "tiles"], work / f"out_{kind}{jobs}", jobs, vectors)
             sec = r["seconds"]
             stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
-            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at {TILES}-tile "
+            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at "
+                  f"{TILES}-tile "
                   f"throughput: {sec / TILES * COUNTY_TILES / 60:6.1f} min   [s by stage, summed: {stages}]", flush=True)
     print()
     for jobs in (1, 2):
@@ -161,7 +163,8 @@ def main(argv=None):
         per_run = t16 - TILES * per_tile
         runs = f" (medians of {args.repeat}: {', '.join(f'{v:.1f}' for v in t8s)}; {', '.join(f'{v:.1f}' for v in t16s)})" \
             if args.repeat > 1 else ""
-        print(f"{kind} --jobs 2: {len(half)} tiles {t8:.1f} s, {TILES} tiles {t16:.1f} s{runs}: {per_tile:.2f} s a tile + {per_run:.1f} s "
+        print(f"{kind} --jobs 2: {len(half)} tiles {t8:.1f} s, {TILES} tiles {t16:.1f} s{runs}: "
+              f"{per_tile:.2f} s a tile + {per_run:.1f} s "
               f"a run; 733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min ({TILES}-tile throughput: "
               f"{t16 / TILES * COUNTY_TILES / 60:.1f} min)", flush=True)
 

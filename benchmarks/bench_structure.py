@@ -30,7 +30,8 @@ from _smoke import announce, scaled, workdir  # noqa: E402
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--step", type=float, default=scaled(1.25, 10.0), help="point spacing (m) along outlines and on plates")
+    ap.add_argument("--step", type=float, default=scaled(1.25, 10.0),
+                    help="point spacing (m) along outlines and on plates")
     ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-structure")))
     args = ap.parse_args()
     announce("bench_structure")
