@@ -9,6 +9,8 @@ prints its wall time, the per-stage share from the run's own timer, and the volu
 the analytic values over the square.
 
     python benchmarks/bench_aquifer.py [--points 100000] [--workdir /tmp/gistools-bench-aquifer]
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): 2,000 contacts per layer.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ import pandas as pd
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
 
 
 def make_contacts(path: Path, n: int, seed: int = 2012) -> None:
@@ -45,9 +49,10 @@ def make_contacts(path: Path, n: int, seed: int = 2012) -> None:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--points", type=int, default=100_000, help="contacts per layer")
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/gistools-bench-aquifer"))
+    ap.add_argument("--points", type=int, default=scaled(100_000, 2_000), help="contacts per layer")
+    ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-aquifer")))
     args = ap.parse_args()
+    announce("bench_aquifer")
     args.workdir.mkdir(parents=True, exist_ok=True)
     contacts = args.workdir / f"contacts_{args.points}.csv"
     if not contacts.exists():

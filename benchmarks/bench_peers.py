@@ -26,6 +26,8 @@ Cases: the sample tiles (4 LAS tiles, US survey feet, 5 ft cells), ``../shared/d
                                      [--products rasters,normalize,metrics,chm,ground] [--jobs-table]
 
 ``--jobs-table`` also times ``gistools rasters`` with ``--jobs 1`` and ``--jobs 2`` beside the default (auto).
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the sample case alone, the rasters alone, one repeat, without lasR.
 """
 
 from __future__ import annotations
@@ -43,6 +45,8 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, smoke, workdir  # noqa: E402
+
 SHARED = ROOT.parent / "shared" / "data" / "lidar"
 PY = sys.executable
 FEET = 1 / 0.3048  # every case is in feet (international or US survey: the same to 2 ppm)
@@ -130,7 +134,9 @@ def shifted_copies(sources: list[Path], into: Path, nx: int, ny: int) -> Path:
 
 
 def cases(work: Path, wanted: list[str]) -> dict:
-    """{case: (folder of tiles, cell size text, cell size in CRS units, a metre in CRS units)}."""
+    """{case: (folder of tiles, cell size text, cell size in CRS units, a metre in CRS units)}; in a smoke run the
+    sample alone."""
+    wanted = scaled(wanted, ["sample"])
     found = {}
     if "sample" in wanted:  # copies: lasR writes a .lax index beside the files it reads
         sample = work / "sample"
@@ -165,14 +171,18 @@ def main(argv=None) -> None:
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cases", default="sample,autzen,autzen4,levy,levy16")
     ap.add_argument("--products", default="rasters,normalize,metrics,chm,ground")
-    ap.add_argument("--workdir", default="/tmp/gistools-bench")
+    ap.add_argument("--workdir", default=workdir("/tmp/gistools-bench"))
     ap.add_argument("--jobs-table", action="store_true")
     args = ap.parse_args(argv)
+    announce("bench_peers")
+    args.repeat = scaled(args.repeat, 1)
+    args.products = scaled(args.products, "rasters")
     work = Path(args.workdir)
     work.mkdir(parents=True, exist_ok=True)
-    peers = lasr_available()
+    peers = not smoke() and lasr_available()
     if not peers:
-        print("lasR is not installed (Rscript -e 'library(lasR)' fails): gistools alone", flush=True)
+        print("smoke run: gistools alone" if smoke() else
+              "lasR is not installed (Rscript -e 'library(lasR)' fails): gistools alone", flush=True)
     products = args.products.split(",")
     print(f"{CORES} cores; medians of {args.repeat} alternating runs; seconds from start to exit", flush=True)
     print("| case | product | gistools (auto) | lasR | lasR / gistools |", flush=True)

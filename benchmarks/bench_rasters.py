@@ -17,6 +17,9 @@ Prints points per second, peak RSS per worker and the ratios the targets are sta
 
     python benchmarks/bench_rasters.py [--points 20e6] [--big-tile 20e6] [--workdir /tmp/gistools-bench] [--repeat 3]
     python benchmarks/bench_rasters.py --density levy [--repeat 3] [--laz14]   # the Levy delivery's density
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the same runs on a tiny block (20,000 points at 5 ft pulse spacing;
+Levy tiles of 300 ft), one repeat, without WhiteboxTools.
 """
 
 from __future__ import annotations
@@ -34,6 +37,9 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, smoke, workdir  # noqa: E402
+
 CODE = ROOT  # the gistools checkout the runs time (--code: another one, e.g. an earlier commit, with this script)
 
 PY = sys.executable
@@ -47,7 +53,7 @@ def generate(workdir: Path, points: float, big: float) -> dict:
     from gistools.synthetic import make_scene, scene_points
 
     crs = pyproj.CRS.from_epsg(2882)
-    spacing = 1.0  # ft between pulses: about 11 pulses per m2, a modern ALS density
+    spacing = scaled(1.0, 5.0)  # ft between pulses: about 11 pulses per m2, a modern ALS density (smoke: 5 ft)
     pts_per_pulse = 1.06  # measured on the scene (vegetation gives extra returns)
     tile = math.ceil(math.sqrt(points / 4 / pts_per_pulse) * spacing / 10) * 10
     meta = workdir / "block.json"
@@ -91,9 +97,9 @@ def generate_levy(workdir: Path) -> dict:
     from gistools.synthetic import make_scene, scene_points
 
     meta = workdir / "levy.json"
-    if meta.exists():
+    tile, spacing = scaled(5000, 300), 4.0
+    if meta.exists() and json.loads(meta.read_text())["tile_ft"] == tile:
         return json.loads(meta.read_text())
-    tile, spacing = 5000, 4.0
     crs = pyproj.CRS.from_epsg(2882)
     origin = (430000.0, 1810000.0)
     scene = make_scene(origin, (2 * tile, 2 * tile), seed=5)
@@ -218,6 +224,14 @@ def heights_run(kind, folder, out, jobs, **settings) -> dict:
     """)
 
 
+def whitebox_available() -> bool:
+    try:
+        import whitebox_workflows  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
 def whitebox_run(files, out: Path, cell: float, max_edge: float) -> dict:
     """WhiteboxTools: block maximum (DSM) + TIN gridding of ground, two tiles at a time (two processes)."""
     out.mkdir(parents=True, exist_ok=True)
@@ -245,9 +259,10 @@ for f in sys.argv[2:]:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--points", type=float, default=20e6, help="points in the 4-tile block")
-    ap.add_argument("--big-tile", type=float, default=20e6, help="points in the single big tile (RSS check)")
-    ap.add_argument("--workdir", default="/tmp/gistools-bench")
+    ap.add_argument("--points", type=float, default=scaled(20e6, 2e4), help="points in the 4-tile block")
+    ap.add_argument("--big-tile", type=float, default=scaled(20e6, 1e4),
+                    help="points in the single big tile (RSS check)")
+    ap.add_argument("--workdir", default=workdir("/tmp/gistools-bench"))
     ap.add_argument("--skip-whitebox", action="store_true")
     ap.add_argument("--only-heights", action="store_true", help="only the normalize and metrics rows")
     ap.add_argument("--repeat", type=int, default=1, help="run gistools (--jobs 2) and WhiteboxTools alternately this "
@@ -260,6 +275,12 @@ def main(argv=None):
                     help="with --density levy: also the block as LAS 1.4 point format 6 LAZ (GPS time, intensity, scan "
                          "angle, point source), of which pass 1 decodes only the layers it uses")
     args = ap.parse_args(argv)
+    announce("bench_rasters")
+    args.repeat = scaled(args.repeat, 1)
+    if not args.skip_whitebox and (smoke() or not whitebox_available()):
+        print("WhiteboxTools skipped: " + ("smoke run" if smoke() else
+                                          "whitebox-workflows is not installed (pip install '.[bench]')"), flush=True)
+        args.skip_whitebox = True
     global CODE
     CODE = Path(args.code).resolve() if args.code else ROOT
     work = Path(args.workdir)

@@ -8,6 +8,8 @@ as a CSV. The CLI (read, checks, frame, TIN ground, design, sections, volumes, B
 design GeoTIFF, section CSV, diagrams, report) runs in a fresh process; the script prints its wall time.
 
     python benchmarks/bench_runway.py [--grid 2] [--workdir /tmp/gistools-bench-runway]
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): ground every 20 m.
 """
 
 from __future__ import annotations
@@ -21,13 +23,16 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--grid", type=float, default=2.0, help="ground survey spacing (m)")
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/gistools-bench-runway"))
+    ap.add_argument("--grid", type=float, default=scaled(2.0, 20.0), help="ground survey spacing (m)")
+    ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-runway")))
     args = ap.parse_args()
+    announce("bench_runway")
     args.workdir.mkdir(parents=True, exist_ok=True)
     survey = args.workdir / f"survey_{args.grid:g}m.csv"
     if not survey.exists():

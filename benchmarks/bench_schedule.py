@@ -10,6 +10,8 @@ With --resume N, the second figure: N tiny tiles (a few points each) made once w
 the rerun that finds every tile complete and has nothing to do, timed.
 
     python benchmarks/bench_schedule.py [--sizes 1000,10000,100000] [--resume 5000] [--workdir /tmp/gistools-bench-schedule]
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): blocks of 100, 300 and 1,000 tiles; --resume makes 20 tiles.
 """
 
 from __future__ import annotations
@@ -24,6 +26,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
 
 from gistools.engine.schedule import TwoPassSchedule, neighbour_pairs  # noqa: E402
 
@@ -92,10 +96,13 @@ def resume(n: int, workdir: Path) -> None:
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--sizes", default="1000,10000,100000")
+    ap.add_argument("--sizes", default=scaled("1000,10000,100000", "100,300,1000"))
     ap.add_argument("--resume", type=int, default=0, help="also time resuming a finished folder of this many tiles")
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/gistools-bench-schedule"))
+    ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-schedule")))
     args = ap.parse_args()
+    announce("bench_schedule")
+    if args.resume:
+        args.resume = scaled(args.resume, 20)
     rows = []
     print(f"{'tiles':>8} {'neighbours s':>13} {'schedule s':>11} {'tasks':>8} {'scratch peak':>13}")
     for n in (int(v) for v in args.sizes.split(",")):

@@ -15,6 +15,8 @@ Levy density, < 10 min), with the seconds by stage from the reports' own timers.
 
 The county projection is made twice: at the 16-tile throughput (per-run costs counted 46 times over) and from
 the 8-tile and 16-tile runs apart (a cost a tile plus a cost a run, each measured).
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): the same runs on 2 x 2 tiles of 300 ft (about 6,000 points), one repeat.
 """
 
 from __future__ import annotations
@@ -31,9 +33,14 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
+
 PY = sys.executable
 CODE = ROOT  # the gistools checkout the runs time (--code: another one, e.g. an earlier commit, with this script)
-TILE_FT = 5000.0
+TILE_FT = scaled(5000.0, 300.0)
+SIDE = scaled(4, 2)  # tiles a side of the block
+TILES = SIDE * SIDE
 COUNTY_TILES = 733
 
 
@@ -50,14 +57,14 @@ def generate(work: Path, points: float) -> dict:
         if info["points_target"] == points and info["points"] >= points:
             return info
     crs = pyproj.CRS.from_epsg(2882)
-    spacing = math.sqrt(16 * TILE_FT * TILE_FT * 1.02 / points)  # ft between pulses, about 1.03 returns each
+    spacing = math.sqrt(TILES * TILE_FT * TILE_FT * 1.02 / points)  # ft between pulses, about 1.03 returns each
     origin = (400000.0, 1800000.0)
     tiles = work / "tiles"
     tiles.mkdir(parents=True, exist_ok=True)
-    scene = make_scene(origin, (4 * TILE_FT, 4 * TILE_FT), seed=7)
+    scene = make_scene(origin, (SIDE * TILE_FT, SIDE * TILE_FT), seed=7)
     total, footprints = 0, []
-    for i in range(4):
-        for j in range(4):
+    for i in range(SIDE):
+        for j in range(SIDE):
             w, s = origin[0] + i * TILE_FT, origin[1] + j * TILE_FT
             p = scene_points(scene, (w, s, w + TILE_FT, s + TILE_FT), spacing=spacing, seed=10 * i + j)
             total += len(p["x"])
@@ -108,10 +115,12 @@ def main(argv=None):
                                                           "alternating, and project from their medians")
     ap.add_argument("--code", default=None, help="the gistools checkout to time (default: this one)")
     args = ap.parse_args(argv)
+    announce("bench_shrub")
+    args.repeat = scaled(args.repeat, 1)
     global CODE
     CODE = Path(args.code).resolve() if args.code else ROOT
-    points = args.points or (25.5e6 if args.levy else 40e6)
-    work = Path(args.workdir or ("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
+    points = args.points or scaled(25.5e6 if args.levy else 40e6, 4e3 if args.levy else 6e3)
+    work = Path(args.workdir or workdir("/tmp/gistools-bench-levy16" if args.levy else "/tmp/gistools-bench-shrub"))
     work.mkdir(parents=True, exist_ok=True)
     t = time.perf_counter()
     info = json.loads(subprocess.run(
@@ -119,21 +128,23 @@ def main(argv=None):
                    f"from pathlib import Path; print(json.dumps(b.generate(Path({str(work)!r}), {points!r})))"],
         check=True, capture_output=True, text=True).stdout.strip().splitlines()[-1])
     n = info["points"]
-    print(f"block: 16 tiles of {TILE_FT:.0f} ft, {n:,} points, {info['spacing_ft']:.2f} ft pulse spacing, "
-          f"{n / 16 / (TILE_FT / 5) ** 2:.2f} points per 5 ft cell [{time.perf_counter() - t:.0f} s to prepare]", flush=True)
+    print(f"block: {TILES} tiles of {TILE_FT:.0f} ft, {n:,} points, {info['spacing_ft']:.2f} ft pulse spacing, "
+          f"{n / TILES / (TILE_FT / 5) ** 2:.2f} points per 5 ft cell [{time.perf_counter() - t:.0f} s to prepare]",
+          flush=True)
     g = work / "breaklines.gpkg"
     vectors = dict(roads=f"{g}:ROADBREAKLINE", hydro=f"{g}:HYDROGRAPHICFEATURE", waterbodies=f"{g}:WATERBODY",
                    wetlands=f"{g}:WETLAND", tile_index=f"{g}:FOOTPRINT")
     tiles = sorted((work / "tiles").glob("*.las"))
-    half = [f for f in tiles if f.stem[1] in "01"]  # the western two columns: 8 tiles, each with its neighbours
+    half = [f for f in tiles if int(f.stem[1]) < SIDE // 2]  # the western half: 8 tiles of 16, each with its neighbours
     rows = {}
     for jobs in (1, 2):
         for kind in ("rasters", "shrub"):
             r = rows[f"{kind} --jobs {jobs}"] = chain_run(kind, [work / "tiles"], work / f"out_{kind}{jobs}", jobs, vectors)
             sec = r["seconds"]
             stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
-            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at 16-tile "
-                  f"throughput: {sec / 16 * COUNTY_TILES / 60:6.1f} min   [s by stage, summed: {stages}]", flush=True)
+            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at "
+                  f"{TILES}-tile "
+                  f"throughput: {sec / TILES * COUNTY_TILES / 60:6.1f} min   [s by stage, summed: {stages}]", flush=True)
     print()
     for jobs in (1, 2):
         ratio = rows[f"rasters --jobs {jobs}"]["seconds"] / rows[f"shrub --jobs {jobs}"]["seconds"]
@@ -148,13 +159,14 @@ def main(argv=None):
             if k + 1 < args.repeat:
                 t16s.append(chain_run(kind, [work / "tiles"], work / f"out_{kind}2", 2, vectors)["seconds"])
         t8, t16 = statistics.median(t8s), statistics.median(t16s)
-        per_tile = (t16 - t8) / 8
-        per_run = t16 - 16 * per_tile
+        per_tile = (t16 - t8) / (TILES - len(half))
+        per_run = t16 - TILES * per_tile
         runs = f" (medians of {args.repeat}: {', '.join(f'{v:.1f}' for v in t8s)}; {', '.join(f'{v:.1f}' for v in t16s)})" \
             if args.repeat > 1 else ""
-        print(f"{kind} --jobs 2: 8 tiles {t8:.1f} s, 16 tiles {t16:.1f} s{runs}: {per_tile:.2f} s a tile + {per_run:.1f} s "
-              f"a run; 733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min (16-tile throughput: "
-              f"{t16 / 16 * COUNTY_TILES / 60:.1f} min)", flush=True)
+        print(f"{kind} --jobs 2: {len(half)} tiles {t8:.1f} s, {TILES} tiles {t16:.1f} s{runs}: "
+              f"{per_tile:.2f} s a tile + {per_run:.1f} s "
+              f"a run; 733 tiles: {(per_run + COUNTY_TILES * per_tile) / 60:.1f} min ({TILES}-tile throughput: "
+              f"{t16 / TILES * COUNTY_TILES / 60:.1f} min)", flush=True)
 
 
 if __name__ == "__main__":

@@ -9,6 +9,8 @@ OBJ, GeoPackage, figure, report) runs in a fresh process with its estimated para
 its wall time, the counts and the volume error.
 
     python benchmarks/bench_structure.py [--step 1.25] [--workdir /tmp/gistools-bench-structure]
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): points every 10 m (the spec's own F4).
 """
 
 from __future__ import annotations
@@ -22,13 +24,17 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
 
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--step", type=float, default=1.25, help="point spacing (m) along outlines and on plates")
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/gistools-bench-structure"))
+    ap.add_argument("--step", type=float, default=scaled(1.25, 10.0),
+                    help="point spacing (m) along outlines and on plates")
+    ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-structure")))
     args = ap.parse_args()
+    announce("bench_structure")
     args.workdir.mkdir(parents=True, exist_ok=True)
     src = args.workdir / f"f4_{args.step:g}.txt"
     if not src.exists():

@@ -8,6 +8,8 @@ rasters, isochrone polygons, report); the script prints its wall time, the solve
 process's peak memory.
 
     python benchmarks/bench_travel.py [--copies 4] [--workdir /tmp/gistools-bench-travel]
+
+GISTOOLS_BENCH_SMOKE=1 (benchmarks/_smoke.py): one copy (the sample's own 400 x 400 cells).
 """
 
 from __future__ import annotations
@@ -21,6 +23,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, scaled, workdir  # noqa: E402
 
 
 def _block(workdir: Path, copies: int) -> tuple[Path, Path]:
@@ -60,16 +64,22 @@ def _block(workdir: Path, copies: int) -> tuple[Path, Path]:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--copies", type=int, default=4, help="copies of the sample's mosaic along each side")
-    ap.add_argument("--workdir", type=Path, default=Path("/tmp/gistools-bench-travel"))
+    ap.add_argument("--copies", type=int, default=scaled(4, 1), help="copies of the sample's mosaic along each side")
+    ap.add_argument("--workdir", type=Path, default=Path(workdir("/tmp/gistools-bench-travel")))
     args = ap.parse_args()
+    announce("bench_travel")
     args.workdir.mkdir(parents=True, exist_ok=True)
+    import rasterio
+
     dem, classes = _block(args.workdir, args.copies)
     out = args.workdir / "travel"
+    with rasterio.open(dem) as src:  # the points last seen: (431000, 1811000) and (436000, 1805000) in 4 x 4 copies
+        w, s, e, n = src.bounds
+    second = f"{w + 0.75 * (e - w):.0f},{n - 0.875 * (n - s):.0f}"
     code = ("import resource, sys\nfrom gistools.cli.main import main\nsys.argv = sys.argv[1:]\ntry:\n    main()\n"
             "finally:\n    print('peak_rss_kb', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)\n")
     cmd = [sys.executable, "-c", code, "gistools", "travel", str(out), "--dem", str(dem), "--classes", str(classes),
-           "--from", "431000,1811000", "--from", "436000,1805000", "--overwrite", "-q"]
+           "--from", "431000,1811000", "--from", second, "--overwrite", "-q"]
     t = time.perf_counter()
     proc = subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT)
     wall = time.perf_counter() - t

@@ -1,6 +1,8 @@
 """Every command and Python block of the README and of the documentation pages (docs/, in the order of mkdocs.yml's
 nav) runs as printed, in order, in one folder: a copy of the checkout to which `gistools examples .` added the
-example inputs. Every fenced block is either run or listed here as not run, with the reason."""
+example inputs. Every fenced block is either run or listed here as not run, with the reason. The benchmark
+commands of docs/performance.md run as printed with GISTOOLS_BENCH_SMOKE=1 in the environment: each benchmark then
+runs its code path end to end on a tiny problem (benchmarks/_smoke.py), in seconds."""
 
 from __future__ import annotations
 
@@ -19,8 +21,9 @@ from conftest import ROOT, SAMPLE
 # block of the same text is run.
 _NOT_RUN = {
     ("docs/install.md", "python3 -m venv ~/gistools-venv"):
-        "makes a second environment and downloads every dependency (minutes, network); the blocks run in the one "
-        "`bash tools/run.sh` made",
+        "makes a second environment and downloads every dependency (network); tests/test_install.py runs this pip "
+        "route in a fresh venv and checks its kernel and its rasters; the blocks here run in the one `bash tools/run.sh` "
+        "made",
     ("docs/install.md", r"py -m venv %USERPROFILE%\gistools-venv"): "Windows commands",
     ("docs/install.md", "bash tools/run.sh sample   # set up .venv and run the shrub chain on sample_tiles/: map, "
                         "polygons and rasters in out/"): "repeats README.md",
@@ -28,25 +31,14 @@ _NOT_RUN = {
                            "return: check before a long run"): "repeats README.md",
     ("docs/qgis.md", "from gistools_qgis.install import install_dependencies"):
         "runs in QGIS's Python console and installs packages (network, minutes); tests/test_qgis_install.py runs it",
-    ("docs/performance.md", "python benchmarks/bench_rasters.py --repeat 3"):
-        "benchmark: generates 20 M points and runs WhiteboxTools (several minutes)",
-    ("docs/performance.md", "python benchmarks/bench_rasters.py --density levy --repeat 3 --laz14"):
-        "benchmark: generates four 5,000 ft tiles and runs WhiteboxTools (minutes)",
-    ("docs/performance.md", "python benchmarks/bench_shrub.py --repeat 3"): "benchmark: 40.8 M points (many minutes)",
-    ("docs/performance.md", "python benchmarks/bench_shrub.py --levy --repeat 5"):
-        "benchmark: 26 M points, five rounds (many minutes)",
     ("docs/performance.md", "python benchmarks/bench_ground.py            # quality and classification speed on two "
-                            "real surveys"): "benchmark: needs the real surveys of the test data (minutes)",
-    ("docs/performance.md", "python benchmarks/bench_schedule.py"): "benchmark: schedules 100,000 tiles",
-    ("docs/performance.md", "python benchmarks/bench_aquifer.py"): "benchmark: 400,000 contacts (half a minute)",
-    ("docs/performance.md", "python benchmarks/bench_runway.py"): "benchmark: 452,605 survey points (20 s)",
-    ("docs/performance.md", "python benchmarks/bench_terrain.py"): "benchmark: a 36 M cell mosaic and five gdaldem runs (40 s)",
-    ("docs/performance.md", "python benchmarks/bench_structure.py"): "benchmark: 93,860 points (10 s)",
-    ("docs/performance.md", "python benchmarks/bench_travel.py"): "benchmark: 2.56 M cells (15 s, 1.6 GB)",
+                            "real surveys"):
+        "benchmark: needs the real surveys of the test data (minutes); it has no smoke scale yet",
 }
 # lines of run blocks not run here: the test suite itself (this test is part of it)
 _NOT_HERE = ("bash tools/run.sh test",)
 _RUN = ("bash", "python")  # ```text blocks are console output or commands shown, never run
+_SMOKE = {"GISTOOLS_BENCH_SMOKE": "1"}  # the benchmarks run their tiny problem (benchmarks/_smoke.py)
 _FENCE = re.compile(r"^( *)```([\w+-]*)[^\n]*\n(.*?)^\1```[ \t]*$", re.S | re.M)
 _COPY_SKIP = shutil.ignore_patterns(".venv", ".git", "out", "dist", "build", "site", "__pycache__", "*.egg-info")
 
@@ -132,7 +124,7 @@ def _checkout(tmp_path):
         (shims / "sudo").write_text('#!/bin/sh\nexec "$@"\n')
         (shims / "sudo").chmod(0o755)
     path = f"{ROOT / '.venv' / 'bin'}:{shims}:{os.environ['PATH']}"
-    env = {**os.environ, "HOME": str(home), "PATH": path, "QT_QPA_PLATFORM": "offscreen"}
+    env = {**os.environ, "HOME": str(home), "PATH": path, "QT_QPA_PLATFORM": "offscreen", **_SMOKE}
     env.pop("PIP_CONSTRAINT", None)  # run.sh's: the blocks say which constraints they use
     prep = subprocess.run(["gistools", "examples", "."], cwd=work, env=env, capture_output=True, text=True, timeout=600)
     assert prep.returncode == 0, prep.stderr[-2000:]
@@ -152,6 +144,10 @@ def _run_block(work, env, i: int, page: str, n: int, lang: str, block: str) -> s
     where = f"{page} block {n} (```{lang})"
     assert proc.returncode == 0, f"{where} failed:\n{block}\n{proc.stdout[-1500:]}\n{proc.stderr[-2500:]}"
     assert "Traceback" not in proc.stderr, f"{where}:\n{proc.stderr[-2500:]}"
+    runs = block.count("python benchmarks/")
+    if runs:  # each benchmark said first that it ran at the smoke scale
+        said = proc.stdout.count("smoke run (GISTOOLS_BENCH_SMOKE=1)")
+        assert proc.stdout.startswith("bench_") and said == runs, f"{where}: not {runs} smoke runs:\n{proc.stdout[:1500]}"
     return proc
 
 
