@@ -46,6 +46,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "benchmarks"))
+from _smoke import announce, smoke, workdir  # noqa: E402
+
 SHARED = ROOT.parent / "shared" / "data" / "lidar"
 FILES = {"autzen (suburban, ft)": SHARED / "autzen" / "autzen_trim.las",
          "Megaplot (boreal forest, m)": SHARED / "megaplot" / "Megaplot.laz"}
@@ -316,6 +318,10 @@ def main(argv=None) -> int:
     ap.add_argument("--methods", default=None, help="Comma-separated methods (default: every one); on the real files, "
                     "names as the table prints them or a part of them (smrf, smrftin, CSF).")
     args = ap.parse_args(argv)
+    announce("bench_ground")
+    if smoke():  # SMRF alone (CSF takes minutes), a block of 200,000 points made in seconds
+        args.methods = args.methods or "smrf"
+        args.points, args.simple_block, args.workdir = 2e5, True, workdir(args.workdir)
     if args.isprs:
         from gistools.lidar.ground import GROUND_METHODS
 

@@ -31,9 +31,6 @@ _NOT_RUN = {
                            "return: check before a long run"): "repeats README.md",
     ("docs/qgis.md", "from gistools_qgis.install import install_dependencies"):
         "runs in QGIS's Python console and installs packages (network, minutes); tests/test_qgis_install.py runs it",
-    ("docs/performance.md", "python benchmarks/bench_ground.py            # quality and classification speed on two "
-                            "real surveys"):
-        "benchmark: needs the real surveys of the test data (minutes); it has no smoke scale yet",
 }
 # lines of run blocks not run here: the test suite itself (this test is part of it)
 _NOT_HERE = ("bash tools/run.sh test",)
