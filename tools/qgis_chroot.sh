@@ -6,7 +6,7 @@
 #   bash tools/qgis_chroot.sh [DIR]      (default /var/tmp/gistools-qgis-forky; prints DIR when ready)
 set -euo pipefail
 DIR=${1:-/var/tmp/gistools-qgis-forky}
-STAGE=6  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages); a chroot of an earlier stage is completed, not rebuilt
+STAGE=7  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages; 7: mkdocstrings, their API page); a chroot of an earlier stage is completed, not rebuilt
 ready() { [ -x "$DIR/usr/bin/python3" ] && [ "$(cat "$DIR/.gistools-qgis-ready" 2>/dev/null)" = "$STAGE" ]; }
 if ready; then echo "$DIR"; exit 0; fi
 [ "$(id -u)" = 0 ] || { echo "qgis_chroot: needs root (debootstrap, chroot)" >&2; exit 1; }
@@ -48,6 +48,6 @@ fi
 [ -x "$DIR/opt/gistools-venv/bin/python" ] || chroot "$DIR" python3 -m venv --system-site-packages /opt/gistools-venv
 # the host's PIP_* settings name host paths: not inside
 chroot "$DIR" env -u PIP_CONSTRAINT -u PIP_FIND_LINKS PIP_CERT=/etc/ssl/certs/ca-certificates.crt \
-  /opt/gistools-venv/bin/python -m pip install -q --disable-pip-version-check lazrs trimesh mkdocs mkdocs-material
+  /opt/gistools-venv/bin/python -m pip install -q --disable-pip-version-check lazrs trimesh mkdocs mkdocs-material "mkdocstrings[python]"
 echo "$STAGE" > "$DIR/.gistools-qgis-ready"
 echo "$DIR"
