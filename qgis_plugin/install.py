@@ -3,30 +3,35 @@
 In the QGIS Python console (Plugins > Python Console)::
 
     from gistools_qgis.install import install_dependencies
-    print(install_dependencies(gistools="C:/Downloads/gistools-0.1.0-py3-none-any.whl").message)
+    print(install_dependencies(gistools="C:/Downloads/gistools-0.1.0-cp312-cp312-win_amd64.whl").message)
 
-It runs ``python -m pip install --target <profile>/python/gistools_deps ...`` with QGIS's own Python, for the
-packages QGIS's Python cannot import, each at most once: what QGIS's Python already has is pinned to the version it
-has (a constraints file), so nothing it uses changes under it. The folder is added at the end of ``sys.path`` (the
-plugin adds it at every start), then the GDAL / PROJ / GEOS check runs before the algorithms are enabled.
+It runs pip with QGIS's own Python in two steps: a dry run resolves what the missing packages need against what
+QGIS's Python already has (a constraints file pins every package it has to the version it has, so nothing QGIS uses
+changes under it), then ``python -m pip install --no-deps --prefix <profile>/python/gistools_deps ...`` installs only
+what QGIS's Python lacks, each at most once. The prefix's site-packages folder is added at the end of ``sys.path``
+(the plugin adds it at every start), then the GDAL / PROJ / GEOS check runs before the algorithms are enabled.
 
 rasterio, pyogrio, pyproj and shapely are linked to GDAL / PROJ / GEOS: pip's binary wheels bring their own copies,
-which fail or crash inside QGIS, so this function never installs them; it names the one command that installs QGIS's
-(or the system's) builds instead. When it cannot install (no pip, no network), its message holds the one command to
-run by hand.
+which fail or crash inside QGIS, so this function never installs them, and while one of them is missing it installs
+nothing (pip would fetch their wheels as dependencies of geopandas or gistools); it names the one command that
+installs QGIS's (or the system's) builds instead. When it cannot install (no pip, no network), its message holds the
+one command to run by hand.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
+import re
 import subprocess
 import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
-__all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "install_dependencies", "add_to_path"]
+__all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "install_dependencies", "add_to_path",
+           "site_folders"]
 
 DEPS_FOLDER = "gistools_deps"
 BOUND = ("rasterio", "pyogrio", "pyproj", "shapely")  # built against GDAL / PROJ / GEOS: QGIS's builds only
@@ -55,15 +60,27 @@ def default_target() -> Path:
     return Path(QgsApplication.qgisSettingsDirPath()) / "python" / DEPS_FOLDER
 
 
-def add_to_path(target: Path) -> bool:
-    """Put ``target`` at the end of ``sys.path`` (QGIS's own packages keep precedence); False when it is absent."""
+def site_folders(target: Path) -> list[Path]:
+    """The site-packages folders of this Python's version under the prefix ``target`` (``lib/python3.X/site-packages``,
+    Debian's ``local/lib/python3.X/dist-packages``, Windows' ``Lib/site-packages``)."""
     target = Path(target)
-    if not target.is_dir():
-        return False
-    if str(target) not in sys.path:
-        sys.path.append(str(target))
-        importlib.invalidate_caches()
-    return True
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    found = []
+    for pattern in (f"lib/{version}/*-packages", f"local/lib/{version}/*-packages", f"lib64/{version}/*-packages",
+                    "Lib/site-packages"):
+        found += [p for p in sorted(target.glob(pattern)) if p.is_dir() and p not in found]
+    return found
+
+
+def add_to_path(target: Path) -> bool:
+    """Put the site-packages folders of the prefix ``target`` at the end of ``sys.path`` (QGIS's own packages keep
+    precedence); False when there is none."""
+    folders = site_folders(target)
+    for folder in folders:
+        if str(folder) not in sys.path:
+            sys.path.append(str(folder))
+            importlib.invalidate_caches()
+    return bool(folders)
 
 
 def qgis_python() -> Path | None:
@@ -88,16 +105,31 @@ def _version_of(exe: Path) -> str | None:
     return run.stdout.strip() if run.returncode == 0 else None
 
 
-def _constraints() -> str:
-    """``name==version`` of every distribution this Python already has: pip keeps those versions."""
+def _name(name: str) -> str:
+    """A distribution's name as pip compares names (PEP 503)."""
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def _installed() -> dict:
+    """{name: version} of every distribution this Python has (Debian's builds may say ``0+unknown``)."""
     from importlib.metadata import distributions
 
-    pins = {}
-    for dist in distributions():
-        name = dist.metadata.get("Name")
-        if name and dist.version:
-            pins[name.lower()] = dist.version
-    return "".join(f"{name}=={version}\n" for name, version in sorted(pins.items()))
+    return {_name(d.metadata.get("Name")): d.version for d in distributions() if d.metadata.get("Name")}
+
+
+def _constraints(have: dict) -> str:
+    """``name==version`` of every distribution this Python has and pip could match: pip keeps those versions. A
+    version without a release number (``0+unknown``) is left out, as are the GDAL / PROJ / GEOS bound packages."""
+    keep = {n: v for n, v in have.items() if v and n not in BOUND and re.fullmatch(r"[1-9]\d*(\.\d+)*\S*|0\.\d+\S*", v)}
+    return "".join(f"{name}=={version}\n" for name, version in sorted(keep.items()))
+
+
+def _local(url: str) -> str:
+    """A file:// URL of pip's report as a path."""
+    from urllib.parse import unquote, urlparse
+    from urllib.request import url2pathname
+
+    return url2pathname(unquote(urlparse(url).path))
 
 
 def _quoted(parts) -> str:
@@ -124,7 +156,7 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
         The folder to install into (default ``<QGIS profile>/python/gistools_deps``).
     gistools : str or path, optional
         Where gistools itself comes from when QGIS's Python lacks it (a wheel, an sdist or a source folder; it is
-        not on PyPI).
+        not on PyPI); its own dependencies come with it.
     python : path, optional
         The interpreter to run pip with (default: this QGIS's, :func:`qgis_python`).
     requirements : list of str, optional
@@ -145,9 +177,9 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
     failure = None
-    if wanted:
+    if wanted and not bound:
         cmd = [str(exe or "python"), "-m", "pip", "install", "--disable-pip-version-check", "--no-input",
-               "--target", str(target), *wanted]
+               "--prefix", str(target), *wanted]
         result.installed = wanted
         failure = _run_pip(exe, cmd, target, timeout, result)
         if failure:
@@ -160,21 +192,24 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
         result.missing = wanted
     if bound:
         notes.append(f"{', '.join(bound)} must be QGIS's own builds (pip's wheels bring other GDAL / PROJ / GEOS "
-                     f"libraries, which crash QGIS); install them with: {_bound_command(bound)}; then restart QGIS")
+                     f"libraries, which crash QGIS); install them with: {_bound_command(bound)}; then run "
+                     "install_dependencies() again" + (f" (it installs {', '.join(wanted)})" if wanted else ""))
     result.message = _message(result, notes)
     return result
 
 
 def _plan(missing: list, gistools) -> tuple[list, list, list]:
-    """(the GDAL / PROJ / GEOS bound packages missing, what pip installs, notes) of the missing requirements."""
+    """(the GDAL / PROJ / GEOS bound packages missing, what pip installs, notes) of the missing requirements
+    (gistools is wanted whenever it does not import, even when ``missing`` does not name it yet)."""
     bound = sorted({m.split(">")[0] for m in missing} & set(BOUND))
     wanted = [m for m in missing if m.split(">")[0] not in BOUND and m != "gistools"]
     notes = []
-    if "gistools" in missing and gistools is not None:
+    lacks = "gistools" in missing or importlib.util.find_spec("gistools") is None
+    if lacks and gistools is not None:
         wanted.append(str(gistools))
-    elif "gistools" in missing:
+    elif lacks:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
-                     "gistools='path/to/gistools-<version>-py3-none-any.whl')")
+                     "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     return bound, wanted, notes
 
 
@@ -193,19 +228,41 @@ def _message(result: InstallResult, notes: list) -> str:
 
 
 def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult) -> str | None:
-    """Run pip (``cmd`` with the constraints file added); the reason it failed, None when it worked."""
+    """Resolve ``cmd``'s requirements with pip against what this Python has (constraints pin it), then install what
+    is missing, without the bound packages, with ``--no-deps``: the reason it failed, None when it worked."""
+    import json
+
     if exe is None or not Path(exe).is_file():
         return "QGIS's Python interpreter was not found"
+    have = _installed()
+    wanted = cmd[cmd.index("--prefix") + 2:]
+    with tempfile.TemporaryDirectory() as tmp:
+        pins, report = Path(tmp) / "constraints.txt", Path(tmp) / "report.json"
+        pins.write_text(_constraints(have))
+        plan = cmd[:4] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[4:6], *wanted]
+        failure = _pip(plan, timeout)
+        if failure:
+            result.command = plan
+            return failure
+        chosen = []
+        for item in json.loads(report.read_text()).get("install", []):
+            meta, url = item["metadata"], item.get("download_info", {}).get("url", "")
+            name = _name(meta["name"])
+            if name in BOUND or name in have:
+                continue  # QGIS's build, or what QGIS's Python has (its copy comes first on the path anyway)
+            chosen.append(_local(url) if url.startswith("file:") else f"{meta['name']}=={meta['version']}")
+    result.command = cmd[:4] + ["--no-deps"] + cmd[4:cmd.index("--prefix") + 2] + chosen
+    if not chosen:
+        return None
     target.mkdir(parents=True, exist_ok=True)
-    with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as pins:
-        pins.write(_constraints())
-    result.command = cmd[:4] + ["--constraint", pins.name] + cmd[4:]
+    return _pip(result.command, timeout)
+
+
+def _pip(command: list, timeout: float) -> str | None:
     try:
-        run = subprocess.run(result.command, capture_output=True, text=True, timeout=timeout)
+        run = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
     except (OSError, subprocess.SubprocessError) as err:
         return f"pip could not run ({err})"
-    finally:
-        Path(pins.name).unlink(missing_ok=True)
     if run.returncode != 0:
         lines = [line for line in (run.stderr or run.stdout).splitlines() if line.strip() and "WARNING" not in line]
         return f"pip failed ({lines[-1] if lines else f'exit status {run.returncode}'})"

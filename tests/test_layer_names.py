@@ -109,3 +109,21 @@ def test_contacts_and_survey_csvs_named_as_qgis_names_them(tmp_path):
     a, _ = read_survey(tmp_path / "survey.csv")
     b, _ = read_survey(f"{tmp_path / 'survey.csv'}|layername=survey")
     assert len(a) == len(survey) and a.equals(b)
+
+
+def test_the_aquifer_command_takes_a_contacts_layer_in_qgis_form(tmp_path):
+    # "file.gpkg|layername=contacts" holds "=": it is one table, not the dissertation's LAYER=path files
+    import geopandas as gpd
+    import shapely as shp
+
+    from gistools.aquifer.synthetic import synthetic_aquifer
+
+    points, _ = synthetic_aquifer(2012)
+    gdf = gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003)
+    gdf.to_file(tmp_path / "contacts.gpkg", layer="contacts")
+    for form, out in ((f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "qgis"), (f"{tmp_path / 'contacts.gpkg'}:contacts", "colon")):
+        run = CliRunner().invoke(cli, ["aquifer", "model", form, "--layers", "LS,AU,AD,AQ", "--out", str(tmp_path / out),
+                                       "-q", "--no-figures"])
+        assert run.exit_code == 0, run.output
+    a, b = (json.loads((tmp_path / o / "report.json").read_text())["units"] for o in ("qgis", "colon"))
+    assert a == b and len(a) == 3

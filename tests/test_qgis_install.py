@@ -39,25 +39,36 @@ def test_pip_installs_into_the_profile_folder_which_goes_last_on_the_path(tmp_pa
     target = tmp_path / "profile" / "python" / install.DEPS_FOLDER
     result = install.install_dependencies(target, requirements=[str(_wheel(tmp_path))])
     assert result.ok and result.missing == [], result.message
-    assert "--target" in result.command and str(target) in result.command and "--constraint" in result.command
-    assert (target / "gistools_probe" / "__init__.py").is_file() and sys.path[-1] == str(target)
+    assert "--prefix" in result.command and str(target) in result.command and "--no-deps" in result.command
+    site = install.site_folders(target)
+    assert len(site) == 1 and site[0].is_relative_to(target) and sys.path[-1] == str(site[0])
     import gistools_probe
 
-    assert gistools_probe.VALUE == 42 and Path(gistools_probe.__file__).parent.parent == target
+    assert gistools_probe.VALUE == 42 and Path(gistools_probe.__file__).parent.parent == site[0]
     sys.modules.pop("gistools_probe", None)
 
 
-def test_gdal_bound_packages_are_never_pip_installed_and_a_failure_gives_the_command(tmp_path, monkeypatch):
+def test_gdal_bound_packages_are_never_pip_installed_and_nothing_is_while_one_is_missing(tmp_path, monkeypatch):
+    # pip would fetch rasterio's wheel (its own GDAL) as a dependency of gistools: nothing runs until QGIS's is there
     for name in ("laspy", "rasterio"):  # as if QGIS's Python lacked them
         monkeypatch.setitem(sys.modules, name, None)
     target = tmp_path / install.DEPS_FOLDER
-    result = install.install_dependencies(target, python=tmp_path / "no-python")  # cannot run pip
+    result = install.install_dependencies(target, python=sys.executable)
     assert not result.ok and "laspy" in result.missing and "rasterio" in result.missing
-    assert result.installed == ["laspy"] and result.command == []  # rasterio is not given to pip
-    run_this, bound = result.message.split("; ", 1)
-    assert run_this.endswith(f"Run this once, then restart QGIS: {tmp_path / 'no-python'} -m pip install "
-                             f"--disable-pip-version-check --no-input --target {target} laspy"), result.message
-    assert "rasterio must be QGIS's own builds" in bound and "sudo apt-get install python3-rasterio" in bound
+    assert result.installed == [] and result.command == [] and not target.exists()
+    assert ("rasterio must be QGIS's own builds" in result.message
+            and "sudo apt-get install python3-rasterio; then run install_dependencies() again (it installs laspy)"
+            in result.message), result.message
+    assert "\n" not in result.message
+
+
+def test_when_pip_cannot_run_the_message_is_the_one_command(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "laspy", None)
+    target = tmp_path / install.DEPS_FOLDER
+    result = install.install_dependencies(target, python=tmp_path / "no-python")
+    assert not result.ok and result.missing == ["laspy"] and result.installed == ["laspy"] and result.command == []
+    assert result.message.endswith(f"Run this once, then restart QGIS: {tmp_path / 'no-python'} -m pip install "
+                                   f"--disable-pip-version-check --no-input --prefix {target} laspy"), result.message
     assert "\n" not in result.message
 
 
@@ -70,7 +81,7 @@ def test_the_plugin_puts_the_profiles_folder_on_the_path_when_it_starts(tmp_path
     from conftest import ROOT
 
     profile = tmp_path / "profiles" / "default"
-    deps = profile / "python" / install.DEPS_FOLDER
+    deps = profile / "python" / install.DEPS_FOLDER / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
     (deps / "gistools_probe").mkdir(parents=True)
     (deps / "gistools_probe" / "__init__.py").write_text("VALUE = 7\n")
     script = f"""

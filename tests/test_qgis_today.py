@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -109,3 +110,147 @@ def test_the_plugin_tests_pass_in_qgis_344(qgis_today):
     print(run.stdout[-3000:])
     assert run.returncode == 0, (run.stdout[-6000:], run.stderr[-3000:])
     assert " passed" in run.stdout and " skipped" not in run.stdout, run.stdout[-3000:]
+
+
+BARE = Path(os.environ.get("GISTOOLS_QGIS_BARE_CHROOT", "/var/tmp/gistools-qgis-forky-bare"))
+
+
+@pytest.fixture(scope="module")
+def qgis_stock():
+    """QGIS 3.44 as apt installs it on Debian forky, with pip: its Python has numpy, pyproj, matplotlib and GDAL's
+    bindings (QGIS's own dependencies) and nothing else gistools needs."""
+    if os.geteuid() != 0 or not shutil.which("chroot"):
+        if os.environ.get("CI"):
+            pytest.fail("CI must run the QGIS 3.44 tests: they need root for the chroot")
+        pytest.skip("QGIS 3.44 tests: need root to build and enter the chroot (tools/qgis_chroot.sh --bare)")
+    proc = subprocess.run(["bash", str(ROOT / "tools" / "qgis_chroot.sh"), "--bare", str(BARE)], capture_output=True,
+                          text=True)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return BARE
+
+
+def _chroot(root: Path, *cmd, timeout=900) -> subprocess.CompletedProcess:
+    """``cmd`` inside ``root`` (proc mounted meanwhile), headless, pip given the chroot's CAs and no host settings."""
+    mounted = not os.path.ismount(root / "proc")
+    if mounted:
+        subprocess.run(["mount", "-t", "proc", "proc", str(root / "proc")], check=True)
+    env = ["env", "-u", "PIP_CONSTRAINT", "-u", "PIP_FIND_LINKS", "-u", "PIP_INDEX_URL", "-u", "PYTHONPATH",
+           "PIP_CERT=/etc/ssl/certs/ca-certificates.crt", "QT_QPA_PLATFORM=offscreen", "HOME=/root",
+           "QGIS_CUSTOM_CONFIG_PATH=/work/qgis-config", "DEBIAN_FRONTEND=noninteractive"]
+    try:
+        return subprocess.run(["chroot", str(root), *env, *cmd], capture_output=True, text=True, timeout=timeout)
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(root / "proc")], check=False)
+
+
+_SESSION = """
+import json, sys
+from qgis.core import QgsApplication
+app = QgsApplication([], False); app.initQgis()
+sys.path.insert(0, "/work/qgis-config/profiles/default/python/plugins")  # what QGIS adds for the profile's plugins
+import gistools_qgis
+plugin = gistools_qgis.classFactory(None)
+plugin.initProcessing()
+from gistools_qgis.install import install_dependencies
+r = install_dependencies(gistools=WHEEL)
+print(json.dumps({"profile": QgsApplication.qgisSettingsDirPath(), "missing_at_start": plugin.missing, "ok": r.ok,
+                  "message": r.message, "installed": r.installed, "missing": r.missing, "mismatches": r.mismatches}))
+"""
+
+
+def test_a_stock_qgis_344_gets_gistools_from_the_plugin_zip_and_its_installer(qgis_today, qgis_stock, tmp_path):
+    """The route of a QGIS user: the plugin zip unzipped into a fresh profile of a stock QGIS 3.44 (Python 3.14);
+    the plugin's installer run from QGIS's Python (it first asks for QGIS's builds of the GDAL / PROJ / GEOS bound
+    packages, by the one command it prints, then pip-installs the rest and gistools' wheel into the profile); QGIS
+    restarted (qgis_process); gistools:dsm and the aquifer model equal the CLI's outputs, with the compiled kernel."""
+    import geopandas as gpd
+    import numpy as np
+    import rasterio
+    import shapely as shp
+    from click.testing import CliRunner
+
+    from gistools.aquifer.synthetic import synthetic_aquifer
+    from gistools.cli.main import cli
+
+    # gistools' wheel for Python 3.14, built where there is a compiler (the other chroot: the stock one has none)
+    src, wheels = qgis_today / "work" / "gistools-wheel-src", qgis_today / "work" / "wheels"
+    for folder in (src, wheels):
+        shutil.rmtree(folder, ignore_errors=True)
+    shutil.copytree(ROOT, src, ignore=_COPY_SKIP)
+    built = _chroot(qgis_today, "/opt/gistools-venv/bin/python", "-m", "pip", "wheel", "-q", "--no-deps",
+                    "--no-build-isolation", "--disable-pip-version-check", "-w", "/work/wheels", "/work/gistools-wheel-src")
+    assert built.returncode == 0, built.stderr[-3000:]
+    (wheel,) = wheels.glob("gistools-*.whl")
+    assert "cp314" in wheel.name, wheel.name
+    work = qgis_stock / "work"
+    shutil.rmtree(work, ignore_errors=True)
+    (work / "wheels").mkdir(parents=True)
+    shutil.copy2(wheel, work / "wheels" / wheel.name)
+    stock = _chroot(qgis_stock, "sh", "-c", "apt-get remove -y -q --autoremove $(for p in python3-rasterio python3-pyogrio "
+                    "python3-shapely; do dpkg -s $p >/dev/null 2>&1 && echo $p; done) </dev/null >/dev/null || true")
+    assert stock.returncode == 0, stock.stderr[-2000:]  # as apt left it, before an earlier run of this test
+    assert _chroot(qgis_stock, "sh", "-c", "command -v gcc cc || true").stdout.strip() == ""  # no compiler here
+
+    # the zip into a fresh profile, as QGIS's "Install from ZIP" does
+    sys.path.insert(0, str(ROOT / "tools"))
+    import build_plugin
+
+    build_plugin.install(build_plugin.build(tmp_path / "dist"), work / "qgis-config" / "profiles" / "default")
+    session = _SESSION.replace("WHEEL", repr(f"/work/wheels/{wheel.name}"))
+
+    first = _chroot(qgis_stock, "python3", "-c", session)
+    assert first.returncode == 0, first.stderr[-3000:]
+    said = json.loads(first.stdout.strip().splitlines()[-1])
+    assert said["profile"].rstrip("/") == "/work/qgis-config/profiles/default", said
+    assert {"scipy", "laspy", "rasterio", "geopandas"} <= set(said["missing_at_start"]), said
+    assert not said["ok"] and said["installed"] == [], said  # nothing pip-installed while a bound package is missing
+    command = said["message"].split("install them with: ", 1)[1].split(";", 1)[0]
+    assert command.startswith("sudo apt-get install python3-"), said["message"]
+    apt = _chroot(qgis_stock, "sh", "-c", command.replace("sudo ", "") .replace("apt-get install", "apt-get install -y -q"))
+    assert apt.returncode == 0, apt.stderr[-3000:]
+
+    second = _chroot(qgis_stock, "python3", "-c", session, timeout=1800)
+    assert second.returncode == 0, second.stderr[-3000:]
+    said = json.loads(second.stdout.strip().splitlines()[-1])
+    assert said["ok"] and said["missing"] == [] and said["mismatches"] == [], said
+    assert f"/work/wheels/{wheel.name}" in said["installed"] and "restart QGIS" in said["message"], said
+
+    # "restart QGIS": qgis_process loads the enabled plugin from the profile; the plugin finds what was installed
+    enable = _chroot(qgis_stock, "qgis_process", "plugins", "enable", "gistools_qgis")
+    assert enable.returncode == 0 or "already enabled" in enable.stdout + enable.stderr, enable.stdout[-2000:] + enable.stderr[-2000:]
+    tile = sorted(SAMPLE.glob("*.las"))[0]
+    shutil.copytree(SAMPLE, work / "sample")
+    dsm = _chroot(qgis_stock, "qgis_process", "run", "gistools:dsm", "--", f"INPUT=/work/sample/{tile.name}",
+                  "CELL_SIZE=5ft", "OUTPUT_FOLDER=/work/out/dsm")
+    assert dsm.returncode == 0, dsm.stdout[-3000:] + dsm.stderr[-3000:]
+    points, _ = synthetic_aquifer(2012)
+    gdf = gpd.GeoDataFrame(points, geometry=shp.points(points["x"], points["y"]), crs=3003)
+    gdf.to_file(work / "contacts.gpkg", layer="contacts")
+    aquifer = _chroot(qgis_stock, "qgis_process", "run", "gistools:aquifer", "--",
+                      "INPUT=/work/contacts.gpkg|layername=contacts", "LAYERS=LS,AU,AD,AQ", "OUTPUT_FOLDER=/work/out/aquifer")
+    assert aquifer.returncode == 0, aquifer.stdout[-3000:] + aquifer.stderr[-3000:]
+    engine = _chroot(qgis_stock, "python3", "-c", "import sys; sys.path.append('/work/qgis-config/profiles/default/python/plugins');"
+                     "from gistools_qgis.install import add_to_path; add_to_path('/work/qgis-config/profiles/default/python/gistools_deps');"
+                     "from gistools import kernel; print(kernel.loaded(), kernel.engine())")
+    assert engine.stdout.strip().startswith("True compiled C kernel (/work/qgis-config/"), engine.stdout + engine.stderr[-2000:]
+
+    runner = CliRunner()
+    result = runner.invoke(cli, ["rasters", str(tile), "--out", str(tmp_path / "dsm"), "--products", "dsm", "-q"])
+    assert result.exit_code == 0, result.output
+    gdf.to_file(tmp_path / "contacts.gpkg", layer="contacts")
+    result = runner.invoke(cli, ["aquifer", "model", f"{tmp_path / 'contacts.gpkg'}|layername=contacts", "--layers",
+                                 "LS,AU,AD,AQ", "--out", str(tmp_path / "aquifer"), "-q"])
+    assert result.exit_code == 0, result.output
+    with rasterio.open(work / "out" / "dsm" / "dsm.vrt") as a, rasterio.open(tmp_path / "dsm" / "dsm.vrt") as b:
+        assert a.transform == b.transform and a.crs == b.crs
+        np.testing.assert_array_equal(a.read(1), b.read(1))
+    qgis_report = json.loads((work / "out" / "aquifer" / "report.json").read_text())
+    cli_report = json.loads((tmp_path / "aquifer" / "report.json").read_text())
+    assert qgis_report["units"].keys() == cli_report["units"].keys()
+    for name, unit in cli_report["units"].items():
+        assert qgis_report["units"][name]["volume"] == pytest.approx(unit["volume"], rel=1e-9), name
+    for rel in cli_report["outputs"]["thickness"].values():
+        got = Path(str(rel).replace(str(tmp_path / "aquifer"), str(work / "out" / "aquifer")))
+        with rasterio.open(got) as a, rasterio.open(rel) as b:
+            np.testing.assert_allclose(a.read(1), b.read(1), rtol=1e-9, atol=1e-9)

@@ -4,9 +4,14 @@
 # GDAL / PROJ / GEOS bound Python packages from Debian (built against the libraries QGIS links), and a venv
 # /opt/gistools-venv (system site packages) with what Debian lacks (lazrs). Needs root; about 4 minutes and 1.5 GB once.
 #   bash tools/qgis_chroot.sh [DIR]      (default /var/tmp/gistools-qgis-forky; prints DIR when ready)
+#   bash tools/qgis_chroot.sh --bare [DIR]
+#                                        (default /var/tmp/gistools-qgis-forky-bare): QGIS as a user has it from apt,
+#                                        with pip and nothing for gistools (the plugin's installer's test)
 set -euo pipefail
-DIR=${1:-/var/tmp/gistools-qgis-forky}
-STAGE=7  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages; 7: mkdocstrings, their API page); a chroot of an earlier stage is completed, not rebuilt
+BARE=
+if [ "${1:-}" = --bare ]; then BARE=1; shift; fi
+DIR=${1:-/var/tmp/gistools-qgis-forky${BARE:+-bare}}
+STAGE=7${BARE:+-bare}  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages; 7: mkdocstrings, their API page); a chroot of an earlier stage is completed, not rebuilt
 ready() { [ -x "$DIR/usr/bin/python3" ] && [ "$(cat "$DIR/.gistools-qgis-ready" 2>/dev/null)" = "$STAGE" ]; }
 if ready; then echo "$DIR"; exit 0; fi
 [ "$(id -u)" = 0 ] || { echo "qgis_chroot: needs root (debootstrap, chroot)" >&2; exit 1; }
@@ -33,10 +38,16 @@ mount -t proc proc "$DIR/proc"
 trap 'umount "$DIR/proc" 2>/dev/null || true' EXIT
 APT=(apt-get -o Acquire::Check-Valid-Until=false)
 chroot "$DIR" "${APT[@]}" update -qq
+if [ -n "$BARE" ]; then
+  # QGIS from apt (its Python brings numpy, pyproj, matplotlib, GDAL's bindings) and pip: nothing else
+  chroot "$DIR" env DEBIAN_FRONTEND=noninteractive "${APT[@]}" install -y -qq --no-install-recommends \
+    python3-qgis qgis-providers qgis python3-pip ca-certificates >/dev/null
+else
 chroot "$DIR" env DEBIAN_FRONTEND=noninteractive "${APT[@]}" install -y -qq --no-install-recommends \
   python3-qgis qgis-providers qgis python3-venv python3-pip python3-setuptools python3-dev gcc \
   python3-numpy python3-cffi python3-scipy python3-rasterio python3-pyogrio python3-geopandas python3-pyproj python3-shapely \
   python3-laspy python3-matplotlib python3-click python3-tqdm python3-threadpoolctl python3-pytest proj-bin >/dev/null
+fi
 # pip inside: the host's own CAs (a proxy's) added to the chroot's store, so that pip (and its truststore) trusts
 # what the host trusts; else the host's whole bundle in place of the chroot's
 if ls /usr/local/share/ca-certificates/*.crt >/dev/null 2>&1; then
@@ -45,9 +56,11 @@ if ls /usr/local/share/ca-certificates/*.crt >/dev/null 2>&1; then
 else
   cp "${SSL_CERT_FILE:-/etc/ssl/certs/ca-certificates.crt}" "$DIR/etc/ssl/certs/ca-certificates.crt"
 fi
+if [ -z "$BARE" ]; then
 [ -x "$DIR/opt/gistools-venv/bin/python" ] || chroot "$DIR" python3 -m venv --system-site-packages /opt/gistools-venv
 # the host's PIP_* settings name host paths: not inside
 chroot "$DIR" env -u PIP_CONSTRAINT -u PIP_FIND_LINKS PIP_CERT=/etc/ssl/certs/ca-certificates.crt \
   /opt/gistools-venv/bin/python -m pip install -q --disable-pip-version-check lazrs trimesh mkdocs mkdocs-material "mkdocstrings[python]"
+fi
 echo "$STAGE" > "$DIR/.gistools-qgis-ready"
 echo "$DIR"

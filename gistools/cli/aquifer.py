@@ -6,6 +6,7 @@ from json import dumps
 
 import click
 
+from ..io.contacts import is_layer_file
 from ..parameters import option, render
 from ..products.aquifer import AquiferSettings, aquifer_model, aquifer_query
 from .options import out_opt, overwrite_opt, progress_bar
@@ -72,7 +73,7 @@ def model(inputs, out, overwrite, quiet, layers, crs, swap_xy, within, clip, fie
     settings["cell_size"] = settings.pop("thickness_cell_size")
     settings = AquiferSettings(figures=not no_figures, **{k: v for k, v in settings.items() if v is not None})
     fields = parse_fields(fields, "id,x,y,z,layer,borehole_id", "z=ELEV,layer=FORMATION")
-    source = list(inputs) if any("=" in i for i in inputs) else inputs[0]
+    source = list(inputs) if any(is_layer_file(i) for i in inputs) else inputs[0]
     with progress_bar(quiet) as progress:
         rep = aquifer_model(source, names, out, crs=crs, swap_xy=swap_xy, settings=settings, within=within, clip=clip,
                             overwrite=overwrite, progress=progress, fields=fields)

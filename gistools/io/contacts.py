@@ -145,6 +145,12 @@ def _read_layer_file(path: Path, layer: str, swap_xy: bool) -> pd.DataFrame:
     return pd.DataFrame({"id": a[:, 0].astype(np.int64), "x": x, "y": y, "z": a[:, 3], "layer": layer, "line": lines})
 
 
+def is_layer_file(text) -> bool:
+    """``LAYER=path`` (one of the dissertation's per-layer files), not QGIS's ``table.gpkg|layername=contacts``."""
+    name, sep, _ = str(text).partition("=")
+    return bool(sep) and "|" not in name
+
+
 def _per_layer_files(source, swap_xy) -> list[pd.DataFrame]:
     items = source.items() if isinstance(source, dict) else (str(s).split("=", 1) for s in source)
     frames = []
@@ -212,7 +218,7 @@ def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points
     if len(layers) < 2 or len(set(layers)) != len(layers):
         raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint=f"e.g. {option('layers', 'LS,AU,AD,AQ')}")
     found_crs = None
-    if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all("=" in str(s) for s in source)):
+    if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all(is_layer_file(s) for s in source)):
         frames = _per_layer_files(source, swap_xy)
     else:
         table, found_crs = _one_table(source, swap_xy, fields)
