@@ -216,7 +216,7 @@ def read_contacts(source, layers, *, crs=None, swap_xy: bool = False, min_points
     """
     layers = [str(lay).strip() for lay in layers]
     if len(layers) < 2 or len(set(layers)) != len(layers):
-        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint=f"e.g. {option('layers', 'LS,AU,AD,AQ')}")
+        raise InputError(f"layers {layers}: give at least two distinct layer names, top to bottom", hint=f"e.g. {option('layers', ['LS', 'AU', 'AD', 'AQ'])}")
     found_crs = None
     if isinstance(source, dict) or (isinstance(source, (list, tuple)) and all(is_layer_file(s) for s in source)):
         frames = _per_layer_files(source, swap_xy)
