@@ -40,7 +40,7 @@ CLASS_ROAD, CLASS_WATER = 4, 5  # the shrub chain's classes raster
 # peak bytes a cell of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
 BYTES_PER_CELL = {8: 330, 16: 600}
 # peak bytes a cell of the arrays kept whole when the graph goes block by block (heights, speed factors, fixed
-# speeds, minutes, the classes and the outputs' arrays of gistools travel; benchmarks/bench_travel.py)
+# speeds, minutes, the classes and the outputs' arrays of gistools travel; benchmarks/bench_travel.py: about 70)
 CELL_BYTES = 80
 HALO = 2  # cells around a block in its graph: a knight's move reaches 2 cells
 MIN_BLOCK = 16  # the smallest block side chosen from the memory limit
