@@ -184,8 +184,10 @@ def test_refusals_before_any_output(tmp_path):
         travel_from_dem(dem, tmp_path / "o1", "1,2")
     with pytest.raises(InputError, match="isochrones"):
         travel_from_dem(dem, tmp_path / "o2", "500010,4000010", TravelSettings(isochrones=(0, 30)))
-    big, _cls, _grid = _scene(tmp_path / "big", n=200)  # 40,000 cells: about 24 MB at 16 neighbours
-    with pytest.raises(OutOfMemoryError, match="GB"):
+    # 160,000 cells: about 96 MB of whole graph, 12.8 MB of cell arrays (80 bytes a cell) even block by block
+    big, _cls, _grid = _scene(tmp_path / "big", n=400)
+    with pytest.raises(OutOfMemoryError, match=r"400 x 400 cells needs about 0\.01 GB .*0\.10 GB\), more than "
+                                                r"the 0\.01 GB"):
         travel_from_dem(big, tmp_path / "o3", "500010,4000010", TravelSettings(max_memory=0.01))
     assert not any((tmp_path / f"o{i}").exists() for i in (1, 2, 3))
 

@@ -35,8 +35,10 @@ declare(
               default=False, advanced=True),
     Parameter("isochrones", "numbers", "The isochrones, minutes.", "Isochrones (minutes)", default=(30, 60, 120,
               240), minimum=0.0, example="30,60,120,240"),
-    Parameter("max_memory", "float", "The most memory the travel graph may take, in GB (about 0.6 KB a cell at 16 "
-              "neighbours); a larger DEM is refused before anything is written.", "Memory limit of the graph, GB",
+    Parameter("max_memory", "float", "The most memory the travel time may take, in GB: the whole grid's graph when it "
+              "fits (about 0.6 KB a cell at 16 neighbours), else the graph block by block beside the cell arrays "
+              "(about 80 bytes a cell), to the same minutes; a DEM whose cell arrays pass it is refused before "
+              "anything is written.", "Memory limit, GB (beyond the whole graph: block by block)",
               default=4.0, minimum=0.01, advanced=True, example="4"),
 )
 

@@ -12,8 +12,11 @@ Speed model (the documentation's "Search and rescue" page states it with its ref
 Algorithm: a directed graph of the grid (8 or 16 neighbours: the 16 add the knight moves), each step weighted by its
 length times the mean of the two end cells' slowness on the step's slope (the slope seen from the step's start: up
 one way, down the other), solved by ``scipy.sparse.csgraph.dijkstra(indices=sources, min_only=True)`` (the time from
-the nearest source). The whole grid is in memory: about ``BYTES_PER_CELL`` bytes a cell at 16 neighbours; a grid
-whose estimate passes ``max_memory`` is refused before anything is written.
+the nearest source). The whole grid's graph (about ``BYTES_PER_CELL`` bytes a cell at 16 neighbours) when it fits
+``max_memory``; else block by block (``plan_memory``): the cell arrays whole (``CELL_BYTES`` a cell), the graph of
+one block and a halo of ``HALO`` cells at a time, solved again while a neighbour's solve lowers a time in it
+(label-correcting, the block with the lowest lowered time first), to the same shortest paths. A grid whose cell
+arrays pass ``max_memory`` is refused before anything is written.
 """
 
 from __future__ import annotations
@@ -28,7 +31,7 @@ import numpy as np
 from ..errors import DataFileError, InputError, OutOfMemoryError
 
 __all__ = ["TravelSettings", "travel_minutes", "tobler_speed", "neighbour_offsets", "travel_from_dem", "SHRUB_FACTORS",
-           "ISOCHRONES", "BYTES_PER_CELL", "NEIGHBOUR_BOUND"]
+           "ISOCHRONES", "BYTES_PER_CELL", "CELL_BYTES", "NEIGHBOUR_BOUND", "plan_memory"]
 
 TOBLER = (6.0, 3.5, 0.05)  # km/h, per unit of slope, slope of the fastest walk (downhill 5 %)
 SHRUB_FACTORS = (0.92, 0.83, 0.75)  # light, medium, heavy shrub (classes 1, 2, 3 of the shrub chain); none: 1
@@ -36,6 +39,11 @@ ISOCHRONES = (30.0, 60.0, 120.0, 240.0)  # minutes
 CLASS_ROAD, CLASS_WATER = 4, 5  # the shrub chain's classes raster
 # peak bytes a cell of the graph and its building (benchmarks/bench_travel.py: 1.55 GB for 2.56 M cells)
 BYTES_PER_CELL = {8: 330, 16: 600}
+# peak bytes a cell of the arrays kept whole when the graph goes block by block (heights, speed factors, fixed
+# speeds, minutes, the classes and the outputs' arrays of gistools travel; benchmarks/bench_travel.py: about 70)
+CELL_BYTES = 80
+HALO = 2  # cells around a block in its graph: a knight's move reaches 2 cells
+MIN_BLOCK = 16  # the smallest block side chosen from the memory limit
 # worst over-estimate of a straight walk's length on flat ground: 1 / cos(half the widest angle between two moves)
 NEIGHBOUR_BOUND = {8: 1.0 / math.cos(math.radians(45.0 / 2)) - 1.0,
                    16: 1.0 / math.cos(math.atan(0.5) / 2) - 1.0}  # 8.24 %, 2.75 %
@@ -52,127 +60,63 @@ def neighbour_offsets(neighbours: int = 16) -> list[tuple[int, int]]:
     raise InputError(f"neighbours={neighbours!r}: 8 or 16", hint="16 (with the knight's moves) is the closer to straight lines")
 
 
-def check_memory(shape, neighbours: int, max_memory: float) -> int:
-    """The graph's estimated peak bytes; OutOfMemoryError when above ``max_memory`` bytes."""
+def plan_memory(shape, neighbours: int, max_memory: float, block=None) -> dict:
+    """How ``travel_minutes`` solves a grid of ``shape`` within ``max_memory`` bytes.
+
+    The whole mosaic's graph (``BYTES_PER_CELL`` a cell) when it fits; else the cell arrays whole (``CELL_BYTES`` a
+    cell) and the graph block by block, the block's side (cells) the largest whose graph with its halo fits what
+    the arrays leave. ``block`` (cells, or (rows, columns)) forces the block-wise method with such blocks. Returns
+    ``{"method": "whole" or "blocks", "block": (rows, columns) or None, "bytes": the estimate, "graph_bytes": the
+    whole graph's estimate}``; OutOfMemoryError when even the cell arrays pass ``max_memory``.
+    """
     rows, cols = shape
-    need = BYTES_PER_CELL[int(neighbours)] * rows * cols
-    if need > max_memory:
-        raise OutOfMemoryError(f"the travel graph of {rows:,} x {cols:,} cells needs about {need / 1e9:.2f} GB, more "
-                               f"than the {max_memory / 1e9:.2f} GB allowed",
+    per = BYTES_PER_CELL[int(neighbours)]
+    whole = per * rows * cols
+    if block is None and whole <= max_memory:
+        return {"method": "whole", "block": None, "bytes": whole, "graph_bytes": whole}
+    cells = CELL_BYTES * rows * cols
+    if cells > max_memory:
+        raise OutOfMemoryError(f"the travel time of {rows:,} x {cols:,} cells needs about {cells / 1e9:.2f} GB for "
+                               f"its cell arrays ({CELL_BYTES} bytes a cell, the graph then block by block; the whole "
+                               f"graph {whole / 1e9:.2f} GB), more than the {max_memory / 1e9:.2f} GB allowed",
                                hint="Clip the DEM to the search area, use coarser cells, or raise the memory limit")
-    return need
+    if block is None:
+        side = max(MIN_BLOCK, math.isqrt(int((max_memory - cells) / per)) - 2 * HALO)
+        block = (side, side)
+    else:
+        block = (int(block), int(block)) if np.ndim(block) == 0 else tuple(int(v) for v in block)
+        if len(block) != 2 or min(block) < 1:
+            raise InputError(f"block={block!r}: a block is at least 1 x 1 cells", hint="e.g. block=512")
+    window = min(block[0] + 2 * HALO, rows) * min(block[1] + 2 * HALO, cols)
+    return {"method": "blocks", "block": block, "bytes": cells + per * window, "graph_bytes": whole}
 
 
-def tobler_speed(slope, a: float = TOBLER[0], b: float = TOBLER[1], c: float = TOBLER[2]):
-    """Tobler's hiking function: walking speed in km/h on ``slope`` (rise over run, uphill positive)."""
-    return a * np.exp(-b * np.abs(np.asarray(slope, dtype=np.float64) + c))
+def _graph(dem, factor, fixed, grad, cell_m, z_metres, tob, offsets, progress=None, extra=None):
+    """The directed graph (CSR, minutes) of the cells of ``dem``: the whole grid or a window of it.
 
-
-def _slowness(slope, factor, fixed, a, b, c):
-    """Hours per km on ``slope`` of cells with vegetation ``factor`` (0: impassable) or a ``fixed`` speed (km/h)."""
-    with np.errstate(divide="ignore"):
-        tob = 1.0 / (tobler_speed(slope, a, b, c) * factor)
-        return np.where(np.isfinite(fixed), 1.0 / np.where(np.isfinite(fixed), fixed, 1.0), tob)
-
-
-def gradient_magnitude(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
-    """The steepest slope of each cell (rise over run; central differences, one-sided at edges and beside nodata)."""
-    z = dem * z_metres
-    gy, gx = np.gradient(z, cell_metres)
-    # where a neighbour is NaN, np.gradient's central difference is NaN: take the cell as flat there
-    return np.nan_to_num(np.hypot(gx, gy), nan=0.0)
-
-
-def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, fixed_speed=None, xy_metres: float = 1.0,
-                   z_metres: float | None = None, neighbours: int = 16, isotropic: bool = False,
-                   tobler: tuple = TOBLER, max_memory: float = 4e9, progress=None) -> np.ndarray:
-    """Minutes to walk from the nearest of ``sources`` to each cell of ``dem``.
-
-    A directed graph of the grid's cells, each step weighted by its length times the mean slowness (1 / speed) of
-    the cells it crosses on the step's slope (uphill one way, downhill the other), solved by scipy's Dijkstra.
-    Speeds in km/h.
-
-    Parameters
-    ----------
-    dem : numpy.ndarray
-        2-D array of heights, rows north to south, square cells. NaN: no data, impassable unless at a
-        ``fixed_speed`` (a step to or from such a cell is taken as level).
-    cell_size : float
-        The cell's side in CRS units (``xy_metres`` metres each).
-    sources : sequence of (int, int)
-        (row, column) of the start cells.
-    factor : numpy.ndarray, optional
-        Multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). None: 1 everywhere.
-    fixed_speed : numpy.ndarray, optional
-        Speed in km/h per cell that replaces Tobler's (roads at a road speed, water waded); NaN where Tobler's
-        function applies. None: NaN everywhere.
-    xy_metres : float
-        Metres per CRS unit (1 for metres, 0.3048 for feet, 1200 / 3937 for US survey feet).
-    z_metres : float, optional
-        Metres per height unit. None: ``xy_metres``.
-    neighbours : int
-        8 (the king's moves) or 16 (and the knight's, closer to straight walks). A knight's move crosses two more
-        cells, whose slowness counts in its mean.
-    isotropic : bool
-        Each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours, the cost of
-        ``skimage.graph.MCP_Geometric``).
-    tobler : tuple of float
-        (a in km/h, b, c) of Tobler's hiking function ``v = a exp(-b |s + c|)``, s the slope (rise over run).
-    max_memory : float
-        Bytes the graph may take; a larger grid is refused before any work.
-    progress : callable, optional
-        ``progress(fraction, message)``, told after each move's edges are built (returning False cancels); the
-        shortest paths themselves (scipy) run without a word.
-
-    Returns
-    -------
-    numpy.ndarray
-        float64 minutes, the shape of ``dem``: 0 at the sources, ``inf`` where no walk reaches (water, no data, cut
-        off).
-
-    Raises
-    ------
-    InputError
-        ``neighbours`` is not 8 or 16.
-    OutOfMemoryError
-        The graph's estimate (``BYTES_PER_CELL`` a cell) is above ``max_memory``.
-    Cancelled
-        ``progress`` returned False.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> from gistools import travel_minutes
-    >>> t = travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8)
-    >>> round(float(t[1, 40]), 4)  # 40 m on flat ground at 6 exp(-0.175) km/h
-    0.4765
+    ``factor`` and ``fixed`` as ``travel_minutes`` takes them (None: 1, NaN); ``grad`` each cell's steepest slope
+    (isotropic) or None. A step reads only the cells of the rectangle it spans, so a window's steps are the grid's.
+    ``extra``: (cells, minutes) of a virtual node, the last, with a step of those minutes to each cell (a window's
+    cells seeded with their times). ``progress`` is told after each move's edges.
     """
     from scipy.sparse import csr_matrix
-    from scipy.sparse.csgraph import dijkstra
 
     from ..progress import report
 
-    dem = np.asarray(dem, dtype=np.float64)
+    a_, b_, c_ = tob
     rows, cols = dem.shape
     n = rows * cols
-    offsets = neighbour_offsets(neighbours)
-    check_memory((rows, cols), neighbours, max_memory)
-    z_metres = xy_metres if z_metres is None else z_metres
-    a_, b_, c_ = (float(v) for v in tobler)
-    factor = np.ones_like(dem) if factor is None else np.asarray(factor, dtype=np.float64)
-    fixed = np.full_like(dem, np.nan) if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64)
+    factor = np.ones_like(dem) if factor is None else factor
+    fixed = np.full_like(dem, np.nan) if fixed is None else fixed
     # a cell at a fixed speed (a road, water waded) needs no height: water often has none (no ground under it)
     has_z = np.isfinite(dem)
     passable = (has_z & (np.nan_to_num(factor) > 0)) | (np.isfinite(fixed) & (fixed > 0))
     factor = np.where(passable, np.nan_to_num(factor), 0.0)
-    z = np.where(np.isfinite(dem), dem, 0.0)
-    iso = None
-    if isotropic:
-        iso = _slowness(gradient_magnitude(dem, cell_size * xy_metres, z_metres), factor, fixed, a_, b_, c_)
-    cell_m = cell_size * xy_metres
+    z = np.where(has_z, dem, 0.0)
+    iso = None if grad is None else _slowness(grad, factor, fixed, a_, b_, c_)
     index = np.arange(n, dtype=np.int64).reshape(rows, cols)
     k = len(offsets)
-    targets = np.full((rows, cols, k), -1, dtype=np.int32 if n < 2**31 else np.int64)
+    targets = np.full((rows, cols, k), -1, dtype=np.int32 if n < 2**31 - 1 else np.int64)
     weights = np.zeros((rows, cols, k), dtype=np.float64)
 
     def shifted(a, dr, dc, src):
@@ -204,17 +148,228 @@ def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, f
         t = targets[src + (m,)]
         t[ok] = shifted(index, dr, dc, src)[ok]
         weights[src + (m,)] = np.where(ok, step_m / 1000.0 * slow * MINUTES_PER_HOUR, 0.0)
-        report(progress, 0.5 * (m + 1) / k, f"the walk's graph: move {m + 1} of {k}")
+        report(progress, (m + 1) / k, f"the walk's graph: move {m + 1} of {k}")
+    del index, z, has_z, passable, factor, fixed, iso
     valid = targets >= 0
-    counts = valid.reshape(n, k).sum(axis=1)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(counts, out=indptr[1:])
-    graph = csr_matrix((weights[valid], targets[valid], indptr), shape=(n, n))
+    size = n if extra is None else n + 1
+    indptr = np.zeros(size + 1, dtype=np.int64)
+    np.cumsum(valid.reshape(n, k).sum(axis=1), out=indptr[1:n + 1])
+    data, indices = weights[valid], targets[valid]
     del targets, weights, valid
-    start = np.unique([int(r) * cols + int(cc) for r, cc in sources])
+    if extra is not None:  # the virtual node's steps: the last row
+        seeds, seed_minutes = extra
+        indptr[n + 1] = indptr[n] + len(seeds)
+        data = np.concatenate([data, seed_minutes])
+        indices = np.concatenate([indices, seeds.astype(indices.dtype)])
+    return csr_matrix((data, indices, indptr), shape=(size, size))
+
+
+def _seeded_times(dem, factor, fixed, grad, t0, cell_m, z_metres, tob, offsets) -> np.ndarray:
+    """Shortest times over a window's graph from every cell whose current time ``t0`` is finite, starting at it.
+
+    scipy's Dijkstra starts all its sources at 0: a virtual node starts at 0 with a step of ``t0`` minutes to each
+    seeded cell (0 + t0 is t0 exactly, so the sums are the whole grid's); cells at 0 (the points last seen) are
+    sources themselves (a step of 0 minutes could be taken for no step).
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    t = t0.ravel()
+    n = t.size
+    finite = np.isfinite(t)
+    later = np.flatnonzero(finite & (t > 0))
+    graph = _graph(dem, factor, fixed, grad, cell_m, z_metres, tob, offsets, extra=(later, t[later]))
+    start = np.concatenate([[n], np.flatnonzero(finite & (t <= 0))])
+    return dijkstra(graph, directed=True, indices=start, min_only=True)[:n].reshape(t0.shape)
+
+
+def _block_times(dem, factor, fixed, start, block, isotropic, cell_m, z_metres, tob, offsets, progress=None,
+                 info=None) -> np.ndarray:
+    """Minutes by blocks of ``block`` (rows, columns) cells, each solved with a halo of ``HALO`` cells.
+
+    A block waits while cells of it got lower times from a neighbour's solve; the waiting block with the lowest
+    such time is solved next (its whole window seeded with the current times), until none waits. Every step lies
+    in the window of its start cell's block, which is solved again after that cell's time last fell: the times
+    are the whole graph's shortest paths.
+    """
+    import heapq
+
+    from ..progress import report
+
+    rows, cols = dem.shape
+    sr, sc = block
+    nbr, nbc = -(-rows // sr), -(-cols // sc)
+    minutes = np.full((rows, cols), np.inf)
+    waiting = np.full(nbr * nbc, np.inf)  # the lowest new time in each block since its last solve
+    heap = []
+    for r, c in start:
+        minutes[r, c] = 0.0
+        b = (r // sr) * nbc + c // sc
+        if waiting[b] > 0.0:
+            waiting[b] = 0.0
+            heapq.heappush(heap, (0.0, b))
+    solves, seen = 0, np.zeros(nbr * nbc, dtype=bool)
+    while heap:
+        low, b = heapq.heappop(heap)
+        if low != waiting[b]:
+            continue  # solved since, or waiting with a lower time
+        waiting[b] = np.inf
+        br, bc = divmod(b, nbc)
+        seen[b] = True
+        solves += 1
+        report(progress, 0.95 * seen.sum() / (nbr * nbc),
+               f"shortest walks by blocks: solve {solves}, block {br + 1},{bc + 1} of {nbr} x {nbc}, "
+               f"{int(np.isfinite(waiting).sum())} more waiting")
+        r0, r1 = max(0, br * sr - HALO), min(rows, (br + 1) * sr + HALO)
+        c0, c1 = max(0, bc * sc - HALO), min(cols, (bc + 1) * sc + HALO)
+        win = (slice(r0, r1), slice(c0, c1))
+        grad = None
+        if isotropic:  # central differences read one cell more: the window's slopes are the grid's
+            e0, e1, f0, f1 = max(0, r0 - 1), min(rows, r1 + 1), max(0, c0 - 1), min(cols, c1 + 1)
+            grad = gradient_magnitude(dem[e0:e1, f0:f1], cell_m, z_metres)[r0 - e0:r1 - e0, c0 - f0:c1 - f0]
+        old = minutes[win]
+        new = _seeded_times(dem[win], None if factor is None else factor[win], None if fixed is None else fixed[win],
+                            grad, old, cell_m, z_metres, tob, offsets)
+        lower = new < old
+        if not lower.any():
+            continue
+        old[lower] = new[lower]  # minutes[win] is a view: halo cells lowered too
+        rr, cc = np.nonzero(lower)
+        blocks = ((rr + r0) // sr) * nbc + (cc + c0) // sc
+        lowest = np.full(nbr * nbc, np.inf)
+        np.minimum.at(lowest, blocks, new[lower])
+        for other in np.flatnonzero(lowest < waiting):
+            if other != b:
+                waiting[other] = lowest[other]
+                heapq.heappush(heap, (float(lowest[other]), int(other)))
+    if info is not None:
+        info.update(block_solves=solves, blocks=nbr * nbc, blocks_reached=int(seen.sum()))
+    return minutes
+
+
+def tobler_speed(slope, a: float = TOBLER[0], b: float = TOBLER[1], c: float = TOBLER[2]):
+    """Tobler's hiking function: walking speed in km/h on ``slope`` (rise over run, uphill positive)."""
+    return a * np.exp(-b * np.abs(np.asarray(slope, dtype=np.float64) + c))
+
+
+def _slowness(slope, factor, fixed, a, b, c):
+    """Hours per km on ``slope`` of cells with vegetation ``factor`` (0: impassable) or a ``fixed`` speed (km/h)."""
+    with np.errstate(divide="ignore"):
+        tob = 1.0 / (tobler_speed(slope, a, b, c) * factor)
+        return np.where(np.isfinite(fixed), 1.0 / np.where(np.isfinite(fixed), fixed, 1.0), tob)
+
+
+def gradient_magnitude(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
+    """The steepest slope of each cell (rise over run; central differences, one-sided at edges and beside nodata)."""
+    z = dem * z_metres
+    gy, gx = np.gradient(z, cell_metres)
+    # where a neighbour is NaN, np.gradient's central difference is NaN: take the cell as flat there
+    return np.nan_to_num(np.hypot(gx, gy), nan=0.0)
+
+
+def travel_minutes(dem: np.ndarray, cell_size: float, sources, *, factor=None, fixed_speed=None, xy_metres: float = 1.0,
+                   z_metres: float | None = None, neighbours: int = 16, isotropic: bool = False,
+                   tobler: tuple = TOBLER, max_memory: float = 4e9, block=None, progress=None,
+                   info: dict | None = None) -> np.ndarray:
+    """Minutes to walk from the nearest of ``sources`` to each cell of ``dem``.
+
+    A directed graph of the grid's cells, each step weighted by its length times the mean slowness (1 / speed) of
+    the cells it crosses on the step's slope (uphill one way, downhill the other), solved by scipy's Dijkstra:
+    over the whole grid when its graph fits ``max_memory``, else block by block (``plan_memory``), with the same
+    result. Speeds in km/h.
+
+    Parameters
+    ----------
+    dem : numpy.ndarray
+        2-D array of heights, rows north to south, square cells. NaN: no data, impassable unless at a
+        ``fixed_speed`` (a step to or from such a cell is taken as level).
+    cell_size : float
+        The cell's side in CRS units (``xy_metres`` metres each).
+    sources : sequence of (int, int)
+        (row, column) of the start cells.
+    factor : numpy.ndarray, optional
+        Multiplier of Tobler's speed per cell (1 open ground; 0 or NaN impassable). None: 1 everywhere.
+    fixed_speed : numpy.ndarray, optional
+        Speed in km/h per cell that replaces Tobler's (roads at a road speed, water waded); NaN where Tobler's
+        function applies. None: NaN everywhere.
+    xy_metres : float
+        Metres per CRS unit (1 for metres, 0.3048 for feet, 1200 / 3937 for US survey feet).
+    z_metres : float, optional
+        Metres per height unit. None: ``xy_metres``.
+    neighbours : int
+        8 (the king's moves) or 16 (and the knight's, closer to straight walks). A knight's move crosses two more
+        cells, whose slowness counts in its mean.
+    isotropic : bool
+        Each cell's speed from its steepest slope taken uphill, the same both ways (with 8 neighbours, the cost of
+        ``skimage.graph.MCP_Geometric``).
+    tobler : tuple of float
+        (a in km/h, b, c) of Tobler's hiking function ``v = a exp(-b |s + c|)``, s the slope (rise over run).
+    max_memory : float
+        Bytes the work may take: the whole graph (``BYTES_PER_CELL`` a cell) when it fits, else the cell arrays
+        (``CELL_BYTES`` a cell) and the graph of one block with its halo at a time.
+    block : int or (int, int), optional
+        Solve block by block with blocks of this many cells (rows, columns) whatever ``max_memory`` allows.
+        None: chosen from ``max_memory``.
+    progress : callable, optional
+        ``progress(fraction, message)`` (returning False cancels): told after each move's edges are built over the
+        whole grid (scipy's Dijkstra then runs without a word), or before each block's solve.
+    info : dict, optional
+        Filled with ``method`` ("whole" or "blocks"), ``block``, the memory ``estimate`` in bytes, and block by
+        block ``block_solves`` (blocks solved, again when a neighbour lowered their times), ``blocks`` and
+        ``blocks_reached``.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 minutes, the shape of ``dem``: 0 at the sources, ``inf`` where no walk reaches (water, no data, cut
+        off).
+
+    Raises
+    ------
+    InputError
+        ``neighbours`` is not 8 or 16, or ``block`` is below 1.
+    OutOfMemoryError
+        Even the cell arrays (``CELL_BYTES`` a cell) pass ``max_memory``.
+    Cancelled
+        ``progress`` returned False.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from gistools import travel_minutes
+    >>> t = travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8)
+    >>> round(float(t[1, 40]), 4)  # 40 m on flat ground at 6 exp(-0.175) km/h
+    0.4765
+    >>> bool(np.array_equal(travel_minutes(np.zeros((3, 41)), 1.0, [(1, 0)], neighbours=8, block=(2, 5)), t))
+    True
+    """
+    from scipy.sparse.csgraph import dijkstra
+
+    from ..progress import report, sub_progress
+
+    dem = np.asarray(dem, dtype=np.float64)
+    rows, cols = dem.shape
+    offsets = neighbour_offsets(neighbours)
+    plan = plan_memory((rows, cols), neighbours, max_memory, block)
+    z_metres = xy_metres if z_metres is None else z_metres
+    tob = tuple(float(v) for v in tobler)
+    factor = None if factor is None else np.asarray(factor, dtype=np.float64)
+    fixed = None if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64)
+    cell_m = cell_size * xy_metres
+    start = sorted({(int(r), int(c)) for r, c in sources})
+    if info is not None:
+        info.update(method=plan["method"], block=plan["block"], estimate=plan["bytes"])
+    if plan["method"] == "blocks":
+        minutes = _block_times(dem, factor, fixed, start, plan["block"], isotropic, cell_m, z_metres, tob, offsets,
+                               progress=progress, info=info)
+        report(progress, 1.0, "shortest walks by blocks: done")
+        return minutes
+    grad = gradient_magnitude(dem, cell_m, z_metres) if isotropic else None
+    graph = _graph(dem, factor, fixed, grad, cell_m, z_metres, tob, offsets, progress=sub_progress(progress, 0.0, 0.5))
+    del grad
     report(progress, 0.6, "shortest walks from the points last seen")
-    minutes = dijkstra(graph, directed=True, indices=start, min_only=True)
+    minutes = dijkstra(graph, directed=True, indices=[r * cols + c for r, c in start], min_only=True)
     return minutes.reshape(rows, cols)
+
 
 
 # --- the command: a DEM, its shrub classes, roads and water, the points last seen -> rasters, polygons, report --------
@@ -600,8 +755,9 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         The report, also written to ``out/report.json``: ``isochrones`` (per isochrone ``minutes``, ``area`` in
         ``area_unit``, the CRS unit squared, ``hectares``, ``acres``), ``last_seen``, ``reached_share`` (the share
         of the DEM's cells a walk reaches), ``max_minutes``, ``unit`` and ``vertical_unit``, ``cell_size``,
-        ``speed_model`` (with the ``road_cells`` and ``water_cells`` counted), ``outputs``, ``settings``,
-        ``seconds``.
+        ``speed_model`` (with the ``road_cells`` and ``water_cells`` counted), ``solver`` (``method``: "whole"
+        or "blocks", the ``block`` in cells, and block by block the ``block_solves``), ``memory_estimate`` and
+        ``graph_bytes_estimate`` (the whole graph's) in bytes, ``outputs``, ``settings``, ``seconds``.
 
     Raises
     ------
@@ -614,7 +770,7 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     DataFileError
         The DEM is not found, or the classes raster cannot be read.
     OutOfMemoryError
-        The travel graph's estimate is above ``settings.max_memory``.
+        Even the cell arrays of the block-wise method (``CELL_BYTES`` a cell) pass ``settings.max_memory``.
     OutputExistsError
         ``out`` holds the outputs of an earlier run and ``overwrite`` is False.
     Cancelled
@@ -656,19 +812,22 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
     road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
     _check_starts(points, cells, (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed), water & ~road)
+    del class_codes, road, water
     neighbours = int(settings.neighbours)
-    need = check_memory(grid.shape, neighbours, settings.max_memory * 1e9)
+    plan = plan_memory(grid.shape, neighbours, settings.max_memory * 1e9)
     written = [out / name for name in OUTPUTS if (out / name).exists()]
     if written and not overwrite:
         raise OutputExistsError(f"{written[0].name} is there from an earlier run", path=out,
                                 hint=f"Give another folder, or replace it: {option('overwrite')}")
     with claim_output(out, "gistools travel"):
-        report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours)")
-        solve = time.time()
+        how = "the whole grid" if plan["method"] == "whole" else "blocks of {} x {} cells".format(*plan["block"])
+        report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours, "
+                              f"{how})")
+        solve, solver = time.time(), {}
         minutes = travel_minutes(heights, grid.cell_size, cells, factor=factor, fixed_speed=fixed, xy_metres=xy.metres,
                                  z_metres=z.metres, neighbours=neighbours, isotropic=settings.isotropic,
                                  tobler=tuple(settings.tobler), max_memory=settings.max_memory * 1e9,
-                                 progress=sub_progress(progress, 0.1, 0.8))
+                                 block=plan["block"], progress=sub_progress(progress, 0.1, 0.8), info=solver)
         solve = time.time() - solve
         report(progress, 0.8, "writing the rasters and isochrones")
         reached = np.isfinite(minutes)
@@ -678,7 +837,9 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
             "tool": "gistools travel", "crs_wkt": grid.crs.to_wkt(), "dem": str(dem_path),
             "classes": str(classes_path) if classes_path else None, "unit": xy.short, "vertical_unit": z.short,
             "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height),
-            "graph_bytes_estimate": need,
+            "graph_bytes_estimate": plan["graph_bytes"], "memory_estimate": plan["bytes"],
+            "solver": {"method": plan["method"], "block": list(plan["block"]) if plan["block"] else None,
+                       **{k: solver[k] for k in ("block_solves", "blocks", "blocks_reached") if k in solver}},
             "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
             "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in points],
             "reached_share": float(reached.mean()), "max_minutes": top,
