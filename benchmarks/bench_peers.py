@@ -13,8 +13,11 @@ Products (lasR's equivalent in brackets):
   lasR writes no nDSM];
 * normalize: heights above the ground TIN, LAS out [``normalize()`` + ``write_las()``];
 * metrics: count, z_max, z_mean, z_sd, z_p95 per cell [``rasterize(res, c(...))``];
-* chm: gistools' pit-free CHM (Khosravipour et al. 2014) [lasR's fastest CHM, ``rasterize(res, "max")`` +
-  ``pit_fill()``: a different, lighter method];
+* chm: gistools' pit-free CHM (Khosravipour et al. 2014, several TINs of the first returns' heights) [lasR's
+  spike-free CHM of the same authors (Khosravipour et al. 2016), ``normalize()`` + ``spikefree(res, freeze)``, the
+  freeze distance 3 x the pulse spacing as lasR advises];
+* chm-p2r: the highest first return's height in each cell, both [``normalize()`` + ``rasterize(res, "max",
+  filter = keep_first())``];
 * ground: gistools' default ground filter, LAS out [``classify_with_csf()`` + ``write_las()``].
 
 The tiles are read from copies in ``--workdir`` (lasR writes a ``.lax`` index beside the files it reads).
@@ -23,7 +26,7 @@ Cases: the sample tiles (4 LAS tiles, US survey feet, 5 ft cells), ``../shared/d
 16-tile block of its copies (27 M points), generated once into ``--workdir``.
 
     python benchmarks/bench_peers.py [--repeat 3] [--cases sample,autzen,autzen4,levy,levy16]
-                                     [--products rasters,normalize,metrics,chm,ground] [--jobs-table]
+                                     [--products rasters,normalize,metrics,chm,chm-p2r,ground] [--jobs-table]
 
 ``--jobs-table`` also times ``gistools rasters`` with ``--jobs 1`` and ``--jobs 2`` beside the default (auto).
 
@@ -58,6 +61,7 @@ GISTOOLS = {
     "metrics": lambda src, out, cell: ["metrics", src, "--out", out, "--cell-size", cell, "--metrics",
                                        "count,z_max,z_mean,z_sd,z_p95"],
     "chm": lambda src, out, cell: ["chm", src, "--out", out, "--cell-size", cell],
+    "chm-p2r": lambda src, out, cell: ["chm", src, "--out", out, "--cell-size", cell, "--method", "p2r"],
     "ground": lambda src, out, cell: ["ground", src, "--out", out, "--format", "las"],
 }
 LASR = {
@@ -66,8 +70,10 @@ LASR = {
     "normalize": 'reader() + normalize() + write_las(file.path(out, "*.las"))',
     "metrics": 'reader() + rasterize({res}, c("count", "z_max", "z_mean", "z_sd", "z_p95"), '
                'ofile = file.path(out, "*_metrics.tif"))',
-    "chm": 'reader() + (chm <- rasterize({res}, "max", filter = keep_first())) + '
-           'pit_fill(chm, ofile = file.path(out, "*_chm.tif"))',
+    # a CHM is heights above ground: lasR normalises first as gistools does
+    "chm": 'reader() + normalize() + spikefree({res}, freeze_distance = {freeze}, ofile = file.path(out, "*_chm.tif"))',
+    "chm-p2r": 'reader() + normalize() + rasterize({res}, "max", filter = keep_first(), '
+               'ofile = file.path(out, "*_chm.tif"))',
     # CSF's lengths (0.5 m cloth, 0.5 m threshold) in the data's unit: {m} is a metre in CRS units
     "ground": 'reader() + classify_with_csf(cloth_resolution = 0.5 * {m}, class_threshold = 0.5 * {m}) + '
               'write_las(file.path(out, "*.las"))',
@@ -94,11 +100,26 @@ def gistools_cmd(product: str, src: Path, out: Path, cell: str, jobs: str | None
     return args + (["--jobs", jobs] if jobs else [])
 
 
+def pulse_spacing(files: list[Path]) -> float:
+    """The mean distance between pulses (CRS units): the square root of the area per first return, from the
+    headers (their extents and their counts of first returns)."""
+    import laspy
+
+    area = pulses = 0.0
+    for path in files:
+        with laspy.open(path) as f:
+            h = f.header
+            area += (h.maxs[0] - h.mins[0]) * (h.maxs[1] - h.mins[1])
+            pulses += h.number_of_points_by_return[0] or h.point_count
+    return (area / max(pulses, 1.0)) ** 0.5
+
+
 def lasr_cmd(product: str, files: list[Path], out: Path, res: float, metre: float) -> list:
     strategy = f"concurrent_files({CORES})" if len(files) > 1 else f"concurrent_points({CORES})"
+    freeze = round(3 * pulse_spacing(files), 3) if product == "chm" else 0
     script = (f'suppressMessages(library(lasR)); out <- "{out}"; dir.create(out, showWarnings = FALSE); '
               f'f <- c({", ".join(repr(str(p)) for p in files)}); '
-              f'pipeline <- {LASR[product].format(res=res, m=metre)}; '
+              f'pipeline <- {LASR[product].format(res=res, m=metre, freeze=freeze)}; '
               f'invisible(exec(pipeline, on = f, ncores = {strategy}, progress = FALSE))')
     return ["Rscript", "-e", script]
 
@@ -170,7 +191,7 @@ def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--cases", default="sample,autzen,autzen4,levy,levy16")
-    ap.add_argument("--products", default="rasters,normalize,metrics,chm,ground")
+    ap.add_argument("--products", default="rasters,normalize,metrics,chm,chm-p2r,ground")
     ap.add_argument("--workdir", default=workdir("/tmp/gistools-bench"))
     ap.add_argument("--jobs-table", action="store_true")
     args = ap.parse_args(argv)

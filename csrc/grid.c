@@ -42,3 +42,46 @@ void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
         if (z[i] < out[flat[i]]) out[flat[i]] = z[i];
     }
 }
+
+
+/* Ascending, NaN after every number (numpy's order). */
+static int order_doubles(double a, double b) {
+    if (a < b) return -1;
+    if (a > b) return 1;
+    if (a == b) return 0;
+    return isnan(a) ? (isnan(b) ? 0 : 1) : -1;
+}
+
+static int compare_doubles(const void *a, const void *b) {
+    return order_doubles(*(const double *)a, *(const double *)b);
+}
+
+/* The values of each cell, ascending (metrics' medians and percentiles): out holds the values of cell 0, then cell
+ * 1, ..., each ascending with NaN last, as v[numpy.lexsort((v, cell))]; start[c] is where cell c begins
+ * (start[ncells] = n). A counting sort by cell (cells 0..ncells-1), then each cell's few values sorted in place.
+ * start (ncells + 1) and pos (ncells, scratch) are caller-owned. */
+void gt_cell_sort(int64_t n, const int64_t *cell, const double *v, int64_t ncells, int64_t *start, int64_t *pos,
+                  double *out) {
+    memset(start, 0, (size_t)(ncells + 1) * sizeof(int64_t));
+    for (int64_t k = 0; k < n; k++) start[cell[k] + 1]++;
+    for (int64_t c = 0; c < ncells; c++) start[c + 1] += start[c];
+    memcpy(pos, start, (size_t)ncells * sizeof(int64_t));
+    for (int64_t k = 0; k < n; k++) out[pos[cell[k]]++] = v[k];
+    for (int64_t c = 0; c < ncells; c++) {
+        double *a = out + start[c];
+        int64_t m = start[c + 1] - start[c];
+        if (m > 24) {
+            qsort(a, (size_t)m, sizeof(double), compare_doubles);
+            continue;
+        }
+        for (int64_t i = 1; i < m; i++) {  /* insertion sort: a cell holds a few dozen points */
+            double x = a[i];
+            int64_t j = i - 1;
+            while (j >= 0 && order_doubles(a[j], x) > 0) {
+                a[j + 1] = a[j];
+                j--;
+            }
+            a[j + 1] = x;
+        }
+    }
+}

@@ -167,3 +167,23 @@ def test_metrics_rerun_keeps_tiles_and_overwrite_redoes_them(tmp_path):
 
 def test_shared_data_present_for_metrics():
     need_shared()
+
+
+@pytest.mark.parametrize("engine", ["kernel", "numpy"])
+def test_values_sorted_by_cell_equal_numpys_lexsort(engine, monkeypatch):
+    """The percentiles' grouping (the kernel's counting sort, or two numpy sorts): numpy.lexsort's order, NaN last."""
+    from gistools import kernel
+    from gistools.lidar import metrics
+
+    if engine == "kernel" and not kernel.loaded():
+        pytest.fail("the compiled kernel is not built here") if __import__("os").environ.get("CI") else pytest.skip("no kernel")
+    if engine == "numpy":
+        monkeypatch.setattr(metrics, "_CELL_SORT", None)
+    rng = np.random.default_rng(5)
+    for n, ncells in ((0, 4), (1, 1), (57, 3), (20_000, 900), (50_000, 7)):  # short cells and long ones (qsort)
+        cell = rng.integers(0, ncells, n)
+        v = rng.normal(size=n).round(1)  # ties
+        v[::31] = np.nan
+        out, start = metrics.cell_sorted(cell, v, ncells)
+        np.testing.assert_array_equal(out, v[np.lexsort((v, cell))])
+        np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=ncells))]))
