@@ -38,6 +38,7 @@ from .landscape import LANDSCAPE_BANDS, write_landscape
 __all__ = ["FuelsSettings", "fuels_from_tiles", "tile_fuels", "LAYERS", "LANDSCAPE_BANDS", "GROUND_CLASSES"]
 
 GROUND_CLASSES = (2, 9)  # the TIN of heights above ground, as gistools metrics
+_CHUNK = 20000  # profile columns computed at once (their layers x this many floats per array)
 # the per-cell rasters (float32, in the data's units; kg/m3 for cbd, percent for cover, 0-1 shares)
 LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2", "strata_b3", "shrub_share")
 
@@ -148,7 +149,8 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
     if canopy.any():
         top = _percentile(cell[canopy], hag[canopy], n, run.percentile)
         height = np.where(np.isfinite(top), top, height)
-    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell
+    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell (over the columns
+    # a pulse reaches in that layer: a voxel no pulse reaches has no estimate)
     f = np.asarray(first, bool)
     if column is None:
         colcell, col_of = np.arange(n), np.asarray(cell, np.int64)
@@ -157,18 +159,34 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
         keys, col_of = np.unique(np.asarray(cell, np.int64) * span + column, return_inverse=True)
         colcell, col_of = keys // span, col_of.ravel()
     m = len(colcell)
-    if run.profile == "ratio":
-        clad = ratio_profile(col_of, m, hag, ground, last, dz=run.dz, k=run.k) / run.z_metres
-        seen = np.bincount(col_of, minlength=m)
-    else:
-        counts = layer_counts(col_of[f], m, hag[f], ground[f], dz=run.dz)
-        clad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)
-        seen = counts.sum(axis=1)
-    per = np.bincount(colcell, weights=(seen > 0).astype(float), minlength=n)
-    layers = clad.shape[1]
-    flat_ = (colcell[:, None] * layers + np.arange(layers)).ravel()
-    lad = np.bincount(flat_, weights=clad.ravel(), minlength=n * layers).reshape(n, layers)
-    lad /= np.maximum(per, 1)[:, None]
+    veg_h = np.where(ground, -np.inf, np.maximum(hag, 0.0))
+    layers = int(np.floor(veg_h[np.isfinite(veg_h)].max(initial=0.0) / run.dz)) + 1
+    total = np.zeros((n, layers))
+    sampled = np.zeros((n, layers))
+    seen = np.zeros(m, bool)  # columns with a point (the ratio profile) or a first return (MacArthur-Horn)
+    order = np.argsort(col_of, kind="stable")
+    bounds = np.searchsorted(col_of[order], np.arange(0, m + _CHUNK, _CHUNK))
+    for c0, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if a == b:
+            continue
+        idx = order[a:b]
+        lo, hi = c0 * _CHUNK, min(m, (c0 + 1) * _CHUNK)
+        local = col_of[idx] - lo
+        if run.profile == "ratio":
+            clad = ratio_profile(local, hi - lo, hag[idx], ground[idx], last[idx], dz=run.dz, k=run.k,
+                                 layers=layers) / run.z_metres
+            seen[lo:hi] = np.bincount(local, minlength=hi - lo) > 0
+        else:
+            fi = f[idx]
+            counts = layer_counts(local[fi], hi - lo, hag[idx][fi], ground[idx][fi], dz=run.dz, layers=layers)
+            seen[lo:hi] = counts.sum(axis=1) > 0
+            clad = np.where(seen[lo:hi, None], lad_profile(counts, dz=run.dz * run.z_metres, k=run.k), np.nan)
+        flat_ = (colcell[lo:hi, None] * layers + np.arange(layers)).ravel()
+        ok = np.isfinite(clad)
+        total += np.bincount(flat_, weights=np.where(ok, clad, 0.0).ravel(), minlength=n * layers).reshape(n, layers)
+        sampled += np.bincount(flat_, weights=ok.ravel().astype(float), minlength=n * layers).reshape(n, layers)
+    per = np.bincount(colcell, weights=seen.astype(float), minlength=n)
+    lad = np.where(sampled > 0, total / np.maximum(sampled, 1.0), 0.0)
     no_first = per == 0
     cbd, cbh = cbd_cbh(lad * run.lma, dz=run.dz, floor=run.floor, window=run.window, threshold=run.threshold)
     cbd = np.where(has, np.where(no_first, np.nan, cbd), np.nan)
