@@ -142,10 +142,11 @@ def test_slope_and_aspect_equal_gdaldem(stand, tmp_path):
         np.testing.assert_array_equal(land[band][1:-1, 1:-1], np.rint(ref[1:-1, 1:-1]).astype(np.int16), err_msg=what)
 
 
-def reference_fuels(path, cs, unit_m, column_m=1.0, dz_m=1.0, floor_m=2.0, k=0.5, lma=0.141, window=3, thr=0.012):
-    """Per cell (kx, ky): cover, CBD and CBH by loops over the points, heights above a scipy TIN of the ground; each
-    voxel (column x layer) by Pimont et al.'s bias-corrected estimator (returns / path - sum of the paths ended by a
-    last return / path**2), the cell's layer the mean of the voxels some pulse reaches."""
+def reference_fuels(path, cs, unit_m, pulses=20, dz_m=1.0, floor_m=2.0, k=0.5, lma=0.141, window=3, thr=0.012):
+    """Per cell (kx, ky): cover, CBD and CBH by loops over the points, heights above a scipy TIN of the ground; the
+    cell split into q x q columns, q = round(sqrt(first returns / pulses)); each voxel (column x layer) by Pimont et
+    al.'s bias-corrected estimator (returns / path - sum of the paths ended by a last return / path**2), the cell's
+    layer the mean of the voxels some pulse reaches."""
     las = laspy.read(path)
     x, y, z = np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)
     c, r, n = np.asarray(las.classification), np.asarray(las.return_number), np.asarray(las.number_of_returns)
@@ -155,9 +156,8 @@ def reference_fuels(path, cs, unit_m, column_m=1.0, dz_m=1.0, floor_m=2.0, k=0.5
     h, tied = reference_tin_heights(x, y, z, gx[first_of], gy[first_of], gz[first_of])
     tied |= np.isnan(h)  # outside the ground's hull scipy has no height (gistools extrapolates, as lidR): left out
     h = np.round(np.nan_to_num(h), 9)  # as gistools: a return on a layer's boundary falls on one side whatever the TIN's last bits
-    dz, floor, col = dz_m / unit_m, floor_m / unit_m, column_m / unit_m
+    dz, floor = dz_m / unit_m, floor_m / unit_m
     kx, ky = np.floor(x / cs).astype(int), np.floor(y / cs).astype(int)
-    cx, cy = np.floor(x / col).astype(int), np.floor(y / col).astype(int)
     hv = np.where(g, -np.inf, np.maximum(h, 0))
     out = {}
     for key in set(zip(kx, ky)):
@@ -165,6 +165,9 @@ def reference_fuels(path, cs, unit_m, column_m=1.0, dz_m=1.0, floor_m=2.0, k=0.5
         first = m & (r <= 1)
         cover = 100.0 * np.count_nonzero(first & ~g & (h > floor)) / np.count_nonzero(first)
         layers = int(np.floor(hv[m & ~g].max(initial=0) / dz)) + 1
+        q = max(1, int(np.rint(np.sqrt(np.count_nonzero(first) / pulses))))
+        cx = np.minimum(np.floor((x / cs - key[0]) * q), q - 1)
+        cy = np.minimum(np.floor((y / cs - key[1]) * q), q - 1)
         lads = []
         pts = np.flatnonzero(m)
         for cc in set(zip(cx[pts], cy[pts])):
