@@ -42,22 +42,49 @@ def at_cells(path, st):
     return np.array(out)
 
 
-def test_the_stand_s_known_answers(stand):
-    """CBH (FVS's rule on the exact profile) within 1 m in >= 90 % of the canopy cells, CBD within 25 %, cover
-    within 2 points of percent, height within 0.5 m of the domes' tops (1 m of the cones' apexes, which few pulses
-    meet); the bare cell 0 everywhere."""
-    st, truth, folder, whole, _ = stand
-    assert whole["counts"]["ok"] == 1
-    out = folder / "whole"
+def apex_shortfall_cdf(cells, s, *, density=20.0, k=0.5, lma=0.141):
+    """P(the highest return of a cone cell lies less than ``s`` metres below the apex), from the sampling alone:
+    pulses a Poisson process of ``density`` per m2, the crown surface ``(top - base) r / R`` below the apex at
+    distance r, the first return an exponential depth of rate k x LAD below it (the stand's Beer-Lambert returns);
+    the cell's n trees alike. ``cells``: rows of stand.cells; ``s``: metres (one per cell)."""
+    out = []
+    for (_c, _r, base, top, radius, spacing, rho, _shape), si in zip(cells, s):
+        n = int(30.0 // spacing) ** 2
+        mu = k * rho / lma
+        r = np.linspace(0.0, radius, 4001)
+        gap = np.clip(si - (top - base) * r / radius, 0.0, None)
+        hit = 2 * np.pi * r * np.where(gap > 0, 1 - np.exp(-mu * gap), 0.0)
+        out.append(1 - np.exp(-density * n * np.sum((hit[1:] + hit[:-1]) / 2) * (r[1] - r[0])))
+    return np.array(out)
+
+
+def stand_answers(seed, folder):
+    st = make_stand(shape=(5, 4), seed=seed)
+    write_stand(st, stand_points(st, seed=1), folder, tiles=(1, 1))
+    fuels_from_tiles(folder / "stand.las", folder / "out")
+    return st, stand_truth(st), {k: at_cells(folder / "out" / f"{k}.vrt", st) for k in ("cbh", "cbd", "cover", "height")}
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 7, 11])
+def test_the_stand_s_known_answers(seed, tmp_path):
+    """The acceptance on stands of several seeds: CBH (FVS's rule on the exact profile, which reads sparse crowns
+    above their geometric base or not at all) within 1 m in >= 90 % of the canopy cells, CBD within 25 %, cover
+    within 2 points of percent, height within 0.5 m of the domes' tops; the bare cell 0 everywhere. A cone's apex
+    is narrower than the pulses' spacing: its highest return is never above it and lies below it by what the
+    sampling allows (the 0.1 % - 99.9 % range of :func:`apex_shortfall_cdf`): 0.33 m on average, more than 0.5 m in
+    one cone cell of eight at 20 pulses per m2, so the 0.5 m line does not hold for cones."""
+    st, truth, got = stand_answers(seed, tmp_path)
     canopy = st.cells[:, 5] > 0
-    got = {k: at_cells(out / f"{k}.vrt", st) for k in ("cbh", "cbd", "cover", "height")}
     assert np.mean(np.abs(got["cbh"] - truth["cbh"])[canopy] <= 1.0) >= 0.9
-    assert np.all(np.abs(got["cbh"] - truth["base"])[canopy] <= 1.5)  # and near the crowns' geometric base
     assert np.all(np.abs(got["cbd"][canopy] / truth["cbd"][canopy] - 1) <= 0.25)
     assert np.all(np.abs(got["cover"] - truth["cover"]) <= 2.0)
     dome = canopy & (st.cells[:, 7] == 1)
     assert np.all(np.abs(got["height"] - truth["height"])[dome] <= 0.5)
-    assert np.all(np.abs(got["height"] - truth["height"])[canopy & ~dome] <= 1.0)
+    cone = canopy & (st.cells[:, 7] == 0)
+    shortfall = (truth["height"] - got["height"])[cone]
+    assert np.all(shortfall >= -0.05)
+    p = apex_shortfall_cdf(st.cells[cone], shortfall)
+    assert np.all((p > 0.001) & (p < 0.999)), p
     for k in got:
         assert np.all(got[k][~canopy] == 0), k
 
@@ -115,8 +142,11 @@ def test_slope_and_aspect_equal_gdaldem(stand, tmp_path):
         np.testing.assert_array_equal(land[band][1:-1, 1:-1], np.rint(ref[1:-1, 1:-1]).astype(np.int16), err_msg=what)
 
 
-def reference_fuels(path, cs, unit_m, column_m=2.0, dz_m=1.0, floor_m=2.0, k=0.5, lma=0.141, window=3, thr=0.012):
-    """Per cell (kx, ky): cover, CBD and CBH by loops over the points, heights above a scipy TIN of the ground."""
+def reference_fuels(path, cs, unit_m, pulses=20, dz_m=1.0, floor_m=2.0, k=0.5, lma=0.141, window=3, thr=0.012):
+    """Per cell (kx, ky): cover, CBD and CBH by loops over the points, heights above a scipy TIN of the ground; the
+    cell split into q x q columns, q = round(sqrt(first returns / pulses)); each voxel (column x layer) by Pimont et
+    al.'s bias-corrected estimator (returns / path - sum of the paths ended by a last return / path**2), the cell's
+    layer the mean of the voxels some pulse reaches."""
     las = laspy.read(path)
     x, y, z = np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)
     c, r, n = np.asarray(las.classification), np.asarray(las.return_number), np.asarray(las.number_of_returns)
@@ -126,27 +156,35 @@ def reference_fuels(path, cs, unit_m, column_m=2.0, dz_m=1.0, floor_m=2.0, k=0.5
     h, tied = reference_tin_heights(x, y, z, gx[first_of], gy[first_of], gz[first_of])
     tied |= np.isnan(h)  # outside the ground's hull scipy has no height (gistools extrapolates, as lidR): left out
     h = np.round(np.nan_to_num(h), 9)  # as gistools: a return on a layer's boundary falls on one side whatever the TIN's last bits
-    dz, floor, col = dz_m / unit_m, floor_m / unit_m, column_m / unit_m
+    dz, floor = dz_m / unit_m, floor_m / unit_m
     kx, ky = np.floor(x / cs).astype(int), np.floor(y / cs).astype(int)
+    hv = np.where(g, -np.inf, np.maximum(h, 0))
     out = {}
     for key in set(zip(kx, ky)):
         m = (kx == key[0]) & (ky == key[1])
         first = m & (r <= 1)
         cover = 100.0 * np.count_nonzero(first & ~g & (h > floor)) / np.count_nonzero(first)
-        hv = np.where(g, -np.inf, np.maximum(h, 0))
         layers = int(np.floor(hv[m & ~g].max(initial=0) / dz)) + 1
-        cx, cy = np.floor(x / col).astype(int), np.floor(y / col).astype(int)
+        q = max(1, int(np.rint(np.sqrt(np.count_nonzero(first) / pulses))))
+        cx = np.minimum(np.floor((x / cs - key[0]) * q), q - 1)
+        cy = np.minimum(np.floor((y / cs - key[1]) * q), q - 1)
         lads = []
-        for cc in set(zip(cx[m], cy[m])):
-            mm = m & (cx == cc[0]) & (cy == cc[1])
-            lad = np.zeros(layers)
+        pts = np.flatnonzero(m)
+        for cc in set(zip(cx[pts], cy[pts])):
+            mm = pts[(cx[pts] == cc[0]) & (cy[pts] == cc[1])]
+            veg_h, lasts = hv[mm][~g[mm]], hv[mm][r[mm] >= n[mm]]
+            lad = np.full(layers, np.nan)
             for i in range(layers):
-                events = np.count_nonzero(mm & ~g & (np.floor(hv / dz) == i))
-                lasts = hv[mm & (r >= n)]
+                events = np.count_nonzero(np.floor(veg_h / dz) == i)
                 exposure = np.clip((i + 1) * dz - lasts, 0, dz).sum()
-                lad[i] = events / (k * exposure * unit_m) if exposure > 0 else 0.0
+                ended_here = lasts[(lasts >= i * dz) & (lasts < (i + 1) * dz)]
+                cut = ((i + 1) * dz - ended_here).sum()
+                if np.count_nonzero(lasts < (i + 1) * dz):
+                    lad[i] = (events / exposure - cut / exposure ** 2) / (k * unit_m) if exposure > 0 else 0.0
             lads.append(lad)
-        bulk = np.mean(lads, axis=0) * lma
+        lads = np.array(lads)
+        seen = np.isfinite(lads).sum(axis=0)
+        bulk = np.where(seen > 0, np.nansum(lads, axis=0) / np.maximum(seen, 1), 0.0) * lma
         bulk[np.arange(layers) * dz < floor - 1e-9] = 0
         smooth = np.convolve(np.concatenate([np.zeros(1), bulk, np.zeros(1)]), np.ones(window) / window, "valid")
         smooth[np.arange(layers) * dz < floor - 1e-9] = 0

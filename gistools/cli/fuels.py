@@ -16,8 +16,8 @@ from .spec import spec_options
 @overwrite_opt
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinction, leaf_mass_area, running_mean,
-          cbh_threshold, column, profile, bands, noise_floor, class_breaks, fuel_raster, fuel_codes, latitude, buffer, crs, jobs,
-          overwrite, scheduler, quiet):
+          cbh_threshold, column, column_pulses, profile, bands, noise_floor, class_breaks, fuel_raster, fuel_codes, latitude,
+          buffer, crs, jobs, overwrite, scheduler, quiet):
     """Canopy fuels of every tile of INPUTS (files, folders, globs or a .vpc) on LANDFIRE's 30 m lattice (100 ft on
     data in feet): OUT/<layer>/<tile>.tif and OUT/<layer>.vrt for elevation, cover, height, cbh, cbd and the strata
     shares; OUT/landscape.tif (8 int16 bands, LANDFIRE's order and encodings) and OUT/landscape.lcp (FlamMap);
@@ -30,7 +30,8 @@ def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinc
     """
     settings = FuelsSettings(cell_size=cell_size, canopy_floor=canopy_floor, height_percentile=height_percentile,
                              layer=layer, extinction=extinction, leaf_mass_area=leaf_mass_area, running_mean=running_mean,
-                             cbh_threshold=cbh_threshold, column=column, profile=profile, bands=bands, noise_floor=noise_floor,
+                             cbh_threshold=cbh_threshold, column=column, column_pulses=column_pulses, profile=profile,
+                             bands=bands, noise_floor=noise_floor,
                              class_breaks=class_breaks, fuel_raster=fuel_raster, fuel_codes=fuel_codes,
                              latitude=latitude, buffer=buffer, crs=crs)
     with progress_bar(quiet) as progress:

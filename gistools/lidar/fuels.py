@@ -1,9 +1,10 @@
 """Canopy fuels of a cell from its returns' heights above ground (pure functions over numpy arrays).
 
-The vertical profile, in layers of thickness dz from the ground up, by one of two estimators. The ratio estimator
-(Pimont et al. 2018, for vertical pulses): every return above the ground in a layer is an interception, divided by
-k times the pulses' path through the layer down to their last return. MacArthur and Horn (1969): ``N_in(i)`` is the
-number of pulses that reach layer i (first returns in it or below it, ground returns included) and ``N_out(i)`` the
+The vertical profile, in layers of thickness dz from the ground up, by one of two estimators. The bias-corrected
+ratio estimator (Pimont et al. 2018, for vertical pulses): every return above the ground in a layer is an
+interception, divided by k times the pulses' path through the layer down to their last return, less the bias that
+the paths cut short by a last return cause; NaN in a layer no pulse reaches. MacArthur and Horn (1969): ``N_in(i)``
+is the number of pulses that reach layer i (first returns in it or below it, ground returns included) and ``N_out(i)`` the
 number that leave it (first returns below it); ``LAD_i = ln(N_in / N_out) / (k dz)`` (Beer-Lambert, extinction k);
 a layer no pulse leaves takes ``N_out = 1``, a layer no pulse reaches has LAD 0. Bulk density is LAD times the leaf mass per
 area (LMA). Canopy bulk density (CBD) is the largest centred running mean of the bulk density above the canopy
@@ -46,11 +47,17 @@ def lad_profile(counts: np.ndarray, *, dz: float, k: float) -> np.ndarray:
 
 
 def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers: int | None = None) -> np.ndarray:
-    """Leaf area density per cell and layer by the ratio estimator over the pulses' path (Pimont et al. 2018,
-    vertical pulses): every return above the ground is an interception; a pulse is exposed in a layer from the
-    layer's top down to its last return (the whole layer when it ends on the ground or below):
-    ``LAD_i = returns_i / (k * exposure_i)``. Heights and ``dz`` share a unit; the result is per that unit (the
-    caller divides by the unit's metres for m2/m3). ``last``: True for each pulse's last return."""
+    """Leaf area density per cell (a profile column) and layer: the bias-corrected maximum-likelihood estimator of
+    Pimont et al. (2018) for vertical pulses, NaN in a layer no pulse reaches.
+
+    Every return above the ground is an interception; a pulse's path in a layer runs from the layer's top down to
+    its last return (the whole layer when it ends on the ground or below). With N the returns of layer i, S the
+    pulses' path through it and, for the pulses whose last return lies in it, z their path from the layer's top to
+    that return: ``k LAD_i = N / S - sum(z) / S**2``. N / S is the ratio (maximum-likelihood) estimator; the second
+    term removes its bias, which a path cut short by the interception that ends it causes (the ratio estimator of a
+    layer one pulse reaches with one return left is 1 / z, unbounded; the corrected one 0). Heights and ``dz`` share
+    a unit; the result is per that unit (the caller divides by the unit's metres for m2/m3). ``last``: True for each
+    pulse's last return."""
     cell = np.asarray(cell, np.int64)
     h = np.asarray(h, np.float64)
     ground = np.asarray(ground, bool)
@@ -68,9 +75,12 @@ def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers:
     inside = np.bincount(cl * width + lj + 1, weights=np.where(lj >= 0, (lj + 1) * dz - np.where(np.isfinite(hl), hl, 0.0),
                                                                0.0), minlength=n * width).reshape(n, width)
     below = np.cumsum(ended, axis=1)[:, :-1]  # pulses whose last return is below layer i
-    exposure = dz * below + inside[:, 1:]
+    cut = inside[:, 1:]  # sum(z): the paths of the pulses whose last return is in layer i
+    exposure = dz * below + cut
+    reached = below + ended[:, 1:]  # pulses with a path in layer i
     with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(exposure > 0, events / (k * exposure), 0.0)
+        att = (events * exposure - cut) / exposure ** 2
+        return np.where(reached > 0, np.where(exposure > 0, att, 0.0) / k, np.nan)
 
 
 def running_mean(profile: np.ndarray, window: int) -> np.ndarray:

@@ -8,7 +8,7 @@ Every constant of the method is one of these parameters (docs/commands/fuels.md 
 from .core import COMMAND_DEFAULTS, ByUnits, Parameter, command, declare, option
 from . import common, lidar, rasters, shrub  # noqa: F401  (declared there)
 
-PROFILES = {"ratio": "Returns over path length (Pimont et al. 2018)",
+PROFILES = {"ratio": "Returns over path length, bias-corrected (Pimont et al. 2018)",
             "macarthur-horn": "ln(N_in / N_out) of first returns (MacArthur-Horn)"}
 
 declare(
@@ -32,12 +32,19 @@ declare(
     Parameter("cbh_threshold", "float", "Canopy base height: the lowest layer whose running-mean bulk density exceeds "
               "this (kg/m3; FVS 0.011, LANDFIRE and LidarForFuel 0.012).", "Canopy base threshold (kg/m3)",
               default=0.012, minimum=0.0, example="0.012", advanced=True),
-    Parameter("column", "length", "The profile is computed in columns this wide, then averaged over the cell, so that "
-              "gaps between crowns do not dilute the crowns' density (0: one profile per cell).", "Profile column width",
-              default="2m", minimum=0.0, example="2m", advanced=True),
+    Parameter("column", "length", "The profile is computed in columns of the cell (voxels of a column by a layer), "
+              "then averaged over the cell, so that gaps between crowns do not dilute the crowns' density; wider columns "
+              "mix crown and gap and read the crowns too thin, narrower ones get too few pulses. The cell is split into "
+              "equal square columns about this wide (0: one profile per cell).", "Profile column width",
+              default_text=f"columns that get {option('column_pulses')} pulses each (1 m at 20 pulses per m2)",
+              minimum=0.0, example="1m", advanced=True),
+    Parameter("column_pulses", "int", f"Without {option('column')}, each cell is split into the square columns that "
+              "get this many pulses (first returns) on average, so that a layer only some of them reach keeps the few "
+              "pulses the bias-corrected estimator needs (Pimont et al. 2018: five or more).",
+              "Pulses per profile column", default=20, minimum=1, example="20", advanced=True),
     Parameter("profile", "choice", "The leaf area density estimator of each layer: ratio, every return in the layer "
-              "over k times the pulses' path through it down to their last return (Pimont et al. 2018); "
-              "macarthur-horn, ln(N_in / N_out) / (k dz) of the first returns (MacArthur and Horn 1969).",
+              "over k times the pulses' path through it down to their last return, bias-corrected (Pimont et al. "
+              "2018); macarthur-horn, ln(N_in / N_out) / (k dz) of the first returns (MacArthur and Horn 1969).",
               "Leaf area density estimator", default="ratio", choices=PROFILES, advanced=True),
     Parameter("fuel_raster", "raster", "A fuel-model raster (Scott and Burgan 40 codes, e.g. LANDFIRE FBFM40), "
               f"sampled at the cell centres; without it the codes of {option('fuel_codes')} follow the shrub class.",
@@ -52,7 +59,7 @@ declare(
 )
 
 FUELS = command("fuels", "cell_size", "canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area",
-                "running_mean", "cbh_threshold", "column", "profile", "bands", "noise_floor", "class_breaks", "fuel_raster", "fuel_codes",
+                "running_mean", "cbh_threshold", "column", "column_pulses", "profile", "bands", "noise_floor", "class_breaks", "fuel_raster", "fuel_codes",
                 "latitude", "buffer", "crs", "jobs", "overwrite", "scheduler")
 
 # LANDFIRE's 30 m lattice; 100 ft on data in feet (30.48 m) reads naturally there

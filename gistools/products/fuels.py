@@ -38,6 +38,7 @@ from .landscape import LANDSCAPE_BANDS, write_landscape
 __all__ = ["FuelsSettings", "fuels_from_tiles", "tile_fuels", "LAYERS", "LANDSCAPE_BANDS", "GROUND_CLASSES"]
 
 GROUND_CLASSES = (2, 9)  # the TIN of heights above ground, as gistools metrics
+_CHUNK = 20000  # profile columns computed at once (their layers x this many floats per array)
 # the per-cell rasters (float32, in the data's units; kg/m3 for cbd, percent for cover, 0-1 shares)
 LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2", "strata_b3", "shrub_share")
 
@@ -45,7 +46,8 @@ LAYERS = ("elevation", "cover", "height", "cbh", "cbd", "strata_b1", "strata_b2"
 @dataclass(frozen=True)
 class FuelsSettings:
     """Parameters of ``gistools fuels`` (declared in gistools.parameters.fuels: names, defaults, help). Lengths take a
-    unit or are in the tiles' CRS units; ``cell_size`` None is 30 m (100 ft on data in feet). ``extinction`` k,
+    unit or are in the tiles' CRS units; ``cell_size`` None is 30 m (100 ft on data in feet); ``column`` None: the
+    cell's profile columns get ``column_pulses`` first returns each (1 m at 20 pulses per m2). ``extinction`` k,
     ``leaf_mass_area`` kg/m2, ``cbh_threshold`` kg/m3; ``fuel_raster`` a raster of fuel-model codes or None
     (``fuel_codes`` follow the shrub class); ``latitude`` None: the tiles' centre."""
 
@@ -63,16 +65,20 @@ class FuelsSettings:
     fuel_raster: str | None = None
     fuel_codes: tuple = default_for("fuel_codes")
     latitude: float | None = None
-    column: str | float = default_for("column")
+    column: str | float | None = None
+    column_pulses: int = default_for("column_pulses")
     profile: str = default_for("profile")
     buffer: str | float = COMMAND_DEFAULTS["fuels"]["buffer"]
     crs: str | None = None
 
     def validate(self) -> None:
         names = ["canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area", "running_mean",
-                 "cbh_threshold", "column", "profile", "bands", "noise_floor", "class_breaks", "fuel_codes", "buffer"]
+                 "cbh_threshold", "column_pulses", "profile", "bands", "noise_floor", "class_breaks", "fuel_codes",
+                 "buffer"]
         if self.cell_size is not None:
             names.append("cell_size")
+        if self.column is not None:
+            names.append("column")
         if self.latitude is not None:
             names.append("latitude")
         check_all(self, names)
@@ -100,9 +106,10 @@ class _Run:
     z_metres: float  # metres per z unit
     z_unit: str
     xy_metres: float  # metres per xy unit
-    column: float = 0.0  # xy unit
+    column: float | None = None  # xy unit; None: from column_pulses
     profile: str = "ratio"
     xy_unit: str = ""
+    column_pulses: int = 20
 
 
 def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
@@ -118,8 +125,9 @@ def _run(settings: FuelsSettings, info, crs, out: Path) -> _Run:
                 name="canopy floor"), float(settings.height_percentile), dz, float(settings.extinction),
                 float(settings.leaf_mass_area), max(1, int(round(depth / dz))), float(settings.cbh_threshold),
                 (floor, t1, t2, t3), length_to_crs_units(settings.buffer, xy, name="buffer"), str(out), crs.to_wkt(),
-                z.metres, z.short, xy.metres, length_to_crs_units(settings.column, xy, name="column"),
-                settings.profile, xy.short)
+                z.metres, z.short, xy.metres,
+                None if settings.column is None else length_to_crs_units(settings.column, xy, name="column"),
+                settings.profile, xy.short, int(settings.column_pulses))
 
 
 def _percentile(cell, v, n, p) -> np.ndarray:
@@ -148,7 +156,8 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
     if canopy.any():
         top = _percentile(cell[canopy], hag[canopy], n, run.percentile)
         height = np.where(np.isfinite(top), top, height)
-    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell
+    # the leaf area density profile (m2/m3), per column then the columns' mean in each cell (over the columns
+    # a pulse reaches in that layer: a voxel no pulse reaches has no estimate)
     f = np.asarray(first, bool)
     if column is None:
         colcell, col_of = np.arange(n), np.asarray(cell, np.int64)
@@ -157,24 +166,58 @@ def cell_fuels(cell, n: int, hag, first, ground, run: _Run, column=None, last=No
         keys, col_of = np.unique(np.asarray(cell, np.int64) * span + column, return_inverse=True)
         colcell, col_of = keys // span, col_of.ravel()
     m = len(colcell)
-    if run.profile == "ratio":
-        clad = ratio_profile(col_of, m, hag, ground, last, dz=run.dz, k=run.k) / run.z_metres
-        seen = np.bincount(col_of, minlength=m)
-    else:
-        counts = layer_counts(col_of[f], m, hag[f], ground[f], dz=run.dz)
-        clad = lad_profile(counts, dz=run.dz * run.z_metres, k=run.k)
-        seen = counts.sum(axis=1)
-    per = np.bincount(colcell, weights=(seen > 0).astype(float), minlength=n)
-    layers = clad.shape[1]
-    flat_ = (colcell[:, None] * layers + np.arange(layers)).ravel()
-    lad = np.bincount(flat_, weights=clad.ravel(), minlength=n * layers).reshape(n, layers)
-    lad /= np.maximum(per, 1)[:, None]
+    veg_h = np.where(ground, -np.inf, np.maximum(hag, 0.0))
+    layers = int(np.floor(veg_h[np.isfinite(veg_h)].max(initial=0.0) / run.dz)) + 1
+    total = np.zeros((n, layers))
+    sampled = np.zeros((n, layers))
+    seen = np.zeros(m, bool)  # columns with a point (the ratio profile) or a first return (MacArthur-Horn)
+    order = np.argsort(col_of, kind="stable")
+    bounds = np.searchsorted(col_of[order], np.arange(0, m + _CHUNK, _CHUNK))
+    for c0, (a, b) in enumerate(zip(bounds[:-1], bounds[1:])):
+        if a == b:
+            continue
+        idx = order[a:b]
+        lo, hi = c0 * _CHUNK, min(m, (c0 + 1) * _CHUNK)
+        local = col_of[idx] - lo
+        if run.profile == "ratio":
+            clad = ratio_profile(local, hi - lo, hag[idx], ground[idx], last[idx], dz=run.dz, k=run.k,
+                                 layers=layers) / run.z_metres
+            seen[lo:hi] = np.bincount(local, minlength=hi - lo) > 0
+        else:
+            fi = f[idx]
+            counts = layer_counts(local[fi], hi - lo, hag[idx][fi], ground[idx][fi], dz=run.dz, layers=layers)
+            seen[lo:hi] = counts.sum(axis=1) > 0
+            clad = np.where(seen[lo:hi, None], lad_profile(counts, dz=run.dz * run.z_metres, k=run.k), np.nan)
+        flat_ = (colcell[lo:hi, None] * layers + np.arange(layers)).ravel()
+        ok = np.isfinite(clad)
+        total += np.bincount(flat_, weights=np.where(ok, clad, 0.0).ravel(), minlength=n * layers).reshape(n, layers)
+        sampled += np.bincount(flat_, weights=ok.ravel().astype(float), minlength=n * layers).reshape(n, layers)
+    per = np.bincount(colcell, weights=seen.astype(float), minlength=n)
+    lad = np.where(sampled > 0, total / np.maximum(sampled, 1.0), 0.0)
     no_first = per == 0
     cbd, cbh = cbd_cbh(lad * run.lma, dz=run.dz, floor=run.floor, window=run.window, threshold=run.threshold)
     cbd = np.where(has, np.where(no_first, np.nan, cbd), np.nan)
     cbh = np.where(has, np.where(no_first, np.nan, cbh), np.nan)
     return {"cover": cover, "height": height, "cbh": cbh, "cbd": cbd, "strata_b1": shares["b1"],
             "strata_b2": shares["b2"], "strata_b3": shares["b3"], "shrub_share": shares["shrub"]}
+
+
+def profile_columns(grid, x, y, flat, first, run: _Run) -> np.ndarray:
+    """Per point, the key of its profile column within its cell (``flat``: the points' cells): each cell split into
+    q x q equal squares, q = round(cell / ``run.column``), or, ``run.column`` None, the q that gives each square
+    ``run.column_pulses`` first returns on average (q = round(sqrt(first returns in the cell / column_pulses)))."""
+    n = grid.width * grid.height
+    if run.column is None:
+        pulses = np.bincount(flat[np.asarray(first, bool)], minlength=n)
+        q = np.maximum(1, np.rint(np.sqrt(pulses / run.column_pulses))).astype(np.int64)
+    else:
+        q = np.full(n, max(1, int(round(grid.cell_size / run.column))), np.int64)
+    qp = q[flat]
+    fx, fy = np.divide(x, grid.cell_size, dtype=np.float64), np.divide(y, grid.cell_size, dtype=np.float64)
+    fx, fy = fx - np.floor(fx), fy - np.floor(fy)  # the position inside the cell (cell_index's floor), 0-1
+    sx = np.minimum((fx * qp).astype(np.int64), qp - 1)
+    sy = np.minimum((fy * qp).astype(np.int64), qp - 1)
+    return sx * int(q.max(initial=1)) + sy
 
 
 def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict]:
@@ -194,12 +237,12 @@ def tile_fuels(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, dict
     # neighbours may round the other way; rounded to 1e-9 of the unit, it falls on one side in every run
     hag = np.round(hag, 9)
     n = grid.width * grid.height
+    first = allp["return_number"][use] <= 1
     column = None
-    if run.column > 0 and use.any():
-        cx_, cy_ = np.floor(allp["x"][use] / run.column), np.floor(allp["y"][use] / run.column)
-        column = (cx_ - cx_.min()).astype(np.int64) * (int(cy_.max() - cy_.min()) + 1) + (cy_ - cy_.min()).astype(np.int64)
+    if (run.column is None or run.column > 0) and use.any():
+        column = profile_columns(grid, allp["x"][use], allp["y"][use], flat[use], first, run)
     last = allp["return_number"][use] >= allp["number_of_returns"][use]
-    out = cell_fuels(flat[use], n, hag, allp["return_number"][use] <= 1, g[use], run, column, last)
+    out = cell_fuels(flat[use], n, hag, first, g[use], run, column, last)
     cx, cy = np.meshgrid(*cell_centres(grid))
     elev, _ = ground_height_at(allp["x"][g], allp["y"][g], allp["z"][g], cx.ravel(), cy.ravel())
     out["elevation"] = np.asarray(elev, np.float64)
@@ -338,6 +381,7 @@ def _fuels_in(paths, out: Path, settings: FuelsSettings, override, jobs, schedul
     units = None if run is None else {
         "cell_size": run.cell_size, "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
         "canopy_floor": run.floor, "layer": run.dz, "running_mean_layers": run.window, "extinction": run.k,
+        "profile_column": run.column, "column_pulses": run.column_pulses if run.column is None else None,
         "leaf_mass_area_kg_m2": run.lma, "cbh_threshold_kg_m3": run.threshold, "height_percentile": run.percentile,
         "band_limits": list(run.bands)}
     return write_batch_report(out, "gistools fuels", crs_label(first.crs) if first else None, settings, states, started,

@@ -143,9 +143,10 @@ class FuelsAlgorithm(GistoolsAlgorithm):
              "lcp", "landscape")
     _help = ("Canopy fuels of LAS/LAZ tiles (gistools fuels) on LANDFIRE's 30 m lattice (100 ft on data in feet): "
              "ground elevation, canopy cover (share of first returns above 2 m, percent), canopy height, canopy base "
-             "height and canopy bulk density from the leaf area density profile of the returns (1 m layers, 2 m "
-             "columns, bulk density = leaf area density x leaf mass per area, 3 m running mean; base height where it "
-             "first exceeds 0.012 kg/m3, as FVS and LANDFIRE), and the surface strata shares of the height bands. "
+             "height and canopy bulk density from the leaf area density profile of the returns (1 m layers, columns "
+             "of 20 pulses, bias-corrected ratio estimator, bulk density = leaf area density x leaf mass per area, "
+             "3 m running mean; base height where it first exceeds 0.012 kg/m3, as FVS and LANDFIRE), and the "
+             "surface strata shares of the height bands. "
              "Writes a VRT per layer, landscape.tif (eight int16 bands in LANDFIRE's order and encodings) and "
              "landscape.lcp (FlamMap's landscape file, loaded). Neighbouring tiles' points are read, so tiles equal "
              "one merged run.")
