@@ -139,6 +139,8 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
     combos = [(c, b) for c in COVER for b in BANDS_M]
     n_patches = max(2 * len(combos), int(round(2 * len(combos) * W * H / 4.0e6)))
     placed: list[Polygon] = []
+    boxes = []  # the placed patches' bounds: only those within 20 ft of a candidate's are measured
+    shapely.prepare(blocked)  # prepared: the same answers, faster on a county-sized block
     tries = 0
     while len(sc.shrubs) < n_patches and tries < 5000:
         tries += 1
@@ -146,9 +148,14 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         rx, ry = rng.uniform(60, 120), rng.uniform(45, 95)
         cx, cy = x0 + rng.uniform(rx + 20, W - rx - 20), y0 + rng.uniform(ry + 20, H - ry - 20)
         poly = _ellipse(cx, cy, rx, ry, angle=rng.uniform(0, np.pi), wobble=0.12, rng=rng)
-        if poly.intersects(blocked) or any(poly.distance(p) < 20 for p in placed):
+        if poly.intersects(blocked):
+            continue
+        w_, s_, e_, n_ = poly.bounds
+        near = [p for p, (a, b, c, d) in zip(placed, boxes) if a < e_ + 20 and c > w_ - 20 and b < n_ + 20 and d > s_ - 20]
+        if any(poly.distance(p) < 20 for p in near):
             continue
         placed.append(poly)
+        boxes.append(poly.bounds)
         sc.shrubs.append(ShrubPatch(poly, cover, band, _crowns(poly, cover, band, rng)))
     # One low shrub patch inside the wetland (vegetation inside wetlands).
     wet = sc.wetland[0]
@@ -159,6 +166,7 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         placed.append(patch)
     # Trees taller than 6 m in small groves.
     taken = shapely.union_all([blocked] + [p.buffer(10) for p in placed])
+    shapely.prepare(taken)
     n_groves = max(6, int(W * H / 0.5e6))
     for _ in range(n_groves * 8):
         gx, gy = x0 + rng.uniform(60, W - 60), y0 + rng.uniform(60, H - 60)
