@@ -135,28 +135,7 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         # two-storey roofs, 22-30 ft (6.7-9.1 m): above the shrub bands (lower roofs would be "shrub", spec A17)
         sc.buildings.append((box(cx - 30, cy - 20, cx + 30, cy + 20), float(rng.uniform(22, 30))))
     blocked = shapely.union_all([sc.road_union.buffer(10), sc.water_union.buffer(10)] + [b.buffer(15) for b, _ in sc.buildings])
-    # Shrub patches: every cover x band combination at least once, placed on free ground.
-    combos = [(c, b) for c in COVER for b in BANDS_M]
-    n_patches = max(2 * len(combos), int(round(2 * len(combos) * W * H / 4.0e6)))
-    placed: list[Polygon] = []
-    boxes = []  # the placed patches' bounds: only those within 20 ft of a candidate's are measured
-    shapely.prepare(blocked)  # prepared: the same answers, faster on a county-sized block
-    tries = 0
-    while len(sc.shrubs) < n_patches and tries < 5000:
-        tries += 1
-        cover, band = combos[len(sc.shrubs) % len(combos)]
-        rx, ry = rng.uniform(60, 120), rng.uniform(45, 95)
-        cx, cy = x0 + rng.uniform(rx + 20, W - rx - 20), y0 + rng.uniform(ry + 20, H - ry - 20)
-        poly = _ellipse(cx, cy, rx, ry, angle=rng.uniform(0, np.pi), wobble=0.12, rng=rng)
-        if poly.intersects(blocked):
-            continue
-        w_, s_, e_, n_ = poly.bounds
-        near = [p for p, (a, b, c, d) in zip(placed, boxes) if a < e_ + 20 and c > w_ - 20 and b < n_ + 20 and d > s_ - 20]
-        if any(poly.distance(p) < 20 for p in near):
-            continue
-        placed.append(poly)
-        boxes.append(poly.bounds)
-        sc.shrubs.append(ShrubPatch(poly, cover, band, _crowns(poly, cover, band, rng)))
+    placed = _place_patches(sc, blocked, rng)
     # One low shrub patch inside the wetland (vegetation inside wetlands).
     wet = sc.wetland[0]
     c = wet.centroid
@@ -179,6 +158,35 @@ def make_scene(origin=(430000.0, 1810000.0), size=(2000.0, 2000.0), seed: int = 
         if len(sc.trees) >= n_groves * 10:
             break
     return sc
+
+
+def _place_patches(sc: Scene, blocked, rng) -> list[Polygon]:
+    """Shrub patches into ``sc.shrubs``: every cover x band combination at least once, on ground free of
+    ``blocked``, 20 ft apart; the patches placed."""
+    x0, y0 = sc.origin
+    W, H = sc.size
+    combos = [(c, b) for c in COVER for b in BANDS_M]
+    n_patches = max(2 * len(combos), int(round(2 * len(combos) * W * H / 4.0e6)))
+    placed: list[Polygon] = []
+    boxes = []  # the placed patches' bounds: only those within 20 ft of a candidate's are measured
+    shapely.prepare(blocked)  # prepared: the same answers, faster on a county-sized block
+    tries = 0
+    while len(sc.shrubs) < n_patches and tries < 5000:
+        tries += 1
+        cover, band = combos[len(sc.shrubs) % len(combos)]
+        rx, ry = rng.uniform(60, 120), rng.uniform(45, 95)
+        cx, cy = x0 + rng.uniform(rx + 20, W - rx - 20), y0 + rng.uniform(ry + 20, H - ry - 20)
+        poly = _ellipse(cx, cy, rx, ry, angle=rng.uniform(0, np.pi), wobble=0.12, rng=rng)
+        if poly.intersects(blocked):
+            continue
+        w_, s_, e_, n_ = poly.bounds
+        near = [p for p, (a, b, c, d) in zip(placed, boxes) if a < e_ + 20 and c > w_ - 20 and b < n_ + 20 and d > s_ - 20]
+        if any(poly.distance(p) < 20 for p in near):
+            continue
+        placed.append(poly)
+        boxes.append(poly.bounds)
+        sc.shrubs.append(ShrubPatch(poly, cover, band, _crowns(poly, cover, band, rng)))
+    return placed
 
 
 def _crowns(poly, cover: str, band: str, rng) -> np.ndarray:
