@@ -25,6 +25,7 @@ from pathlib import Path
 import laspy
 import numpy as np
 import pytest
+import rasterio
 from click.testing import CliRunner
 
 from conftest import SAMPLE
@@ -806,28 +807,55 @@ def test_the_command_line_gives_its_workers_one_blas_thread_unless_the_user_chos
 
 
 def _rayon_threads():
-    return os.environ.get("RAYON_NUM_THREADS")
+    from gistools.io.raster import compression_threads
+
+    return os.environ.get("RAYON_NUM_THREADS"), compression_threads()
 
 
-def test_workers_decode_laz_on_one_thread_unless_the_user_chose(monkeypatch):
-    """lazrs's rayon pool: one thread in each worker (RAYON_NUM_THREADS, read when the pool starts), the parent's
-    environment untouched, and a value the user set is kept."""
+def test_workers_decode_laz_and_compress_geotiffs_on_one_thread_unless_the_user_chose(monkeypatch):
+    """lazrs's rayon pool (RAYON_NUM_THREADS, read when the pool starts) and GDAL's GeoTIFF compression
+    (GDAL_NUM_THREADS): one thread in each worker, every core in a run without workers, the parent's environment
+    untouched, and a value the user set is kept."""
     from gistools.engine.batch import ProcessPool, worker_timed
 
     monkeypatch.delenv("RAYON_NUM_THREADS", raising=False)
+    monkeypatch.delenv("GDAL_NUM_THREADS", raising=False)
+    assert _rayon_threads() == (None, "ALL_CPUS")
     before = dict(os.environ)
     pool = ProcessPool(1)
     try:
-        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == "1"
+        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == ("1", None)
     finally:
         pool.close()
     assert dict(os.environ) == before
     monkeypatch.setenv("RAYON_NUM_THREADS", "2")
+    monkeypatch.setenv("GDAL_NUM_THREADS", "2")
     pool = ProcessPool(1)
     try:
-        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == "2"
+        assert pool.submit(worker_timed, _rayon_threads, ()).result(timeout=120)[0] == ("2", "2")
     finally:
         pool.close()
+
+
+def test_a_geotiff_compressed_on_every_core_has_the_bytes_of_one_thread(tmp_path, monkeypatch):
+    """write_raster on GDAL's compression threads writes the file one thread writes, byte for byte (GDAL keeps
+    the blocks' order), and GDAL reads the values back."""
+    from gistools.grid import Grid
+    from gistools.io.raster import write_raster
+    from rasterio.transform import from_origin
+
+    rng = np.random.default_rng(5)
+    z = np.cumsum(rng.normal(0, 1, (700, 900)), axis=1)
+    z[100:140, 200:260] = np.nan
+    grid = Grid(from_origin(500000.0, 4000000.0, 1.0, 1.0), 900, 700, None)
+    monkeypatch.delenv("GDAL_NUM_THREADS", raising=False)
+    write_raster(tmp_path / "threads.tif", z, grid)
+    monkeypatch.setenv("GDAL_NUM_THREADS", "1")
+    write_raster(tmp_path / "one.tif", z, grid)
+    assert (tmp_path / "threads.tif").read_bytes() == (tmp_path / "one.tif").read_bytes()
+    with rasterio.open(tmp_path / "threads.tif") as src:
+        back = src.read(1, masked=True)
+    assert np.array_equal(back.mask, np.isnan(z)) and np.array_equal(back.filled(np.nan), z.astype(np.float32), equal_nan=True)
 
 
 @pytest.mark.parametrize("how", ["script without a main guard", "standard input"])

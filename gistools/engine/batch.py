@@ -145,8 +145,10 @@ def one_decoder_thread() -> None:
     """In a worker process: LAZ decoded on one thread (lazrs decodes a file's chunks on a rayon pool of one thread a
     core, whose idle threads spin on the cores the other workers need: on the dense benchmark block, two workers
     read LAZ 12 % faster this way, and their TINs ran faster beside them), unless the user set RAYON_NUM_THREADS.
-    Takes effect where the pool is not started yet (before the worker's first LAZ file)."""
+    Takes effect where the pool is not started yet (before the worker's first LAZ file). GeoTIFFs are compressed
+    on one thread there too (GDAL_NUM_THREADS, read by gistools.io.raster.compression_threads), unless set."""
     os.environ.setdefault("RAYON_NUM_THREADS", "1")
+    os.environ.setdefault("GDAL_NUM_THREADS", "1")
 
 
 _MEMORY_KEPT = False

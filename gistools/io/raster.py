@@ -90,6 +90,15 @@ def raster_is_readable(path) -> bool:
 
 
 DEFLATE_LEVEL = 1  # GeoTIFF DEFLATE level of every raster gistools writes
+
+
+def compression_threads() -> str | None:
+    """GDAL's NUM_THREADS for a GeoTIFF being written: the user's ``GDAL_NUM_THREADS`` when set (a worker process of
+    a parallel run sets 1: the processes are the parallelism), else every core; None for one thread. GDAL compresses
+    the 256 x 256 blocks on that many threads and writes them in order: the same bytes as one thread (2 cores: a
+    1000 x 1000 float tile in 25 ms, not 43)."""
+    threads = os.environ.get("GDAL_NUM_THREADS", "ALL_CPUS")
+    return None if threads.strip() in ("", "1") else threads
 # Products of few distinct values (point density, cover fraction) compress better, and faster, without the
 # floating-point predictor, which suits smooth surfaces (DSM, DEM, nDSM): 0.2 MB a tile instead of 0.47.
 NO_PREDICTOR = frozenset({"density", "cover"})
@@ -140,8 +149,8 @@ def write_raster(
     """Write one band as a tiled, DEFLATE-compressed GeoTIFF, atomically. NaN becomes ``nodata``.
     ``categories`` {code: (name, "#rrggbb")}: a class raster's colour table and category names.
 
-    DEFLATE level 1, not GDAL's 6: 2.5x faster on a float DEM tile (32 ms, not 81) for files 2.5 % larger.
-    The predictor follows the ``GISTOOLS_PRODUCT`` tag (predictor_for).
+    DEFLATE level 1, not GDAL's 6: 2.5x faster on a float DEM tile (32 ms, not 81) for files 2.5 % larger;
+    compressed on compression_threads(). The predictor follows the ``GISTOOLS_PRODUCT`` tag (predictor_for).
     """
     path = Path(path)
     data = np.asarray(array)
@@ -172,6 +181,8 @@ def write_raster(
     if not profile["tiled"]:
         for key in ("tiled", "blockxsize", "blockysize"):
             profile.pop(key)
+    elif compression_threads():
+        profile["num_threads"] = compression_threads()
     with atomic_path(path, overwrite=overwrite, verify=verify_raster) as tmp:
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(data, 1)
