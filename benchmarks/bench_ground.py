@@ -93,7 +93,7 @@ def isprs_classify(path: Path, method: str) -> tuple[np.ndarray, np.ndarray, flo
     t = time.perf_counter()
     with _quiet_stdout():  # the CSF library prints its steps on the C stdout
         cls = classify_ground_and_noise(x, y, z, rn, nr, np.ones(len(x), np.uint8), method=p.method, smrf=p.smrf,
-                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise)
+                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, z_metres=p.z_metres)
     return truth, cls == 2, time.perf_counter() - t
 
 
@@ -212,7 +212,8 @@ def quality(path: Path, rng, only=None) -> list[dict]:
     methods = {
         "gistools smrf (defaults)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=ours.smrf, noise=ours.noise),
         "gistools smrftin (defaults)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="smrftin",
-                                                                         smrftin=tin.smrftin, noise=tin.noise),
+                                                                         smrftin=tin.smrftin, noise=tin.noise,
+                                                                         z_metres=tin.z_metres),
         "smrf, PDAL's parameters": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=pdal.smrf, noise=pdal.noise),
         "CSF, lidR's defaults (library)": lambda: np.where(
             csf_ground(X, Y, Z, np.ones(len(X), bool), CsfParams(resolution=0.5 * m, threshold=0.5 / zm)), 2, 1),

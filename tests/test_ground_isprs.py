@@ -38,7 +38,7 @@ def _run(method: str) -> dict:
         p = _params(GroundSettings(method=method), read_tile_info(path))
         cls = classify_ground_and_noise(las.x, las.y, las.z, las.return_number, las.number_of_returns,
                                         np.ones(len(las.x), np.uint8), method=method, smrf=p.smrf, smrftin=p.smrftin,
-                                        noise=p.noise)
+                                        noise=p.noise, z_metres=p.z_metres)
         out[s] = _figures(np.asarray(las.classification) == 2, cls == 2)
     return out
 

@@ -33,7 +33,8 @@ from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
 __all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
-           "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS"]
+           "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS", "ground_candidates", "plane_residuals",
+           "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram"]
 
 FILL_RINGS = 32
 
@@ -60,6 +61,9 @@ class SmrfParams:
     tin: bool = False  # then against a TIN of the ground found (the smrftin method, see smrf_ground)
     step: float = 0.0  # smrftin: a height step above this (vertical units per cell) parts ground patches; 0: none
     patch: float = 0.0  # smrftin: raised ground patches narrower than this (CRS units) are removed; 0: none
+    noise_band: tuple = ()  # smrftin: (precise, noisy) ground noise (vertical units) of the threshold scale; (): fixed
+    tight: tuple = ()  # smrftin: (threshold, scalar, slope) for ground noise at or below noise_band[0]
+    noise: float | None = None  # smrftin: the ground noise measured on the run's points (None: measure it here)
 
 
 def smrftin_params(**lengths) -> SmrfParams:
@@ -67,9 +71,17 @@ def smrftin_params(**lengths) -> SmrfParams:
     metres; ``lengths`` override them in the data's units (as SmrfParams' fields)."""
     base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
                 threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), refine=False, tin=True,
-                step=_metres("smrftin_step"), patch=_metres("smrftin_patch"))
+                step=_metres("smrftin_step"), patch=_metres("smrftin_patch"), noise_band=NOISE_BAND_M,
+                tight=(TIGHT_M[0], TIGHT_M[1], TIGHT_M[2]))
     base.update(lengths)
     return SmrfParams(**base)
+
+
+NOISE_BAND_M = (0.025, 0.045)  # smrftin: ground noise (m) below which its thresholds are the tight set, above: its own
+TIGHT_M = (0.05, 0.2, 0.1)  # smrftin on a precise survey: threshold (m), scalar (m), slope (smrf's)
+NOISE_SIGMAS = 4.0  # smrftin's threshold is at least this many times the ground noise
+NOISE_BIN_M = 0.001  # the ground noise is measured in steps of 1 mm ...
+NOISE_BINS = 1000  # ... up to 1 m (larger residuals count in one last bin)
 
 
 def min_surface(x, y, z, cell: float):
@@ -407,6 +419,82 @@ def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch:
     return out
 
 
+def plane_residuals(x, y, z) -> np.ndarray:
+    """Each point's height above the least-squares plane through its Delaunay neighbours, itself left out (vertical
+    units): the ground's noise where the points are ground. A point of the convex hull leaves out one hull
+    neighbour. NaN where a point is in no triangle (a repeated position) or its neighbours do not span a plane."""
+    from .tin import delaunay_triangles
+
+    n = len(x)
+    out = np.full(n, np.nan)
+    tris = delaunay_triangles(x, y) if n >= 3 else np.empty((0, 3), np.int32)
+    if len(tris) == 0:
+        return out
+    t = tris.astype(np.int64)
+    area = ((x[t[:, 1]] - x[t[:, 0]]) * (y[t[:, 2]] - y[t[:, 0]])
+            - (x[t[:, 2]] - x[t[:, 0]]) * (y[t[:, 1]] - y[t[:, 0]]))
+    t[area > 0] = t[area > 0][:, [0, 2, 1]]  # every triangle clockwise: an inner edge is i -> j in one, j -> i in the other
+    a, b = t.ravel(), t[:, [1, 2, 0]].ravel()  # each vertex's edges to all its neighbours (on the hull: all but one)
+    dx, dy, dz = x[b] - x[a], y[b] - y[a], z[b] - z[a]
+
+    def total(w=None):
+        return np.bincount(a, weights=w, minlength=n)
+
+    s1, sx, sy, sz = total(), total(dx), total(dy), total(dz)
+    sxx, sxy, syy, sxz, syz = total(dx * dx), total(dx * dy), total(dy * dy), total(dx * dz), total(dy * dz)
+    minor = sxx * syy - sxy * sxy
+    det = s1 * minor - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy)
+    det0 = sz * minor - sx * (sxz * syy - sxy * syz) + sy * (sxz * sxy - sxx * syz)
+    ok = (s1 >= 3) & (np.abs(det) > 1e-9 * np.maximum(s1 * sxx * syy, 1e-300))
+    out[ok] = -det0[ok] / det[ok]  # the plane's height at the point is z + det0 / det
+    return out
+
+
+def noise_histogram(residuals: np.ndarray, z_metres: float) -> np.ndarray:
+    """Counts of |residual| in NOISE_BINS steps of NOISE_BIN_M (the last bin: everything beyond); NaN left out.
+    Tiles' histograms add up to the merged points' one, so the median is the same however the data are tiled."""
+    r = np.abs(residuals[np.isfinite(residuals)]) * z_metres
+    return np.bincount(np.minimum((r / NOISE_BIN_M).astype(np.int64), NOISE_BINS), minlength=NOISE_BINS + 1)
+
+
+def noise_from_histogram(counts: np.ndarray, z_metres: float) -> float | None:
+    """The ground noise (vertical units): 1.4826 x the median |residual| (the standard deviation of a normal noise,
+    robust to the low vegetation some ground points are), None with fewer than 30 residuals."""
+    counts = np.asarray(counts, np.int64)
+    total = int(counts.sum())
+    if total < 30:
+        return None
+    k = int(np.searchsorted(np.cumsum(counts), (total + 1) / 2))
+    return 1.4826 * (k + 0.5) * NOISE_BIN_M / z_metres
+
+
+def for_noise(p: SmrfParams, noise: float | None) -> SmrfParams:
+    """smrftin's parameters for ground of this noise (vertical units): its tight set up to ``noise_band[0]``, its
+    own thresholds, scalar and slope from ``noise_band[1]`` on, linear between, the threshold never below
+    NOISE_SIGMAS x the noise; its own when the noise is unknown."""
+    from dataclasses import replace
+
+    if not p.noise_band or noise is None:
+        return replace(p, noise_band=(), noise=noise)
+    lo, hi = p.noise_band
+    f = min(1.0, max(0.0, (noise - lo) / (hi - lo)))
+    t_thr, t_scalar, t_slope = p.tight
+    threshold = max(t_thr + f * (p.threshold - t_thr), NOISE_SIGMAS * noise)  # never inside the ground's own noise
+    return replace(p, threshold=threshold, scalar=t_scalar + f * (p.scalar - t_scalar),
+                   slope=t_slope + f * (p.slope - t_slope), noise_band=(), noise=noise)
+
+
+def survey_noise_histogram(x, y, z, candidates: np.ndarray, own: np.ndarray, p: SmrfParams, z_metres: float) -> np.ndarray:
+    """smrftin's first pass: the ground of its tight set (raised patches left in), each ``own`` ground point's plane
+    residual among that ground (the buffer's points are neighbours, not counted), as noise_histogram."""
+    from dataclasses import replace
+
+    ground, _dem = smrf_ground(x, y, z, candidates, replace(for_noise(p, 0.0), patch=0.0))
+    gi = np.flatnonzero(ground)
+    r = plane_residuals(x[gi], y[gi], z[gi])
+    return noise_histogram(r[own[gi]], z_metres)
+
+
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
 RECLASSIFIED = (0, 1, 2, 7, 18)  # never classified, unclassified, ground, noise: the classes a run decides anew
 GROUND_METHODS = choices("ground_method")  # declared in gistools.parameters (rasters' GROUND_METHODS)
@@ -478,28 +566,42 @@ def _noise_points(x, y, z, noise: NoiseParams) -> np.ndarray:
     return np.zeros(len(x), bool)
 
 
-def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
-                              smrf: SmrfParams | None = None, csf: CsfParams | None = None,
-                              smrftin: SmrfParams | None = None,
-                              noise: NoiseParams = NoiseParams(), keep_classes: bool = False) -> np.ndarray:
-    """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
-    noise above it; the 5-bit class field of point formats 0-5 holds 18 too), then ground (2) among the last
-    and only returns that are not noise; points more than ``noise.low_depth`` below the SMRF surface are low
-    noise even in clusters (multipath). Only points of RECLASSIFIED classes change: water (9), buildings (6),
-    vegetation (3-5) and any other class a provider gave stay as they are (and out of the ground surface).
-    Points that were ground or noise and are not now become 1, unless ``keep_classes``."""
-    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+def ground_candidates(x, y, z, return_number, number_of_returns, classification, noise: NoiseParams):
+    """(noise points, points whose class a run decides, ground candidates: last and only returns of those, not
+    noise)."""
     rn, nr = np.asarray(return_number), np.asarray(number_of_returns)
     old = np.asarray(classification)
     is_noise = _noise_points(x, y, z, noise)
     open_ = np.isin(old, RECLASSIFIED)
     is_noise &= open_
     candidates = open_ & (rn >= nr) & ~is_noise  # last and only returns (return number 0 = not recorded: only)
+    return is_noise, open_, candidates
+
+
+def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
+                              smrf: SmrfParams | None = None, csf: CsfParams | None = None,
+                              smrftin: SmrfParams | None = None,
+                              noise: NoiseParams = NoiseParams(), keep_classes: bool = False,
+                              z_metres: float = 1.0) -> np.ndarray:
+    """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
+    noise above it; the 5-bit class field of point formats 0-5 holds 18 too), then ground (2) among the last
+    and only returns that are not noise; points more than ``noise.low_depth`` below the SMRF surface are low
+    noise even in clusters (multipath). Only points of RECLASSIFIED classes change: water (9), buildings (6),
+    vegetation (3-5) and any other class a provider gave stay as they are (and out of the ground surface).
+    Points that were ground or noise and are not now become 1, unless ``keep_classes``. smrftin measures the
+    ground's noise on these points first unless ``smrftin.noise`` is given (``z_metres``: metres per vertical unit)."""
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    old = np.asarray(classification)
+    is_noise, open_, candidates = ground_candidates(x, y, z, return_number, number_of_returns, old, noise)
     if method == "csf":
         ground = csf_ground(x, y, z, candidates, csf or CsfParams())
         surface = None
     elif method == "smrftin":
-        ground, surface = smrf_ground(x, y, z, candidates, smrftin or smrftin_params())
+        p = smrftin or smrftin_params()
+        if p.noise_band and p.noise is None:
+            counts = survey_noise_histogram(x, y, z, candidates, np.ones(len(x), bool), p, z_metres)
+            p = for_noise(p, noise_from_histogram(counts, z_metres))
+        ground, surface = smrf_ground(x, y, z, candidates, for_noise(p, p.noise) if p.noise_band else p)
     else:
         ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())
     new = old.copy()

@@ -24,7 +24,9 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import RECLASSIFIED, CsfParams, NoiseParams, SmrfParams, classify_ground_and_noise, smrftin_params
+from ..lidar.ground import (NOISE_BAND_M, RECLASSIFIED, TIGHT_M, CsfParams, NoiseParams, SmrfParams,
+                            classify_ground_and_noise, for_noise, ground_candidates, noise_from_histogram, smrftin_params,
+                            survey_noise_histogram)
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -125,6 +127,7 @@ class _Params:
     noise: NoiseParams
     keep_classes: bool
     buffer: float
+    z_metres: float = 1.0
 
 
 def _params(s: GroundSettings, info: TileInfo) -> _Params:
@@ -142,7 +145,9 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
                              window=h(s.smrftin_window, "smrftin window"),
                              threshold=v(s.smrftin_threshold, "smrftin threshold"),
                              scalar=v(s.smrftin_scalar, "smrftin scalar"), step=v(s.smrftin_step, "smrftin step"),
-                             patch=h(s.smrftin_patch, "smrftin patch"), z_per_xy=xy.metres / z.metres)
+                             patch=h(s.smrftin_patch, "smrftin patch"), z_per_xy=xy.metres / z.metres,
+                             noise_band=tuple(v(f"{m}m", "smrftin noise") for m in NOISE_BAND_M),
+                             tight=(v(f"{TIGHT_M[0]}m", "smrftin threshold"), v(f"{TIGHT_M[1]}m", "smrftin scalar"), TIGHT_M[2]))
     csf = CsfParams(resolution=h(s.csf_resolution, "CSF resolution"), threshold=v(s.csf_threshold, "CSF threshold"),
                     rigidness=int(s.csf_rigidness), time_step=float(s.csf_time_step), iterations=int(s.csf_iterations),
                     slope_smooth=bool(s.csf_slope_smooth))
@@ -153,7 +158,7 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
     if s.method == "smrftin":  # raised patches are judged whole: up to a patch's width, and its neighbours'
         buffer += 2 * smrftin.patch + 3 * smrftin.cell
     buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
-    return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer)
+    return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer, z.metres)
 
 
 def _output_name(path: Path, fmt: str) -> str:
@@ -161,8 +166,8 @@ def _output_name(path: Path, fmt: str) -> str:
     return f"{stem}.copc.laz" if fmt == "copc" else f"{stem}.{fmt}"
 
 
-def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str, water_wkb=()) -> dict:
-    """Classify one tile with its neighbours' buffer strips and write it; the class counts before and after."""
+def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()):
+    """(las, info, own non-withheld count, withheld mask, the tile's and its neighbours' points within the buffer)."""
     override = parse_crs_text(crs_text) if crs_text else None
     info = read_tile_info(path, override)
     las = read_all_points(path)
@@ -174,19 +179,38 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     w, s, e, n = info.bounds
     box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
     parts = [{k: a[~withheld] for k, a in own.items()}, *points_around(neighbours, box, crs_text)]
-    used = [name for _kind, name, _source in neighbours]
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
     if water_wkb:  # returns on the water polygons are water, out of the ground filter
         inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
         allp["classification"] = np.where(inside & np.isin(allp["classification"], RECLASSIFIED), WATER,
                                           allp["classification"]).astype(np.uint8)
+    return las, info, int(np.count_nonzero(~withheld)), withheld, allp
+
+
+def _noise_tile(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()) -> dict:
+    """smrftin's first pass on one tile (lidar.ground.survey_noise_histogram): the histogram of its own ground
+    points' residuals, which the run adds up into the survey's ground noise."""
+    _las, _info, n_own, _withheld, allp = _tile_points(path, neighbours, crs_text, p, water_wkb)
+    _noise, _open, candidates = ground_candidates(allp["x"], allp["y"], allp["z"], allp["return_number"],
+                                                  allp["number_of_returns"], allp["classification"], p.noise)
+    own = np.zeros(len(candidates), bool)
+    own[:n_own] = True
+    counts = survey_noise_histogram(allp["x"], allp["y"], allp["z"], candidates, own, p.smrftin, p.z_metres)
+    return {"histogram": counts.tolist(), "neighbours": [nb for _kind, nb, _source in neighbours]}
+
+
+def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str, water_wkb=()) -> dict:
+    """Classify one tile with its neighbours' buffer strips and write it; the class counts before and after."""
+    las, info, n_own, withheld, allp = _tile_points(path, neighbours, crs_text, p, water_wkb)
+    used = [name for _kind, name, _source in neighbours]
     with _quiet_stdout(p.method == "csf"):  # the CSF library prints its progress to the C stdout
         new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"],
                                         allp["number_of_returns"], allp["classification"], method=p.method, smrf=p.smrf,
-                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, keep_classes=p.keep_classes)
-    before = own["classification"].copy()
+                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, keep_classes=p.keep_classes,
+                                        z_metres=p.z_metres)
+    before = np.asarray(las.classification, np.uint8).copy()
     after = before.copy()
-    after[~withheld] = new[: int(np.count_nonzero(~withheld))]
+    after[~withheld] = new[:n_own]
     las.classification = after
     write_all_points(las, target, overwrite=True, copc_wkt=_wkt1(info.crs) if target.endswith(".copc.laz") else None)
     counts = {int(c): int(k) for c, k in enumerate(np.bincount(after, minlength=256)) if k}
@@ -300,6 +324,9 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
             states[name].status, states[name].output = "skipped", str(target)
         else:
             todo.append(name)
+    if todo and p.method == "smrftin" and p.smrftin.noise_band and p.smrftin.noise is None:
+        p = _measured_noise(infos, states, p, settings.crs, out, jobs, scheduler, progress, water)
+        todo = [n for n in todo if states[n].status != "failed"]
     _classify_tiles(todo, infos, targets, states, p, settings.crs, out, jobs, scheduler, progress, water)
     written = [n for n in infos if states[n].status in ("ok", "skipped") and states[n].output]
     vpc = write_vpc(out / "ground.vpc", [(states[n].output, infos[n].bounds, infos[n].z_range, infos[n].point_count, crs)
@@ -314,6 +341,33 @@ def _near(water, bounds, margin: float) -> list:
     w, s, e, n = bounds
     area = shapely.box(w - margin, s - margin, e + margin, n + margin)
     return [shapely.to_wkb(g) for g in water if g.intersects(area)]
+
+
+def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> _Params:
+    """smrftin's first pass over every tile (kept ones too, so that a rerun measures what a whole run measures):
+    the survey's ground noise from the tiles' histograms added up, in ``p.smrftin.noise``."""
+    from dataclasses import replace
+
+    names = [n for n in infos if states[n].status != "failed"]
+    total = np.zeros(0, np.int64)
+
+    def args(n, sources):
+        return (str(infos[n].path), sources, crs_text, p, _near(water, infos[n].bounds, p.buffer))
+
+    def on_done(name, value, seconds):
+        nonlocal total
+        h = np.asarray(value["histogram"], np.int64)
+        total = h if total.size == 0 else total + h
+
+    kept = {n: states[n].status for n in names}
+    buffered_passes(names, infos, states, buffer=p.buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
+                    progress=progress, tile_fn=_noise_tile, tile_args=args, on_done=on_done, verb="measured",
+                    tag="ground-noise")
+    for n, status in kept.items():  # a kept tile stays "skipped"; a failure of the first pass stays a failure
+        if states[n].status != "failed":
+            states[n].status = status
+    noise = noise_from_histogram(total, p.z_metres) if total.size else None
+    return replace(p, smrftin=replace(p.smrftin, noise=noise))
 
 
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
@@ -338,9 +392,11 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
 def _ground_report(out, settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc,
                    started) -> dict:
     first = next(iter(infos.values()), None)
-    used = None if p is None else (p.smrftin if p.method == "smrftin" else p.smrf)
+    used = None if p is None else (for_noise(p.smrftin, p.smrftin.noise) if p.method == "smrftin" else p.smrf)
     units = None if p is None else {"cell": used.cell, "window": used.window, "threshold": used.threshold,
-                                    "scalar": used.scalar, "buffer": p.buffer, "horizontal_unit": first.unit.name,
-                                    "vertical_unit": first.z_unit.name}
+                                    "scalar": used.scalar, "slope": used.slope, "buffer": p.buffer,
+                                    "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name}
+    if p is not None and p.method == "smrftin":
+        units["ground_noise"] = used.noise  # measured by smrftin's first pass (vertical unit); None: too few points
     return write_batch_report(out, "gistools ground", crs_label(crs) if crs is not None else None, settings, states,
                               started, units=units, vpc=str(vpc) if vpc else None)
