@@ -90,15 +90,6 @@ def raster_is_readable(path) -> bool:
 
 
 DEFLATE_LEVEL = 1  # GeoTIFF DEFLATE level of every raster gistools writes
-
-
-def compression_threads() -> str | None:
-    """GDAL's NUM_THREADS for a GeoTIFF being written: the user's ``GDAL_NUM_THREADS`` when set (a worker process of
-    a parallel run sets 1: the processes are the parallelism), else every core; None for one thread. GDAL compresses
-    the 256 x 256 blocks on that many threads and writes them in order: the same bytes as one thread (2 cores: a
-    1000 x 1000 float tile in 25 ms, not 43)."""
-    threads = os.environ.get("GDAL_NUM_THREADS", "ALL_CPUS")
-    return None if threads.strip() in ("", "1") else threads
 # Products of few distinct values (point density, cover fraction) compress better, and faster, without the
 # floating-point predictor, which suits smooth surfaces (DSM, DEM, nDSM): 0.2 MB a tile instead of 0.47.
 NO_PREDICTOR = frozenset({"density", "cover"})
@@ -110,6 +101,15 @@ def predictor_for(dtype: str, product: str | None = None) -> int:
     if product in NO_PREDICTOR:
         return 1
     return 3 if dtype.startswith("float") else 2
+
+
+def compression_threads() -> str | None:
+    """GDAL's NUM_THREADS for a GeoTIFF being written: the user's ``GDAL_NUM_THREADS`` when set (a worker process of
+    a parallel run sets 1: the processes are the parallelism), else every core; None for one thread. GDAL compresses
+    the 256 x 256 blocks on that many threads and writes them in order: the same bytes as one thread (2 cores: a
+    1000 x 1000 float tile in 25 ms, not 43)."""
+    threads = os.environ.get("GDAL_NUM_THREADS", "ALL_CPUS")
+    return None if threads.strip() in ("", "1") else threads
 
 
 def set_colour_table(dst, categories: dict) -> None:
@@ -181,8 +181,8 @@ def write_raster(
     if not profile["tiled"]:
         for key in ("tiled", "blockxsize", "blockysize"):
             profile.pop(key)
-    elif compression_threads():
-        profile["num_threads"] = compression_threads()
+    elif threads := compression_threads():
+        profile["num_threads"] = threads
     with atomic_path(path, overwrite=overwrite, verify=verify_raster) as tmp:
         with rasterio.open(tmp, "w", **profile) as dst:
             dst.write(data, 1)

@@ -23,7 +23,7 @@ the extent), and, past ``FILL_RINGS`` rings, by the nearest filled cell.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy import ndimage
@@ -72,7 +72,7 @@ def smrftin_params(**lengths) -> SmrfParams:
     base = dict(cell=_metres("smrftin_cell"), slope=default_for("smrftin_slope"), window=_metres("smrftin_window"),
                 threshold=_metres("smrftin_threshold"), scalar=_metres("smrftin_scalar"), refine=False, tin=True,
                 step=_metres("smrftin_step"), patch=_metres("smrftin_patch"), noise_band=NOISE_BAND_M,
-                tight=(TIGHT_M[0], TIGHT_M[1], TIGHT_M[2]))
+                tight=TIGHT_M)
     base.update(lengths)
     return SmrfParams(**base)
 
@@ -472,8 +472,6 @@ def for_noise(p: SmrfParams, noise: float | None) -> SmrfParams:
     """smrftin's parameters for ground of this noise (vertical units): its tight set up to ``noise_band[0]``, its
     own thresholds, scalar and slope from ``noise_band[1]`` on, linear between, the threshold never below
     NOISE_SIGMAS x the noise; its own when the noise is unknown."""
-    from dataclasses import replace
-
     if not p.noise_band or noise is None:
         return replace(p, noise_band=(), noise=noise)
     lo, hi = p.noise_band
@@ -487,8 +485,6 @@ def for_noise(p: SmrfParams, noise: float | None) -> SmrfParams:
 def survey_noise_histogram(x, y, z, candidates: np.ndarray, own: np.ndarray, p: SmrfParams, z_metres: float) -> np.ndarray:
     """smrftin's first pass: the ground of its tight set (raised patches left in), each ``own`` ground point's plane
     residual among that ground (the buffer's points are neighbours, not counted), as noise_histogram."""
-    from dataclasses import replace
-
     ground, _dem = smrf_ground(x, y, z, candidates, replace(for_noise(p, 0.0), patch=0.0))
     gi = np.flatnonzero(ground)
     r = plane_residuals(x[gi], y[gi], z[gi])
@@ -598,10 +594,11 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
         surface = None
     elif method == "smrftin":
         p = smrftin or smrftin_params()
-        if p.noise_band and p.noise is None:
-            counts = survey_noise_histogram(x, y, z, candidates, np.ones(len(x), bool), p, z_metres)
-            p = for_noise(p, noise_from_histogram(counts, z_metres))
-        ground, surface = smrf_ground(x, y, z, candidates, for_noise(p, p.noise) if p.noise_band else p)
+        if p.noise_band:  # thresholds from the ground's noise: given by the run, or measured on these points
+            ground_noise = p.noise if p.noise is not None else noise_from_histogram(
+                survey_noise_histogram(x, y, z, candidates, np.ones(len(x), bool), p, z_metres), z_metres)
+            p = for_noise(p, ground_noise)
+        ground, surface = smrf_ground(x, y, z, candidates, p)
     else:
         ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())
     new = old.copy()
