@@ -16,6 +16,8 @@ import functools
 
 import numpy as np
 
+from .progress import check_interrupt
+
 __all__ = ["function", "engine", "loaded", "names"]
 
 try:
@@ -84,6 +86,7 @@ def function(name: str):
     def call(*args):
         if len(args) != len(converters):
             raise TypeError(f"{name} takes {len(converters)} arguments ({len(args)} given)")
+        check_interrupt()  # a tile on a pool's thread stops at its next kernel call once the run has stopped
         keep = [c(a) if c is not None else a for c, a in zip(converters, args)]  # kept alive through the call
         return fn(*keep)
 

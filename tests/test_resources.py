@@ -159,4 +159,89 @@ def test_jobs_takes_auto_or_a_whole_number_and_says_so_in_one_line(tmp_path):
     assert not (tmp_path / "p").exists()
     proc = subprocess.run([sys.executable, "-m", "gistools.cli.main", "-v", "rasters", str(SAMPLE), "--out",
                            str(tmp_path / "a"), "--jobs", "auto"], capture_output=True, text=True, timeout=300)
-    assert proc.returncode == 0 and "jobs auto: in this process (4 tasks, 0.3 M points)" in proc.stderr, proc.stderr[-2000:]
+    threads = min(usable_cpus(), 4)
+    said = f"{threads} threads in this process" if threads > 1 else "in this process"
+    assert proc.returncode == 0 and f"jobs auto: {said} (4 tasks, 0.3 M points)" in proc.stderr, proc.stderr[-2000:]
+
+
+def test_jobs_auto_runs_small_work_on_threads_of_the_process_with_the_outputs_of_one_at_a_time(tmp_path, monkeypatch,
+                                                                                               caplog):
+    """Below a worker's worth of points, "auto" runs the tiles on threads of the caller's process (one a CPU, capped
+    by the tiles): the rasters are those of a run one tile at a time, value for value."""
+    import logging
+
+    import numpy as np
+
+    from gistools import rasters_from_tiles
+    from gistools.engine import batch
+    from gistools.io.raster import read_raster
+
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 3)
+    with caplog.at_level(logging.INFO, logger="gistools.engine.batch"):
+        rasters_from_tiles([str(SAMPLE)], tmp_path / "auto", jobs="auto")
+    assert "jobs auto: 3 threads in this process (4 tasks, 0.3 M points)" in caplog.text
+    rasters_from_tiles([str(SAMPLE)], tmp_path / "one", jobs=1)
+    for product in ("dsm", "dem", "ndsm"):
+        a, _, _ = read_raster(tmp_path / "one" / f"{product}.vrt")
+        b, _, _ = read_raster(tmp_path / "auto" / f"{product}.vrt")
+        assert np.array_equal(a, b, equal_nan=True), product
+
+
+def test_a_thread_pool_closed_early_stops_its_tiles_at_their_next_kernel_call_and_leaves_no_thread():
+    """An error or an interrupt closes the pool with tiles still running: each stops at its next call of the
+    compiled kernel (Cancelled), the queued ones never start, and close returns only when no tile thread is left."""
+    import threading
+
+    import numpy as np
+
+    from gistools import kernel
+    from gistools.engine.batch import ThreadPool
+    from gistools.errors import Cancelled
+    from gistools.lidar.tin import delaunay_triangles
+
+    if not kernel.loaded():
+        pytest.skip("the compiled kernel is not built")
+    started, calls = threading.Event(), []
+    x, y = np.random.default_rng(1).uniform(0, 10, (2, 50))
+
+    def tile():  # a long tile: kernel calls until the run stops
+        started.set()
+        while True:
+            delaunay_triangles(x, y)
+            calls.append(1)
+
+    pool = ThreadPool(2)
+    futures = [pool.submit(tile) for _ in range(3)]
+    assert started.wait(30)
+    pool.close(futures)
+    assert not any(t.name.startswith("gistools-tile") and t.is_alive() for t in threading.enumerate())
+    assert all(isinstance(f.exception(), Cancelled) for f in futures[:2]) and futures[2].cancelled()
+    assert calls  # the tiles ran until then
+
+
+def test_tiles_on_threads_silence_a_c_library_together_and_give_the_terminal_back():
+    """CSF prints from C: the tiles on threads send file descriptor 1 to /dev/null from the first one in to the last
+    one out, and then it is the terminal (or file) it was."""
+    import os
+    import threading
+
+    from gistools.products.ground import _quiet_stdout
+
+    before = os.fstat(1)
+    inside, leave = threading.Barrier(3), threading.Event()
+
+    def tile():
+        with _quiet_stdout(True):
+            inside.wait(30)
+            leave.wait(30)
+
+    threads = [threading.Thread(target=tile) for _ in range(2)]
+    for t in threads:
+        t.start()
+    inside.wait(30)
+    assert os.path.samestat(os.fstat(1), os.stat(os.devnull))
+    leave.set()
+    for t in threads:
+        t.join(30)
+    after = os.fstat(1)
+    assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)

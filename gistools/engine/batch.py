@@ -6,6 +6,7 @@ one-line message, and the other tiles go on.
 
 from __future__ import annotations
 
+import contextvars
 import ctypes
 import logging
 import multiprocessing
@@ -16,18 +17,18 @@ import signal
 import sys
 import threading
 import time
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from pathlib import Path
 
 from ..errors import Cancelled, GistoolsError, InputError, OutOfMemoryError
 from ..io.atomic import raise_output_error
 from ..machine import address_space_limit, free_memory, usable_cpus
 from ..parameters import option
-from ..progress import check_interrupt
+from ..progress import check_interrupt, run_stoppable
 
 log = logging.getLogger(__name__)
 
-__all__ = ["ProcessPool", "DaskPool", "make_pool", "auto_workers", "run_each", "drive", "fail", "worker_count", "machine_error"]
+__all__ = ["ProcessPool", "ThreadPool", "DaskPool", "make_pool", "auto_workers", "run_each", "drive", "fail", "worker_count", "machine_error"]
 
 
 def fail(result, err: BaseException, out=None) -> None:
@@ -318,6 +319,35 @@ class ProcessPool:
             self._manager.join()
 
 
+class ThreadPool:
+    """Tiles on threads of this process: what ``jobs="auto"`` runs below a worker process's worth of work. No
+    interpreter to start, nothing to import again, no points copied between processes: the compiled kernel, numpy,
+    GDAL, the LAZ decoder and shapely release the GIL in their loops, so the tiles share the cores. A thread runs
+    ``timed``: the process's own LAZ decoding and GeoTIFF compression threads stay as they are.
+
+    Closing the pool after an error or an interrupt stops the running tiles at their next kernel call or chunk
+    (progress.check_interrupt) and waits for them: no thread outlives the run."""
+
+    queued = 1  # tasks in flight a thread (engine.passes): it takes the next one at once
+
+    def __init__(self, jobs: int):
+        self.workers = jobs
+        self.stop = threading.Event()
+        self.pool = ThreadPoolExecutor(max_workers=jobs, thread_name_prefix="gistools-tile")
+
+    def submit(self, fn, *args):  # in the caller's context: messages name options as the caller speaks
+        return self.pool.submit(contextvars.copy_context().run, run_stoppable, self.stop,
+                                timed if fn is worker_timed else fn, *args)
+
+    def wait_first(self, futures):
+        return wait(futures, return_when=FIRST_COMPLETED)[0]
+
+    def close(self, futures=()):
+        if futures:
+            self.stop.set()
+        self.pool.shutdown(wait=True, cancel_futures=True)
+
+
 class DaskPool:
     """Tiles as tasks on a dask.distributed cluster: a scheduler address, or "local" for a LocalCluster."""
 
@@ -401,9 +431,11 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb, out=None) -
 WORKER_BASE_BYTES = 250_000_000  # a worker with numpy, scipy, rasterio, pyproj and laspy imported
 
 
-def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn=None) -> int:
+def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn=None,
+                 base: int = WORKER_BASE_BYTES) -> int:
     """The workers a run starts: ``jobs``, but never more than its tasks, the usable CPUs (with a warning) or what
-    the available memory holds at ``task_bytes`` a task (with a warning)."""
+    the available memory holds at ``base`` plus ``task_bytes`` a worker (with a warning; threads share the process:
+    ``base`` 0)."""
     warn = warn or (lambda text: log.warning("gistools: %s", text))
     count = max(1, min(int(jobs), max(int(n_tasks), 1)))
     cpus = usable_cpus()
@@ -412,7 +444,7 @@ def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn
         count = cpus
     memory = free_memory()  # each worker has its own address space: the machine's memory is what they share
     if memory is not None and count > 1:
-        each = WORKER_BASE_BYTES + int(task_bytes or 0)
+        each = max(int(base) + int(task_bytes or 0), 1)
         fits = max(1, int(0.8 * memory // each))
         if fits < count:
             warn(f"{count} workers of about {each / 1e9:.1f} GB each do not fit in the {memory / 1e9:.1f} GB of memory "
@@ -422,8 +454,9 @@ def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn
 
 
 # The points of work that repay starting one more worker process. A worker imports numpy, scipy, rasterio, pyproj
-# and laspy (about 1.2 s of CPU) and decodes LAZ on one thread, while the command's own process decodes a file on
-# every core: on 2 cores, 2 workers overtake the one process past about 5 M points (benchmarks/bench_jobs.py).
+# and laspy (about 1.2 s of CPU) and decodes LAZ on one thread; below this the tiles run on threads of the command's
+# own process (ThreadPool), which start at once and decode a file on every core: on 2 cores the threads are as fast
+# as 2 workers up to the 16-tile Levy block (26 M points), 2 workers a little faster there (benchmarks/bench_jobs.py).
 POINTS_PER_WORKER = 5_000_000
 TASKS_PER_WORKER = 8  # where the work is not known in points (a step rerun over raster tiles): tiles a worker repays
 
@@ -431,7 +464,7 @@ TASKS_PER_WORKER = 8  # where the work is not known in points (a step rerun over
 def auto_workers(n_tasks: int, points: int | None = None) -> int:
     """The workers ``jobs="auto"`` starts: one per :data:`POINTS_PER_WORKER` points of the tasks (``points``; where
     unknown, one per :data:`TASKS_PER_WORKER` tasks), never more than the tasks or the usable CPUs; 1 (this process,
-    no worker) below that."""
+    no worker: its threads, see make_pool) below that."""
     by_work = int(points) // POINTS_PER_WORKER if points is not None else int(n_tasks) // TASKS_PER_WORKER
     return max(1, min(by_work, max(int(n_tasks), 1), usable_cpus()))
 
@@ -439,15 +472,24 @@ def auto_workers(n_tasks: int, points: int | None = None) -> int:
 def make_pool(jobs, scheduler: str | None, n_tasks: int, task_bytes: int | None = None, points: int | None = None):
     """A DaskPool for a scheduler address, a ProcessPool for more than one worker (``jobs`` capped by
     :func:`worker_count`: never more workers than tasks, CPUs or the memory holds), else None (inline). ``jobs``
-    "auto": :func:`auto_workers` from the tasks' ``points``."""
+    "auto": :func:`auto_workers` from the tasks' ``points``; below one worker's worth, a ThreadPool of one thread a
+    usable CPU (capped by the tasks and the memory) when there are several tasks."""
     if scheduler:
         if jobs == "auto":  # a cluster: as many tasks in flight as its workers have threads; local: the CPUs
             jobs = usable_cpus() if scheduler == "local" else None
         return DaskPool(scheduler, jobs if scheduler != "local" else worker_count(jobs, n_tasks, task_bytes))
     if jobs == "auto":
         jobs = auto_workers(n_tasks, points)
-        log.info("gistools: jobs auto: %s (%d tasks%s)", f"{jobs} worker processes" if jobs > 1 else "in this process",
-                 n_tasks, "" if points is None else f", {points / 1e6:.1f} M points")
+        # threads share the process's address space: under a ``ulimit -v`` each tile's read checks what is left
+        # (io.points.room_to_decode), which another thread's read could take between the check and the decode
+        threads = (worker_count(usable_cpus(), n_tasks, task_bytes, base=0)
+                   if jobs == 1 and n_tasks > 1 and address_space_limit() is None else 1)
+        where = (f"{jobs} worker processes" if jobs > 1 else f"{threads} threads in this process" if threads > 1
+                 else "in this process")
+        log.info("gistools: jobs auto: %s (%d tasks%s)", where, n_tasks,
+                 "" if points is None else f", {points / 1e6:.1f} M points")
+        if jobs == 1:
+            return ThreadPool(threads) if threads > 1 else None
     jobs = worker_count(jobs, n_tasks, task_bytes) if jobs > 1 else 1
     if jobs > 1 and n_tasks > 1:
         method, warning = start_method()

@@ -106,7 +106,9 @@ def run_two_passes(order: list[str], todo: set[str], deps: dict[str, set[str]], 
         passes.release(schedule.releasable())
         return task
 
-    width = in_flight or (1 if pool is None else 2 * max(getattr(pool, "workers", 1), 1))
+    # tasks in flight: a worker's next task queued behind its current one hides the hand-over (processes, Dask);
+    # threads take theirs at once, and tasks queued ahead would only read tiles ahead into the scratch
+    width = in_flight or (1 if pool is None else getattr(pool, "queued", 2) * max(getattr(pool, "workers", 1), 1))
     drive(pool, owned, width, next_task, start, pending, finish)
     return schedule.scratch_peak
 

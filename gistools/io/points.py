@@ -16,9 +16,10 @@ import laspy
 import numpy as np
 import pyproj
 
-from ..errors import CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
+from ..errors import Cancelled, CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
 from ..machine import address_space_left
 from ..parameters import option
+from ..progress import check_interrupt
 from ..units import LinearUnit, horizontal_unit, vertical_unit
 
 __all__ = [
@@ -227,8 +228,9 @@ def _crs_key(header):
 def _file_crs(header, path):
     """(the file's CRS or None, a note on a CRS record that does not parse)."""
     key = _crs_key(header)
-    if key is not None and key in _CRS_CACHE:
-        return _CRS_CACHE[key], None
+    cached = _CRS_CACHE.get(key) if key is not None else None  # one lookup: tiles on threads share the cache
+    if cached is not None:
+        return cached, None
     try:
         crs = header.parse_crs()
         if key is not None:
@@ -431,11 +433,12 @@ def iter_chunks(
             need = min(chunk_size, reader.header.point_count) * reader.header.point_format.size
             room_to_decode(reader, need)
             for points in reader.chunk_iterator(chunk_size):
+                check_interrupt()  # a tile on a pool's thread stops here once the run has stopped
                 if len(points) == 0:
                     continue
                 yield _chunk_from(points, intensity, fields)
                 room_to_decode(reader, need)
-    except (DataFileError, MemoryError, GeneratorExit, KeyboardInterrupt):
+    except (DataFileError, MemoryError, GeneratorExit, KeyboardInterrupt, Cancelled):
         raise
     except BaseException as err:  # laspy / lazrs raise many types for damaged files; lazrs panics are BaseExceptions
         raise _decoder_error(path, err) from None

@@ -8,10 +8,10 @@ declare(
     Parameter("crs", "crs", "CRS of the input (EPSG:2882, WKT): needed where the data carry none (a LAS header, a CSV); "
               "it replaces the data's own CRS otherwise.", "Input CRS (overrides the data's own; needed where they carry none)",
               advanced=True),
-    Parameter("jobs", "int", "Tiles processed in parallel, each in its own process. auto: in this process until the "
-              "tiles hold enough points to repay starting workers (about 5 million a worker), then as many workers "
-              "as that work, the tiles, the CPUs and the memory allow; a number: that many, capped by the tiles, "
-              "the CPUs and the memory.", "Tiles in parallel (local processes; 0: auto)", default="auto", minimum=1,
+    Parameter("jobs", "int", "Tiles processed in parallel. auto: on threads of this process (one a CPU) until the "
+              "tiles hold enough points to repay starting worker processes (about 5 million a worker), then as many "
+              "workers as that work, the tiles, the CPUs and the memory allow; a number: that many worker processes "
+              "(1: one tile at a time in this process), capped by the tiles, the CPUs and the memory.", "Tiles in parallel (local processes; 0: auto)", default="auto", minimum=1,
               short="-j", advanced=True, words=("auto",), metavar="auto|N"),
     Parameter("scheduler", "text", "Run the tiles on a Dask cluster: its scheduler address (tcp://host:8786), or "
               "'local' for a LocalCluster of as many workers as jobs. Workers must see the tiles and the output "

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -218,21 +219,31 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
             "points_by_class": counts, "neighbours": used, "bounds": list(info.bounds), "z_range": list(info.z_range)}
 
 
+_QUIET = {"lock": threading.Lock(), "depth": 0, "saved": None}  # tiles on threads (engine.ThreadPool) share fd 1
+
+
 @contextlib.contextmanager
 def _quiet_stdout(active: bool):
-    """The process's file descriptor 1 sent to /dev/null for the block (C libraries that print), when ``active``."""
+    """The process's file descriptor 1 sent to /dev/null for the block (C libraries that print), when ``active``;
+    tiles on several threads: from the first one in to the last one out."""
     if not active:
         yield
         return
-    sys.stdout.flush()
-    saved = os.dup(1)
+    with _QUIET["lock"]:
+        if _QUIET["depth"] == 0:
+            sys.stdout.flush()
+            _QUIET["saved"] = os.dup(1)
+            with open(os.devnull, "wb") as null:
+                os.dup2(null.fileno(), 1)
+        _QUIET["depth"] += 1
     try:
-        with open(os.devnull, "wb") as null:
-            os.dup2(null.fileno(), 1)
         yield
     finally:
-        os.dup2(saved, 1)
-        os.close(saved)
+        with _QUIET["lock"]:
+            _QUIET["depth"] -= 1
+            if _QUIET["depth"] == 0:
+                os.dup2(_QUIET["saved"], 1)
+                os.close(_QUIET["saved"])
 
 
 def _wkt1(crs) -> str:
