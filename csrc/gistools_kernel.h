@@ -16,6 +16,8 @@ int64_t gt_tin_grid(int64_t n, const int64_t *ix, const int64_t *iy, const doubl
                     const double *box, uint8_t *exact);
 int64_t gt_tin_at(int64_t ntri, const int32_t *tri, const double *vx, const double *vy, const double *vz, int64_t nv,
                   int64_t nq, const double *qx, const double *qy, double *out);
+void gt_plane_residuals(int64_t n, const double *x, const double *y, const double *z, int64_t ntri,
+                        const int32_t *tri, double *sums, double *out);
 
 /* grid morphology of the ground filters (morphology.c) */
 void gt_cross_filter(const double *in, double *out, double *work, int64_t rows, int64_t cols, int32_t is_max,

@@ -730,3 +730,48 @@ oom:
     free(qorder);
     return -1;
 }
+
+
+/* Each point's height above the least-squares plane through its Delaunay neighbours, itself left out
+ * (lidar/ground.py plane_residuals; its numpy form makes the same float64 operations in the same order). Each of
+ * the ntri triangles `tri` is taken clockwise; its directed edges a -> b (0 -> 1, 1 -> 2, 2 -> 0) add b's offsets
+ * from a to a's sums (count, dx, dy, dz, dx dx, dx dy, dy dy, dx dz, dy dz: 9 doubles a point in the caller's
+ * `sums`), so an inner vertex meets each neighbour once and a hull vertex all but one. `out` (n): the plane's
+ * height at the point below the point, NaN with fewer than 3 edges or neighbours that do not span a plane. */
+void gt_plane_residuals(int64_t n, const double *x, const double *y, const double *z, int64_t ntri,
+                        const int32_t *tri, double *sums, double *out) {
+    memset(sums, 0, (size_t)n * 9 * sizeof(double));
+    for (int64_t t = 0; t < ntri; t++) {
+        int64_t v[3] = {tri[3 * t], tri[3 * t + 1], tri[3 * t + 2]};
+        double area = (x[v[1]] - x[v[0]]) * (y[v[2]] - y[v[0]]) - (x[v[2]] - x[v[0]]) * (y[v[1]] - y[v[0]]);
+        if (area > 0) {
+            int64_t keep = v[1];
+            v[1] = v[2];
+            v[2] = keep;
+        }
+        for (int k = 0; k < 3; k++) {
+            int64_t a = v[k], b = v[(k + 1) % 3];
+            double dx = x[b] - x[a], dy = y[b] - y[a], dz = z[b] - z[a];
+            double *s = sums + 9 * a;
+            s[0] += 1.0;
+            s[1] += dx;
+            s[2] += dy;
+            s[3] += dz;
+            s[4] += dx * dx;
+            s[5] += dx * dy;
+            s[6] += dy * dy;
+            s[7] += dx * dz;
+            s[8] += dy * dz;
+        }
+    }
+    for (int64_t i = 0; i < n; i++) {
+        const double *s = sums + 9 * i;
+        double s1 = s[0], sx = s[1], sy = s[2], sz = s[3], sxx = s[4], sxy = s[5], syy = s[6], sxz = s[7], syz = s[8];
+        double minor = sxx * syy - sxy * sxy;
+        double det = s1 * minor - sx * (sx * syy - sxy * sy) + sy * (sx * sxy - sxx * sy);
+        double det0 = sz * minor - sx * (sxz * syy - sxy * syz) + sy * (sxz * sxy - sxx * syz);
+        double floor_ = s1 * sxx * syy;
+        if (floor_ < 1e-300) floor_ = 1e-300;
+        out[i] = (s1 >= 3 && fabs(det) > 1e-9 * floor_) ? -det0 / det : NAN;
+    }
+}

@@ -227,6 +227,26 @@ def test_plane_residuals_equal_least_squares_planes_through_qhulls_delaunay_neig
     np.testing.assert_allclose(got[inner], want[inner], atol=1e-9)
 
 
+def test_plane_residuals_of_the_kernel_are_those_of_its_numpy_form_bit_for_bit():
+    """The compiled pass and the numpy form (installs without a C compiler) give the same float64 residuals, repeated
+    positions (no triangle: NaN) and a straight hull edge included."""
+    from gistools import kernel
+    from gistools.lidar import ground
+    from gistools.lidar.tin import delaunay_triangles
+
+    if not kernel.loaded():
+        pytest.skip("the compiled kernel is not built")
+    rng = np.random.default_rng(12)
+    x, y = rng.uniform(0, 300, 5000), rng.uniform(0, 300, 5000)
+    x[:40], y[:40] = np.arange(40) * 7.5, 0.0  # collinear points along the hull
+    x[100:110], y[100:110] = x[90:100], y[90:100]  # repeated positions
+    z = 30 + 0.3 * x + rng.normal(0, 0.05, 5000)
+    got = ground.plane_residuals(x, y, z)
+    want = ground._plane_residuals_numpy(x, y, z, delaunay_triangles(x, y), np.full(len(x), np.nan))
+    assert np.isnan(got).sum() >= 10
+    assert np.array_equal(got, want, equal_nan=True)
+
+
 @pytest.mark.parametrize("unit", [1.0, 0.3048])
 def test_the_measured_ground_noise_is_the_noise_of_a_tilted_plane(unit):
     """Ground of a known normal noise (4 cm) on a 20 % slope, in metres and in feet: the measured noise is that

@@ -422,14 +422,27 @@ def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch:
 def plane_residuals(x, y, z) -> np.ndarray:
     """Each point's height above the least-squares plane through its Delaunay neighbours, itself left out (vertical
     units): the ground's noise where the points are ground. A point of the convex hull leaves out one hull
-    neighbour. NaN where a point is in no triangle (a repeated position) or its neighbours do not span a plane."""
+    neighbour. NaN where a point is in no triangle (a repeated position) or its neighbours do not span a plane.
+    One compiled pass where the kernel is built, else numpy: the same float64 operations either way."""
     from .tin import delaunay_triangles
 
+    x, y, z = (np.ascontiguousarray(a, np.float64) for a in (x, y, z))
     n = len(x)
     out = np.full(n, np.nan)
     tris = delaunay_triangles(x, y) if n >= 3 else np.empty((0, 3), np.int32)
     if len(tris) == 0:
         return out
+    if _PLANE_RESIDUALS is not None:
+        _PLANE_RESIDUALS(n, x, y, z, len(tris), np.ascontiguousarray(tris, np.int32), np.empty(9 * n), out)
+        return out
+    return _plane_residuals_numpy(x, y, z, tris, out)
+
+
+_PLANE_RESIDUALS = kernel.function("gt_plane_residuals")
+
+
+def _plane_residuals_numpy(x, y, z, tris: np.ndarray, out: np.ndarray) -> np.ndarray:
+    n = len(x)
     t = tris.astype(np.int64)
     area = ((x[t[:, 1]] - x[t[:, 0]]) * (y[t[:, 2]] - y[t[:, 0]])
             - (x[t[:, 2]] - x[t[:, 0]]) * (y[t[:, 1]] - y[t[:, 0]]))
