@@ -16,7 +16,7 @@ import functools
 
 import numpy as np
 
-from .progress import check_interrupt
+from .progress import check_stop
 
 __all__ = ["function", "engine", "loaded", "names"]
 
@@ -86,7 +86,7 @@ def function(name: str):
     def call(*args):
         if len(args) != len(converters):
             raise TypeError(f"{name} takes {len(converters)} arguments ({len(args)} given)")
-        check_interrupt()  # a tile on a pool's thread stops at its next kernel call once the run has stopped
+        check_stop()  # a tile on a pool's thread stops at its next kernel call once the run has stopped
         keep = [c(a) if c is not None else a for c, a in zip(converters, args)]  # kept alive through the call
         return fn(*keep)
 

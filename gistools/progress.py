@@ -13,7 +13,7 @@ from typing import Callable, Optional
 from .errors import Cancelled
 
 __all__ = ["ProgressCallback", "null_progress", "sub_progress", "report", "request_interrupt", "interrupt_requested",
-           "check_interrupt", "run_stoppable"]
+           "check_interrupt", "check_stop", "run_stoppable"]
 
 ProgressCallback = Callable[[float, str], Optional[bool]]
 
@@ -57,22 +57,26 @@ def interrupt_requested() -> bool:
     return _INTERRUPT.is_set()
 
 
+def check_interrupt() -> None:
+    """Raise KeyboardInterrupt when a Ctrl-C was recorded."""
+    if _INTERRUPT.is_set():
+        raise KeyboardInterrupt
+
+
 # The stop of the thread pool a tile runs on (engine.batch.ThreadPool), set when its run ends early.
 _STOP = threading.local()
 
 
-def check_interrupt() -> None:
-    """Raise KeyboardInterrupt when a Ctrl-C was recorded, Cancelled on a pool's thread whose run has stopped. The
-    compiled kernel's calls and the point readers ask here, so a tile on a thread stops at its next step."""
-    if _INTERRUPT.is_set():
-        raise KeyboardInterrupt
+def check_stop() -> None:
+    """On a pool's thread whose run has ended early (an error, Ctrl-C, Cancel): raise Cancelled. The compiled
+    kernel's calls and the point readers ask here, so the tile stops at its next step; elsewhere a no-op."""
     stop = getattr(_STOP, "event", None)
     if stop is not None and stop.is_set():
         raise Cancelled("the run stopped")
 
 
 def run_stoppable(stop: threading.Event, fn, *args):
-    """``fn(*args)`` on a pool's thread, which check_interrupt stops once ``stop`` is set."""
+    """``fn(*args)`` on a pool's thread, which check_stop stops once ``stop`` is set."""
     _STOP.event = stop
     try:
         return fn(*args)

@@ -201,22 +201,21 @@ def test_a_thread_pool_closed_early_stops_its_tiles_at_their_next_kernel_call_an
 
     if not kernel.loaded():
         pytest.skip("the compiled kernel is not built")
-    started, calls = threading.Event(), []
+    running = threading.Event()
     x, y = np.random.default_rng(1).uniform(0, 10, (2, 50))
 
     def tile():  # a long tile: kernel calls until the run stops
-        started.set()
         while True:
             delaunay_triangles(x, y)
-            calls.append(1)
+            running.set()
 
     pool = ThreadPool(2)
     futures = [pool.submit(tile) for _ in range(3)]
-    assert started.wait(30)
+    assert running.wait(30)  # a tile has made kernel calls
     pool.close(futures)
     assert not any(t.name.startswith("gistools-tile") and t.is_alive() for t in threading.enumerate())
-    assert all(isinstance(f.exception(), Cancelled) for f in futures[:2]) and futures[2].cancelled()
-    assert calls  # the tiles ran until then
+    assert isinstance(futures[0].exception(), Cancelled) and futures[2].cancelled()
+    assert futures[1].cancelled() or isinstance(futures[1].exception(), Cancelled)  # started, or not yet
 
 
 def test_tiles_on_threads_silence_a_c_library_together_and_give_the_terminal_back():
@@ -245,3 +244,24 @@ def test_tiles_on_threads_silence_a_c_library_together_and_give_the_terminal_bac
         t.join(30)
     after = os.fstat(1)
     assert (after.st_dev, after.st_ino) == (before.st_dev, before.st_ino)
+
+
+def test_a_cancel_from_within_a_tile_on_a_thread_stops_the_run_and_leaves_no_output(tmp_path, monkeypatch):
+    """On threads, a tile's read reports its chunks to the caller's callback (as one tile at a time does): answering
+    False there (QGIS's Cancel) stops the whole run at once, with no raster, scratch or partial file left."""
+    from gistools import RasterSettings, rasters_from_tiles
+    from gistools.engine import batch
+    from gistools.errors import Cancelled
+
+    monkeypatch.setattr(batch, "usable_cpus", lambda: 2)
+    said = []
+
+    def progress(fraction, message):
+        said.append(message)
+        return "points read" not in message  # the first report from inside a tile's read asks to stop
+
+    out = tmp_path / "out"
+    with pytest.raises(Cancelled):
+        rasters_from_tiles([str(SAMPLE)], out, RasterSettings(chunk_size=5000), jobs="auto", progress=progress)
+    assert any("points read" in m for m in said)
+    assert not list(out.rglob("*.tif")) and not list(out.rglob("*.partial*")) and not list(out.glob(".gistools-scratch-*"))

@@ -325,10 +325,12 @@ class ThreadPool:
     GDAL, the LAZ decoder and shapely release the GIL in their loops, so the tiles share the cores. A thread runs
     ``timed``: the process's own LAZ decoding and GeoTIFF compression threads stay as they are.
 
-    Closing the pool after an error or an interrupt stops the running tiles at their next kernel call or chunk
-    (progress.check_interrupt) and waits for them: no thread outlives the run."""
+    Closing the pool after an error or an interrupt stops the running tiles at their next compiled-kernel call or
+    chunk read (progress.check_stop) and waits for them: no thread outlives the run. A tile's own progress (a
+    tile's read in ``rasters``) reaches the caller's callback from its thread, so a Cancel there stops the run."""
 
     queued = 1  # tasks in flight a thread (engine.passes): it takes the next one at once
+    shares_process = True  # the tiles see the caller's progress callback (engine.passes)
 
     def __init__(self, jobs: int):
         self.workers = jobs
@@ -340,7 +342,10 @@ class ThreadPool:
                                 timed if fn is worker_timed else fn, *args)
 
     def wait_first(self, futures):
-        return wait(futures, return_when=FIRST_COMPLETED)[0]
+        while True:  # in short waits: a Ctrl-C reaches the waiting thread on every platform
+            done = wait(futures, timeout=0.25, return_when=FIRST_COMPLETED)[0]
+            if done:
+                return done
 
     def close(self, futures=()):
         if futures:
@@ -420,6 +425,8 @@ def run_each(fn, arglist, pool, results, names, on_done, tick, verb, out=None) -
                 try:
                     value, seconds = fut.result()
                     on_done(args[0], value, seconds)
+                except Cancelled:  # the user's Cancel, from a tile's progress on a thread of this process
+                    raise
                 except Exception as err:  # incl. a worker crash: reported per tile
                     fail(results[name], err, out)
                 tick(f"{name} {verb}")
@@ -432,7 +439,7 @@ WORKER_BASE_BYTES = 250_000_000  # a worker with numpy, scipy, rasterio, pyproj 
 
 
 def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn=None,
-                 base: int = WORKER_BASE_BYTES) -> int:
+                 base: int = WORKER_BASE_BYTES, noun: str = "workers") -> int:
     """The workers a run starts: ``jobs``, but never more than its tasks, the usable CPUs (with a warning) or what
     the available memory holds at ``base`` plus ``task_bytes`` a worker (with a warning; threads share the process:
     ``base`` 0)."""
@@ -447,7 +454,7 @@ def worker_count(jobs: int, n_tasks: int, task_bytes: int | None = None, *, warn
         each = max(int(base) + int(task_bytes or 0), 1)
         fits = max(1, int(0.8 * memory // each))
         if fits < count:
-            warn(f"{count} workers of about {each / 1e9:.1f} GB each do not fit in the {memory / 1e9:.1f} GB of memory "
+            warn(f"{count} {noun} of about {each / 1e9:.1f} GB each do not fit in the {memory / 1e9:.1f} GB of memory "
                  f"available: running {fits} at a time")
             count = fits
     return count
@@ -482,7 +489,7 @@ def make_pool(jobs, scheduler: str | None, n_tasks: int, task_bytes: int | None 
         jobs = auto_workers(n_tasks, points)
         # threads share the process's address space: under a ``ulimit -v`` each tile's read checks what is left
         # (io.points.room_to_decode), which another thread's read could take between the check and the decode
-        threads = (worker_count(usable_cpus(), n_tasks, task_bytes, base=0)
+        threads = (worker_count(usable_cpus(), n_tasks, task_bytes, base=0, noun="tiles")
                    if jobs == 1 and n_tasks > 1 and address_space_limit() is None else 1)
         where = (f"{jobs} worker processes" if jobs > 1 else f"{threads} threads in this process" if threads > 1
                  else "in this process")
@@ -515,6 +522,8 @@ def drive(pool, owned: bool, in_flight: int, next_task, start, pending: dict, fi
                 kind, name = pending.pop(fut)
                 try:
                     value, seconds = fut.result()
+                except Cancelled:  # the user's Cancel, from a tile's progress on a thread of this process
+                    raise
                 except Exception as err:  # incl. a worker crash: reported per tile
                     finish(kind, name, None, 0.0, err)
                     continue

@@ -43,7 +43,7 @@ class Passes:
     """What a command gives the engine.
 
     read(name, inline) / make(name): the task of a tile's pass 1 / pass 2, as (function, arguments); ``inline``:
-    the task runs in this process (it may then take a progress callback). on_read / on_made(name, value,
+    the task runs in this process, on its thread or a pool's (it may then take a progress callback). on_read / on_made(name, value,
     seconds): take a task's result. A failed read marks the tile's read state (``read_results``, else its state)
     and, for a tile to make, its state: it is not made. release(names): free the scratch of tiles no tile still needs. tick(message): one task done (progress)."""
 
@@ -63,7 +63,7 @@ def run_two_passes(order: list[str], todo: set[str], deps: dict[str, set[str]], 
     """Read the tiles of ``order`` (in that order) and make those of ``todo``, each after the tiles of
     ``deps[name]`` (itself and its neighbours) are read; returns the scratch's peak in tiles.
 
-    ``pool``: None (inline), a ProcessPool or a DaskPool; an ``owned`` pool is closed at the end. ``out``: the
+    ``pool``: None (inline), a ThreadPool, a ProcessPool or a DaskPool; an ``owned`` pool is closed at the end. ``out``: the
     output folder (a write failure there stops the run; it is no tile's fault)."""
     schedule = TwoPassSchedule(order, todo, deps)
     pending: dict = {}
@@ -85,7 +85,8 @@ def run_two_passes(order: list[str], todo: set[str], deps: dict[str, set[str]], 
 
     def start(kind, name):
         try:
-            fn, args = passes.read(name, pool is None) if kind == "scan" else passes.make(name)
+            in_process = pool is None or getattr(pool, "shares_process", False)  # a tile's own progress can be shown
+            fn, args = passes.read(name, in_process) if kind == "scan" else passes.make(name)
         except Cancelled:
             raise
         except Exception as err:  # one bad tile never stops the batch; it is reported

@@ -19,7 +19,7 @@ import pyproj
 from ..errors import Cancelled, CRSMismatchError, DataFileError, EmptyTileError, InputError, MissingCRSError
 from ..machine import address_space_left
 from ..parameters import option
-from ..progress import check_interrupt
+from ..progress import check_stop
 from ..units import LinearUnit, horizontal_unit, vertical_unit
 
 __all__ = [
@@ -433,7 +433,7 @@ def iter_chunks(
             need = min(chunk_size, reader.header.point_count) * reader.header.point_format.size
             room_to_decode(reader, need)
             for points in reader.chunk_iterator(chunk_size):
-                check_interrupt()  # a tile on a pool's thread stops here once the run has stopped
+                check_stop()  # a tile on a pool's thread stops here once the run has stopped
                 if len(points) == 0:
                     continue
                 yield _chunk_from(points, intensity, fields)
