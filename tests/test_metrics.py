@@ -187,3 +187,39 @@ def test_values_sorted_by_cell_equal_numpys_lexsort(engine, monkeypatch):
         out, start = metrics.cell_sorted(cell, v, ncells)
         np.testing.assert_array_equal(out, v[np.lexsort((v, cell))])
         np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=ncells))]))
+
+
+@pytest.mark.parametrize("cell", ["5ft", "7ft"])
+def test_metrics_without_heights_read_only_the_neighbours_whose_points_reach_a_tiles_cells(tmp_path, sample_tiles, cell):
+    """Without heights above ground a tile needs only the neighbours' points that fall in its own cells. The merged
+    sample cut into 4 tiles on 500 ft lines: with 5 ft cells the cuts are cell edges and no tile reads a neighbour;
+    with 7 ft cells, cells straddle the cuts and each tile reads the neighbours across them. Either way the mosaic
+    is the merged file's raster, value for value (GDAL reads both)."""
+    from gistools.io.points import read_tile_info, write_tile
+    from gistools.io.raster import read_raster
+
+    pts = {k: [] for k in ("x", "y", "z", "classification", "return_number", "number_of_returns")}
+    for p in sample_tiles:
+        las = laspy.read(p)
+        for k in pts:
+            pts[k].append(np.asarray(getattr(las, k)))
+    pts = {k: np.concatenate(v) for k, v in pts.items()}
+    pts = {k: v[(pts["x"] % 500 != 0) & (pts["y"] % 500 != 0)] for k, v in pts.items()}  # none on a cut
+    crs = read_tile_info(sample_tiles[0]).crs
+    cx, cy = 500 * np.round(np.median(pts["x"]) / 500), 500 * np.round(np.median(pts["y"]) / 500)
+    tiles, whole = tmp_path / "tiles", tmp_path / "whole"
+    write_tile(whole / "all.las", pts, crs, version="1.2", point_format=1)
+    for name, m in {"sw": (pts["x"] < cx) & (pts["y"] < cy), "se": (pts["x"] > cx) & (pts["y"] < cy),
+                    "nw": (pts["x"] < cx) & (pts["y"] > cy), "ne": (pts["x"] > cx) & (pts["y"] > cy)}.items():
+        assert m.sum() > 1000
+        write_tile(tiles / f"{name}.las", {k: v[m] for k, v in pts.items()}, crs, version="1.2", point_format=1)
+    settings = MetricsSettings(cell_size=cell, metrics=["count", "z_max", "z_mean", "z_sd", "z_p95"])
+    report = metrics_from_tiles([tiles], tmp_path / "t", settings)
+    metrics_from_tiles([whole], tmp_path / "w", settings)
+    read = [sorted(t["neighbours"]) for t in report["tiles"]]
+    assert all(r == [] for r in read) if cell == "5ft" else all(len(r) == 3 for r in read), read
+    for name in ("count", "z_max", "z_mean", "z_sd", "z_p95"):
+        got, g_grid, _ = read_raster(tmp_path / "t" / f"{name}.vrt")
+        want, w_grid, _ = read_raster(tmp_path / "w" / f"{name}.vrt")
+        assert g_grid.transform == w_grid.transform and got.shape == want.shape, name
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9, equal_nan=True, err_msg=name)

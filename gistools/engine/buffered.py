@@ -83,11 +83,12 @@ def read_headers(paths, override, make_state, output_name=None, out: Path | None
     return states, infos
 
 
-def neighbour_table(infos: dict, buffer: float) -> dict[str, list[str]]:
-    """{tile: paths of the tiles of ``infos`` (name -> TileInfo) whose bounds come within ``buffer`` of it} (an
-    R-tree: n log n)."""
+def neighbour_table(infos: dict, buffer: float, reach: dict | None = None) -> dict[str, list[str]]:
+    """{tile: paths of the tiles of ``infos`` (name -> TileInfo) whose bounds come within ``buffer`` of it, or meet
+    its box in ``reach`` (name -> box) where given} (an R-tree: n log n)."""
     names = list(infos)
-    pairs = neighbour_pairs([infos[n].bounds for n in names], buffer)
+    pairs = neighbour_pairs([infos[n].bounds for n in names], buffer,
+                            None if reach is None else [reach[n] for n in names])
     return {name: [str(infos[names[j]].path) for j in js] for name, js in zip(names, pairs)}
 
 
@@ -102,6 +103,11 @@ def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> 
     target = Path(scratch) / f"{name}.npz"
     np.savez(target, **{k: pts[k][~deep] for k in STRIP_FIELDS})
     return {"strip": str(target), "inner": inner}
+
+
+def _no_strip(bounds) -> dict:
+    """Pass 1 of a tile whose points no other tile needs: nothing to read."""
+    return {"strip": None, "inner": list(bounds)}
 
 
 def _strip_in_box(path: str, box) -> dict:
@@ -166,10 +172,10 @@ class _StripState:
     inner: tuple | None = None
 
 
-def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -> tuple[list, list]:
+def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict, reach=None) -> tuple[list, list]:
     """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
     w, s, e, n = infos[name].bounds
-    grown = (w - buffer, s - buffer, e + buffer, n + buffer)
+    grown = reach[name] if reach is not None else (w - buffer, s - buffer, e + buffer, n + buffer)
     sources, warnings = [], []
     for path in table[name]:
         nb = Path(path).stem
@@ -186,16 +192,18 @@ def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict) -
 
 
 def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs,
-                    scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str) -> None:
+                    scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str, reach: dict | None = None) -> None:
     """The tiles of ``todo`` through the tile engine (engine.passes): pass 1 keeps the edge strips of each tile and
     its neighbours in a scratch folder, pass 2 runs ``tile_fn(name, *tile_args(name, sources))`` per tile as soon
     as its neighbours' strips are there, ``sources`` being what ``points_around`` reads; a strip no tile still
     needs is deleted. ``states``: name -> an object with ``status`` / ``error`` / ``warnings`` (failures are marked
     there); ``on_done(name, value, seconds)`` takes each result. A failed write to ``out`` stops the run; a failed
-    tile does not."""
+    tile does not. ``reach`` (name -> box, within ``buffer`` of the tile): where a tile needs its neighbours' points,
+    if less than its bounds grown by ``buffer``; a tile whose points no other tile needs is not read in pass 1."""
     if not todo:
         return
-    table = neighbour_table(infos, buffer)
+    table = neighbour_table(infos, buffer, reach)
+    wanted = {Path(q).stem for n in todo for q in table[n]}  # the tiles whose edge strips another tile reads
     need = set(todo).union(Path(q).stem for n in todo for q in table[n])
     strips = {n: _StripState(n, str(infos[n].path)) for n in need}
     order = scan_order({n: infos[n].bounds for n in infos if n in need})
@@ -210,7 +218,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
 
     def make(name):
-        sources, warnings = _sources(infos, name, strips, buffer, table)
+        sources, warnings = _sources(infos, name, strips, buffer, table, reach)
         states[name].warnings = warnings
         for w in warnings:  # on the console and in QGIS as they happen, as gistools rasters does; also in the record
             log.warning("%s: %s", infos[name].path, w)
@@ -223,8 +231,9 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
 
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
     pool = make_pool(jobs, scheduler, len(todo), points=sum(int(infos[n].point_count) for n in todo))
-    passes = Passes(read=lambda name, inline: (_strip_tile, (name, str(infos[name].path), crs_text, buffer,
-                                                             str(scratch))),
+    passes = Passes(read=lambda name, inline: ((_strip_tile, (name, str(infos[name].path), crs_text, buffer,
+                                                              str(scratch))) if name in wanted else
+                                               (_no_strip, (infos[name].bounds,))),
                     make=make, on_read=read_done, on_made=on_done, results=states, read_results=strips, release=release,
                     tick=tick,
                     verbs=("read", verb))

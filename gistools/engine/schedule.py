@@ -16,9 +16,10 @@ import heapq
 __all__ = ["TwoPassSchedule", "neighbour_pairs"]
 
 
-def neighbour_pairs(bounds, distance: float) -> list[list[int]]:
+def neighbour_pairs(bounds, distance: float, reach=None) -> list[list[int]]:
     """For each box (w, s, e, n) of ``bounds``, the indices of the other boxes within ``distance`` of it (edges
-    included), through an R-tree (shapely.STRtree): n log n, not all pairs."""
+    included), or that meet its box of ``reach`` (a box per box, where given), through an R-tree (shapely.STRtree):
+    n log n, not all pairs."""
     import numpy as np
     import shapely
 
@@ -26,7 +27,9 @@ def neighbour_pairs(bounds, distance: float) -> list[list[int]]:
     if len(b) == 0:
         return []
     boxes = shapely.box(b[:, 0], b[:, 1], b[:, 2], b[:, 3])
-    grown = shapely.box(b[:, 0] - distance, b[:, 1] - distance, b[:, 2] + distance, b[:, 3] + distance)
+    r = np.asarray(reach, dtype=float).reshape(-1, 4) if reach is not None else None
+    grown = (shapely.box(r[:, 0], r[:, 1], r[:, 2], r[:, 3]) if r is not None else
+             shapely.box(b[:, 0] - distance, b[:, 1] - distance, b[:, 2] + distance, b[:, 3] + distance))
     query, found = shapely.STRtree(boxes).query(grown)  # the envelopes meet: edges touching count, as in a box test
     out: list[list[int]] = [[] for _ in range(len(b))]
     for i, j in zip(query.tolist(), found.tolist()):

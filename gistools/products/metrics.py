@@ -248,10 +248,15 @@ def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, sch
                 setattr(st, k, value[k])
             st.seconds = round(seconds, 3)
 
-        buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size), crs_text=settings.crs, out=out,
-                        jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_metrics_tile,
+        # without heights above ground a tile needs only the neighbours' points in its own cells (its grid snapped
+        # out to the lattice): where tile edges lie on the lattice, no neighbour's (nor pass 1's reads)
+        reach = None if needs_heights(run.specs) else {n: snapped_grid(i.bounds, run.cell_size).bounds
+                                                       for n, i in infos.items()}
+        buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size) if reach is None else run.cell_size,
+                        crs_text=settings.crs, out=out, jobs=jobs, scheduler=scheduler, progress=progress,
+                        tile_fn=_metrics_tile,
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,
-                        verb="done", tag="metrics")
+                        verb="done", tag="metrics", reach=reach)
     return _report(out, settings, run, infos, states, _mosaics(out, run, states), started)
 
 
