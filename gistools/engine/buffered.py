@@ -204,7 +204,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         return
     table = neighbour_table(infos, buffer, reach)
     wanted = {Path(q).stem for n in todo for q in table[n]}  # the tiles whose edge strips another tile reads
-    need = set(todo).union(Path(q).stem for n in todo for q in table[n])
+    need = set(todo) | wanted
     strips = {n: _StripState(n, str(infos[n].path)) for n in need}
     order = scan_order({n: infos[n].bounds for n in infos if n in need})
     done = [0]

@@ -83,9 +83,10 @@ def run_two_passes(order: list[str], todo: set[str], deps: dict[str, set[str]], 
         passes.release(schedule.releasable())
         passes.tick(f"{name} {passes.verbs[0] if kind == 'scan' else passes.verbs[1]}")
 
+    in_process = pool is None or getattr(pool, "shares_process", False)  # a tile's own progress can be shown
+
     def start(kind, name):
         try:
-            in_process = pool is None or getattr(pool, "shares_process", False)  # a tile's own progress can be shown
             fn, args = passes.read(name, in_process) if kind == "scan" else passes.make(name)
         except Cancelled:
             raise
