@@ -31,6 +31,8 @@ void gt_bilinear(const double *surf, int64_t rows, int64_t cols, int64_t n, cons
                  double cell, int64_t col0, int64_t row_top, double *out);
 void gt_slope_threshold(const double *z, int64_t rows, int64_t cols, double cell, double z_per_xy, double threshold,
                         double scalar, double *out);
+int64_t gt_raised_patches(const double *z, int64_t rows, int64_t cols, int32_t reach, double step, double cell,
+                          double patch, int64_t floor_cells, int64_t *work, uint8_t *roof);
 
 /* points to grid cells (grid.c) */
 void gt_cell_index(int64_t n, const double *x, const double *y, double cell, int64_t col0, int64_t row_top,

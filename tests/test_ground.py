@@ -103,6 +103,36 @@ def test_a_tiled_run_equals_the_run_on_the_merged_tiles(tmp_path, method):
     assert np.mean((a == 2) == truth) > 0.97
 
 
+def test_a_large_surveys_noise_measured_in_blocks_is_the_same_tiled_and_merged(tmp_path, monkeypatch):
+    """smrftin measures the noise of a survey of 4 x NOISE_POINTS points or more in every stride-th block of 100 m
+    each way: the same noise and classes tiled and merged, and the noise within a millimetre of that of every point.
+    The sample (258,950 points) stands in for a large survey: NOISE_POINTS lowered to 60,000 (every 2nd block)."""
+    from gistools.lidar import ground as lg
+
+    tiles = sorted(SAMPLE.glob("*.la[sz]"))
+    wiped = _wiped(tiles, tmp_path / "tiles")
+    merged = {k: np.concatenate([np.asarray(getattr(laspy.read(p), k)) for p in wiped]) for k in FIELDS}
+    crs = read_tile_info(tiles[0]).crs
+    write_tile(tmp_path / "merged" / "all.las", merged, crs, version="1.2", point_format=1,
+               offsets=[430000.0, 1810000.0, 0.0])
+    monkeypatch.setattr(lg, "NOISE_POINTS", 60_000)
+    assert lg.noise_stride(len(merged["x"])) == 2
+    tiled = ground_from_tiles(tmp_path / "tiles", tmp_path / "out_tiled", GroundSettings(method="smrftin"))
+    whole = ground_from_tiles(tmp_path / "merged", tmp_path / "out_merged", GroundSettings(method="smrftin"))
+    assert tiled["counts"]["ok"] == 4
+    assert tiled["units"]["ground_noise"] == whole["units"]["ground_noise"]
+    a = np.concatenate([np.asarray(laspy.read(tmp_path / "out_tiled" / f"{p.stem}.laz").classification) for p in wiped])
+    assert np.array_equal(a, np.asarray(laspy.read(tmp_path / "out_merged" / "all.laz").classification))
+    # against the noise measured on every point (the library, one stride)
+    from gistools.products.ground import _params
+
+    p = _params(GroundSettings(method="smrftin"), read_tile_info(wiped[0]))
+    every = lg.noise_from_histogram(lg.survey_noise_histogram(
+        merged["x"], merged["y"], merged["z"], merged["return_number"], merged["number_of_returns"],
+        merged["classification"], np.ones(len(merged["x"]), bool), p.smrftin, p.noise, p.z_metres, 1), p.z_metres)
+    assert abs(tiled["units"]["ground_noise"] - every) * p.z_metres <= 0.001
+
+
 def _same_points_but_classes(src: Path, dst: Path):
     a, b = laspy.read(src), laspy.read(dst)
     assert a.header.point_format.id == b.header.point_format.id and str(a.header.version) == str(b.header.version)
@@ -245,6 +275,43 @@ def test_plane_residuals_of_the_kernel_are_those_of_its_numpy_form_bit_for_bit()
     want = ground._plane_residuals_numpy(x, y, z, delaunay_triangles(x, y), np.full(len(x), np.nan))
     assert np.isnan(got).sum() >= 10
     assert np.array_equal(got, want, equal_nan=True)
+
+
+def test_raised_patches_of_the_kernel_are_those_of_its_numpy_form_and_find_roofs_not_terraces():
+    """The compiled pass (union-find) and the numpy form (scipy's connected components) mark the same points, on
+    rolling ground with roofs, a terrace step, a pit and empty cells; the roofs (narrower than the patch width,
+    standing above all around) are marked, the terrace (joined to the ground along its length) and the ground are
+    not."""
+    from gistools import kernel
+    from gistools.lidar import ground
+
+    if not kernel.loaded():
+        pytest.skip("the compiled kernel is not built")
+    rng = np.random.default_rng(5)
+    n = 60_000
+    x, y = rng.uniform(0, 400, n), rng.uniform(0, 300, n)
+    z = 100 + 0.05 * x + 2 * np.sin(y / 40) + rng.normal(0, 0.05, n)
+    roofs = np.zeros(n, bool)
+    for cx, cy in ((80, 80), (200, 150), (320, 240), (120, 250)):
+        on = (np.abs(x - cx) < 12) & (np.abs(y - cy) < 8)
+        z[on] += 6
+        roofs |= on
+    terrace = (x > 250) & (y < 100)
+    z[terrace] += 3  # a step along its whole length: joins the ground beyond its far sides
+    pit = (np.hypot(x - 40, y - 200) < 3)
+    z[pit] -= 4
+    keep = ~((x > 150) & (x < 170) & (y > 20) & (y < 60))  # empty cells (a pond)
+    x, y, z, roofs, terrace = x[keep], y[keep], z[keep], roofs[keep], terrace[keep]
+    is_ground = rng.uniform(size=len(x)) < 0.9
+    args = (x, y, z, is_ground, 1.5, 1.0, 60.0)
+    got = ground.raised_patches(*args)
+    zimin, _c, _r, flat = ground.min_surface(x[is_ground], y[is_ground], z[is_ground], 1.5)
+    want = np.zeros(len(x), bool)
+    want[np.flatnonzero(is_ground)[ground._raised_cells_numpy(zimin, 1.5, 1.0, 60.0)[flat]]] = True
+    assert np.array_equal(got, want)
+    assert np.mean(got[roofs & is_ground]) > 0.95
+    assert not got[terrace & ~roofs].any()
+    assert not got[~roofs].any()
 
 
 @pytest.mark.parametrize("unit", [1.0, 0.3048])

@@ -34,7 +34,8 @@ from ..units import METRE, LinearUnit, length_to_crs_units
 
 __all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS", "ground_candidates", "plane_residuals",
-           "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram"]
+           "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram", "noise_stride",
+           "noise_reach"]
 
 FILL_RINGS = 32
 
@@ -363,14 +364,31 @@ def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch:
     only neighbours of PATCH_FLOOR cells or more or as wide as ``patch`` (low points do not make a roof of the
     terrain). Terraces and embankments join the terrain on one side or along their length, so they stay.
     Tiled == merged when the buffer exceeds twice ``patch`` plus the ground filter's own reach."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     out = np.zeros(len(x), bool)
     gi = np.flatnonzero(ground)
     if len(gi) < 3:
         return out
     zimin, _col0, _row_top, flat = min_surface(x[gi], y[gi], z[gi], cell)
+    if _RAISED is not None:  # one compiled pass (union-find), the same cells as the numpy form
+        zc = np.ascontiguousarray(zimin, np.float64)
+        cell_roof = np.empty(zc.size, np.uint8)
+        _RAISED(zc, zc.shape[0], zc.shape[1], PATCH_REACH, float(step), float(cell), float(patch), PATCH_FLOOR,
+                np.empty(8 * zc.size, np.int64), cell_roof)
+        cell_roof = cell_roof.view(bool)
+    else:
+        cell_roof = _raised_cells_numpy(zimin, cell, step, patch)
+    out[gi[cell_roof[flat]]] = True
+    return out
+
+
+_RAISED = kernel.function("gt_raised_patches")
+
+
+def _raised_cells_numpy(zimin: np.ndarray, cell: float, step: float, patch: float) -> np.ndarray:
+    """raised_patches' cells without the compiled kernel (scipy's connected components; the same comparisons)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
     h, w = zimin.shape
     zc = zimin.ravel()
     ids = np.flatnonzero(np.isfinite(zc))
@@ -391,7 +409,7 @@ def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch:
             a_list.append(pos[a])
             b_list.append(pos[b])
             dz_list.append(zc[a] - zc[b])
-            dist_list.append(np.full(len(a), math.hypot(dr, dc)))
+            dist_list.append(np.full(len(a), math.sqrt(dr * dr + dc * dc)))
     a, b, dz, dist = (np.concatenate(v) for v in (a_list, b_list, dz_list, dist_list))
     joined = np.abs(dz) <= step * dist
     graph = coo_matrix((np.ones(int(joined.sum())), (a[joined], b[joined])), shape=(len(ids), len(ids)))
@@ -415,8 +433,7 @@ def raised_patches(x, y, z, ground: np.ndarray, cell: float, step: float, patch:
     roof = (total >= 8) & (down >= 0.9 * total) & (extent < patch)
     cell_roof = np.zeros(zc.size, bool)
     cell_roof[ids[roof[label]]] = True
-    out[gi[cell_roof[flat]]] = True
-    return out
+    return cell_roof
 
 
 def plane_residuals(x, y, z) -> np.ndarray:
@@ -495,13 +512,75 @@ def for_noise(p: SmrfParams, noise: float | None) -> SmrfParams:
                    slope=t_slope + f * (p.slope - t_slope), noise_band=(), noise=noise)
 
 
-def survey_noise_histogram(x, y, z, candidates: np.ndarray, own: np.ndarray, p: SmrfParams, z_metres: float) -> np.ndarray:
-    """smrftin's first pass: the ground of its tight set (raised patches left in), each ``own`` ground point's plane
-    residual among that ground (the buffer's points are neighbours, not counted), as noise_histogram."""
-    ground, _dem = smrf_ground(x, y, z, candidates, replace(for_noise(p, 0.0), patch=0.0))
+NOISE_BLOCK_M = 100.0  # smrftin measures a large survey's ground noise in blocks of 100 m (the absolute lattice) ...
+NOISE_POINTS = 250_000  # ... every stride-th block east and north, the stride leaving about this many points in them
+
+
+def noise_stride(points: int) -> int:
+    """The stride of the blocks in which smrftin measures the ground noise of a survey of ``points`` points: 1 (every
+    point, no blocks) below 4 x NOISE_POINTS, else the largest whose 1 / stride**2 share of the area holds about
+    NOISE_POINTS (16 M points: every 8th block each way; a county of a billion: every 63rd)."""
+    return max(1, math.isqrt(max(int(points), 0) // NOISE_POINTS))
+
+
+def noise_reach(p: SmrfParams, z_metres: float, stride: int) -> float:
+    """How far (CRS units) beyond a tile the first pass reads its neighbours' points: a noise block and its margin
+    (NOISE_BLOCK_M plus the filter's window and 10 cells) when ``stride`` > 1, else 0 (the caller's buffer)."""
+    if stride <= 1:
+        return 0.0
+    return NOISE_BLOCK_M / (p.z_per_xy * z_metres) + p.window + 10 * p.cell
+
+
+def survey_noise_histogram(x, y, z, return_number, number_of_returns, classification, own: np.ndarray,
+                           p: SmrfParams, noise: NoiseParams, z_metres: float, stride: int = 1) -> np.ndarray:
+    """smrftin's first pass: each ``own`` ground point's plane residual among the ground of its tight set (raised
+    patches left in), as noise_histogram; the other points are neighbours, not counted.
+
+    ``stride`` 1: every point, classified together. ``stride`` > 1 (large surveys, ``noise_stride``): only the
+    points of the blocks of NOISE_BLOCK_M whose column and row numbers (absolute: x // block, y // block) are
+    multiples of ``stride``, each block classified with the points within a margin of it (the filter's window plus
+    10 cells) and nothing else: a block's residuals do not depend on how the survey is tiled, so tiled == merged
+    (a tile needs its neighbours' points within ``noise_reach``)."""
+    x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
+    fields = (np.asarray(return_number), np.asarray(number_of_returns), np.asarray(classification))
+    tight = replace(for_noise(p, 0.0), patch=0.0)
+    if stride <= 1:
+        return _noise_counts(x, y, z, fields, own, None, tight, noise, z_metres)
+    block = NOISE_BLOCK_M / (p.z_per_xy * z_metres)
+    margin = noise_reach(p, z_metres, stride) - block
+    period = stride * block
+    # the points near a sampled block (a superset, by their place in the period), then each block exactly
+    ox, oy = x - np.floor(x / period) * period, y - np.floor(y / period) * period
+    slack = 1e-6 * period
+    if block + 2 * margin + 2 * slack < period:
+        near = (((ox < block + margin + slack) | (ox >= period - margin - slack))
+                & ((oy < block + margin + slack) | (oy >= period - margin - slack)))
+    else:  # margins wider than the gaps between the blocks (a very wide window): every point may be near one
+        near = np.ones(len(x), bool)
+    idx = np.flatnonzero(near)
+    bx, by = np.floor(x[idx] / block).astype(np.int64), np.floor(y[idx] / block).astype(np.int64)
+    mine = idx[own[idx] & (bx % stride == 0) & (by % stride == 0)]
+    blocks = np.unique(np.column_stack([np.floor(x[mine] / block), np.floor(y[mine] / block)]).astype(np.int64), axis=0)
+    total = np.zeros(NOISE_BINS + 1, np.int64)
+    xs, ys = x[idx], y[idx]
+    for i, j in blocks:
+        w, s_ = i * block, j * block
+        clip = idx[(xs >= w - margin) & (xs < w + block + margin) & (ys >= s_ - margin) & (ys < s_ + block + margin)]
+        inside = (np.floor(x[clip] / block) == i) & (np.floor(y[clip] / block) == j)
+        total += _noise_counts(x[clip], y[clip], z[clip], tuple(f[clip] for f in fields), own[clip], inside, tight,
+                               noise, z_metres)
+    return total
+
+
+def _noise_counts(x, y, z, fields, own, inside, tight: SmrfParams, noise: NoiseParams, z_metres: float) -> np.ndarray:
+    """noise_histogram of the plane residuals of the ``own`` (and ``inside``, if given) points the ``tight`` SMRF
+    finds ground among these points."""
+    _noise, _open, candidates = ground_candidates(x, y, z, *fields, noise)
+    ground, _dem = smrf_ground(x, y, z, candidates, tight)
     gi = np.flatnonzero(ground)
     r = plane_residuals(x[gi], y[gi], z[gi])
-    return noise_histogram(r[own[gi]], z_metres)
+    count = own[gi] if inside is None else own[gi] & inside[gi]
+    return noise_histogram(r[count], z_metres)
 
 
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
@@ -609,7 +688,8 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
         p = smrftin or smrftin_params()
         if p.noise_band:  # thresholds from the ground's noise: given by the run, or measured on these points
             ground_noise = p.noise if p.noise is not None else noise_from_histogram(
-                survey_noise_histogram(x, y, z, candidates, np.ones(len(x), bool), p, z_metres), z_metres)
+                survey_noise_histogram(x, y, z, return_number, number_of_returns, old, np.ones(len(x), bool), p, noise,
+                                       z_metres, noise_stride(len(x))), z_metres)
             p = for_noise(p, ground_noise)
         ground, surface = smrf_ground(x, y, z, candidates, p)
     else:

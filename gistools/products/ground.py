@@ -26,8 +26,8 @@ from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_a
                          write_all_points)
 from ..io.vpc import write_vpc
 from ..lidar.ground import (NOISE_BAND_M, RECLASSIFIED, TIGHT_M, CsfParams, NoiseParams, SmrfParams,
-                            classify_ground_and_noise, for_noise, ground_candidates, noise_from_histogram, smrftin_params,
-                            survey_noise_histogram)
+                            classify_ground_and_noise, for_noise, noise_from_histogram, noise_reach, noise_stride,
+                            smrftin_params, survey_noise_histogram)
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -167,8 +167,9 @@ def _output_name(path: Path, fmt: str) -> str:
     return f"{stem}.copc.laz" if fmt == "copc" else f"{stem}.{fmt}"
 
 
-def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()):
-    """(las, info, own non-withheld count, withheld mask, the tile's and its neighbours' points within the buffer)."""
+def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=(), buffer: float | None = None):
+    """(las, info, own non-withheld count, withheld mask, the tile's and its neighbours' points within the buffer,
+    ``p.buffer`` unless given)."""
     override = parse_crs_text(crs_text) if crs_text else None
     info = read_tile_info(path, override)
     las = read_all_points(path)
@@ -178,7 +179,8 @@ def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()
            "classification": np.asarray(las.classification, np.uint8)}
     withheld = np.asarray(las.withheld, bool) if "withheld" in las.point_format.dimension_names else np.zeros(len(own["x"]), bool)
     w, s, e, n = info.bounds
-    box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
+    b = p.buffer if buffer is None else buffer
+    box = (w - b, s - b, e + b, n + b)
     parts = [{k: a[~withheld] for k, a in own.items()}, *points_around(neighbours, box, crs_text)]
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
     if water_wkb:  # returns on the water polygons are water, out of the ground filter
@@ -188,15 +190,15 @@ def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()
     return las, info, int(np.count_nonzero(~withheld)), withheld, allp
 
 
-def _noise_tile(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()) -> dict:
+def _noise_tile(path: str, neighbours: list, crs_text, p: _Params, stride: int, water_wkb=()) -> dict:
     """smrftin's first pass on one tile (lidar.ground.survey_noise_histogram): the histogram of its own ground
-    points' residuals, which the run adds up into the survey's ground noise."""
-    _las, _info, n_own, _withheld, allp = _tile_points(path, neighbours, crs_text, p, water_wkb)
-    _noise, _open, candidates = ground_candidates(allp["x"], allp["y"], allp["z"], allp["return_number"],
-                                                  allp["number_of_returns"], allp["classification"], p.noise)
-    own = np.zeros(len(candidates), bool)
+    points' residuals (in the sampled blocks when ``stride`` > 1), which the run adds up into the survey's noise."""
+    reach = noise_reach(p.smrftin, p.z_metres, stride) or None
+    _las, _info, n_own, _withheld, allp = _tile_points(path, neighbours, crs_text, p, water_wkb, buffer=reach)
+    own = np.zeros(len(allp["x"]), bool)
     own[:n_own] = True
-    counts = survey_noise_histogram(allp["x"], allp["y"], allp["z"], candidates, own, p.smrftin, p.z_metres)
+    counts = survey_noise_histogram(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
+                                    allp["classification"], own, p.smrftin, p.noise, p.z_metres, stride)
     return {"histogram": counts.tolist(), "neighbours": [nb for _kind, nb, _source in neighbours]}
 
 
@@ -361,9 +363,11 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
 
     names = [n for n in infos if states[n].status != "failed"]
     total = np.zeros(0, np.int64)
+    stride = noise_stride(sum(infos[n].point_count for n in names))  # a large survey: measured in blocks
+    buffer = noise_reach(p.smrftin, p.z_metres, stride) or p.buffer
 
     def args(n, sources):
-        return (str(infos[n].path), sources, crs_text, p, _near(water, infos[n].bounds, p.buffer))
+        return (str(infos[n].path), sources, crs_text, p, stride, _near(water, infos[n].bounds, buffer))
 
     def on_done(name, value, seconds):
         nonlocal total
@@ -371,7 +375,7 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
         total = h if total.size == 0 else total + h
 
     kept = {n: states[n].status for n in names}
-    buffered_passes(names, infos, states, buffer=p.buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
+    buffered_passes(names, infos, states, buffer=buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
                     progress=progress, tile_fn=_noise_tile, tile_args=args, on_done=on_done, verb="measured",
                     tag="ground-noise")
     for n, status in kept.items():  # a kept tile stays "skipped"; a failure of the first pass stays a failure
