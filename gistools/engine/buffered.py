@@ -92,17 +92,44 @@ def neighbour_table(infos: dict, buffer: float, reach: dict | None = None) -> di
     return {name: [str(infos[names[j]].path) for j in js] for name, js in zip(names, pairs)}
 
 
+STRIP_BINS = 16  # a strip's points are kept in the order of a 16 x 16 grid of its tile: a neighbour reads its side only
+
+
 def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
     """Pass 1: the points of a tile within ``buffer`` of its edges, saved in the scratch folder (so each tile is
-    decoded twice in a run, not once per neighbour)."""
+    decoded twice in a run, not once per neighbour), ordered by the cells of a STRIP_BINS x STRIP_BINS grid of the
+    tile (file order within a cell) so that ``_strip_in_box`` reads only the cells that reach a box."""
     info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
     pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
     w, s, e, n = info.bounds
     inner = (w + buffer, s + buffer, e - buffer, n - buffer)
     deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
-    target = Path(scratch) / f"{name}.npz"
-    np.savez(target, **{k: pts[k][~deep] for k in STRIP_FIELDS})
+    keep = np.flatnonzero(~deep)
+    grid = _strip_grid(info.bounds)
+    key = _strip_bin(pts["x"][keep], grid[0], grid[2]) + STRIP_BINS * _strip_bin(pts["y"][keep], grid[1], grid[3])
+    order = keep[np.argsort(key, kind="stable")]
+    starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=STRIP_BINS * STRIP_BINS))]).astype(np.int64)
+    records = np.empty(len(order), np.dtype([(k, pts[k].dtype) for k in STRIP_FIELDS]))
+    for k in STRIP_FIELDS:
+        records[k] = pts[k][order]
+    target = Path(scratch) / f"{name}.strip"
+    with open(target, "wb") as f:  # the grid, each cell's first record, the records (three .npy arrays, no zip)
+        np.save(f, np.asarray(grid, np.float64))
+        np.save(f, starts)
+        np.save(f, records)
     return {"strip": str(target), "inner": inner}
+
+
+def _strip_grid(bounds) -> tuple[float, float, float, float]:
+    """(west, south, cell width, cell height) of the STRIP_BINS x STRIP_BINS grid of a tile's bounds."""
+    w, s, e, n = (float(v) for v in bounds)
+    return w, s, (e - w) / STRIP_BINS if e > w else 1.0, (n - s) / STRIP_BINS if n > s else 1.0
+
+
+def _strip_bin(v, origin: float, size: float):
+    """The grid column (row) of coordinates ``v``, points beyond the tile's bounds in the edge cells. Monotonic in
+    ``v``: a box's first and last cells hold every point of the box."""
+    return np.clip(np.floor((np.asarray(v, np.float64) - origin) / size), 0, STRIP_BINS - 1).astype(np.int64)
 
 
 def _no_strip(bounds) -> dict:
@@ -111,11 +138,32 @@ def _no_strip(bounds) -> dict:
 
 
 def _strip_in_box(path: str, box) -> dict:
-    with np.load(path) as f:
-        pts = {k: f[k] for k in STRIP_FIELDS}
+    """The points of a strip inside ``box``: only the records of the grid cells that reach it are read."""
     w, s, e, n = box
-    keep = (pts["x"] >= w) & (pts["x"] <= e) & (pts["y"] >= s) & (pts["y"] <= n)
-    return {k: v[keep] for k, v in pts.items()}
+    with open(path, "rb") as f:
+        gw, gs, dx, dy = np.load(f)
+        starts = np.load(f)
+        version = np.lib.format.read_magic(f)
+        shape, _fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
+                                  else np.lib.format.read_array_header_2_0(f))
+        base = f.tell()
+        c0, c1 = (int(v) for v in _strip_bin([w, e], gw, dx))
+        r0, r1 = (int(v) for v in _strip_bin([s, n], gs, dy))
+        spans = []
+        for r in range(r0, r1 + 1):
+            a, b = int(starts[r * STRIP_BINS + c0]), int(starts[r * STRIP_BINS + c1 + 1])
+            if spans and spans[-1][1] == a:
+                spans[-1][1] = b
+            elif b > a:
+                spans.append([a, b])
+        parts = []
+        for a, b in spans:
+            f.seek(base + a * dtype.itemsize)
+            parts.append(np.fromfile(f, dtype, b - a))
+    records = np.concatenate(parts) if parts else np.empty(0, dtype)
+    x, y = records["x"], records["y"]
+    records = records[(x >= w) & (x <= e) & (y >= s) & (y <= n)]
+    return {k: np.ascontiguousarray(records[k]) for k in STRIP_FIELDS}
 
 
 def points_around(sources: list, box, crs_text=None) -> list[dict]:
