@@ -107,7 +107,7 @@ def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> 
     keep = np.flatnonzero(~deep)
     grid = _strip_grid(info.bounds)
     key = _strip_bin(pts["x"][keep], grid[0], grid[2]) + STRIP_BINS * _strip_bin(pts["y"][keep], grid[1], grid[3])
-    order = keep[np.argsort(key, kind="stable")]
+    order = keep[np.argsort(key.astype(np.uint16), kind="stable")]  # 16-bit keys: numpy's radix sort
     starts = np.concatenate([[0], np.cumsum(np.bincount(key, minlength=STRIP_BINS * STRIP_BINS))]).astype(np.int64)
     records = np.empty(len(order), np.dtype([(k, pts[k].dtype) for k in STRIP_FIELDS]))
     for k in STRIP_FIELDS:
