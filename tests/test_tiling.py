@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import laspy
+import pyproj
 import numpy as np
 import pytest
 
@@ -177,3 +178,35 @@ def test_tiles_narrower_than_two_buffers_equal_one_file(sample_tiles, tmp_path):
     assert summary["counts"]["ok"] == len(edges) - 1 >= 8 and summary["buffer"] > 150.0 / 2
     rasters_from_tiles([whole], tmp_path / "whole")
     _compare(tmp_path / "tiled", tmp_path / "whole")
+
+
+def test_a_strip_read_by_box_holds_exactly_the_strips_points_in_the_box(tmp_path):
+    """A neighbour's strip is kept in the order of a grid of its tile and read by the grid cells that reach a box:
+    for boxes inside, across and beyond the tile, edges on points' coordinates, every point of the strip in the box
+    and no other (laspy reads the tile independently); a strip by a rule holds what the rule keeps."""
+    from gistools.engine.buffered import EVERYWHERE, _strip_in_box, _strip_tile
+
+    rng = np.random.default_rng(4)
+    n = 20_000
+    x, y = rng.uniform(1000, 1500, n), rng.uniform(2000, 2400, n)
+    x[:50] = 1500.0  # points on the east edge of the tile
+    d = {"x": x, "y": y, "z": rng.uniform(0, 30, n), "classification": np.ones(n, np.uint8),
+         "return_number": np.ones(n, np.uint8), "number_of_returns": np.ones(n, np.uint8),
+         "intensity": rng.integers(0, 60000, n).astype(np.uint16)}
+    path = write_tile(tmp_path / "t.las", d, pyproj.CRS.from_epsg(32617), version="1.2", point_format=1, offsets=[1000.0, 2000.0, 0.0])
+    las = laspy.read(path)
+    X, Y, I = np.asarray(las.x), np.asarray(las.y), np.asarray(las.intensity)
+    strip = _strip_tile("t", str(path), None, 60.0, str(tmp_path))
+    iw, is_, ie, in_ = strip["inner"]
+    edge = ~((X > iw) & (X < ie) & (Y > is_) & (Y < in_))
+    boxes = [EVERYWHERE, (940, 1940, 1560, 2460), (1450, 1900, 1600, 2500), (900, 2350, 1100, 2500), (0, 0, 10, 10),
+             (X[7], Y[9], X[7] + 75, Y[9] + 40), (1500.0, 2000, 1500.0, 2400)]
+    boxes += [tuple(sorted(rng.uniform(950, 1550, 2))[i] if k % 2 == 0 else sorted(rng.uniform(1950, 2450, 2))[i]
+                    for k, i in ((0, 0), (1, 0), (2, 1), (3, 1))) for _ in range(30)]
+    for w, s, e, n_ in boxes:
+        got = _strip_in_box(strip["strip"], (w, s, e, n_))
+        want = edge & (X >= w) & (X <= e) & (Y >= s) & (Y <= n_)
+        assert sorted(zip(got["x"], got["y"], got["intensity"])) == sorted(zip(X[want], Y[want], I[want]))
+    ruled = _strip_tile("r", str(path), None, 60.0, str(tmp_path), rule=lambda a, b: a < 1100)
+    got = _strip_in_box(ruled["strip"], EVERYWHERE)
+    assert sorted(got["x"]) == sorted(X[X < 1100])

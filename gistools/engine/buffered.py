@@ -95,16 +95,21 @@ def neighbour_table(infos: dict, buffer: float, reach: dict | None = None) -> di
 STRIP_BINS = 16  # a strip's points are kept in the order of a 16 x 16 grid of its tile: a neighbour reads its side only
 
 
-def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str) -> dict:
-    """Pass 1: the points of a tile within ``buffer`` of its edges, saved in the scratch folder (so each tile is
-    decoded twice in a run, not once per neighbour), ordered by the cells of a STRIP_BINS x STRIP_BINS grid of the
-    tile (file order within a cell) so that ``_strip_in_box`` reads only the cells that reach a box."""
+def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str, rule=None) -> dict:
+    """Pass 1: the points of a tile within ``buffer`` of its edges (or those ``rule(x, y)`` keeps), saved in the
+    scratch folder (so each tile is decoded twice in a run, not once per neighbour), ordered by the cells of a
+    STRIP_BINS x STRIP_BINS grid of the tile (file order within a cell) so that ``_strip_in_box`` reads only the
+    cells that reach a box."""
     info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
     pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
     w, s, e, n = info.bounds
-    inner = (w + buffer, s + buffer, e - buffer, n - buffer)
-    deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
-    keep = np.flatnonzero(~deep)
+    if rule is None:
+        inner = (w + buffer, s + buffer, e - buffer, n - buffer)
+        deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
+        keep = np.flatnonzero(~deep)
+    else:  # every point the rule keeps, wherever in the tile: no inner part to read from the tile itself
+        inner = (w, s, w, s)
+        keep = np.flatnonzero(rule(pts["x"], pts["y"]))
     grid = _strip_grid(info.bounds)
     key = _strip_bin(pts["x"][keep], grid[0], grid[2]) + STRIP_BINS * _strip_bin(pts["y"][keep], grid[1], grid[3])
     order = keep[np.argsort(key.astype(np.uint16), kind="stable")]  # 16-bit keys: numpy's radix sort
@@ -220,11 +225,15 @@ class _StripState:
     inner: tuple | None = None
 
 
-def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict, reach=None) -> tuple[list, list]:
-    """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), warnings)."""
+def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict, reach=None,
+             own_strip: bool = False) -> tuple[list, list]:
+    """(what to read of each neighbour: ("strip", name, file) or ("tile", name, file), the tile's own strip first
+    if ``own_strip``; warnings)."""
     w, s, e, n = infos[name].bounds
     grown = reach[name] if reach is not None else (w - buffer, s - buffer, e + buffer, n + buffer)
     sources, warnings = [], []
+    if own_strip:
+        sources.append(("strip", name, strips[name].strip))
     for path in table[name]:
         nb = Path(path).stem
         st = strips.get(nb)
@@ -240,18 +249,24 @@ def _sources(infos: dict, name: str, strips: dict, buffer: float, table: dict, r
 
 
 def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs_text, out: Path, jobs,
-                    scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str, reach: dict | None = None) -> None:
+                    scheduler, progress, tile_fn, tile_args, on_done, verb: str, tag: str, reach: dict | None = None,
+                    strip_rule=None) -> None:
     """The tiles of ``todo`` through the tile engine (engine.passes): pass 1 keeps the edge strips of each tile and
     its neighbours in a scratch folder, pass 2 runs ``tile_fn(name, *tile_args(name, sources))`` per tile as soon
     as its neighbours' strips are there, ``sources`` being what ``points_around`` reads; a strip no tile still
     needs is deleted. ``states``: name -> an object with ``status`` / ``error`` / ``warnings`` (failures are marked
     there); ``on_done(name, value, seconds)`` takes each result. A failed write to ``out`` stops the run; a failed
     tile does not. ``reach`` (name -> box, within ``buffer`` of the tile): where a tile needs its neighbours' points,
-    if less than its bounds grown by ``buffer``; a tile whose points no other tile needs is not read in pass 1."""
+    if less than its bounds grown by ``buffer``; a tile whose points no other tile needs is not read in pass 1.
+    ``strip_rule`` (a picklable ``rule(x, y)`` -> mask): the strips hold the points it keeps, anywhere in a tile,
+    and each tile's own strip comes first in its ``sources`` (the tile function reads no tile: each tile is decoded
+    once)."""
     if not todo:
         return
     table = neighbour_table(infos, buffer, reach)
     wanted = {Path(q).stem for n in todo for q in table[n]}  # the tiles whose edge strips another tile reads
+    if strip_rule is not None:
+        wanted |= set(todo)
     need = set(todo) | wanted
     strips = {n: _StripState(n, str(infos[n].path)) for n in need}
     order = scan_order({n: infos[n].bounds for n in infos if n in need})
@@ -266,7 +281,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
         strips[name].strip, strips[name].inner = value["strip"], tuple(value["inner"])
 
     def make(name):
-        sources, warnings = _sources(infos, name, strips, buffer, table, reach)
+        sources, warnings = _sources(infos, name, strips, buffer, table, reach, own_strip=strip_rule is not None)
         states[name].warnings = warnings
         for w in warnings:  # on the console and in QGIS as they happen, as gistools rasters does; also in the record
             log.warning("%s: %s", infos[name].path, w)
@@ -280,7 +295,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
     pool = make_pool(jobs, scheduler, len(todo), points=sum(int(infos[n].point_count) for n in todo))
     passes = Passes(read=lambda name, inline: ((_strip_tile, (name, str(infos[name].path), crs_text, buffer,
-                                                              str(scratch))) if name in wanted else
+                                                              str(scratch), strip_rule)) if name in wanted else
                                                (_no_strip, (infos[name].bounds,))),
                     make=make, on_read=read_done, on_made=on_done, results=states, read_results=strips, release=release,
                     tick=tick,

@@ -35,7 +35,7 @@ from ..units import METRE, LinearUnit, length_to_crs_units
 __all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS", "ground_candidates", "plane_residuals",
            "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram", "noise_stride",
-           "noise_reach"]
+           "NoiseBlocks"]
 
 FILL_RINGS = 32
 
@@ -523,12 +523,37 @@ def noise_stride(points: int) -> int:
     return max(1, math.isqrt(max(int(points), 0) // NOISE_POINTS))
 
 
-def noise_reach(p: SmrfParams, z_metres: float, stride: int) -> float:
-    """How far (CRS units) beyond a tile the first pass reads its neighbours' points: a noise block and its margin
-    (NOISE_BLOCK_M plus the filter's window and 10 cells) when ``stride`` > 1, else 0 (the caller's buffer)."""
-    if stride <= 1:
-        return 0.0
-    return NOISE_BLOCK_M / (p.z_per_xy * z_metres) + p.window + 10 * p.cell
+@dataclass(frozen=True)
+class NoiseBlocks:
+    """The blocks in which smrftin measures a large survey's ground noise (CRS units): every ``stride``-th block of
+    ``block`` east and north (absolute numbers x // block, y // block multiples of ``stride``), each classified with
+    the points within ``margin`` of it. Called with (x, y), where a point may be in a block or its margin (a superset,
+    cheap: its place in the period of the blocks)."""
+
+    block: float
+    margin: float
+    stride: int
+
+    @classmethod
+    def of(cls, p: SmrfParams, z_metres: float, stride: int) -> "NoiseBlocks":
+        """NOISE_BLOCK_M blocks, margins of the filter's window plus 10 cells, for data of these units."""
+        return cls(NOISE_BLOCK_M / (p.z_per_xy * z_metres), p.window + 10 * p.cell, int(stride))
+
+    @property
+    def reach(self) -> float:
+        """How far beyond a tile its blocks' points may lie: a block and its margin."""
+        return self.block + self.margin
+
+    def __call__(self, x, y) -> np.ndarray:
+        period = self.stride * self.block
+        slack = 1e-6 * period
+        if self.block + 2 * self.margin + 2 * slack >= period:  # margins wider than the gaps between the blocks
+            return np.ones(len(x), bool)
+        near = np.ones(len(x), bool)
+        for v in (np.asarray(x, np.float64), np.asarray(y, np.float64)):
+            o = v - np.floor(v / period) * period
+            near &= (o < self.block + self.margin + slack) | (o >= period - self.margin - slack)
+        return near
 
 
 def survey_noise_histogram(x, y, z, return_number, number_of_returns, classification, own: np.ndarray,
@@ -537,33 +562,23 @@ def survey_noise_histogram(x, y, z, return_number, number_of_returns, classifica
     patches left in), as noise_histogram; the other points are neighbours, not counted.
 
     ``stride`` 1: every point, classified together. ``stride`` > 1 (large surveys, ``noise_stride``): only the
-    points of the blocks of NOISE_BLOCK_M whose column and row numbers (absolute: x // block, y // block) are
-    multiples of ``stride``, each block classified with the points within a margin of it (the filter's window plus
-    10 cells) and nothing else: a block's residuals do not depend on how the survey is tiled, so tiled == merged
-    (a tile needs its neighbours' points within ``noise_reach``)."""
+    points of the ``NoiseBlocks``, each block classified with the points of its margin and nothing else: a block's
+    residuals do not depend on how the survey is tiled, so tiled == merged (a tile needs its neighbours' points
+    within ``NoiseBlocks.reach``)."""
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     fields = (np.asarray(return_number), np.asarray(number_of_returns), np.asarray(classification))
     tight = replace(for_noise(p, 0.0), patch=0.0)
     if stride <= 1:
         return _noise_counts(x, y, z, fields, own, None, tight, noise, z_metres)
-    block = NOISE_BLOCK_M / (p.z_per_xy * z_metres)
-    margin = noise_reach(p, z_metres, stride) - block
-    period = stride * block
-    # the points near a sampled block (a superset, by their place in the period), then each block exactly
-    ox, oy = x - np.floor(x / period) * period, y - np.floor(y / period) * period
-    slack = 1e-6 * period
-    if block + 2 * margin + 2 * slack < period:
-        near = (((ox < block + margin + slack) | (ox >= period - margin - slack))
-                & ((oy < block + margin + slack) | (oy >= period - margin - slack)))
-    else:  # margins wider than the gaps between the blocks (a very wide window): every point may be near one
-        near = np.ones(len(x), bool)
-    idx = np.flatnonzero(near)
+    blocks = NoiseBlocks.of(p, z_metres, stride)
+    block, margin = blocks.block, blocks.margin
+    idx = np.flatnonzero(blocks(x, y))
     bx, by = np.floor(x[idx] / block).astype(np.int64), np.floor(y[idx] / block).astype(np.int64)
     mine = idx[own[idx] & (bx % stride == 0) & (by % stride == 0)]
-    blocks = np.unique(np.column_stack([np.floor(x[mine] / block), np.floor(y[mine] / block)]).astype(np.int64), axis=0)
+    numbers = np.unique(np.column_stack([np.floor(x[mine] / block), np.floor(y[mine] / block)]).astype(np.int64), axis=0)
     total = np.zeros(NOISE_BINS + 1, np.int64)
     xs, ys = x[idx], y[idx]
-    for i, j in blocks:
+    for i, j in numbers:
         w, s_ = i * block, j * block
         clip = idx[(xs >= w - margin) & (xs < w + block + margin) & (ys >= s_ - margin) & (ys < s_ + block + margin)]
         inside = (np.floor(x[clip] / block) == i) & (np.floor(y[clip] / block) == j)

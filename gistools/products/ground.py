@@ -25,14 +25,15 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import (NOISE_BAND_M, RECLASSIFIED, TIGHT_M, CsfParams, NoiseParams, SmrfParams,
-                            classify_ground_and_noise, for_noise, noise_from_histogram, noise_reach, noise_stride,
+from ..lidar.ground import (NOISE_BAND_M, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks, NoiseParams, SmrfParams,
+                            classify_ground_and_noise, for_noise, noise_from_histogram, noise_stride,
                             smrftin_params, survey_noise_histogram)
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..engine.buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, points_around,
+                               read_headers, write_batch_report)
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
 
@@ -183,23 +184,39 @@ def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()
     box = (w - b, s - b, e + b, n + b)
     parts = [{k: a[~withheld] for k, a in own.items()}, *points_around(neighbours, box, crs_text)]
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
-    if water_wkb:  # returns on the water polygons are water, out of the ground filter
-        inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
-        allp["classification"] = np.where(inside & np.isin(allp["classification"], RECLASSIFIED), WATER,
-                                          allp["classification"]).astype(np.uint8)
+    _in_water(allp, water_wkb)
     return las, info, int(np.count_nonzero(~withheld)), withheld, allp
 
 
-def _noise_tile(path: str, neighbours: list, crs_text, p: _Params, stride: int, water_wkb=()) -> dict:
+def _in_water(allp: dict, water_wkb) -> None:
+    """Returns on the water polygons are water (class 9, in ``allp``), out of the ground filter."""
+    if water_wkb:
+        inside = shapely.contains_xy(shapely.union_all([shapely.from_wkb(g) for g in water_wkb]), allp["x"], allp["y"])
+        allp["classification"] = np.where(inside & np.isin(allp["classification"], RECLASSIFIED), WATER,
+                                          allp["classification"]).astype(np.uint8)
+
+
+def _noise_tile(path: str, sources: list, crs_text, p: _Params, stride: int, water_wkb=()) -> dict:
     """smrftin's first pass on one tile (lidar.ground.survey_noise_histogram): the histogram of its own ground
-    points' residuals (in the sampled blocks when ``stride`` > 1), which the run adds up into the survey's noise."""
-    reach = noise_reach(p.smrftin, p.z_metres, stride) or None
-    _las, _info, n_own, _withheld, allp = _tile_points(path, neighbours, crs_text, p, water_wkb, buffer=reach)
+    points' residuals, which the run adds up into the survey's noise. A large survey (``stride`` > 1) is measured
+    in its NoiseBlocks: the tile's own points there come from its own strip (``sources[0]``), not the tile."""
+    if stride <= 1:
+        _las, _info, n_own, _withheld, allp = _tile_points(path, sources, crs_text, p, water_wkb)
+    else:
+        info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+        w, s, e, n = info.bounds
+        b = NoiseBlocks.of(p.smrftin, p.z_metres, stride).reach
+        mine = points_around(sources[:1], EVERYWHERE, crs_text)
+        parts = mine + points_around(sources[1:], (w - b, s - b, e + b, n + b), crs_text)
+        allp = {k: np.concatenate([q[k] for q in parts]) for k in STRIP_FIELDS}
+        n_own = len(mine[0]["x"])
+        _in_water(allp, water_wkb)
+        sources = sources[1:]
     own = np.zeros(len(allp["x"]), bool)
     own[:n_own] = True
     counts = survey_noise_histogram(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
                                     allp["classification"], own, p.smrftin, p.noise, p.z_metres, stride)
-    return {"histogram": counts.tolist(), "neighbours": [nb for _kind, nb, _source in neighbours]}
+    return {"histogram": counts.tolist(), "neighbours": [nb for _kind, nb, _source in sources]}
 
 
 def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str, water_wkb=()) -> dict:
@@ -364,7 +381,8 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
     names = [n for n in infos if states[n].status != "failed"]
     total = np.zeros(0, np.int64)
     stride = noise_stride(sum(infos[n].point_count for n in names))  # a large survey: measured in blocks
-    buffer = noise_reach(p.smrftin, p.z_metres, stride) or p.buffer
+    blocks = NoiseBlocks.of(p.smrftin, p.z_metres, stride) if stride > 1 else None
+    buffer = blocks.reach if blocks else p.buffer
 
     def args(n, sources):
         return (str(infos[n].path), sources, crs_text, p, stride, _near(water, infos[n].bounds, buffer))
@@ -377,7 +395,7 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
     kept = {n: states[n].status for n in names}
     buffered_passes(names, infos, states, buffer=buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
                     progress=progress, tile_fn=_noise_tile, tile_args=args, on_done=on_done, verb="measured",
-                    tag="ground-noise")
+                    tag="ground-noise", strip_rule=blocks)
     for n, status in kept.items():  # a kept tile stays "skipped"; a failure of the first pass stays a failure
         if states[n].status != "failed":
             states[n].status = status
