@@ -149,7 +149,7 @@ def _strip_in_box(path: str, box) -> dict:
         gw, gs, dx, dy = np.load(f)
         starts = np.load(f)
         version = np.lib.format.read_magic(f)
-        shape, _fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
+        _shape, _fortran, dtype = (np.lib.format.read_array_header_1_0(f) if version == (1, 0)
                                   else np.lib.format.read_array_header_2_0(f))
         base = f.tell()
         c0, c1 = (int(v) for v in _strip_bin([w, e], gw, dx))
@@ -164,7 +164,10 @@ def _strip_in_box(path: str, box) -> dict:
         parts = []
         for a, b in spans:
             f.seek(base + a * dtype.itemsize)
-            parts.append(np.fromfile(f, dtype, b - a))
+            data = f.read((b - a) * dtype.itemsize)
+            if len(data) != (b - a) * dtype.itemsize:
+                raise OSError(f"{path}: the neighbour's strip is cut short (the scratch disk filled?)")
+            parts.append(np.frombuffer(data, dtype))
     records = np.concatenate(parts) if parts else np.empty(0, dtype)
     x, y = records["x"], records["y"]
     records = records[(x >= w) & (x <= e) & (y >= s) & (y <= n)]
