@@ -168,9 +168,8 @@ def _output_name(path: Path, fmt: str) -> str:
     return f"{stem}.copc.laz" if fmt == "copc" else f"{stem}.{fmt}"
 
 
-def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=(), buffer: float | None = None):
-    """(las, info, own non-withheld count, withheld mask, the tile's and its neighbours' points within the buffer,
-    ``p.buffer`` unless given)."""
+def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()):
+    """(las, info, own non-withheld count, withheld mask, the tile's and its neighbours' points within the buffer)."""
     override = parse_crs_text(crs_text) if crs_text else None
     info = read_tile_info(path, override)
     las = read_all_points(path)
@@ -180,8 +179,7 @@ def _tile_points(path: str, neighbours: list, crs_text, p: _Params, water_wkb=()
            "classification": np.asarray(las.classification, np.uint8)}
     withheld = np.asarray(las.withheld, bool) if "withheld" in las.point_format.dimension_names else np.zeros(len(own["x"]), bool)
     w, s, e, n = info.bounds
-    b = p.buffer if buffer is None else buffer
-    box = (w - b, s - b, e + b, n + b)
+    box = (w - p.buffer, s - p.buffer, e + p.buffer, n + p.buffer)
     parts = [{k: a[~withheld] for k, a in own.items()}, *points_around(neighbours, box, crs_text)]
     allp = {k: np.concatenate([q[k] for q in parts]) for k in own}
     _in_water(allp, water_wkb)
