@@ -285,7 +285,8 @@ def speed(workdir: Path, points: float, methods=("smrf",), simple: bool = False)
     included)."""
     import resource
 
-    if simple:
+    if simple:  # in its own folder: bench_shrub's block keeps its tiles in workdir / "tiles"
+        workdir = workdir / "simple"
         info = simple_block(workdir, points)
     else:
         import bench_shrub
