@@ -133,6 +133,33 @@ def test_a_large_surveys_noise_measured_in_blocks_is_the_same_tiled_and_merged(t
     assert abs(tiled["units"]["ground_noise"] - every) * p.z_metres <= 0.001
 
 
+def test_noise_blocks_that_miss_the_surveys_ground_give_way_to_every_point(tmp_path, monkeypatch):
+    """A survey too small for the blocks of its stride (here the sample with NOISE_POINTS lowered to 4,000: every
+    8th block of 100 m, one block reaching the sample) is measured on every point: the noise of the whole, tiled
+    and merged, and the library's call on the merged arrays gives the command's classes."""
+    from gistools.lidar import ground as lg
+    from gistools.products.ground import _params
+
+    tiles = sorted(SAMPLE.glob("*.la[sz]"))
+    wiped = _wiped(tiles, tmp_path / "tiles")
+    merged = {k: np.concatenate([np.asarray(getattr(laspy.read(p), k)) for p in wiped]) for k in FIELDS}
+    monkeypatch.setattr(lg, "NOISE_POINTS", 4_000)
+    assert lg.noise_stride(len(merged["x"])) == 8
+    p = _params(GroundSettings(method="smrftin"), read_tile_info(wiped[0]))
+    fields = (merged["x"], merged["y"], merged["z"], merged["return_number"], merged["number_of_returns"],
+              merged["classification"], np.ones(len(merged["x"]), bool), p.smrftin, p.noise, p.z_metres)
+    assert 0 < lg.survey_noise_histogram(*fields, 8).sum() < lg.NOISE_ENOUGH  # the blocks alone: too few
+    every = lg.noise_from_histogram(lg.survey_noise_histogram(*fields, 1), p.z_metres)
+    tiled = ground_from_tiles(tmp_path / "tiles", tmp_path / "out_tiled", GroundSettings(method="smrftin"))
+    assert tiled["units"]["ground_noise"] == every
+    got = np.concatenate([np.asarray(laspy.read(tmp_path / "out_tiled" / f"{q.stem}.laz").classification)
+                          for q in wiped])
+    lib = classify_ground_and_noise(merged["x"], merged["y"], merged["z"], merged["return_number"],
+                                    merged["number_of_returns"], merged["classification"], method="smrftin",
+                                    smrftin=p.smrftin, noise=p.noise, z_metres=p.z_metres)
+    assert np.array_equal(got, lib)
+
+
 def _same_points_but_classes(src: Path, dst: Path):
     a, b = laspy.read(src), laspy.read(dst)
     assert a.header.point_format.id == b.header.point_format.id and str(a.header.version) == str(b.header.version)

@@ -107,7 +107,7 @@ def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str, rul
         inner = (w + buffer, s + buffer, e - buffer, n - buffer)
         deep = (pts["x"] > inner[0]) & (pts["x"] < inner[2]) & (pts["y"] > inner[1]) & (pts["y"] < inner[3])
         keep = np.flatnonzero(~deep)
-    else:  # every point the rule keeps, wherever in the tile: no inner part to read from the tile itself
+    else:  # every point the rule keeps, wherever in the tile: an empty inner box (_sources never reads the tile)
         inner = (w, s, w, s)
         keep = np.flatnonzero(rule(pts["x"], pts["y"]))
     grid = _strip_grid(info.bounds)

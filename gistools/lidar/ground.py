@@ -516,10 +516,15 @@ NOISE_BLOCK_M = 100.0  # smrftin measures a large survey's ground noise in block
 NOISE_POINTS = 250_000  # ... every stride-th block east and north, the stride leaving about this many points in them
 
 
+NOISE_ENOUGH = NOISE_POINTS // 10  # fewer ground residuals than this in the blocks: measured on every point instead
+
+
 def noise_stride(points: int) -> int:
-    """The stride of the blocks in which smrftin measures the ground noise of a survey of ``points`` points: 1 (every
-    point, no blocks) below 4 x NOISE_POINTS, else the largest whose 1 / stride**2 share of the area holds about
-    NOISE_POINTS (16 M points: every 8th block each way; a county of a billion: every 63rd)."""
+    """The stride of the blocks in which smrftin measures the ground noise of a survey of ``points`` points (every
+    point of the files, withheld and noise included, as their headers count them): 1 (every point, no blocks) below
+    4 x NOISE_POINTS, else the largest whose 1 / stride**2 share of the area holds about NOISE_POINTS (16 M points:
+    every 8th block each way; a county of a billion: every 63rd). A survey whose blocks hold fewer than NOISE_ENOUGH
+    ground residuals (a narrow corridor between the blocks, a small dense site) is measured again on every point."""
     return max(1, math.isqrt(max(int(points), 0) // NOISE_POINTS))
 
 
@@ -581,10 +586,22 @@ def survey_noise_histogram(x, y, z, return_number, number_of_returns, classifica
     for i, j in numbers:
         w, s_ = i * block, j * block
         clip = idx[(xs >= w - margin) & (xs < w + block + margin) & (ys >= s_ - margin) & (ys < s_ + block + margin)]
+        # the same points in the same order however the survey is tiled (ties in a triangulation go by order)
+        clip = clip[np.lexsort((*(f[clip] for f in reversed(fields)), z[clip], y[clip], x[clip]))]
         inside = (np.floor(x[clip] / block) == i) & (np.floor(y[clip] / block) == j)
         total += _noise_counts(x[clip], y[clip], z[clip], tuple(f[clip] for f in fields), own[clip], inside, tight,
                                noise, z_metres)
     return total
+
+
+def _survey_noise(x, y, z, return_number, number_of_returns, classification, p: SmrfParams, noise: NoiseParams,
+                  z_metres: float) -> np.ndarray:
+    """survey_noise_histogram of every point of one array (the library's call): in the blocks of its stride, on
+    every point if they hold fewer than NOISE_ENOUGH residuals."""
+    args = (x, y, z, return_number, number_of_returns, classification, np.ones(len(x), bool), p, noise, z_metres)
+    stride = noise_stride(len(x))
+    counts = survey_noise_histogram(*args, stride)
+    return counts if stride == 1 or counts.sum() >= NOISE_ENOUGH else survey_noise_histogram(*args, 1)
 
 
 def _noise_counts(x, y, z, fields, own, inside, tight: SmrfParams, noise: NoiseParams, z_metres: float) -> np.ndarray:
@@ -703,8 +720,7 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
         p = smrftin or smrftin_params()
         if p.noise_band:  # thresholds from the ground's noise: given by the run, or measured on these points
             ground_noise = p.noise if p.noise is not None else noise_from_histogram(
-                survey_noise_histogram(x, y, z, return_number, number_of_returns, old, np.ones(len(x), bool), p, noise,
-                                       z_metres, noise_stride(len(x))), z_metres)
+                _survey_noise(x, y, z, return_number, number_of_returns, old, p, noise, z_metres), z_metres)
             p = for_noise(p, ground_noise)
         ground, surface = smrf_ground(x, y, z, candidates, p)
     else:

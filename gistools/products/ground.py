@@ -25,7 +25,8 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import (NOISE_BAND_M, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks, NoiseParams, SmrfParams,
+from ..lidar.ground import (NOISE_BAND_M, NOISE_BINS, NOISE_ENOUGH, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks,
+                            NoiseParams, SmrfParams,
                             classify_ground_and_noise, for_noise, noise_from_histogram, noise_stride,
                             smrftin_params, survey_noise_histogram)
 from ..parameters import check, check_all, choices, default_for, option
@@ -205,6 +206,10 @@ def _noise_tile(path: str, sources: list, crs_text, p: _Params, stride: int, wat
         w, s, e, n = info.bounds
         b = NoiseBlocks.of(p.smrftin, p.z_metres, stride).reach
         mine = points_around(sources[:1], EVERYWHERE, crs_text)
+        if len(mine[0]["x"]):  # own points beyond the header's bounds have their blocks too
+            w, s = min(w, float(mine[0]["x"].min())), min(s, float(mine[0]["y"].min()))
+            e, n = max(e, float(mine[0]["x"].max())), max(n, float(mine[0]["y"].max()))
+        b *= 1 + 1e-9  # and a block's edge within rounding of the box's
         parts = mine + points_around(sources[1:], (w - b, s - b, e + b, n + b), crs_text)
         allp = {k: np.concatenate([q[k] for q in parts]) for k in STRIP_FIELDS}
         n_own = len(mine[0]["x"])
@@ -377,8 +382,19 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
     from dataclasses import replace
 
     names = [n for n in infos if states[n].status != "failed"]
-    total = np.zeros(0, np.int64)
     stride = noise_stride(sum(infos[n].point_count for n in names))  # a large survey: measured in blocks
+    total = _noise_pass(names, infos, states, p, stride, crs_text, out, jobs, scheduler, progress, water)
+    if stride > 1 and int(total.sum()) < NOISE_ENOUGH:  # the blocks missed the survey's ground: every point
+        total = _noise_pass(names, infos, states, p, 1, crs_text, out, jobs, scheduler, progress, water)
+    noise = noise_from_histogram(total, p.z_metres) if total.size else None
+    # an unknown noise (too few ground points) is the run's answer too: the tiles do not measure it again
+    return replace(p, smrftin=replace(p.smrftin, noise=noise) if noise is not None else for_noise(p.smrftin, None))
+
+
+def _noise_pass(names, infos, states, p: _Params, stride: int, crs_text, out, jobs, scheduler, progress,
+                water=None) -> np.ndarray:
+    """The tiles' noise histograms added up (``_noise_tile`` over ``names``; in NoiseBlocks when ``stride`` > 1)."""
+    total = np.zeros(NOISE_BINS + 1, np.int64)
     blocks = NoiseBlocks.of(p.smrftin, p.z_metres, stride) if stride > 1 else None
     buffer = blocks.reach if blocks else p.buffer
 
@@ -386,9 +402,7 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
         return (str(infos[n].path), sources, crs_text, p, stride, _near(water, infos[n].bounds, buffer))
 
     def on_done(name, value, seconds):
-        nonlocal total
-        h = np.asarray(value["histogram"], np.int64)
-        total = h if total.size == 0 else total + h
+        total[:] += np.asarray(value["histogram"], np.int64)
 
     kept = {n: states[n].status for n in names}
     buffered_passes(names, infos, states, buffer=buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
@@ -397,8 +411,7 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
     for n, status in kept.items():  # a kept tile stays "skipped"; a failure of the first pass stays a failure
         if states[n].status != "failed":
             states[n].status = status
-    noise = noise_from_histogram(total, p.z_metres) if total.size else None
-    return replace(p, smrftin=replace(p.smrftin, noise=noise))
+    return total
 
 
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
