@@ -359,7 +359,8 @@ void gt_slope_threshold(const double *z, int64_t rows, int64_t cols, double cell
 
 /* ------------------------------------------------------------------ raised ground patches (lidar/ground.py)
  * The cells of patches standing above all the ground around them, as lidar.ground._raised_cells_numpy finds them
- * (the same comparisons on the same float64 values). `z`: the lowest ground point of each cell, NaN where empty.
+ * (the same comparisons on the same float64 values). `z`: the lowest ground point of each cell, NaN (or any value
+ * that is not finite) where empty.
  * Cells up to `reach` cells apart are one patch when |dz| <= step * distance (cells); a patch's extent is its
  * longest side (cell count - 1) x `cell`; the pairs of cells of two patches vote the higher one down, counting only
  * lower patches of `floor_cells` cells or more or at least `patch` wide; a patch narrower than `patch` with at least
@@ -381,76 +382,65 @@ int64_t gt_raised_patches(const double *z, int64_t rows, int64_t cols, int32_t r
     for (int64_t i = 0; i < n; i++) {
         parent[i] = i;
         roof[i] = 0;
-    }
-    /* the patches: unions of the cells within reach whose heights differ by at most step per cell of distance */
-    for (int64_t r = 0; r < rows; r++) {
-        for (int64_t c = 0; c < cols; c++) {
-            int64_t a = r * cols + c;
-            if (isnan(z[a]))
-                continue;
-            for (int32_t dr = 0; dr <= reach; dr++) {
-                for (int32_t dc = -reach; dc <= reach; dc++) {
-                    if ((dr == 0 && dc <= 0) || r + dr >= rows || c + dc < 0 || c + dc >= cols)
-                        continue;
-                    int64_t b = a + (int64_t)dr * cols + dc;
-                    if (isnan(z[b]) || !(fabs(z[a] - z[b]) <= step * sqrt((double)(dr * dr + dc * dc))))
-                        continue;
-                    int64_t ra = uf_find(parent, a), rb = uf_find(parent, b);
-                    if (ra != rb) {
-                        if (ra < rb)
-                            parent[rb] = ra;
-                        else
-                            parent[ra] = rb;
-                    }
-                }
-            }
-        }
-    }
-    /* each patch's size and bounding cells, kept at its root */
-    for (int64_t i = 0; i < n; i++) {
         size[i] = down[i] = up[i] = 0;
         lo_c[i] = lo_r[i] = INT64_MAX;
         hi_c[i] = hi_r[i] = INT64_MIN;
     }
-    for (int64_t i = 0; i < n; i++) {
-        if (isnan(z[i]))
-            continue;
-        int64_t p = uf_find(parent, i), r = i / cols, c = i % cols;
-        parent[i] = p;
-        size[p]++;
-        if (c < lo_c[p]) lo_c[p] = c;
-        if (c > hi_c[p]) hi_c[p] = c;
-        if (r < lo_r[p]) lo_r[p] = r;
-        if (r > hi_r[p]) hi_r[p] = r;
-    }
 #define EXTENT(p) ((double)((hi_c[p] - lo_c[p]) > (hi_r[p] - lo_r[p]) ? (hi_c[p] - lo_c[p]) : (hi_r[p] - lo_r[p])) * cell)
-    /* the votes: every pair of cells within reach in two patches, the higher one down */
-    for (int64_t r = 0; r < rows; r++) {
-        for (int64_t c = 0; c < cols; c++) {
-            int64_t a = r * cols + c;
-            if (isnan(z[a]))
-                continue;
-            for (int32_t dr = 0; dr <= reach; dr++) {
-                for (int32_t dc = -reach; dc <= reach; dc++) {
-                    if ((dr == 0 && dc <= 0) || r + dr >= rows || c + dc < 0 || c + dc >= cols)
-                        continue;
-                    int64_t b = a + (int64_t)dr * cols + dc;
-                    if (isnan(z[b]))
-                        continue;
-                    int64_t la = parent[a], lb = parent[b];
-                    if (la == lb)
-                        continue;
-                    int64_t higher = z[a] - z[b] > 0 ? la : lb, lower = higher == la ? lb : la;
-                    if (size[lower] >= floor_cells || EXTENT(lower) >= patch) {
-                        down[higher]++;
-                        up[lower]++;
+    /* every pair of filled cells within reach, twice: pass 0 joins the pairs whose heights differ by at most step
+     * per cell of distance into patches; pass 1 (each patch's size and bounding cells known at its root) lets the
+     * pairs of two patches vote, the higher one down */
+    for (int pass = 0; pass < 2; pass++) {
+        if (pass == 1) {
+            for (int64_t i = 0; i < n; i++) {
+                if (!isfinite(z[i]))
+                    continue;
+                int64_t p = uf_find(parent, i), r = i / cols, c = i % cols;
+                parent[i] = p;
+                size[p]++;
+                if (c < lo_c[p]) lo_c[p] = c;
+                if (c > hi_c[p]) hi_c[p] = c;
+                if (r < lo_r[p]) lo_r[p] = r;
+                if (r > hi_r[p]) hi_r[p] = r;
+            }
+        }
+        for (int64_t r = 0; r < rows; r++) {
+            for (int64_t c = 0; c < cols; c++) {
+                int64_t a = r * cols + c;
+                if (!isfinite(z[a]))
+                    continue;
+                for (int32_t dr = 0; dr <= reach; dr++) {
+                    for (int32_t dc = -reach; dc <= reach; dc++) {
+                        if ((dr == 0 && dc <= 0) || r + dr >= rows || c + dc < 0 || c + dc >= cols)
+                            continue;
+                        int64_t b = a + (int64_t)dr * cols + dc;
+                        if (!isfinite(z[b]))
+                            continue;
+                        if (pass == 0) {
+                            if (!(fabs(z[a] - z[b]) <= step * sqrt((double)(dr * dr + dc * dc))))
+                                continue;
+                            int64_t ra = uf_find(parent, a), rb = uf_find(parent, b);
+                            if (ra < rb)
+                                parent[rb] = ra;
+                            else if (rb < ra)
+                                parent[ra] = rb;
+                            continue;
+                        }
+                        int64_t la = parent[a], lb = parent[b];
+                        if (la == lb)
+                            continue;
+                        int64_t higher = z[a] - z[b] > 0 ? la : lb, lower = higher == la ? lb : la;
+                        if (size[lower] >= floor_cells || EXTENT(lower) >= patch) {
+                            down[higher]++;
+                            up[lower]++;
+                        }
                     }
                 }
             }
         }
     }
     for (int64_t i = 0; i < n; i++) {
-        if (isnan(z[i]))
+        if (!isfinite(z[i]))
             continue;
         int64_t p = parent[i], total = down[p] + up[p];
         if (total >= 8 && (double)down[p] >= 0.9 * (double)total && EXTENT(p) < patch) {
