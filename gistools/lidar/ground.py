@@ -35,7 +35,7 @@ from ..units import METRE, LinearUnit, length_to_crs_units
 __all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS", "ground_candidates", "plane_residuals",
            "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram", "noise_stride",
-           "NoiseBlocks"]
+           "NoiseBlocks", "too_few_in_blocks"]
 
 FILL_RINGS = 32
 
@@ -562,19 +562,21 @@ class NoiseBlocks:
 
 
 def survey_noise_histogram(x, y, z, return_number, number_of_returns, classification, own: np.ndarray,
-                           p: SmrfParams, noise: NoiseParams, z_metres: float, stride: int = 1) -> np.ndarray:
+                           p: SmrfParams, noise: NoiseParams, z_metres: float, stride: int = 1,
+                           candidates: np.ndarray | None = None) -> np.ndarray:
     """smrftin's first pass: each ``own`` ground point's plane residual among the ground of its tight set (raised
     patches left in), as noise_histogram; the other points are neighbours, not counted.
 
     ``stride`` 1: every point, classified together. ``stride`` > 1 (large surveys, ``noise_stride``): only the
     points of the ``NoiseBlocks``, each block classified with the points of its margin and nothing else: a block's
     residuals do not depend on how the survey is tiled, so tiled == merged (a tile needs its neighbours' points
-    within ``NoiseBlocks.reach``)."""
+    within ``NoiseBlocks.reach``). ``candidates``: the ground candidates of these points (ground_candidates), if
+    the caller has them (``stride`` 1 only: a block's are its own)."""
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     fields = (np.asarray(return_number), np.asarray(number_of_returns), np.asarray(classification))
     tight = replace(for_noise(p, 0.0), patch=0.0)
     if stride <= 1:
-        return _noise_counts(x, y, z, fields, own, None, tight, noise, z_metres)
+        return _noise_counts(x, y, z, fields, own, None, tight, noise, z_metres, candidates)
     blocks = NoiseBlocks.of(p, z_metres, stride)
     block, margin = blocks.block, blocks.margin
     idx = np.flatnonzero(blocks(x, y))
@@ -594,20 +596,28 @@ def survey_noise_histogram(x, y, z, return_number, number_of_returns, classifica
     return total
 
 
+def too_few_in_blocks(stride: int, counts: np.ndarray) -> bool:
+    """Whether a noise histogram measured in the blocks of ``stride`` holds too few residuals (fewer than
+    NOISE_ENOUGH): the survey is then measured on every point."""
+    return stride > 1 and int(np.sum(counts)) < NOISE_ENOUGH
+
+
 def _survey_noise(x, y, z, return_number, number_of_returns, classification, p: SmrfParams, noise: NoiseParams,
-                  z_metres: float) -> np.ndarray:
+                  z_metres: float, candidates: np.ndarray) -> np.ndarray:
     """survey_noise_histogram of every point of one array (the library's call): in the blocks of its stride, on
-    every point if they hold fewer than NOISE_ENOUGH residuals."""
+    every point if they hold too few residuals."""
     args = (x, y, z, return_number, number_of_returns, classification, np.ones(len(x), bool), p, noise, z_metres)
     stride = noise_stride(len(x))
-    counts = survey_noise_histogram(*args, stride)
-    return counts if stride == 1 or counts.sum() >= NOISE_ENOUGH else survey_noise_histogram(*args, 1)
+    counts = survey_noise_histogram(*args, stride, candidates)
+    return survey_noise_histogram(*args, 1, candidates) if too_few_in_blocks(stride, counts) else counts
 
 
-def _noise_counts(x, y, z, fields, own, inside, tight: SmrfParams, noise: NoiseParams, z_metres: float) -> np.ndarray:
+def _noise_counts(x, y, z, fields, own, inside, tight: SmrfParams, noise: NoiseParams, z_metres: float,
+                  candidates: np.ndarray | None = None) -> np.ndarray:
     """noise_histogram of the plane residuals of the ``own`` (and ``inside``, if given) points the ``tight`` SMRF
-    finds ground among these points."""
-    _noise, _open, candidates = ground_candidates(x, y, z, *fields, noise)
+    finds ground among these points (``candidates``: theirs, if known)."""
+    if candidates is None:
+        _noise, _open, candidates = ground_candidates(x, y, z, *fields, noise)
     ground, _dem = smrf_ground(x, y, z, candidates, tight)
     gi = np.flatnonzero(ground)
     r = plane_residuals(x[gi], y[gi], z[gi])
@@ -720,7 +730,7 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
         p = smrftin or smrftin_params()
         if p.noise_band:  # thresholds from the ground's noise: given by the run, or measured on these points
             ground_noise = p.noise if p.noise is not None else noise_from_histogram(
-                _survey_noise(x, y, z, return_number, number_of_returns, old, p, noise, z_metres), z_metres)
+                _survey_noise(x, y, z, return_number, number_of_returns, old, p, noise, z_metres, candidates), z_metres)
             p = for_noise(p, ground_noise)
         ground, surface = smrf_ground(x, y, z, candidates, p)
     else:

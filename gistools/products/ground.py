@@ -25,10 +25,9 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import (NOISE_BAND_M, NOISE_BINS, NOISE_ENOUGH, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks,
-                            NoiseParams, SmrfParams,
-                            classify_ground_and_noise, for_noise, noise_from_histogram, noise_stride,
-                            smrftin_params, survey_noise_histogram)
+from ..lidar.ground import (NOISE_BAND_M, NOISE_BINS, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks, NoiseParams,
+                            SmrfParams, classify_ground_and_noise, for_noise, noise_from_histogram, noise_stride,
+                            smrftin_params, survey_noise_histogram, too_few_in_blocks)
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -384,7 +383,7 @@ def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, p
     names = [n for n in infos if states[n].status != "failed"]
     stride = noise_stride(sum(infos[n].point_count for n in names))  # a large survey: measured in blocks
     total = _noise_pass(names, infos, states, p, stride, crs_text, out, jobs, scheduler, progress, water)
-    if stride > 1 and int(total.sum()) < NOISE_ENOUGH:  # the blocks missed the survey's ground: every point
+    if too_few_in_blocks(stride, total):  # the blocks missed the survey's ground: every point
         total = _noise_pass(names, infos, states, p, 1, crs_text, out, jobs, scheduler, progress, water)
     noise = noise_from_histogram(total, p.z_metres) if total.size else None
     # an unknown noise (too few ground points) is the run's answer too: the tiles do not measure it again
