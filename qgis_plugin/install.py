@@ -34,6 +34,10 @@ __all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "ins
            "site_folders"]
 
 DEPS_FOLDER = "gistools_deps"
+# pip run by an isolated interpreter (-I: neither the current folder, nor PYTHONPATH / PYTHONHOME, nor the user's
+# site-packages on its path), so that a ``pip`` package planted in the folder QGIS was started from, or on a
+# variable, never runs in its place; the run's own folder is a fresh empty one (``_pip``)
+PIP = ("-I", "-m", "pip")
 BOUND = ("rasterio", "pyogrio", "pyproj", "shapely")  # built against GDAL / PROJ / GEOS: QGIS's builds only
 
 
@@ -133,7 +137,15 @@ def _local(url: str) -> str:
 
 
 def _quoted(parts) -> str:
-    return " ".join(f'"{p}"' if (" " in str(p) or not str(p)) else str(p) for p in parts)
+    """``parts`` as one command line to paste into this platform's shell: each part quoted by its rules (POSIX
+    shells: ``shlex.quote``, so a file named ``$(...)`` or with quotes stays one word and runs nothing; Windows:
+    ``subprocess.list2cmdline``, as cmd.exe and CreateProcess split)."""
+    import shlex
+
+    parts = [str(p) for p in parts]
+    if os.name == "nt":
+        return subprocess.list2cmdline(parts)
+    return " ".join(shlex.quote(p) for p in parts)
 
 
 def _bound_command(bound: list) -> str:
@@ -172,13 +184,13 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     """
     from .plugin import library_mismatches, missing_requirements
 
-    target = Path(target) if target is not None else default_target()
+    target = Path(target).expanduser().absolute() if target is not None else default_target()
     result = InstallResult(target=target)
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
     failure = None
     if wanted and not bound:
-        cmd = [str(exe or "python"), "-m", "pip", "install", "--disable-pip-version-check", "--no-input",
+        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
                "--prefix", str(target), *wanted]
         result.installed = wanted
         failure = _run_pip(exe, cmd, target, timeout, result)
@@ -206,7 +218,8 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
     notes = []
     lacks = "gistools" in missing or importlib.util.find_spec("gistools") is None
     if lacks and gistools is not None:
-        wanted.append(str(gistools))
+        given = Path(gistools).expanduser()
+        wanted.append(str(given.absolute()) if given.exists() else str(gistools))  # pip runs in a folder of its own
     elif lacks:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
                      "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
@@ -239,7 +252,8 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
     with tempfile.TemporaryDirectory() as tmp:
         pins, report = Path(tmp) / "constraints.txt", Path(tmp) / "report.json"
         pins.write_text(_constraints(have))
-        plan = cmd[:4] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[4:6], *wanted]
+        head = len(PIP) + 2  # the interpreter, -I -m pip, install
+        plan = cmd[:head] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[head:head + 2], *wanted]
         failure = _pip(plan, timeout)
         if failure:
             result.command = plan
@@ -251,7 +265,7 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
             if name in BOUND or name in have:
                 continue  # QGIS's build, or what QGIS's Python has (its copy comes first on the path anyway)
             chosen.append(_local(url) if url.startswith("file:") else f"{meta['name']}=={meta['version']}")
-    result.command = cmd[:4] + ["--no-deps"] + cmd[4:cmd.index("--prefix") + 2] + chosen
+    result.command = cmd[:head] + ["--no-deps"] + cmd[head:cmd.index("--prefix") + 2] + chosen
     if not chosen:
         return None
     target.mkdir(parents=True, exist_ok=True)
@@ -259,8 +273,11 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
 
 
 def _pip(command: list, timeout: float) -> str | None:
+    """Run pip (``command``) in an empty folder of its own: the folder QGIS was started from is never its working
+    folder (with -I it is not on the path either)."""
     try:
-        run = subprocess.run(command, capture_output=True, text=True, timeout=timeout)
+        with tempfile.TemporaryDirectory(prefix="gistools-pip-") as cwd:
+            run = subprocess.run(command, capture_output=True, text=True, timeout=timeout, cwd=cwd)
     except (OSError, subprocess.SubprocessError) as err:
         return f"pip could not run ({err})"
     if run.returncode != 0:

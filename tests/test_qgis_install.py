@@ -67,9 +67,46 @@ def test_when_pip_cannot_run_the_message_is_the_one_command(tmp_path, monkeypatc
     target = tmp_path / install.DEPS_FOLDER
     result = install.install_dependencies(target, python=tmp_path / "no-python")
     assert not result.ok and result.missing == ["laspy"] and result.installed == ["laspy"] and result.command == []
-    assert result.message.endswith(f"Run this once, then restart QGIS: {tmp_path / 'no-python'} -m pip install "
+    assert result.message.endswith(f"Run this once, then restart QGIS: {tmp_path / 'no-python'} -I -m pip install "
                                    f"--disable-pip-version-check --no-input --prefix {target} laspy"), result.message
     assert "\n" not in result.message
+
+
+def test_a_pip_planted_in_the_folder_qgis_started_from_or_on_pythonpath_never_runs(tmp_path, monkeypatch):
+    """A ``pip/__main__.py`` in the current folder (QGIS started from a downloads folder) or on PYTHONPATH: pip runs
+    isolated (-I) in a folder of its own, so the real pip installs and the planted one runs nothing."""
+    for place in ("cwd", "pythonpath"):
+        planted = tmp_path / place / "pip"
+        planted.mkdir(parents=True)
+        marker = tmp_path / f"PWNED-{place}"
+        (planted / "__init__.py").write_text("")
+        (planted / "__main__.py").write_text(f"open({str(marker)!r}, 'w').write('ran')\n")
+    monkeypatch.chdir(tmp_path / "cwd")
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path / "pythonpath"))
+    monkeypatch.setattr(sys, "path", list(sys.path))
+    target = tmp_path / install.DEPS_FOLDER
+    result = install.install_dependencies(target, requirements=[str(_wheel(tmp_path))])
+    assert result.ok, result.message
+    assert not (tmp_path / "PWNED-cwd").exists() and not (tmp_path / "PWNED-pythonpath").exists()
+    assert result.command[1:4] == ["-I", "-m", "pip"]
+    sys.modules.pop("gistools_probe", None)
+
+
+def test_the_command_to_paste_quotes_a_hostile_wheel_name_so_the_shell_runs_nothing(tmp_path, monkeypatch):
+    """pip cannot run; the message's command, pasted into a shell, passes the wheel's name as one word: a name
+    holding ``$(touch PWNED)`` or quotes runs nothing (the shell is asked to echo the words back)."""
+    import shlex
+    import subprocess
+
+    monkeypatch.setitem(sys.modules, "gistools", None)
+    monkeypatch.setattr(install, "_plan", lambda missing, given: ([], [str(given)], []))
+    wheel = tmp_path / "gistools-1.0-py3-none-any$(touch PWNED)'\"`touch PWNED2`.whl"
+    target = tmp_path / install.DEPS_FOLDER
+    result = install.install_dependencies(target, gistools=wheel, python=tmp_path / "no-python")
+    command = result.message.split("Run this once, then restart QGIS: ", 1)[1]
+    run = subprocess.run(["sh", "-c", "printf '%s\\n' " + command], cwd=tmp_path, capture_output=True, text=True)
+    assert run.returncode == 0 and not (tmp_path / "PWNED").exists() and not (tmp_path / "PWNED2").exists()
+    assert run.stdout.splitlines() == shlex.split(command) and run.stdout.splitlines()[-1] == str(wheel)
 
 
 def test_the_plugin_puts_the_profiles_folder_on_the_path_when_it_starts(tmp_path):

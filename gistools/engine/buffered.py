@@ -29,7 +29,7 @@ from .schedule import neighbour_pairs
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TileState", "gridded_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
+__all__ = ["TileState", "gridded_todo", "marked_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
            "write_batch_report"]
 
 STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
@@ -195,10 +195,13 @@ class TileState(EngineTileState):
     seconds: float = 0.0
 
 
-def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwrite: bool, keep) -> list[str]:
+def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwrite: bool, keep,
+                 marks=None) -> list[str]:
     """The tiles to do of a command that grids them: a tile whose grid at ``cell_size`` would not fit in memory fails,
-    one whose outputs (``outputs_of(name)``: {key: Path}) all exist is kept (``keep(state, outputs)``) unless
-    ``overwrite``."""
+    one whose outputs (``outputs_of(name)``: {key: Path}) are complete is kept (``keep(state, outputs, found)``, with
+    what its earlier run found) unless ``overwrite``. ``marks`` (engine.resume.TileMarks) decides what is complete:
+    made with this run's settings (other settings are refused) and whole (a damaged tile is made again); an output
+    gistools did not write is refused before any work."""
     from ..errors import GistoolsError
     from ..validation import check_grid_size
 
@@ -210,12 +213,44 @@ def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwr
             states[name].status, states[name].error = "failed", str(err)
             continue
         targets = outputs_of(name)
-        if not overwrite and all(Path(t).exists() for t in targets.values()):
+        found = marks.kept(name, targets, overwrite) if marks is not None else (
+            None if overwrite or not all(Path(t).exists() for t in targets.values()) else {})
+        if found is not None:
             states[name].status = "skipped"
-            keep(states[name], targets)
+            keep(states[name], targets, found)
         else:
             todo.append(name)
     return todo
+
+
+def marked_todo(infos: dict, states: dict, run, out: Path, command: str, outputs_of, found: tuple, overwrite: bool,
+                single: str | None = None):
+    """(the tiles to make, the ``on_done`` that records a made tile) of a command whose tiles are marked in
+    ``tile_reports/`` (engine.resume.TileMarks, settings from the resolved ``run``): a kept tile's state gets its
+    outputs and the ``found`` fields its earlier run recorded; a made tile's state gets them from its result, and
+    its mark is written. ``single``: the output key of a command with one output per tile (state.output)."""
+    from .resume import TileMarks, run_fingerprint
+
+    first = next(iter(infos.values()), None)
+    marks = TileMarks(out, command, run_fingerprint(run), unit=first.unit.short if first is not None else "")
+
+    def keep(state, targets, earlier):
+        if single:
+            state.output = str(targets[single])
+        else:
+            state.outputs = {k: str(v) for k, v in targets.items()}
+        for k in found:
+            if k in earlier:
+                setattr(state, k, earlier[k])
+
+    def on_done(name, value, seconds):
+        st = states[name]
+        for k in ("output" if single else "outputs", *found):
+            setattr(st, k, value[k])
+        st.seconds = round(seconds, 3)
+        marks.write(name, {single: value["output"]} if single else value["outputs"], {k: value[k] for k in found})
+
+    return gridded_todo(infos, states, run.cell_size, outputs_of, overwrite, keep, marks), on_done
 
 
 @dataclass

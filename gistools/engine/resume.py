@@ -20,7 +20,8 @@ from ..io.raster import crs_from_wkt, file_stamp, raster_is_readable
 
 log = logging.getLogger("gistools.products.rasters")
 
-__all__ = ["TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report", "read_tile_report",
+__all__ = ["TileMarks", "run_fingerprint", "check_targets", "written_by_gistools", "input_stamp", "rerun_plan", "made_record",
+           "TILE_FIELDS", "tile_report_file", "run_settings", "write_tile_report", "read_tile_report",
            "check_same_settings", "complete_tile", "kept_tiles"]
 
 
@@ -135,3 +136,226 @@ def kept_tiles(out: Path, infos, neighbours: dict, run, settings: dict) -> dict:
             kept[i.name] = None
     return kept
 
+
+
+# --- the marks of the other tile commands (chm, metrics, fuels, normalize, ground) ------------------------------------
+
+def run_fingerprint(run) -> dict:
+    """The settings a tile's outputs depend on, as JSON values: the fields of the command's resolved run (lengths in
+    the tiles' units), without where it writes."""
+    import dataclasses
+
+    fields = dataclasses.asdict(run) if dataclasses.is_dataclass(run) else dict(run)
+    fields.pop("out", None)
+    return json.loads(json.dumps(fields, default=str))
+
+
+HORIZONTAL = ("cell_size", "buffer", "column", "tin_max_edge")  # run fields in the tiles' horizontal unit
+
+
+def _shown(key: str, value, unit: str = "") -> str:
+    if key in HORIZONTAL and isinstance(value, (int, float)) and unit:
+        return f"{value:.6g} {unit}"
+    if key == "crs_wkt" and value:
+        try:
+            return crs_label(crs_from_wkt(value))
+        except Exception:  # noqa: BLE001 - a damaged record: shown as it is
+            return str(value)[:60]
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    if isinstance(value, list):
+        return ",".join(_shown("", v) for v in value)
+    return "none" if value is None else str(value)[:80]
+
+
+def _named(key: str) -> str:
+    """A setting's name in a message: its option where it is a declared parameter (``--cell-size`` on the command
+    line), else the record's own word."""
+    from ..parameters.core import PARAMETERS
+
+    return option(key) if key in PARAMETERS else key.replace("_", " ")
+
+
+def _keys(earlier: dict, now: dict) -> list:
+    """The settings' names in the run's order, then those only the earlier record has."""
+    return [*now, *(k for k in earlier if k not in now)]
+
+
+def _same(key: str, old, new) -> bool:
+    if key == "crs_wkt" and old and new and old != new:
+        try:
+            return crs_from_wkt(old).equals(crs_from_wkt(new))
+        except Exception:  # noqa: BLE001
+            return False
+    return old == new
+
+
+def written_by_gistools(path: Path) -> bool:
+    """Whether the raster ``path`` carries the tag every gistools raster has (``GISTOOLS_PRODUCT``)."""
+    try:
+        import rasterio
+
+        with rasterio.open(path) as src:
+            return "GISTOOLS_PRODUCT" in src.tags()
+    except Exception:  # noqa: BLE001 - not a raster, unreadable: not known to be ours
+        return False
+
+
+def check_targets(targets) -> None:
+    """Refuse, before any work, outputs gistools may not write: a product folder that is a link (the run would write
+    into the folder it points to) or a file at an output's name that is a link."""
+    from ..errors import OutputExistsError
+
+    for target in targets:
+        target = Path(target)
+        for place in (target.parent, target):
+            if place.is_symlink():
+                raise OutputExistsError(f"{place} is a link (to {place.resolve()}); gistools writes only into "
+                                        "folders and files it makes", path=place,
+                                        hint="Remove the link or choose another output folder")
+
+
+class TileMarks:
+    """``OUT/tile_reports/<tile>.json`` of a command that writes files per tile: the settings the tile was made with,
+    each output's stamp (size, time) as written and checked, and what the tile's run found. A rerun keeps a tile
+    whose outputs are whole and whose settings are this run's, refuses one made with other settings (naming both
+    values), remakes a damaged one, and refuses an output file gistools did not write (it is never replaced)."""
+
+    def __init__(self, out: Path, command: str, settings: dict, check=raster_is_readable, ours=written_by_gistools,
+                 unit: str = ""):
+        self.out, self.command, self.settings, self.unit = Path(out), command, settings, unit
+        self.check, self.ours = check, ours
+
+    def file(self, name: str) -> Path:
+        return tile_report_file(self.out, name)
+
+    def read(self, name: str) -> dict | None:
+        try:
+            value = json.loads(self.file(name).read_text(encoding="utf-8"))
+        except (OSError, ValueError, UnicodeDecodeError):
+            return None
+        return value if isinstance(value, dict) and isinstance(value.get("settings"), dict) else None
+
+    def kept(self, name: str, targets: dict, overwrite: bool) -> dict | None:
+        """What the tile's earlier run found when its outputs ``targets`` ({key: path}) are kept, else None (the tile
+        is made). Raises OutputExistsError for an output gistools did not write (also with ``overwrite``) and
+        InputError for a complete tile made with other settings (unless ``overwrite``)."""
+        from ..errors import OutputExistsError
+
+        check_targets(targets.values())
+        mark = self.read(name)
+        listed = (mark or {}).get("stamps") if isinstance((mark or {}).get("stamps"), dict) else {}
+        for key, path in targets.items():
+            path = Path(path)
+            if path.exists() and listed.get(key) != file_stamp(path) and not self.ours(path) and (
+                    key not in listed or self.check(path)):  # not a damaged file of ours: someone else's
+                raise OutputExistsError(f"a file gistools did not write is in the way of tile {name}'s output",
+                                        path=path, hint="Move or rename it, or choose another output folder")
+        if overwrite or mark is None or not all(Path(p).exists() for p in targets.values()):
+            return None
+        earlier = mark["settings"]
+        for key in _keys(earlier, self.settings):
+            if not _same(key, earlier.get(key), self.settings.get(key)):
+                raise InputError(
+                    f"{self.out}: tile {name} was made with {_named(key)} {_shown(key, earlier.get(key), self.unit)}, this "
+                    f"run asks {_shown(key, self.settings.get(key), self.unit)}",
+                    hint=f"Pass {option('overwrite')} to redo the tiles with the new settings, or choose another "
+                         f"{option('out')}")
+        for key, path in targets.items():
+            if listed.get(key) != file_stamp(path) and not self.check(path):
+                log.warning("%s: damaged, recomputing the tile", path)
+                return None
+        return mark.get("found") if isinstance(mark.get("found"), dict) else {}
+
+    def write(self, name: str, outputs: dict, found: dict) -> None:
+        """The tile's mark, once all its ``outputs`` ({key: path}) are written and checked."""
+        stamps = {k: file_stamp(p) for k, p in outputs.items()}
+        with atomic_path(self.file(name), overwrite=True) as tmp:
+            tmp.write_text(json.dumps({"command": self.command, "settings": self.settings, "stamps": stamps,
+                                       "found": json.loads(json.dumps(found, default=str))}, indent=1),
+                           encoding="utf-8")
+
+
+def input_stamp(path) -> dict | None:
+    """What a rerun compares to tell an input changed: its size, modification time and the SHA-256 of its first and
+    last MiB (a rewritten file differs in one of them, without reading a large raster whole); None where it cannot
+    be read."""
+    import hashlib
+
+    try:
+        path = Path(path)
+        st = path.stat()
+        digest = hashlib.sha256()
+        with open(path, "rb") as fh:
+            digest.update(fh.read(1 << 20))
+            if st.st_size > 2 << 20:
+                fh.seek(-(1 << 20), 2)
+                digest.update(fh.read(1 << 20))
+        return {"size": int(st.st_size), "mtime_ns": int(st.st_mtime_ns), "sha256_ends": digest.hexdigest()}
+    except OSError:
+        return None
+
+
+def rerun_plan(previous: dict | None, tool: str, source: str, settings: dict, targets: dict, overwrite: bool,
+               ignore=("products",)) -> list:
+    """The outputs (keys of ``targets``: {key: path}) a rerun of a one-input command keeps; every other target is
+    (re)made. ``previous`` is the folder's report.json, whose ``made`` (made_record) says how each output was made.
+    Kept: made by the same command from the same input, unchanged since (input_stamp), with the same settings (but
+    ``ignore``), and whole (its recorded stamp, or opened and read whole now). Made again with a log line: a damaged
+    output, one of an input that changed since, one of gistools with no record (a run stopped before writing it).
+    Refused before any work: an output of other settings or another input unless ``overwrite`` (InputError naming
+    both values); with or without ``overwrite``, a file gistools did not write or a link (OutputExistsError)."""
+    check_targets(targets.values())
+    existing = {k: Path(p) for k, p in targets.items() if Path(p).exists()}
+    made = (previous or {}).get("made") if (previous or {}).get("tool") == tool else None
+    made = made if isinstance(made, dict) else {}
+    _refuse_foreign(existing, made)
+    if overwrite or not existing:
+        return []
+    now = {**{k: v for k, v in settings.items() if k not in ignore}, "input": source}
+    return [key for key, path in existing.items() if _keeps(path, made.get(key), now, source, ignore)]
+
+
+def _refuse_foreign(existing: dict, made: dict) -> None:
+    """OutputExistsError for an output file gistools did not write (a damaged file of its own is not refused)."""
+    from ..errors import OutputExistsError
+
+    for key, path in existing.items():
+        damaged_ours = isinstance(made.get(key), dict) and not raster_is_readable(path)
+        if not damaged_ours and not written_by_gistools(path):
+            raise OutputExistsError("a file gistools did not write is in the way", path=path,
+                                    hint="Move or rename it, or choose another output folder")
+
+
+def _keeps(path: Path, entry, now: dict, source: str, ignore) -> bool:
+    """Whether the existing output ``path``, made as ``entry`` says (made_record), is kept by a run of ``now``."""
+    if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
+        log.info("%s: no record of how it was made: making it again", path)
+        return False
+    before = {**{k: v for k, v in entry["settings"].items() if k not in ignore}, "input": entry.get("input")}
+    for name in _keys(before, now):
+        if before.get(name) != now.get(name):
+            raise InputError(f"{path} was made with {_named(name)} {_shown(name, before.get(name))}, this run "
+                             f"asks {_shown(name, now.get(name))}",
+                             hint=f"Pass {option('overwrite')} to make it again with the new settings, or choose "
+                                  f"another {option('out')}")
+    if entry.get("input_stamp") != input_stamp(source):
+        log.warning("%s changed since %s was made: making it again", source, path.name)
+        return False
+    if entry.get("stamp") == file_stamp(path) or raster_is_readable(path):
+        return True
+    log.warning("%s: damaged, made again", path)
+    return False
+
+
+def made_record(previous: dict | None, tool: str, source: str, settings: dict, paths: dict) -> dict:
+    """report.json's ``made``: how each output of the folder was made ({key: path, stamp, settings, input,
+    input_stamp}), the earlier runs' entries whose files are still there as they were, and this run's ``paths``."""
+    made = (previous or {}).get("made") if (previous or {}).get("tool") == tool else None
+    made = {k: v for k, v in (made or {}).items() if isinstance(v, dict) and k not in paths
+            and Path(str(v.get("path"))).exists() and v.get("stamp") == file_stamp(v.get("path"))}
+    stamp = input_stamp(source)
+    for key, path in paths.items():
+        made[key] = {"path": str(path), "stamp": file_stamp(path), "settings": settings, "input": str(source),
+                     "input_stamp": stamp}
+    return made

@@ -28,7 +28,7 @@ from ..parameters.lidar import COMMAND_DEFAULTS, check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo, points_around,
                        read_headers, write_batch_report)
 
 __all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]
@@ -213,15 +213,9 @@ def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, 
     run = None
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
-        todo = gridded_todo(infos, states, run.cell_size, lambda name: {"chm": out / "chm" / f"{name}.tif"}, overwrite,
-                            lambda state, targets: setattr(state, "output", str(targets["chm"])))
-
-        def on_done(name, value, seconds):
-            st = states[name]
-            for k in ("output", "pits", "cells", "neighbours"):
-                setattr(st, k, value[k])
-            st.seconds = round(seconds, 3)
-
+        todo, on_done = marked_todo(infos, states, run, out, "gistools chm",
+                                    lambda name: {"chm": out / "chm" / f"{name}.tif"}, ("pits", "cells", "neighbours"),
+                                    overwrite, single="chm")
         buffered_passes(todo, infos, states, buffer=run.buffer, crs_text=settings.crs, out=out, jobs=jobs,
                         scheduler=scheduler, progress=progress, tile_fn=_chm_tile,
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo,
                                points_around, read_headers, write_batch_report)
 from ..errors import InputError, raise_if_every_tile_failed
 from ..grid import cell_centres, cell_index, snapped_grid
@@ -273,6 +273,10 @@ def _fuels_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
     return {"outputs": outputs, "points": int(len(own["x"])), "neighbours": [nb for _k, nb, _s in sources], **counts}
 
 
+# what a tile's run found, kept in its mark (tile_reports/) and reported again when a rerun keeps the tile
+FOUND = ("points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours")
+
+
 @dataclass
 class _TileState(TileState):
     outputs: dict = field(default_factory=dict)
@@ -347,18 +351,8 @@ def _fuels_in(paths, out: Path, settings: FuelsSettings, override, jobs, schedul
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
 
-        def keep(state, targets):
-            state.outputs = {k: str(v) for k, v in targets.items()}
-
-        todo = gridded_todo(infos, states, run.cell_size, lambda name: {k: out / k / f"{name}.tif" for k in LAYERS},
-                            overwrite, keep)
-
-        def on_done(name, value, seconds):
-            st = states[name]
-            for k in ("outputs", "points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours"):
-                setattr(st, k, value[k])
-            st.seconds = round(seconds, 3)
-
+        todo, on_done = marked_todo(infos, states, run, out, "gistools fuels",
+                                    lambda name: {k: out / k / f"{name}.tif" for k in LAYERS}, FOUND, overwrite)
         buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size), crs_text=settings.crs, out=out,
                         jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_fuels_tile,
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,

@@ -28,7 +28,7 @@ from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_todo, points_around,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo, points_around,
                        read_headers, write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
@@ -165,6 +165,10 @@ def _description(spec: MetricSpec, z_unit: str) -> str:
     return f"{spec.name} ({z_unit})"
 
 
+# what a tile's run found, kept in its mark (tile_reports/) and reported again when a rerun keeps the tile
+FOUND = ("points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours")
+
+
 @dataclass
 class _TileState(TileState):
     outputs: dict = field(default_factory=dict)
@@ -240,13 +244,9 @@ def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, sch
     run = None
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
-        todo = _todo(infos, states, run, out, overwrite)
-
-        def on_done(name, value, seconds):
-            st = states[name]
-            for k in ("outputs", "points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours"):
-                setattr(st, k, value[k])
-            st.seconds = round(seconds, 3)
+        todo, on_done = marked_todo(infos, states, run, out, "gistools metrics",
+                                    lambda name: {s.name: out / s.name / f"{name}.tif" for s in run.specs}, FOUND,
+                                    overwrite)
 
         # without heights above ground a tile needs only the neighbours' points in its own cells (its grid snapped
         # out to the lattice): where tile edges lie on the lattice, no neighbour's (nor pass 1's reads)
@@ -258,15 +258,6 @@ def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, sch
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run), on_done=on_done,
                         verb="done", tag="metrics", reach=reach)
     return _report(out, settings, run, infos, states, _mosaics(out, run, states), started)
-
-
-def _todo(infos: dict, states: dict, run: _Run, out: Path, overwrite: bool) -> list[str]:
-    """The tiles to do: not those whose grid is too big (failed), nor those whose every metric exists (kept)."""
-    def keep(state, targets):
-        state.outputs = {k: str(v) for k, v in targets.items()}
-
-    return gridded_todo(infos, states, run.cell_size, lambda name: {s.name: out / s.name / f"{name}.tif" for s in run.specs},
-                        overwrite, keep)
 
 
 def _mosaics(out: Path, run: _Run | None, states: dict) -> dict:

@@ -152,17 +152,6 @@ def _check(products, azimuth, altitude, z_unit) -> tuple:
     return products
 
 
-def _kept(previous, tool: str, source: str, settings: dict, targets: dict) -> list:
-    """The outputs an earlier run of the same settings on the same input completed (kept unless overwrite); an
-    existing output of other settings is refused when written (OutputExistsError names --overwrite)."""
-    if not previous or previous.get("tool") != tool or previous.get("input") != source:
-        return []
-    before = {k: v for k, v in (previous.get("settings") or {}).items() if k != "products"}
-    if before != {k: v for k, v in settings.items() if k != "products"}:
-        return []
-    return [p for p, path in targets.items() if Path(path).exists()]
-
-
 def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: float = 315.0, altitude: float = 45.0,
                      z_unit: str | None = "raster", overwrite: bool = False, block: int = BLOCK,
                      progress: ProgressCallback | None = None) -> dict:
@@ -253,9 +242,12 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
                 return terrain_arrays(z, ewres, nsres, scale=scale, products=products, azimuth=azimuth, altitude=altitude)
 
             from ..engine.record import read_folder_report, write_folder_report
+            from ..engine.resume import made_record, rerun_plan
 
             settings = {"products": list(products), "azimuth": azimuth, "altitude": altitude, "z_unit": z_unit}
-            kept = [] if overwrite else _kept(read_folder_report(out), "gistools terrain", str(dem), settings, targets)
+            previous = read_folder_report(out)
+            kept = rerun_plan(previous, "gistools terrain", str(dem), settings,
+                              {p: targets[p] for p in products}, overwrite)
             outputs = {}
             for p in products:
                 unit = PRODUCT_UNITS[p] if PRODUCT_UNITS[p] is not None else zu.short
@@ -264,9 +256,11 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
             paths = {p: targets[p] for p in kept}
             if len(kept) < len(products):
                 paths.update(run_blockwise(src, outputs, compute, progress=progress, label="terrain",
-                                           overwrite=overwrite, block=block))
+                                           overwrite=True, block=block))  # rerun_plan refused what it may not replace
 
-            report = {"tool": "gistools terrain", "input": str(dem), "crs": raster_crs(src, dem).name,
+            report = {"tool": "gistools terrain", "input": str(dem),
+                      "made": made_record(previous, "gistools terrain", str(dem), settings,
+                                          {k: paths[k] for k in products}), "crs": raster_crs(src, dem).name,
                       "outputs": {k: str(paths[k]) for k in products}, "kept": kept, "settings": settings,
                       "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source, "scale": scale},
                       "method": "Horn (1981) 3 x 3 gradient, as gdaldem; edge and nodata-adjacent cells nodata; "

@@ -278,15 +278,15 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
                     "curvature_coefficient": curvature_coefficient, "z_unit": z_unit}
         with claim_output(out, "gistools viewshed"):
             from ..engine.record import add_run, read_folder_report, write_folder_report
-            from .terrain import _kept
+            from ..engine.resume import made_record, rerun_plan
 
-            previous = None if overwrite else read_folder_report(out)
-            if len(_kept(previous, "gistools viewshed", str(path), settings, targets)) == len(targets):
+            previous = read_folder_report(out)
+            if len(rerun_plan(previous, "gistools viewshed", str(path), settings, targets, overwrite, ignore=())) == len(targets):
                 add_run(out, {**previous, "seconds": round(time.time() - started, 3),
                               "counts": {"ok": 0, "skipped": 1, "failed": 0}})
                 return previous  # made before with these settings: kept
             t = src.transform
-            count = np.zeros(z.shape, np.uint16)
+            count = np.zeros(z.shape, np.uint16 if len(cells) < COUNT_NODATA else np.uint32)  # never wraps
             seen = []
             for i, ((row, col), (x, y), w) in enumerate(zip(cells, points, windows)):
                 share = _labelled(sub_progress(progress, 0.9 * i / len(cells), 0.9 * (i + 1) / len(cells)),
@@ -300,9 +300,10 @@ def viewshed_from_surface(surface, out, *, observers=None, observers_layer=None,
                 count[part] += vis
                 seen.append({"x": x, "y": y, "row": row, "col": col, "eye_elevation": float(z[row - extent.row_off,
                              col - extent.col_off] + eye_h), "cells_seen": int(vis.sum())})
-            paths = _write(_Extent(src, extent), targets, count, ~np.isfinite(z), overwrite,
+            paths = _write(_Extent(src, extent), targets, count, ~np.isfinite(z), True,  # rerun_plan refused the rest
                            sub_progress(progress, 0.9, 1.0))
-            rep = {"tool": "gistools viewshed", "input": str(path), "crs": crs.name,
+            rep = {"tool": "gistools viewshed", "input": str(path),
+                   "made": made_record(previous, "gistools viewshed", str(path), settings, paths), "crs": crs.name,
                    "outputs": {k: str(v) for k, v in paths.items()}, "observers": seen, "settings": settings,
                    "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source,
                              "observer_height": eye_h, "target_height": tgt_h, "max_distance": reach,
@@ -397,12 +398,14 @@ def _curvature_factor(crs, xy, zu, coefficient: float) -> float:
 
 
 def _write(src, targets, count, nodata, overwrite, progress) -> dict:
+    wide = count.dtype == np.uint32  # 65,535 observers or more: a 32-bit count, its own nodata
+    count_nodata = np.iinfo(np.uint32).max if wide else COUNT_NODATA
     outputs = {"visibility": (targets["visibility"], "uint8", VIS_NODATA, {"GISTOOLS_PRODUCT": "viewshed"}),
-               "count": (targets["count"], "uint16", COUNT_NODATA, {"GISTOOLS_PRODUCT": "viewshed_count"})}
+               "count": (targets["count"], str(count.dtype), count_nodata, {"GISTOOLS_PRODUCT": "viewshed_count"})}
 
     def compute(win):
         sl = (slice(win.row_off, win.row_off + win.height), slice(win.col_off, win.col_off + win.width))
         c, nd = count[sl], nodata[sl]
-        return {"visibility": np.where(nd, VIS_NODATA, (c > 0).astype(np.uint8)), "count": np.where(nd, COUNT_NODATA, c)}
+        return {"visibility": np.where(nd, VIS_NODATA, (c > 0).astype(np.uint8)), "count": np.where(nd, count_nodata, c)}
 
     return run_blockwise(src, outputs, compute, progress=progress, label="viewshed", overwrite=overwrite, block=BLOCK)
