@@ -115,12 +115,13 @@ def _cells_held(max_cells: int | None, bytes_per_cell: int) -> tuple[int, float 
 
 
 def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_cells: int | None = None,
-                    bytes_per_cell: int = 40) -> tuple[int, int]:
+                    bytes_per_cell: int = 40, cell_option: str = "cell_size") -> tuple[int, int]:
     """Refuse a grid of more than ``max_cells`` cells (default: :data:`MAX_GRID_CELLS`, or fewer where this
-    process's memory holds fewer at ``bytes_per_cell``) before anything is allocated, with the numbers."""
+    process's memory holds fewer at ``bytes_per_cell``) before anything is allocated, with the numbers
+    (``cell_option``: the option that sets the cell size, named in the message)."""
     if not all(math.isfinite(b) for b in bounds) or not math.isfinite(cell_size) or cell_size <= 0:
         raise InputError(f"{what}: bounds {bounds} at cell size {cell_size!r} give no grid",
-                         hint=f"Check the header's bounds and {option('cell_size')}")
+                         hint=f"Check the header's bounds and {option(cell_option)}")
     cols, rows = grid_shape(bounds, cell_size)
     held, memory = _cells_held(max_cells, bytes_per_cell)
     if cols * rows > held:
@@ -130,7 +131,7 @@ def check_grid_size(bounds, cell_size: float, what: str, *, unit: str = "", max_
         raise InputError(
             f"{what}: {e - w:.6g} x {n - s:.6g} {unit} at cell size {cell_size:g} {unit} is a grid of "
             f"{cols:,} x {rows:,} cells (about {cols * rows * bytes_per_cell / 1e9:,.1f} GB), {limit}",
-            hint=f"Give a larger {option('cell_size')}" + (", run on a machine with more memory" if memory else "")
+            hint=f"Give a larger {option(cell_option)}" + (", run on a machine with more memory" if memory else "")
             + ", or check the tile's header bounds (lasinfo)")
     return cols, rows
 

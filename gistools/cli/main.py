@@ -42,6 +42,63 @@ def _status() -> int:
 
 # what ends a run besides Ctrl-C: a scheduler or `timeout` (SIGTERM), a closed terminal (SIGHUP); Windows has neither
 STOP_SIGNALS = [getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)]
+# seconds a stopped run has to end by itself (KeyboardInterrupt, its clean-up) before the watchdog ends it: a run
+# inside one long call of compiled code (the kernel, GDAL, a numpy operation) meets Python's handler only after it
+GRACE = 3.0
+_ENDED = threading.Event()
+
+
+def arm_stop_watchdog() -> None:
+    """End the process at most GRACE seconds after a stop signal, whatever it is doing: the signal is also written
+    to a socket (``signal.set_wakeup_fd``, by the interpreter's own C handler, while the main thread may be inside
+    compiled code); a thread waiting on it gives the run GRACE seconds, then prints the one line, puts the folders
+    of this process back (gistools.io.outdir.abandon: step reruns restored, partial files and the lock removed)
+    and exits with 128 + the signal. Compiled code that holds the interpreter's lock throughout delays it until
+    that call returns."""
+    import socket
+
+    if threading.current_thread() is not threading.main_thread():
+        return
+    try:
+        reader, writer = socket.socketpair()
+        writer.setblocking(False)
+        signal.set_wakeup_fd(writer.fileno(), warn_on_full_buffer=False)
+    except (OSError, ValueError):  # no socket pair here: the handlers alone stop the run
+        return
+    stops = {int(s) for s in STOP_SIGNALS}
+
+    def watch():
+        while True:
+            try:
+                data = reader.recv(64)
+            except OSError:
+                return
+            signum = next((b for b in data if b in stops), None)
+            if signum is None:
+                continue
+            if _ENDED.wait(GRACE):
+                return
+            _hard_stop(signum)
+
+    threading.Thread(target=watch, name="gistools-stop-watchdog", daemon=True).start()
+    _WATCH["socks"] = (reader, writer)
+
+
+_WATCH: dict = {}
+
+
+def _hard_stop(signum: int) -> None:
+    from ..io.outdir import abandon
+
+    try:
+        sys.stderr.write(INTERRUPTED + "\n")
+        sys.stderr.flush()
+    except (OSError, ValueError):
+        pass
+    try:
+        abandon()
+    finally:
+        os._exit(128 + int(signum))
 
 
 class GistoolsGroup(click.Group):
@@ -153,6 +210,7 @@ def main():  # console_scripts entry point
     if threading.current_thread() is threading.main_thread():
         for signum in STOP_SIGNALS:  # each cleans up as Ctrl-C does: the folder as it was, the lock and scratch gone
             signal.signal(signum, _on_sigint)
+        arm_stop_watchdog()
     try:
         cli(prog_name="gistools")
     except KeyboardInterrupt:  # outside a command (start-up, argument parsing)
@@ -162,6 +220,7 @@ def main():  # console_scripts entry point
         from ..engine.batch import join_workers
 
         join_workers()  # no worker of the command outlives it (a script or a scheduler waits for the group)
+        _ENDED.set()
 
 
 if __name__ == "__main__":

@@ -70,10 +70,46 @@ def _read(src, bounds, max_px: int) -> np.ndarray:
                     resampling=Resampling.mode if k > 1 else Resampling.nearest)
 
 
-def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m) -> tuple[list, list, float | None]:
+def sheets_with_classes(src, ground_w: float, ground_h: float) -> int:
+    """How many sheets of the grid (``_sheets``) hold a class cell, at least: the sheets of the valid cells of the
+    class raster read at most 1,000 cells a side (a lower bound, from one read, before any sheet is listed)."""
+    w, s, e, n = src.bounds
+    k = max(1, math.ceil(max(src.width, src.height) / 1000))
+    data = src.read(1, out_shape=(max(1, src.height // k), max(1, src.width // k)), resampling=Resampling.nearest)
+    rows, cols = np.nonzero(data != 255)
+    x = w + (cols + 0.5) * (e - w) / data.shape[1]
+    y = n - (rows + 0.5) * (n - s) / data.shape[0]
+    ncols = max(1, math.ceil((e - w) / ground_w))
+    return int(np.unique((np.floor((n - y) / ground_h) * ncols + np.floor((x - w) / ground_w)).astype(np.int64)).size)
+
+
+MAX_SHEETS = 1_000_000  # sheets of the grid listed at most (empty ones included), whatever --max-pages says
+
+
+def _check_sheets(src, ground_w: float, ground_h: float, scale, max_pages: int) -> None:
+    """Refuse a grid of sheets too many to list, or whose sheets with classes alone exceed ``max_pages``, before
+    any sheet is read (the arithmetic in the message)."""
+    w, s, e, n = src.bounds
+    cols, rows = max(1, math.ceil((e - w) / ground_w)), max(1, math.ceil((n - s) / ground_h))
+    if cols * rows <= max_pages:
+        return
+    many = cols * rows > MAX_SHEETS
+    at_least = 0 if many else sheets_with_classes(src, ground_w, ground_h)
+    if many or at_least > max_pages:
+        found = f"more than the {MAX_SHEETS:,} a map book is cut into" if many else f"{at_least:,} or more with classes"
+        raise InputError(f"at 1:{scale:,.0f} a sheet covers {ground_w:,.4g} x {ground_h:,.4g} of the map's "
+                         f"{e - w:,.6g} x {n - s:,.6g}: {cols:,} x {rows:,} sheets, {found}, more than "
+                         f"{option('max_pages', max_pages)}",
+                         hint=f"Give a smaller scale (a larger n, e.g. {option('scale', '25000')}), or a higher "
+                              f"{option('max_pages')}")
+
+
+def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m, max_pages: int = MAX_PAGES
+           ) -> tuple[list, list, float | None]:
     """(page bounds, page labels, the scale when it is fixed)."""
     if tile_index is None:
         ground_w, ground_h = frame_w * 0.0254 * scale / unit_m, frame_h * 0.0254 * scale / unit_m
+        _check_sheets(src, ground_w, ground_h, scale, max_pages)
         sheets = _sheets(tuple(src.bounds), ground_w, ground_h)
         return sheets, [f"sheet {i + 1}" for i in range(len(sheets))], float(scale)
     import pyproj
@@ -177,7 +213,7 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
         raise OutputExistsError("a file gistools did not write is in the way", path=target,
                                 hint="Move it, or write the map book from another folder")
     with rasterio.open(out / "classes.vrt") as src:
-        pages, labels, fixed = _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit.metres)
+        pages, labels, fixed = _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit.metres, max_pages)
         keep = [i for i, b in enumerate(pages) if (_read(src, b, 64) != 255).any()]  # sheets with classes on them
         pages, labels = [pages[i] for i in keep], [labels[i] for i in keep]
         if not pages:

@@ -192,6 +192,8 @@ def remove_leftovers(out: Path) -> None:
         return
     for entry in list(out.iterdir()):
         if entry.name.startswith(SCRATCH_PREFIX) and entry.is_dir() and not entry.is_symlink():
+            if entry.name.startswith(ROLLBACK_PREFIX):  # a step rerun killed midway: the folder as it was
+                _restore_left(out, entry)
             log.info("removing %s, left by an interrupted run", entry)
             shutil.rmtree(entry, ignore_errors=True)
     folders = [out] + [out / d for d in OUTPUT_FOLDERS if (out / d).is_dir() and not (out / d).is_symlink()]
@@ -205,6 +207,21 @@ def remove_leftovers(out: Path) -> None:
                 log.info("removing %s, left by an interrupted run", entry)
                 with contextlib.suppress(OSError):
                     entry.unlink()
+
+
+def abandon() -> None:
+    """The run is ending at once (the command line's stop watchdog): every step rerun of this process put back,
+    its folders' partial files and scratch removed, their locks released."""
+    for rollback in list(_ROLLBACKS):
+        with contextlib.suppress(Exception):
+            rollback.restore()
+    for key in list(_HELD):
+        out = Path(key)
+        with contextlib.suppress(Exception):
+            remove_leftovers(out)
+        with contextlib.suppress(Exception):
+            if (_read_lock(out / LOCK_NAME) or {}).get("pid") == os.getpid():
+                (out / LOCK_NAME).unlink()
 
 
 def output_folder(out) -> Path:
@@ -302,6 +319,23 @@ def claim_output(out, command: str = "gistools"):
                         (out / LOCK_NAME).unlink()
 
 
+ROLLBACK_PREFIX = SCRATCH_PREFIX + "rollback-"
+MANIFEST = "manifest.json"
+_ROLLBACKS: set = set()  # the rollbacks of this process in progress (abandon() restores them)
+
+
+def _restore_left(out: Path, saved: Path) -> None:
+    """Put back what a rollback folder left by a killed step rerun holds (its manifest says what it kept)."""
+    try:
+        manifest = json.loads((saved / MANIFEST).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return  # killed while it was being made: the folder's files were not touched yet
+    rollback = Rollback(out, manifest.get("folders", ()), manifest.get("files", ()))
+    rollback.saved, rollback.kept = saved, list(manifest.get("kept", ()))
+    with contextlib.suppress(OSError):
+        rollback.restore()
+
+
 class Rollback:
     """Keep the current state of some outputs so that a step rerun that fails can put them back.
 
@@ -320,7 +354,7 @@ class Rollback:
     def __enter__(self):
         import tempfile
 
-        self.saved = Path(tempfile.mkdtemp(prefix=SCRATCH_PREFIX + "rollback-", dir=self.out))
+        self.saved = Path(tempfile.mkdtemp(prefix=ROLLBACK_PREFIX, dir=self.out))
         self.kept = []
         for rel in self._present():
             target = self.saved / rel
@@ -330,6 +364,9 @@ class Rollback:
             except OSError:  # a file system without hard links: a copy
                 shutil.copy2(self.out / rel, target)
             self.kept.append(rel)
+        with open(self.saved / MANIFEST, "w", encoding="utf-8") as fh:  # what a later run puts back if this one is killed
+            json.dump({"folders": self.folders, "files": self.files, "kept": self.kept}, fh)
+        _ROLLBACKS.add(self)
         return self
 
     def _present(self) -> list[str]:
@@ -353,6 +390,7 @@ class Rollback:
         self.drop()
 
     def drop(self) -> None:
+        _ROLLBACKS.discard(self)
         if self.saved is not None:
             shutil.rmtree(self.saved, ignore_errors=True)
             self.saved = None

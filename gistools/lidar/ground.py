@@ -213,7 +213,9 @@ def progressive_filter(surface: np.ndarray, cell: float, slope_z: float, window:
     """Object cells of the progressive morphological filter: openings by diamonds of radius 1 ... ceil(window /
     cell) cells; a cell is an object when the opened surface drops by more than ``slope_z`` x cell x radius
     (vertical units) from the previous one (PDAL's progressiveFilter)."""
-    max_radius = int(math.ceil(window / cell))
+    # from a radius of rows + cols the diamond covers the grid from every cell: every opening is the grid's minimum,
+    # the same as the one before, and no cell changes; larger radii are not run (the same objects, bounded work)
+    max_radius = min(int(math.ceil(window / cell)), surface.shape[0] + surface.shape[1])
     if _PROGRESSIVE is not None:
         z = np.ascontiguousarray(surface, np.float64)
         obj = np.zeros(z.shape, np.uint8)

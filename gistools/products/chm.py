@@ -8,6 +8,7 @@ Methods: ``lidar.chm``.
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -207,12 +208,32 @@ def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: in
         return raise_if_every_tile_failed(_chm_in(paths, out, settings, override, jobs, scheduler, overwrite, progress))
 
 
+# the most pit-free layers a tile may take (a TIN of the points above each threshold): 500 layers of 0.2 m reach
+# 100 m, past the tallest trees; the default (a layer every 2 m) makes about 50
+MAX_LAYERS = 500
+
+
+def check_layers(run: _Run, infos: dict, settings: ChmSettings) -> None:
+    """Refuse, before the first tile, a threshold step that makes more than MAX_LAYERS pit-free layers on these
+    tiles (their headers' height range bounds the heights above ground)."""
+    if run.method != "pitfree" or not run.step or not infos:
+        return
+    span = max(i.z_range[1] - i.z_range[0] for i in infos.values())
+    layers = len(run.thresholds) + max(0, math.ceil((span - max(run.thresholds)) / run.step))
+    if layers > MAX_LAYERS:
+        raise InputError(
+            f"{option('threshold_step', settings.threshold_step)} ({run.step:g} {run.z_unit}) makes up to {layers:,} "
+            f"pit-free layers over the tiles' {span:,.6g} {run.z_unit} of height range, a TIN each; at most "
+            f"{MAX_LAYERS} are taken", hint=f"Give a larger step, e.g. {option('threshold_step', '2m')}")
+
+
 def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, overwrite, progress) -> dict:
     started = time.time()
     states, infos = read_headers(paths, override, _TileState)
     run = None
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
+        check_layers(run, infos, settings)
         todo, on_done = marked_todo(infos, states, run, out, "gistools chm",
                                     lambda name: {"chm": out / "chm" / f"{name}.tif"}, ("pits", "cells", "neighbours"),
                                     overwrite, single="chm")

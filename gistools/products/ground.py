@@ -9,6 +9,7 @@ the extra bytes and the VLRs as they were. A ``.vpc`` (virtual point cloud) inde
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import sys
 import threading
@@ -110,6 +111,9 @@ class GroundSettings:
         check_method("ground_method", self.method)
         check_all(self, self.CHECKED)
         check_point_format(self.format)
+        if float(self.csf_time_step) <= 0:
+            raise InputError(f"{option('csf_time_step', self.csf_time_step)}: the cloth would not move; give a step "
+                             "above 0", hint=f"e.g. {option('csf_time_step', default_for('csf_time_step'))} (CSF's own)")
         if self.method == "csf":
             import importlib.util
 
@@ -161,6 +165,49 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
         buffer += 2 * smrftin.patch + 3 * smrftin.cell
     buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
     return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer, z.metres)
+
+
+# the widest window the progressive filter takes, in cells of its grid: it opens the surface once per cell of
+# radius, and an opening of radius r is r passes over the grid (r^2 / 2 passes in all). 200 cells (300 m on
+# smrftin's 1.5 m cells, 200 m on SMRF's 1 m) is ten times the largest buildings' half-width the filters are
+# used for (PDAL's default 18 m, lidR's pmf windows up to about 30 m) and about 20 s a 1 km tile.
+MAX_WINDOW_CELLS = 200
+CSF_PARTICLE_BYTES = 400  # cloth-simulation-filter's memory per cloth particle (its Particle and neighbour lists)
+
+
+def check_ground_work(p: _Params, infos: dict, settings: GroundSettings) -> None:
+    """Refuse, before the first tile, settings whose work or memory explodes on these tiles: a filter grid or a CSF
+    cloth that the memory cannot hold, a window of more than MAX_WINDOW_CELLS cells (the arithmetic in the
+    message)."""
+    from ..validation import check_grid_size
+
+    if not infos:
+        return
+    smrftin = p.method == "smrftin"
+    used = p.smrftin if smrftin else p.smrf
+    cell_name, window_name = ("smrftin_cell", "smrftin_window") if smrftin else ("cell", "window")
+    unit = next(iter(infos.values())).unit.short
+    survey = (min(i.bounds[0] for i in infos.values()), min(i.bounds[1] for i in infos.values()),
+              max(i.bounds[2] for i in infos.values()), max(i.bounds[3] for i in infos.values()))
+    for info in infos.values():
+        w, s, e, n = info.bounds
+        grown = (max(w - p.buffer, survey[0]), max(s - p.buffer, survey[1]), min(e + p.buffer, survey[2]),
+                 min(n + p.buffer, survey[3]))  # the points a tile's filter grids: its own and its neighbours'
+        if p.method == "csf":
+            check_grid_size(grown, p.csf.resolution, f"{info.path} (CSF cloth)", unit=unit,
+                            bytes_per_cell=CSF_PARTICLE_BYTES, cell_option="csf_resolution")
+        else:
+            check_grid_size(grown, used.cell, str(info.path), unit=unit, cell_option=cell_name)
+    radius = math.ceil(used.window / used.cell)
+    if p.method != "csf" and radius > MAX_WINDOW_CELLS:
+        given = getattr(settings, window_name)
+        raise InputError(
+            f"{option(window_name, given)} ({used.window:g} {unit}) is a radius of {radius:,} cells of "
+            f"{used.cell:g} {unit}: the filter opens the surface once per cell of radius, about "
+            f"{radius * radius / 2:,.0f} passes over each tile's grid; at most {MAX_WINDOW_CELLS} cells "
+            f"({MAX_WINDOW_CELLS * used.cell:g} {unit}) are taken",
+            hint=f"Give about half the width of the largest building, e.g. "
+                 f"{option(window_name, default_for(window_name))}")
 
 
 def _output_name(path: Path, fmt: str) -> str:
@@ -349,6 +396,7 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
     states, infos = read_headers(paths, override, _TileState, lambda q: _output_name(q, settings.format), out)
     crs = common_crs(list(infos.values())) if infos else None
     p = _params(settings, next(iter(infos.values()))) if infos else None
+    check_ground_work(p, infos, settings)
     targets = {name: out / _output_name(info.path, settings.format) for name, info in infos.items()}
     todo = []
     for name, target in targets.items():
