@@ -13,8 +13,13 @@ The product functions and their settings are imported when first used (``import 
 """
 
 import importlib
+import warnings
 
 from ._version import __version__  # noqa: F401
+
+# pyproj warns at import when it finds no PROJ data; gistools looks further and, where there is none, says so in
+# one line before any input is read (gistools.projdata.ensure_proj_data)
+warnings.filterwarnings("ignore", message="Valid PROJ data directory not found", category=UserWarning)
 
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors

@@ -8,6 +8,8 @@ is always the US survey foot (1200/3937 m).
 
 from __future__ import annotations
 
+import math
+
 import re
 from dataclasses import dataclass
 
@@ -116,11 +118,15 @@ _UNIT_WORDS = {
 def parse_length(text: str | float, *, name: str = "length") -> tuple[float, str | float | None]:
     """Split "5ft" into (5.0, unit) where unit is metres-per-unit, "foot", or None (map units)."""
     if isinstance(text, (int, float)):
+        if not math.isfinite(text):
+            raise InputError(f"{name} {text!r} must be a finite length", hint="Give a number, e.g. 5")
         return float(text), None
     match = _LENGTH.match(str(text))
     if not match:
         raise InputError(f"{name} {text!r} is not a length", hint="Write a number with an optional unit, e.g. 5ft, 1.5m or 5")
     value, word = float(match.group(1)), match.group(2).strip().lower().replace(" ", "")
+    if not math.isfinite(value):  # nan, inf, or a number past a double's range (1e400)
+        raise InputError(f"{name} {text!r} must be a finite length", hint="Write a number with an optional unit, e.g. 5ft, 1.5m or 5")
     if word not in _UNIT_WORDS:
         raise InputError(
             f"{name} {text!r}: unknown unit {match.group(2)!r}", hint="Use m, ft (the CRS's foot), ftUS or a bare number in map units"

@@ -101,6 +101,18 @@ def _hard_stop(signum: int) -> None:
         os._exit(128 + int(signum))
 
 
+def one_line(text: str, longest: int = 160) -> str:
+    """An error as one line of bounded length: line breaks as spaces, and a word longer than ``longest`` characters
+    (a pasted value, a path of thousands of characters) cut to its ends with the count of what was left out."""
+    import re
+
+    def cut(m):
+        word = m.group(0)
+        return f"{word[:longest // 2]}...({len(word) - longest:,} characters)...{word[-longest // 2:]}"
+
+    return re.sub(r"\S{%d,}" % (longest + 40), cut, " ".join(str(text).split()))
+
+
 class GistoolsGroup(click.Group):
     def list_commands(self, ctx):
         return sorted({*self.commands, *COMMANDS})
@@ -119,6 +131,9 @@ class GistoolsGroup(click.Group):
 
     def _invoke(self, ctx):
         try:
+            from ..projdata import ensure_proj_data
+
+            ensure_proj_data()  # once, before a command reads anything: a missing PROJ is one line
             value = super().invoke(ctx)
         except Cancelled as err:
             click.echo(f"gistools: {err}", err=True)
@@ -127,7 +142,7 @@ class GistoolsGroup(click.Group):
             if _INTERRUPTS["n"]:
                 click.echo(INTERRUPTED, err=True)
                 sys.exit(_status())
-            click.echo(f"gistools: error: {err}", err=True)
+            click.echo(f"gistools: error: {one_line(str(err))}", err=True)
             sys.exit(1)
         except KeyboardInterrupt:
             click.echo(INTERRUPTED, err=True)

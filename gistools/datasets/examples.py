@@ -70,7 +70,8 @@ def _aquifer(out: Path) -> None:
     clean, _ = synthetic_aquifer(2012, planar=True, outliers=False)
     for layer in LAYERS:  # the dissertation's form: ID North East Height (North first: --swap-xy)
         g = clean[clean["layer"] == layer]
-        rows = "\n".join(f"{int(i)} {y!r} {x!r} {z!r}" for i, y, x, z in zip(g["id"], g["y"], g["x"], g["z"]))
+        rows = "\n".join(f"{int(i)} {float(y)!r} {float(x)!r} {float(z)!r}"  # plain numbers whatever numpy is
+                         for i, y, x, z in zip(g["id"], g["y"], g["x"], g["z"]))
         _text(out / f"{layer}Input.txt", "ID North East Height\n" + rows + "\n")
     if not (out / "area.gpkg").exists():
         from ..io.vector import write_layer
@@ -92,13 +93,14 @@ def _structures(out: Path) -> None:
     from ..structure.fixtures import building
 
     pts, _ = building("F4")
-    _text(out / "cctv.txt", "ID X Y Z\n" + "\n".join(f"{i} {x} {y} {z}" for i, x, y, z in pts.itertuples(index=False)) + "\n")
+    _text(out / "cctv.txt", "ID X Y Z\n" + "\n".join(f"{i} {float(x)!r} {float(y)!r} {float(z)!r}"
+                                                  for i, x, y, z in pts.itertuples(index=False)) + "\n")
     pts, _ = building("F2")
     # as a scanner wrote it: turned -90 degrees about z, z pointing down, y before x (--columns 213 --scales 1,1,-1
     # --rotations 0,0,90 bring it back)
     x, y, z = pts["x"].to_numpy(), pts["y"].to_numpy(), pts["z"].to_numpy()
     xr, yr = y, -x
-    rows = "\n".join(f"{i} {b!r} {a!r} {-c!r}" for i, a, b, c in zip(pts["id"], xr, yr, z))
+    rows = "\n".join(f"{i} {float(b)!r} {float(a)!r} {float(-c)!r}" for i, a, b, c in zip(pts["id"], xr, yr, z))
     _text(out / "scan.txt", "ID Y X Z\n" + rows + "\n")
 
 

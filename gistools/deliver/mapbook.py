@@ -118,7 +118,7 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m, max_pag
 
     layer = read_layer(tile_index, ("polygon",), render(option("tile_index")))  # also in a log line: named now
     check_field(layer, tile_field, tile_index)
-    layer = check_crs(layer, pyproj.CRS.from_wkt(src.crs.to_wkt()), str(tile_index))
+    layer = check_crs(layer, pyproj.CRS.from_wkt(src.crs.to_wkt()), str(tile_index), reproject=None)
     pages = [_fitted(g.bounds, frame_w, frame_h) for g in layer.geometry if g is not None and not g.is_empty]
     labels = [f"tile {t}" for t, g in zip(layer[tile_field], layer.geometry) if g is not None and not g.is_empty]
     return pages, labels, None

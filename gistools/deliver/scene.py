@@ -35,9 +35,13 @@ def _rgb(hex_colour: str) -> tuple[int, int, int]:
     return tuple(int(hex_colour[i:i + 2], 16) for i in (1, 3, 5))
 
 
+MAX_EXAGGERATION = 100.0  # scenes exaggerate heights 1 to 10 times; past 100 a terrain is a wall of spikes
+
+
 def _check(exaggeration, max_mb, surface) -> None:
-    if not (isinstance(exaggeration, (int, float)) and exaggeration > 0):
-        raise InputError(f"{option('exaggeration')} {exaggeration!r} must be a positive number",
+    if not (isinstance(exaggeration, (int, float)) and 0 < exaggeration <= MAX_EXAGGERATION):
+        raise InputError(f"{option('exaggeration')} {exaggeration!r} must be a number above 0 and at most "
+                         f"{MAX_EXAGGERATION:g} (heights times it must stay heights a viewer can draw)",
                          hint=f"e.g. {option('exaggeration', '2')}")
     if not (isinstance(max_mb, (int, float)) and max_mb > 0):
         raise InputError(f"{option('max_mb')} {max_mb!r} must be a positive number of megabytes",

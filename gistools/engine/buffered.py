@@ -68,7 +68,9 @@ def read_headers(paths, override, make_state, output_name=None, out: Path | None
     """({name: make_state(name, path)}, {name: TileInfo} of the headers that read); a tile that does not read, or
     whose output (``out / output_name(path)``) would be the input itself, is marked failed."""
     from ..errors import GistoolsError
+    from ..projdata import ensure_proj_data
 
+    ensure_proj_data()  # once, before any tile: a missing PROJ is the installation's, never a tile's error
     states, infos = {}, {}
     for p in paths:
         st = states[p.stem] = make_state(p.stem, str(p))

@@ -55,7 +55,9 @@ def envelope(report: dict) -> dict:
 def _run_warnings(own, tiles: list) -> list[str]:
     """The run's own warnings (those not already a tile's) and each tile's, named by its tile."""
     by_tile = [f"{t.get('name')}: {w}" for t in tiles for w in t["warnings"]]
-    return [w for w in map(str, own or []) if w not in by_tile] + by_tile
+    from ..parameters import render
+
+    return [render(w) for w in map(str, own or []) if w not in by_tile] + [render(w) for w in by_tile]
 
 
 def _plain(value):
@@ -70,7 +72,7 @@ def read_folder_report(out) -> dict | None:
     path = Path(out) / "report.json"
     try:
         value = json.loads(path.read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return None
     return value if isinstance(value, dict) else None
 

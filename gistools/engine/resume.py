@@ -61,7 +61,7 @@ def write_tile_report(out: Path, result, settings: dict) -> None:
 def read_tile_report(out: Path, name: str) -> dict | None:
     try:
         rep = json.loads(tile_report_file(out, name).read_text())
-    except (OSError, ValueError):  # none (a run killed after the rasters, or before this version) or unreadable
+    except (OSError, ValueError, RecursionError):  # none (a run killed after the rasters, or before this version) or unreadable
         return None
     for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints
         rep[key] = {int(k): v for k, v in (rep.get(key) or {}).items()}
@@ -232,7 +232,7 @@ class TileMarks:
     def read(self, name: str) -> dict | None:
         try:
             value = json.loads(self.file(name).read_text(encoding="utf-8"))
-        except (OSError, ValueError, UnicodeDecodeError):
+        except (OSError, ValueError, UnicodeDecodeError, RecursionError):
             return None
         return value if isinstance(value, dict) and isinstance(value.get("settings"), dict) else None
 

@@ -164,7 +164,7 @@ def _read_lock(lock: Path) -> dict | None:
         return json.loads(lock.read_text())
     except FileNotFoundError:
         return {}
-    except (OSError, ValueError):  # empty or half-written: its writer died at once, or is writing it now
+    except (OSError, ValueError, RecursionError):  # empty or half-written: its writer died at once, or is writing it now
         try:
             young = time.time() - lock.stat().st_mtime < 10
         except OSError:
@@ -238,7 +238,7 @@ def is_our_record(path) -> bool:
     """Whether ``path`` is a record gistools wrote: a JSON object whose ``tool`` names a gistools command."""
     try:
         value = json.loads(Path(path).read_text(encoding="utf-8"))
-    except (OSError, ValueError, UnicodeDecodeError):
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
         return False
     return isinstance(value, dict) and str(value.get("tool") or "").startswith("gistools")
 
@@ -264,7 +264,7 @@ def folder_kind(command: str) -> str:
 def _record_tool(record: Path) -> str | None:
     try:
         value = json.loads(record.read_text(encoding="utf-8"))
-    except (OSError, ValueError, UnicodeDecodeError):
+    except (OSError, ValueError, UnicodeDecodeError, RecursionError):
         return None
     return str(value.get("tool") or "") if isinstance(value, dict) else None
 
@@ -328,7 +328,7 @@ def _restore_left(out: Path, saved: Path) -> None:
     """Put back what a rollback folder left by a killed step rerun holds (its manifest says what it kept)."""
     try:
         manifest = json.loads((saved / MANIFEST).read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return  # killed while it was being made: the folder's files were not touched yet
     rollback = Rollback(out, manifest.get("folders", ()), manifest.get("files", ()))
     rollback.saved, rollback.kept = saved, list(manifest.get("kept", ()))

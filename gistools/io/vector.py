@@ -135,9 +135,10 @@ def _read_layer(spec) -> gpd.GeoDataFrame:
     return gdf
 
 
-def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: bool = False,
+def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: bool | None = False,
               against: str = "the points'") -> gpd.GeoDataFrame:
-    """``gdf`` in ``crs``: refused when they differ, unless ``reproject``. ``against`` names what ``crs`` belongs to."""
+    """``gdf`` in ``crs``: refused when they differ, unless ``reproject``. ``against`` names what ``crs`` belongs to.
+    ``reproject`` None: the command has no option to reproject (the message gives ogr2ogr's)."""
     layer_crs = pyproj.CRS.from_user_input(gdf.crs)
     horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
     if layer_crs.equals(horizontal, ignore_axis_order=True) or layer_crs.equals(crs, ignore_axis_order=True):
@@ -147,8 +148,21 @@ def check_crs(gdf: gpd.GeoDataFrame, crs: pyproj.CRS, name: str, *, reproject: b
     raise CRSMismatchError(
         f"layer CRS {crs_label(layer_crs)} differs from {against} CRS {crs_label(crs)}",
         path=name,
-        hint=f"Reproject the layer, or have gistools do it: {option('reproject_vectors')}",
+        hint=(f"Reproject the layer, or have gistools do it: {option('reproject_vectors')}" if reproject is not None
+              else f"Reproject the layer: ogr2ogr -t_srs {_srs(horizontal)} reprojected.gpkg {_source(name)}"),
     )
+
+
+def _srs(crs: pyproj.CRS) -> str:
+    code = crs.to_authority()
+    return ":".join(code) if code else "'" + crs.to_proj4() + "'"
+
+
+def _source(name: str) -> str:
+    """The layer's file, as ogr2ogr takes it (the ``:LAYER`` / ``|layername=`` part left out)."""
+    import shlex
+
+    return shlex.quote(str(name).split("|")[0])
 
 
 def check_field(gdf: gpd.GeoDataFrame, field: str, spec, what: str = "the tile index") -> None:

@@ -150,7 +150,7 @@ def build_model(source, layers, *, crs=None, swap_xy=False, settings: AquiferSet
     report(progress, 0.2, "surfaces")
     clip_polygon = None
     if clip is not None:
-        gdf = check_crs(read_layer(clip), crs_obj, str(clip), against="the contacts'")
+        gdf = check_crs(read_layer(clip), crs_obj, str(clip), against="the contacts'", reproject=None)
         clip_polygon = shapely.union_all(gdf.geometry.to_numpy())
     surfaces = _surfaces(kept, layers, clip_polygon, s.concave_ratio)
     ov = order_violations(kept, surfaces, layers, osets.order_tol)
@@ -192,7 +192,7 @@ def compute_units(model: Model, settings: AquiferSettings, within=None, progress
     unit_len = horizontal_unit(model.crs)
     within_poly = None
     if within is not None:
-        gdf = check_crs(read_layer(within), model.crs, str(within), against="the contacts'")
+        gdf = check_crs(read_layer(within), model.crs, str(within), against="the contacts'", reproject=None)
         within_poly = shapely.union_all(gdf.geometry.to_numpy())
     pairs = list(zip(model.layers[:-1], model.layers[1:]))
     origin = tuple(np.mean([model.surfaces[layer].centre for layer in model.layers], axis=0))

@@ -764,7 +764,8 @@ def _water(settings: RasterSettings, crs, unit, cell_size: float) -> tuple:
         return (), 0.0, None
     from ..io.vector import absolute_spec, check_crs, read_layer
 
-    layer = check_crs(read_layer(settings.hydro_flatten, ("polygon",), option("hydro_flatten")), crs, str(settings.hydro_flatten))
+    layer = check_crs(read_layer(settings.hydro_flatten, ("polygon",), option("hydro_flatten")), crs,
+                      str(settings.hydro_flatten), reproject=None)
     shore = (length_to_crs_units(settings.shore_width, unit, name="shore width") if settings.shore_width is not None
              else 2 * cell_size)
     return water_bodies(list(layer.geometry), shore), shore, f"{absolute_spec(settings.hydro_flatten)} {shore:.6g}"

@@ -353,7 +353,11 @@ def shrub_from_tiles(
                make_map=make_map, band_points=band_points, from_stage=from_stage, progress=progress)
     with claim_output(out, f"gistools {'shrub' if from_stage == 'rasters' else from_stage}"):
         if from_stage == "rasters":  # the chain: one bad tile never stops the batch, it is reported
-            return raise_if_every_tile_failed(_shrub_in(inputs, out, settings, **run))
+            try:
+                return raise_if_every_tile_failed(_shrub_in(inputs, out, settings, **run))
+            except BaseException as err:
+                _record_stop(out, err)
+                raise
         # a step rerun that fails (a tile, an error, Ctrl-C) leaves the folder as it was
         folders = [f for stage in STAGES[STAGES.index(from_stage):] for f in STAGE_FOLDERS[stage]]
         with Rollback(out, folders, STEP_FILES) as saved:
@@ -364,6 +368,24 @@ def shrub_from_tiles(
             else:
                 saved.drop()
         return report
+
+
+def _record_stop(out: Path, err: BaseException) -> None:
+    """The chain stopped after its rasters (an error, Ctrl-C): the record the rasters wrote names the chain, says it
+    is incomplete and why, so the folder never looks like a finished run (a rerun resumes it)."""
+    from ..engine.record import read_folder_report
+
+    record = read_folder_report(out)
+    if not record or record.get("tool") != "gistools rasters" or record.get("incomplete"):
+        return
+    why = "interrupted" if isinstance(err, KeyboardInterrupt) else f"{type(err).__name__}: {err}"
+    record.update(tool="gistools shrub", incomplete=f"the chain stopped after its rasters ({why}); rerun gistools "
+                                                    "shrub to complete it")
+    record.setdefault("warnings", []).append(record["incomplete"])
+    try:
+        write_folder_report(out, record)
+    except Exception:  # noqa: BLE001 - the error being raised matters more than this note
+        pass
 
 
 # what each stage writes under --out (the step reruns put them back when they fail)
@@ -744,7 +766,7 @@ def _previous_run(out: Path) -> dict:
     try:
         summary = json.loads(path.read_text())
         _check_run_keys(summary)
-    except (ValueError, KeyError, TypeError, pyproj.exceptions.CRSError):
+    except (ValueError, KeyError, TypeError, RecursionError, pyproj.exceptions.CRSError):
         raise DataFileError("report.json is not the report of a gistools run (damaged or edited)", path=path,
                             hint="Rerun gistools shrub on the tiles") from None
     if "topclass" not in summary.get("mosaics", {}) and not (out / "topclass").is_dir():

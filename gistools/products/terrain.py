@@ -230,6 +230,9 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
         t = src.transform
         if t.b != 0 or t.d != 0:
             raise InputError("the DEM is rotated", path=dem, hint="Warp it north-up first (gdalwarp)")
+        if t.e > 0:  # rows from south to north: the blocks, the halo and the aspect all assume north-up
+            raise InputError("the DEM is south-up (its rows run from south to north)", path=dem,
+                             hint="Warp it north-up first (gdalwarp in.tif north_up.tif)")
         ewres, nsres = abs(t.a), abs(t.e)
         scale = xy.metres / zu.metres
         if abs(scale - 1.0) < 1e-12:

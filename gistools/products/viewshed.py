@@ -153,7 +153,8 @@ def parse_observers(observers) -> list[tuple[float, float]]:
 def _layer_observers(layer, crs) -> list[tuple[float, float]]:
     from ..io.vector import check_crs, read_layer
 
-    gdf = check_crs(read_layer(layer, ("point",), what="observers"), crs, str(layer), against="the surface's")
+    gdf = check_crs(read_layer(layer, ("point",), what="observers"), crs, str(layer), against="the surface's",
+                    reproject=None)
     points = []
     for geom in gdf.geometry:
         if geom is None or geom.is_empty:
@@ -354,6 +355,9 @@ def _observer_cells(src, path, points) -> list[tuple[int, int]]:
     t = src.transform
     if t.b != 0 or t.d != 0:
         raise InputError("the surface is rotated", path=path, hint="Warp it north-up first (gdalwarp)")
+    if t.e > 0:
+        raise InputError("the surface is south-up (its rows run from south to north)", path=path,
+                         hint="Warp it north-up first (gdalwarp in.tif north_up.tif)")
     cells = []
     for x, y in points:
         col, row = (x - t.c) / t.a, (y - t.f) / t.e
