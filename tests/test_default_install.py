@@ -54,3 +54,31 @@ def test_without_proj_data_anywhere_the_run_stops_once_naming_proj(tmp_path):
     assert done.returncode == 1 and len(lines) == 1 and "Traceback" not in done.stderr, done.stderr
     assert "PROJ's database (proj.db) is not found" in lines[0] and "proj-data" in lines[0], lines[0]
     assert "35712" not in done.stderr and not (tmp_path / "r").exists()  # no tile blamed, nothing written
+
+
+def test_geopackages_are_written_in_version_1_2_which_gdal_3_6_opens_without_a_warning(tmp_path):
+    """Every GeoPackage writer (one layer, several layers, the points' chunked writer): SQLite's own user_version
+    (10200 for GeoPackage 1.2, read with sqlite3), and the system's ogrinfo (QGIS 3.22's GDAL 3.6 on Debian 12)
+    opens each without the version warning."""
+    import shutil
+    import sqlite3
+
+    import geopandas as gpd
+    from shapely.geometry import Point
+
+    from gistools.io.vector import write_layer, write_layers
+
+    frame = gpd.GeoDataFrame({"a": [1]}, geometry=[Point(0, 0)], crs=32611)
+    written = [write_layer(frame, tmp_path / "one.gpkg", "L"), write_layers({"A": frame, "B": frame},
+                                                                          tmp_path / "two.gpkg")]
+    done = subprocess.run(GISTOOLS + ["points", str(SAMPLE / "35712.las"), "--out", str(tmp_path / "p")],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr
+    written += sorted((tmp_path / "p").glob("*.gpkg"))
+    assert len(written) == 3
+    for path in written:
+        with sqlite3.connect(path) as db:
+            assert db.execute("PRAGMA user_version").fetchone()[0] == 10200, path
+        if shutil.which("ogrinfo"):
+            info = subprocess.run(["ogrinfo", "-so", "-al", str(path)], capture_output=True, text=True)
+            assert info.returncode == 0 and "user_version" not in info.stderr, info.stderr

@@ -173,13 +173,18 @@ def check_field(gdf: gpd.GeoDataFrame, field: str, spec, what: str = "the tile i
                          hint=f"Name the tile-number field ({option('tile_field')})")
 
 
+# the GeoPackage version every GeoPackage is written in: 1.2 opens without a warning in every GDAL a supported QGIS
+# links (GDAL 3.6 of QGIS 3.22 warns "user_version ... may only be partially supported" on the 1.4 of GDAL >= 3.7)
+GPKG_OPTIONS = {"VERSION": "1.2"}
+
+
 def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = True) -> Path:
     """Write one layer of a GeoPackage atomically (the whole file is replaced)."""
     from .raster import atomic_path
 
     path = Path(path)
     with atomic_path(path, overwrite=overwrite, keep_suffix=True, verify=verify_gpkg) as tmp:
-        gdf.to_file(tmp, layer=layer, driver="GPKG")
+        gdf.to_file(tmp, layer=layer, driver="GPKG", **GPKG_OPTIONS)
     return path
 
 
@@ -198,7 +203,8 @@ def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_ma
         for k, (name, gdf) in enumerate(layers.items()):
             index = "YES" if len(gdf) <= spatial_index_max else "NO"
             pyogrio.write_dataframe(gdf, tmp, layer=name, driver="GPKG", append=k > 0,
-                                    layer_options={"SPATIAL_INDEX": index})
+                                    layer_options={"SPATIAL_INDEX": index},
+                                    dataset_options=None if k > 0 else GPKG_OPTIONS)
     return path
 
 

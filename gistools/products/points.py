@@ -17,6 +17,7 @@ from ..io.outdir import output_folder
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
 from ..io.outdir import claim_output
 from ..io.raster import atomic_path
+from ..io.vector import GPKG_OPTIONS
 from ..parameters import check, choices, default_for, option
 from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..io.tiles import find_tiles
@@ -58,7 +59,9 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
             gdf.insert(0, "x", chunk.x[keep])
             written += len(gdf)
             if fmt == "gpkg":
-                gdf.to_file(tmp_named, layer="points", driver="GPKG", mode="a" if tmp_named.exists() else "w")
+                first = not tmp_named.exists()
+                gdf.to_file(tmp_named, layer="points", driver="GPKG", mode="w" if first else "a",
+                            **(GPKG_OPTIONS if first else {}))
             else:
                 parts.append(gdf)
         if fmt == "parquet":
@@ -67,7 +70,7 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
             frame.to_parquet(tmp_named)
         elif not tmp_named.exists():  # no point selected: an empty layer
             gpd.GeoDataFrame({"x": [], "y": [], "z": []}, geometry=gpd.GeoSeries([], crs=crs)).to_file(
-                tmp_named, layer="points", driver="GPKG")
+                tmp_named, layer="points", driver="GPKG", **GPKG_OPTIONS)
     return written
 
 

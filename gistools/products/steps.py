@@ -29,7 +29,7 @@ from ..io.blocks import (BLOCK, PolygonMask, check_outputs_are_not_inputs, open_
                          run_blockwise, same_grid, windows)
 from ..io.raster import NODATA
 from ..io.styles import write_polygon_style
-from ..io.vector import check_crs, check_field, read_layer, verify_gpkg, write_layer
+from ..io.vector import GPKG_OPTIONS, check_crs, check_field, read_layer, verify_gpkg, write_layer
 from ..lidar.bands import (BAND_NAMES, BAND_NODATA, add_nodata_causes, band_thresholds, height_bands,
                            nodata_cause_shares)
 from ..lidar.density import halo_cells
@@ -226,7 +226,8 @@ class _PointWriter:
         xs, ys = transform * (cols + 0.5, rows + 0.5)
         gdf = gpd.GeoDataFrame({"band": np.asarray(BAND_NAMES)[codes[rows, cols]], "grid_code": h[rows, cols]},
                                geometry=shapely.points(xs, ys), crs=self.crs)
-        pyogrio.write_dataframe(gdf, self.gpkg, layer=self.layer, driver="GPKG", append=self.count > 0)
+        pyogrio.write_dataframe(gdf, self.gpkg, layer=self.layer, driver="GPKG", append=self.count > 0,
+                                dataset_options=None if self.count > 0 else GPKG_OPTIONS)
         self.count += len(gdf)
 
     def __exit__(self, *exc):
@@ -235,7 +236,7 @@ class _PointWriter:
                 import geopandas as gpd
 
                 gpd.GeoDataFrame({"band": [], "grid_code": []}, geometry=[], crs=self.crs).to_file(
-                    self.gpkg, layer=self.layer, driver="GPKG")
+                    self.gpkg, layer=self.layer, driver="GPKG", **GPKG_OPTIONS)
         except BaseException:
             self._ctx.__exit__(*sys.exc_info())
             raise
