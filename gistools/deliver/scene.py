@@ -123,7 +123,7 @@ def _scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface:
         import trimesh
     except ImportError:
         raise InputError("gistools scene needs trimesh, which is not installed",
-                         hint="pip install 'gistools[scene]'") from None
+                         hint="pip install trimesh (a dependency of gistools: reinstall gistools)") from None
     out = output_folder(out)
     report = read_folder_report(out) or {}
     unit_m, z_unit_m = report.get("horizontal_unit_m"), report.get("vertical_unit_m")
