@@ -61,9 +61,9 @@ def _has_db(value: str | None) -> bool:
 
 @functools.cache
 def ensure_proj_data() -> str:
-    """The folder pyproj takes PROJ's data from, found if need be (see the module), and given to GDAL's PROJ too
-    (rasterio, pyogrio) where ``PROJ_DATA`` / ``PROJ_LIB`` name a folder without proj.db; raises ProjDataError once
-    where there is none."""
+    """The folder pyproj takes PROJ's data from, found if need be (see the module); ``PROJ_DATA`` / ``PROJ_LIB``
+    naming a folder without proj.db are dropped, so that GDAL's PROJ (rasterio, pyogrio) takes its own data; raises
+    ProjDataError once where there is none."""
     import pyproj
     from pyproj import datadir
 
@@ -82,10 +82,11 @@ def ensure_proj_data() -> str:
             hint="Install PROJ's data (Debian / Ubuntu: sudo apt-get install proj-data proj-bin; conda: conda install "
                  "proj-data), or point PROJ_DATA at the folder holding proj.db")
     stale = [var for var in ("PROJ_DATA", "PROJ_LIB") if var in os.environ and not _has_db(os.environ[var])]
-    for var in stale:  # GDAL's PROJ reads these first: the folder found, not one without proj.db
-        os.environ[var] = folder
-    if stale:
-        from rasterio.env import set_proj_data_search_path
+    for var in stale:  # a folder without proj.db: each library takes its own data instead (a binary wheel's
+        del os.environ[var]  # copy matches its own PROJ, which another PROJ's proj.db would not)
+    if stale and "rasterio" in sys.modules:  # rasterio took the variable when it started: its own data now
+        from rasterio.env import PROJDataFinder, set_proj_data_search_path
 
-        set_proj_data_search_path(folder)
+        own = PROJDataFinder().search()
+        set_proj_data_search_path(own or folder)
     return folder

@@ -8,6 +8,7 @@ import re
 import subprocess
 import sys
 import tomllib
+from pathlib import Path
 
 from conftest import ROOT, SAMPLE
 
@@ -43,6 +44,11 @@ def test_proj_data_is_found_where_the_system_keeps_it_when_pyproj_looks_elsewher
 
 
 def test_without_proj_data_anywhere_the_run_stops_once_naming_proj(tmp_path):
+    import pyproj
+    import pytest
+
+    if (Path(pyproj.__file__).parent / "proj_dir" / "share" / "proj" / "proj.db").is_file():
+        pytest.skip("pyproj is a binary wheel here, which carries its own PROJ data: it is never missing")
     empty = tmp_path / "empty"
     empty.mkdir()
     script = ("import sys, gistools.projdata as p; p.proj_data_candidates = lambda: []; "
