@@ -12,6 +12,7 @@ import shutil
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import pytest
 
@@ -31,6 +32,24 @@ _NOT_RUN = {
                            "return: check before a long run"): "repeats README.md",
     ("docs/qgis.md", "from gistools_qgis.install import install_dependencies"):
         "runs in QGIS's Python console and installs packages (network, minutes); tests/test_qgis_today.py runs it in a stock QGIS 3.44",
+}
+# The route the suite runs on (tools/run.sh test runs each): "debian", the project's .venv beside Debian's QGIS;
+# "wheels", a plain venv of the newest binary wheels (numpy 2) with `pip install .`, as most users install. On the
+# wheels route the blocks of the Debian route and of QGIS are not run (they run on the Debian route), every other
+# block is.
+ROUTE = os.environ.get("GISTOOLS_ROUTE", "debian")
+_NOT_ON_ROUTE = {
+    "wheels": {
+        ("README.md", "bash tools/run.sh sample   # set up .venv and run the shrub chain on sample_tiles/: map, "
+                      "polygons and rasters in out/"):
+            "the Debian route's set-up (apt-get, its own .venv); this route installed with pip",
+        ("docs/qgis.md", "sudo apt-get install --no-install-recommends python3-pip python3-dev build-essential "
+                         "pkg-config \\"): "Debian's QGIS route",
+        ("docs/qgis.md", "python tools/build_plugin.py                    # -> dist/gistools_qgis-0.1.0.zip"):
+            "QGIS's route (the plugin's zip with its documentation: the Debian route builds it)",
+        ("docs/qgis.md", "# qgis_process runs the system Python: give it the venv's packages and this checkout (the "
+                         "library)"): "Debian's QGIS route (qgis_process)",
+    },
 }
 # lines of run blocks not run here: the test suite itself (this test is part of it)
 _NOT_HERE = ("bash tools/run.sh test",)
@@ -72,8 +91,9 @@ def _first_line(text: str) -> str:
     return next((ln for ln in text.splitlines() if ln.strip()), "")
 
 
-def _to_run() -> list[tuple[str, int, str, str]]:
-    return [b for b in _blocks() if b[2] in _RUN and (b[0], _first_line(b[3])) not in _NOT_RUN]
+def _to_run(route: str = "debian") -> list[tuple[str, int, str, str]]:
+    skip = {**_NOT_RUN, **_NOT_ON_ROUTE.get(route, {})}
+    return [b for b in _blocks() if b[2] in _RUN and (b[0], _first_line(b[3])) not in skip]
 
 
 def test_every_fenced_block_is_run_or_listed_with_a_reason():
@@ -91,8 +111,8 @@ def test_every_fenced_block_is_run_or_listed_with_a_reason():
         elif lang not in _RUN and lang != "text":
             unlisted.append(f"{page} block {n} (```{lang or 'no language'}): {key[1]!r}")
     assert not unlisted, "blocks neither run nor listed in _NOT_RUN with a reason:\n" + "\n".join(unlisted)
-    stale = set(_NOT_RUN) - {(p, _first_line(t)) for p, _, _, t in blocks}
-    assert not stale, f"_NOT_RUN lists blocks no page holds: {sorted(stale)}"
+    stale = set(_NOT_RUN).union(*_NOT_ON_ROUTE.values()) - {(p, _first_line(t)) for p, _, _, t in blocks}
+    assert not stale, f"_NOT_RUN or _NOT_ON_ROUTE list blocks no page holds: {sorted(stale)}"
 
 
 def _install_stamp() -> str:
@@ -106,13 +126,14 @@ def _checkout(tmp_path):
     """A copy of this checkout with its .venv linked (run.sh finds it set up) and the example inputs added, and the
     environment the blocks run in: a fresh HOME (the plugin block installs into ~/.local/share/QGIS), the venv first
     on the PATH."""
+    venv = ROOT / ".venv" if ROUTE == "debian" else Path(sys.prefix)  # the wheels route: the venv running the suite
     stamp = ROOT / ".venv" / ".gistools-installed"
-    if not stamp.exists() or stamp.read_text().strip() != _install_stamp():
+    if ROUTE == "debian" and (not stamp.exists() or stamp.read_text().strip() != _install_stamp()):
         pytest.fail("the .venv is not set up for this checkout: run `bash tools/run.sh test` (the README's command), "
                     "so that the copy's run.sh does not reinstall gistools into it")
     work = tmp_path / "checkout"
     shutil.copytree(ROOT, work, ignore=_COPY_SKIP)
-    (work / ".venv").symlink_to(ROOT / ".venv")
+    (work / ".venv").symlink_to(venv)
     home = tmp_path / "home"
     home.mkdir()
     shims = tmp_path / "shims"  # the docs are written for a user with sudo; as root without it, sudo runs the command
@@ -120,7 +141,7 @@ def _checkout(tmp_path):
     if os.geteuid() == 0 and not shutil.which("sudo"):
         (shims / "sudo").write_text('#!/bin/sh\nexec "$@"\n')
         (shims / "sudo").chmod(0o755)
-    path = f"{ROOT / '.venv' / 'bin'}:{shims}:{os.environ['PATH']}"
+    path = f"{venv / 'bin'}:{shims}:{os.environ['PATH']}"
     env = {**os.environ, "HOME": str(home), "PATH": path, "QT_QPA_PLATFORM": "offscreen", **_SMOKE}
     env.pop("PIP_CONSTRAINT", None)  # run.sh's: the blocks say which constraints they use
     prep = subprocess.run(["gistools", "examples", "."], cwd=work, env=env, capture_output=True, text=True, timeout=600)
@@ -169,7 +190,7 @@ def test_every_command_and_python_block_runs_as_printed(tmp_path):
     examples .` added the example inputs; each ```python block as a script in the same folder, after the blocks
     before it. A block that fails names its page, its number and its output."""
     work, env = _checkout(tmp_path)
-    blocks = _to_run()
+    blocks = _to_run(ROUTE)
     assert sum(b[2] == "bash" for b in blocks) >= 20 and sum(b[2] == "python" for b in blocks) >= 3
     readme_py = None
     for i, (page, n, lang, block) in enumerate(blocks):
@@ -180,7 +201,8 @@ def test_every_command_and_python_block_runs_as_printed(tmp_path):
     assert readme_py is not None, "the README has no Python block run here"
     assert "{'ok': 4, 'failed': 0, 'skipped': 0}" in readme_py.stdout
     assert "forked" not in readme_py.stderr
-    _check_the_model_outputs(work)
+    if ROUTE == "debian":  # the QGIS model's block runs on the Debian route only
+        _check_the_model_outputs(work)
 
 
 def _readme_python() -> str:

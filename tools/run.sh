@@ -105,6 +105,29 @@ if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "$WANT" > "$STAMP"
 fi
 
+# The pip route, as most users install: a venv without system packages, `pip install .` with the newest binary
+# wheels of every dependency (numpy 2), then the whole suite but what needs QGIS in the process (those tests skip
+# there: QGIS's bindings are Debian's), the pip-route install tests (they make such venvs themselves) and the
+# QGIS 3.44 chroot's (Debian's route). GISTOOLS_ROUTE=wheels tells the documentation's test which blocks are this
+# route's.
+route_wheels() {
+  local V="$ROOT/.venv-wheels" want
+  want=$( (cat pyproject.toml setup.py csrc/*.h csrc/*.c csrc/*.py; date +%Y-%m-%d) | sha256sum | cut -c1-16)  # newest: daily
+  [ -x "$V/bin/python" ] || "$PY" -m venv "$V" || return 1
+  if [ "$(cat "$V/.gistools-installed" 2>/dev/null)" != "$want" ]; then
+    echo "gistools setup: the pip route's venv $V (the newest binary wheels)"
+    env -u PIP_CONSTRAINT -u PIP_NO_BINARY "$V/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip \
+      || return 1
+    env -u PIP_CONSTRAINT -u PIP_NO_BINARY "$V/bin/python" -m pip install -q --disable-pip-version-check --upgrade \
+      --upgrade-strategy eager --only-binary :all: --no-binary gistools ".[test]" 2>&1 | grep -v "^WARNING: Location" \
+      || true
+    "$V/bin/python" -c "import gistools, numpy, matplotlib, trimesh" || return 1
+    echo "$want" > "$V/.gistools-installed"
+  fi
+  env -u PIP_CONSTRAINT GISTOOLS_ROUTE=wheels "$V/bin/python" -m pytest -p no:cacheprovider \
+    --ignore=tests/test_install.py --ignore=tests/test_qgis_today.py
+}
+
 case "${1:-}" in
   sample)
     shift
@@ -117,11 +140,21 @@ case "${1:-}" in
     shift
     set +e
     export QT_QPA_PLATFORM=${QT_QPA_PLATFORM:-offscreen}
+    started=$(date +%s)
     "$VENV/bin/python" -m pytest "$@"
     rc=$?
-    set -e
+    echo "gistools tests, Debian route (.venv, numpy $("$VENV/bin/python" -c 'import numpy; print(numpy.__version__)')): $(( $(date +%s) - started )) s, status $rc"
     if [ $rc -eq 5 ]; then echo "no tests were collected" >&2; exit 1; fi
-    exit $rc
+    wheels=0
+    if [ -z "${GISTOOLS_ONE_ROUTE:-}" ] && [ $# -eq 0 ]; then  # the whole suite: every route a user takes
+      started=$(date +%s)
+      route_wheels
+      wheels=$?
+      echo "gistools tests, pip route (.venv-wheels, the newest binary wheels): $(( $(date +%s) - started )) s, status $wheels"
+    fi
+    set -e
+    [ $rc -eq 0 ] && [ $wheels -eq 0 ]
+    exit $?
     ;;
   *)
     echo "usage: bash tools/run.sh sample|test [args...]" >&2
