@@ -46,7 +46,7 @@ def address_space_left() -> int | None:
         return None
     used = None
     try:
-        with open("/proc/self/statm") as f:
+        with open("/proc/self/statm", encoding="utf-8") as f:
             used = int(f.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, AttributeError):
         pass
@@ -56,7 +56,7 @@ def address_space_left() -> int | None:
 def free_memory() -> int | None:
     """Bytes of memory the machine can still give without swapping (None where it cannot be told)."""
     try:
-        with open("/proc/meminfo") as f:  # Linux: MemAvailable counts the reclaimable page cache
+        with open("/proc/meminfo", encoding="utf-8") as f:  # Linux: MemAvailable counts the reclaimable page cache
             for line in f:
                 if line.startswith("MemAvailable:"):
                     return int(line.split()[1]) * 1024

@@ -251,7 +251,7 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
     wanted = cmd[cmd.index("--prefix") + 2:]
     with tempfile.TemporaryDirectory() as tmp:
         pins, report = Path(tmp) / "constraints.txt", Path(tmp) / "report.json"
-        pins.write_text(_constraints(have))
+        pins.write_text(_constraints(have), encoding="utf-8")
         head = len(PIP) + 2  # the interpreter, -I -m pip, install
         plan = cmd[:head] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[head:head + 2], *wanted]
         failure = _pip(plan, timeout)
@@ -259,7 +259,7 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
             result.command = plan
             return failure
         chosen = []
-        for item in json.loads(report.read_text()).get("install", []):
+        for item in json.loads(report.read_text(encoding="utf-8")).get("install", []):
             meta, url = item["metadata"], item.get("download_info", {}).get("url", "")
             name = _name(meta["name"])
             if name in BOUND or name in have:

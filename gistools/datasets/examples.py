@@ -54,7 +54,7 @@ def write_sample_block(out, *, seed: int = 35712, laz=(35813,), breaklines: bool
 def _text(path: Path, text: str) -> None:
     if not path.exists():
         with atomic_path(path) as tmp:
-            tmp.write_text(text)
+            tmp.write_text(text, encoding="utf-8")
 
 
 def _aquifer(out: Path) -> None:

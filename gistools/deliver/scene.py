@@ -187,10 +187,10 @@ def _sidecars(out: Path, crs_wkt: str, west: float, south: float, unit_m: float)
     except Exception:  # a CRS ESRI WKT cannot express
         prj = horizontal.to_wkt()
     with atomic_path(out / "scene.prj", overwrite=True) as tmp:
-        tmp.write_text(prj)
+        tmp.write_text(prj, encoding="utf-8")
     lines = [1 / unit_m, 0.0, 0.0, 1 / unit_m, west, south]
     with atomic_path(out / "scene.wld", overwrite=True) as tmp:
-        tmp.write_text("\n".join(f"{v:.10f}" for v in lines) + "\n")
+        tmp.write_text("\n".join(f"{v:.10f}" for v in lines) + "\n", encoding="utf-8")
 
 
 def read_extras(path) -> dict:

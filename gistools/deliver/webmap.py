@@ -84,7 +84,7 @@ def _parameters(report: dict, n_features: int) -> dict:
 
 
 def _write_page(path: Path, text: str) -> None:
-    if path.exists() and GENERATOR not in path.read_text(errors="ignore")[:4000]:
+    if path.exists() and GENERATOR not in path.read_text(errors="ignore", encoding="utf-8")[:4000]:
         raise OutputExistsError("a file gistools did not write is in the way", path=path,
                                 hint="Move it, or write the map into another folder")
     with atomic_path(path, overwrite=True) as tmp:

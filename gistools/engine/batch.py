@@ -11,7 +11,6 @@ import ctypes
 import logging
 import multiprocessing
 import os
-import re
 import shutil
 import signal
 import sys
@@ -81,7 +80,9 @@ def python_executable() -> str:
     exe = sys.executable or ""
     if os.path.basename(exe).lower().startswith("python"):
         return exe
-    names = ("python.exe", "python3.exe") if os.name == "nt" else (f"python{sys.version_info[0]}.{sys.version_info[1]}", "python3")
+    # Windows: pythonw.exe first, so that workers started from QGIS open no console window each
+    names = ("pythonw.exe", "python.exe", "python3.exe") if os.name == "nt" else (
+        f"python{sys.version_info[0]}.{sys.version_info[1]}", "python3")
     for folder in (os.path.join(sys.exec_prefix, "bin"), sys.exec_prefix, os.path.join(sys.base_exec_prefix, "bin")):
         for name in names:
             candidate = os.path.join(folder, name)
@@ -135,10 +136,24 @@ def worker_thread_environment() -> None:
         os.environ[k] = "1"
 
 
+def parent_gone(parent: int) -> bool:
+    """Whether this worker's parent process has ended: multiprocessing's handle on it where this process was started
+    by multiprocessing (every system: on Windows ``os.getppid()`` keeps a dead parent's id), else the parent's id."""
+    import multiprocessing
+
+    proc = multiprocessing.parent_process()
+    if proc is not None:
+        try:
+            return not proc.is_alive()
+        except (OSError, ValueError):
+            pass
+    return os.getppid() != parent
+
+
 def _watch_parent(parent: int) -> None:
     while True:
         time.sleep(0.5)
-        if os.getppid() != parent:  # the parent died (kill -9): this worker is an orphan
+        if parent_gone(parent):  # the parent died (kill -9, a crash): this worker is an orphan
             os._exit(1)
 
 
@@ -204,12 +219,30 @@ def _worker_start(parent: int, main_thread: bool) -> None:
             ctypes.CDLL(None, use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
         except (OSError, AttributeError):
             pass
-    if os.getppid() != parent:
+    if parent_gone(parent):
         os._exit(1)
     threading.Thread(target=_watch_parent, args=(parent,), daemon=True, name="gistools-parent-watch").start()
 
 
-_MAIN_GUARD = re.compile(r"""__name__\s*==\s*["']__main__["']""")
+def has_main_guard(path: Path) -> bool:
+    """Whether the script ``path`` runs its work under ``if __name__ == "__main__":`` at its top level (parsed,
+    not matched as text: a guard in a comment or a string does not count)."""
+    import ast
+
+    try:
+        tree = ast.parse(Path(path).read_bytes())
+    except (OSError, SyntaxError, ValueError):
+        return False
+
+    def is_guard(test) -> bool:
+        if not (isinstance(test, ast.Compare) and len(test.ops) == 1 and isinstance(test.ops[0], ast.Eq)):
+            return False
+        sides = [test.left, test.comparators[0]]
+        names = [s for s in sides if isinstance(s, ast.Name) and s.id == "__name__"]
+        values = [s for s in sides if isinstance(s, ast.Constant) and s.value == "__main__"]
+        return len(names) == 1 and len(values) == 1
+
+    return any(isinstance(node, ast.If) and is_guard(node.test) for node in tree.body)
 
 
 def start_method() -> tuple[str | None, str | None]:
@@ -228,12 +261,11 @@ def start_method() -> tuple[str | None, str | None]:
     if path is None:
         return "spawn", None  # interactive, a notebook: nothing of __main__ is re-run
     p = Path(path)
+    if not p.is_file() and any(parent.is_file() for parent in p.parents):
+        return "spawn", None  # a zip application: pip's gistools.exe launcher, re-imported by name, never re-run
     if p.is_file():
-        try:
-            if _MAIN_GUARD.search(p.read_text(errors="ignore")):
-                return "spawn", None
-        except OSError:
-            pass
+        if has_main_guard(p):
+            return "spawn", None
         reason = f"{p.name} has no 'if __name__ == \"__main__\":' guard"
     else:
         reason = "the script comes from standard input"

@@ -71,7 +71,7 @@ def read_folder_report(out) -> dict | None:
     """The folder's report.json, or None where there is none (or it is not a JSON object)."""
     path = Path(out) / "report.json"
     try:
-        value = json.loads(path.read_text())
+        value = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):
         return None
     return value if isinstance(value, dict) else None
@@ -93,7 +93,7 @@ def write_folder_report(out, report: dict, *, partial: bool = False) -> dict:
     runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
     merged["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(merged)]
     with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(merged, indent=2, default=_plain))
+        tmp.write_text(json.dumps(merged, indent=2, default=_plain), encoding="utf-8")
     return merged
 
 
@@ -106,4 +106,4 @@ def add_run(out, report: dict) -> None:
     runs = previous.get("runs") if isinstance(previous.get("runs"), list) else []
     previous["runs"] = [*runs[-(MAX_RUNS - 1):], run_record(report)]
     with atomic_path(Path(out) / "report.json", overwrite=True) as tmp:
-        tmp.write_text(json.dumps(previous, indent=2, default=_plain))
+        tmp.write_text(json.dumps(previous, indent=2, default=_plain), encoding="utf-8")

@@ -55,12 +55,12 @@ def write_tile_report(out: Path, result, settings: dict) -> None:
     stamps = {p: file_stamp(path) for p, path in (result.outputs or {}).items()}
     with atomic_path(tile_report_file(out, result.name), overwrite=True) as tmp:
         tmp.write_text(json.dumps({**{k: getattr(result, k) for k in TILE_FIELDS}, "settings": settings,
-                                   "stamps": stamps}, indent=1))
+                                   "stamps": stamps}, indent=1), encoding="utf-8")
 
 
 def read_tile_report(out: Path, name: str) -> dict | None:
     try:
-        rep = json.loads(tile_report_file(out, name).read_text())
+        rep = json.loads(tile_report_file(out, name).read_text(encoding="utf-8"))
     except (OSError, ValueError, RecursionError):  # none (a run killed after the rasters, or before this version) or unreadable
         return None
     for key in ("points_by_class", "points_by_return"):  # JSON keys are strings; class and return numbers are ints

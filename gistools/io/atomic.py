@@ -138,6 +138,35 @@ def check_nonempty(tmp: Path) -> None:
         raise unreadable_output(tmp, "file", "it is empty")
 
 
+# Windows refuses to replace a file another program holds open (QGIS holds every raster of its project open):
+# the rename is tried again for a while, then refused naming the file and the program that may hold it
+REPLACE_TRIES = (0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+
+
+class HeldOpenError(OutputError):
+    """An output cannot be replaced because another program holds it open (Windows)."""
+
+
+def replace(tmp, path, *, tries=REPLACE_TRIES, windows: bool | None = None) -> None:
+    """``os.replace(tmp, path)``; where the system refuses because ``path`` is open elsewhere (Windows:
+    PermissionError), tried again after each pause of ``tries`` (seconds), then a HeldOpenError naming the file."""
+    import time
+
+    windows = os.name == "nt" if windows is None else windows
+    for pause in (*tries, None):
+        try:
+            os.replace(tmp, path)
+            return
+        except PermissionError as err:
+            if not windows or not Path(path).exists():
+                raise
+            if pause is None:
+                raise HeldOpenError(f"{path} cannot be replaced: another program holds it open ({err.strerror or err})",
+                                    hint="Close it there (in QGIS: remove the layer from the project), then run "
+                                         "again; complete outputs are kept and a rerun resumes") from None
+            time.sleep(pause)
+
+
 @contextlib.contextmanager
 def atomic_path(path, *, overwrite: bool = False, keep_suffix: bool = False, verify=check_nonempty):
     """Yield a partial path beside ``path``; after the block, ``verify(partial)`` and rename it onto ``path``.
@@ -159,7 +188,7 @@ def atomic_path(path, *, overwrite: bool = False, keep_suffix: bool = False, ver
         yield tmp
         if verify is not None:
             verify(tmp)
-        os.replace(tmp, path)
+        replace(tmp, path)
     except Exception as err:
         raise_output_error(err, path)
         if not isinstance(err, GistoolsError) and disk_is_full(path):  # a writer's own words for a full disk

@@ -146,9 +146,13 @@ def _read_layer_file(path: Path, layer: str, swap_xy: bool) -> pd.DataFrame:
 
 
 def is_layer_file(text) -> bool:
-    """``LAYER=path`` (one of the dissertation's per-layer files), not QGIS's ``table.gpkg|layername=contacts``."""
-    name, sep, _ = str(text).partition("=")
-    return bool(sep) and "|" not in name
+    """``LAYER=path`` (one of the dissertation's per-layer files): not a file that exists under that whole name
+    (``run=1/contacts.csv``), nor QGIS's ``table.gpkg|layername=contacts``, nor a name holding a folder."""
+    text = str(text)
+    name, sep, _ = text.partition("=")
+    if not sep or Path(text).exists():
+        return False
+    return bool(name.strip()) and not any(c in name for c in "|/\\:")
 
 
 def _per_layer_files(source, swap_xy) -> list[pd.DataFrame]:

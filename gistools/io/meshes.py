@@ -31,7 +31,7 @@ def write_obj(path, vertices: np.ndarray, faces: np.ndarray, *, overwrite: bool 
     """Wavefront OBJ (text), atomically; QGIS 3D, Blender."""
     path = Path(path)
     with atomic_path(path, overwrite=overwrite) as tmp:
-        with open(tmp, "w") as f:
+        with open(tmp, "w", encoding="utf-8") as f:
             f.write("# gistools aquifer unit\n")
             np.savetxt(f, vertices, fmt="v %.6f %.6f %.6f")
             np.savetxt(f, faces + 1, fmt="f %d %d %d")

@@ -55,17 +55,50 @@ def _process_start(pid: int) -> str | None:
     creation time (``t<seconds>``); None where neither is available (the pid alone then decides)."""
     if (PROC / "self" / "stat").exists():
         try:
-            text = (PROC / str(pid) / "stat").read_text()
+            text = (PROC / str(pid) / "stat").read_text(encoding="utf-8")
             return text.rsplit(")", 1)[1].split()[19]
         except (OSError, IndexError):
             return None
     psutil = _psutil()
     if psutil is None:
-        return None
+        return _start_without_proc(pid)
     try:
         return f"t{psutil.Process(pid).create_time():.3f}"
     except (psutil.Error, OSError, ValueError):
         return None
+
+
+def _start_without_proc(pid: int) -> str | None:
+    """A process's start time where there is neither /proc nor psutil: Windows' GetProcessTimes (``w<100 ns ticks>``),
+    elsewhere (macOS, the BSDs) what ``ps -o lstart=`` prints (``p<text>``); None where neither answers."""
+    if sys.platform == "win32":  # pragma: no cover - Windows
+        return _start_windows(pid)
+    import subprocess
+
+    try:
+        run = subprocess.run(["ps", "-o", "lstart=", "-p", str(int(pid))], capture_output=True, text=True, timeout=10,
+                             env={**os.environ, "LC_ALL": "C"})
+    except (OSError, subprocess.SubprocessError):
+        return None
+    text = " ".join(run.stdout.split())
+    return f"p{text}" if run.returncode == 0 and text else None
+
+
+def _start_windows(pid: int) -> str | None:  # pragma: no cover - Windows
+    import ctypes
+    from ctypes import wintypes
+
+    kernel32 = ctypes.windll.kernel32
+    handle = kernel32.OpenProcess(0x1000, False, pid)  # PROCESS_QUERY_LIMITED_INFORMATION
+    if not handle:
+        return None
+    try:
+        times = [wintypes.FILETIME() for _ in range(4)]
+        if not kernel32.GetProcessTimes(handle, *[ctypes.byref(t) for t in times]):
+            return None
+        return f"w{(times[0].dwHighDateTime << 32) | times[0].dwLowDateTime}"
+    finally:
+        kernel32.CloseHandle(handle)
 
 
 def _alive(pid: int, start: str | None) -> bool:
@@ -75,9 +108,14 @@ def _alive(pid: int, start: str | None) -> bool:
     if not _pid_exists(pid):
         return False
     now = _process_start(pid)
-    if start is None or now is None or str(start)[:1].isdigit() != now[:1].isdigit():  # unknown, or another clock
+    if start is None or now is None or _clock(str(start)) != _clock(now):  # unknown, or another clock
         return True
     return now == str(start)
+
+
+def _clock(stamp: str) -> str:
+    """Which clock a start time was read from: /proc's ticks (digits), psutil's (t), ps's (p), Windows' (w)."""
+    return "proc" if stamp[:1].isdigit() else stamp[:1]
 
 
 def _pid_exists(pid: int) -> bool:
@@ -148,7 +186,7 @@ def _take_lock(out: Path, command: str) -> Path:
             raise_output_error(err, lock)
             raise
         try:
-            with os.fdopen(fd, "w") as fh:
+            with os.fdopen(fd, "w", encoding="utf-8") as fh:
                 fh.write(json.dumps(me))
         except OSError as err:
             with contextlib.suppress(OSError):
@@ -161,7 +199,7 @@ def _take_lock(out: Path, command: str) -> Path:
 
 def _read_lock(lock: Path) -> dict | None:
     try:
-        return json.loads(lock.read_text())
+        return json.loads(lock.read_text(encoding="utf-8"))
     except FileNotFoundError:
         return {}
     except (OSError, ValueError, RecursionError):  # empty or half-written: its writer died at once, or is writing it now

@@ -129,7 +129,7 @@ def write_category_names(path, categories: dict) -> Path:
     names = "".join(f"<Category>{html.escape(n)}</Category>" for n in _category_names(categories))
     with atomic_path(side, overwrite=True) as tmp:
         tmp.write_text(f'<PAMDataset>\n  <PAMRasterBand band="1">\n    <CategoryNames>{names}</CategoryNames>\n'
-                       "  </PAMRasterBand>\n</PAMDataset>\n")
+                       "  </PAMRasterBand>\n</PAMDataset>\n", encoding="utf-8")
     return side
 
 
@@ -299,5 +299,5 @@ def write_vrt(path, sources: list[Path], *, overwrite: bool = True, categories: 
         lines.append("    </ComplexSource>")
     lines += ["  </VRTRasterBand>", "</VRTDataset>", ""]
     with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text("\n".join(lines))
+        tmp.write_text("\n".join(lines), encoding="utf-8")
     return path

@@ -88,7 +88,7 @@ def ground_sources(scratch, name, bounds, deep: bool = True) -> list[tuple[Path,
     meta_file = ground_meta_file(scratch, name)
     if not meta_file.exists():
         return []
-    meta = json.loads(meta_file.read_text())
+    meta = json.loads(meta_file.read_text(encoding="utf-8"))
     if meta["scale_offset"] is None:  # no ground point
         return []
     scale, offset = meta["scale_offset"]

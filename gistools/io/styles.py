@@ -51,12 +51,12 @@ def write_polygon_style(layer_path, field: str, categories: dict) -> Path | None
     path = Path(layer_path).with_suffix(".qml")
     if path.exists():
         try:
-            ours = MARK in path.read_text(errors="replace")[:4096]
+            ours = MARK in path.read_text(errors="replace", encoding="utf-8")[:4096]
         except OSError:
             ours = False
         if not ours:
             log.info("%s: kept (a style gistools did not write)", path)
             return None
     with atomic_path(path, overwrite=True) as tmp:
-        tmp.write_text(categorized_fill_qml(field, categories))
+        tmp.write_text(categorized_fill_qml(field, categories), encoding="utf-8")
     return path

@@ -59,10 +59,13 @@ def find_tiles(inputs) -> list[Path]:
         raise InputError(f"{', '.join(map(str, inputs))}: no .las or .laz tiles found", hint="Give tile files or a folder holding them")
     names: dict[str, Path] = {}
     for f in unique:
-        if f.stem in names:
+        key = f.stem.casefold()  # A.laz and a.laz: one output file on Windows' and macOS's disks
+        if key in names:
             raise InputError(
-                f"two tiles share the name {f.stem!r}: {names[f.stem]} and {f}",
+                f"two tiles share the name {f.stem!r}: {names[key]} and {f}" if names[key].stem == f.stem else
+                f"tiles {names[key].name} and {f.name} differ only in case: their outputs would be one file on "
+                f"Windows and macOS disks ({names[key]} and {f})",
                 hint="Outputs are named after tiles; run the folders separately or rename one",
             )
-        names[f.stem] = f
+        names[key] = f
     return unique

@@ -78,7 +78,7 @@ def write_vpc(path, tiles, *, overwrite: bool = True) -> Path:
     items = [_item(path.parent.resolve(), Path(f).resolve(), b, zr, c, crs, facts) for f, b, zr, c, crs in tiles]
     doc = {"type": "FeatureCollection", "features": items}
     with atomic_path(path, overwrite=overwrite) as tmp:
-        tmp.write_text(json.dumps(doc, indent=1))
+        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
     return path
 
 

@@ -515,7 +515,7 @@ def load_model(out) -> Model:
     path = out / "report.json"
     if not path.exists():
         raise InputError(f"{out}: no report.json of an aquifer model", hint="Run gistools aquifer model first")
-    rep = json.loads(path.read_text())
+    rep = json.loads(path.read_text(encoding="utf-8"))
     pts = gpd.read_file(out / "aquifer.gpkg", layer="points")
     layers = list(rep["layers"])
     st = rep["settings"]

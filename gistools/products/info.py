@@ -133,5 +133,5 @@ def tiles_summary(inputs, *, crs=None, out=None, progress: ProgressCallback | No
     }
     if out is not None:
         with atomic_path(out, overwrite=True) as tmp:
-            tmp.write_text(json.dumps(summary, indent=2, default=str))
+            tmp.write_text(json.dumps(summary, indent=2, default=str), encoding="utf-8")
     return summary

@@ -135,6 +135,6 @@ def write_landscape(out: Path, mosaics: dict, run, settings) -> dict:
             if side.exists():
                 os.remove(side)
     with atomic_path(out / "landscape.prj", overwrite=True) as tmp:
-        tmp.write_text(pyproj.CRS.from_wkt(crs.to_wkt()).to_wkt("WKT1_ESRI"))
+        tmp.write_text(pyproj.CRS.from_wkt(crs.to_wkt()).to_wkt("WKT1_ESRI"), encoding="utf-8")
     return {"tif": str(tif), "lcp": str(lcp), "latitude": latitude,
             "bands": [{"name": n, "encoding": u} for n, u in LANDSCAPE_BANDS]}

@@ -226,7 +226,7 @@ def _scan_tile(info: TileInfo, run: _Run, progress: ProgressCallback | None = No
     warnings = _outside_bounds(info, outside, done, out_box)
     meta = {"scale_offset": scale_offset, "extents": {k: e.box for k, e in sides.items()}}
     with atomic_path(ground_meta_file(run.scratch, info.name), overwrite=True) as tmp:
-        tmp.write_text(json.dumps(meta))
+        tmp.write_text(json.dumps(meta), encoding="utf-8")
     finish_surface(grids.dsm)
     save_grids(
         grids_folder(run.scratch, info.name),

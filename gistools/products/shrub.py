@@ -764,7 +764,7 @@ def _previous_run(out: Path) -> dict:
     if not path.exists():
         raise InputError(f"{out}: no report.json of an earlier run", hint="Run gistools shrub (or gistools rasters) on the tiles first")
     try:
-        summary = json.loads(path.read_text())
+        summary = json.loads(path.read_text(encoding="utf-8"))
         _check_run_keys(summary)
     except (ValueError, KeyError, TypeError, RecursionError, pyproj.exceptions.CRSError):
         raise DataFileError("report.json is not the report of a gistools run (damaged or edited)", path=path,

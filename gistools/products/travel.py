@@ -630,10 +630,10 @@ def _write_style(path: Path, text: str) -> None:
     from ..io.atomic import atomic_path
     from ..io.styles import MARK
 
-    if path.exists() and MARK not in path.read_text(errors="replace")[:4096]:
+    if path.exists() and MARK not in path.read_text(encoding="utf-8", errors="replace")[:4096]:
         return  # the user's own style
     with atomic_path(path, overwrite=True) as tmp:
-        tmp.write_text(text)
+        tmp.write_text(text, encoding="utf-8")
 
 
 def _start_cells(points, grid) -> list[tuple[int, int]]:
