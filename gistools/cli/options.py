@@ -59,21 +59,6 @@ def out_opt(help: str = "Output folder."):  # noqa: A002 - click's word
     return click.option("--out", "-o", required=True, type=click.Path(file_okay=False), callback=_folder, help=help)
 
 
-
-
-def parse_classes(ctx, param, value):
-    """'1,2' -> (1, 2); None stays None."""
-    if value is None:
-        return None
-    try:
-        classes = tuple(int(v) for v in str(value).replace(" ", "").split(",") if v != "")
-    except ValueError:
-        raise click.BadParameter(f"{value!r} is not a list of class codes; write e.g. 1,2") from None
-    if not classes or any(not 0 <= c <= 255 for c in classes):
-        raise click.BadParameter(f"{value!r}: class codes are integers 0-255, e.g. 1,2")
-    return classes
-
-
 def batch_report(call):
     """The report of a batch call (``call()``); when every tile failed, the report the library's TilesFailed carries:
     the command prints it, each tile's error, and exits 1."""
@@ -94,46 +79,3 @@ def finish_batch(report: dict, summary: str) -> None:
             click.echo(f"  FAILED {tile['error']}", err=True)
     if (report.get("counts") or {}).get("failed"):
         raise SystemExit(1)
-
-
-def _ground_methods():
-    from ..lidar.ground import GROUND_METHODS
-
-    return list(GROUND_METHODS)
-
-
-classify_ground_opt = click.option(
-    "--classify-ground", type=click.Choice(_ground_methods()), default=None,
-    help="For tiles without ground classes: classify ground and noise first (gistools ground, with its defaults) "
-         "into OUT/classified/ and make the rasters from those.")
-
-
-def dem_options(defaults):
-    """--dem-method and --dem-max-distance, the same words in gistools rasters and gistools shrub."""
-    from ..lidar.gridding import DEM_METHODS
-
-    def apply(fn):
-        fn = click.option("--dem-max-distance", default=defaults.dem_max_distance, show_default=True,
-                          help="DEM cells farther than this from every ground point stay nodata (tin, idw).")(fn)
-        return click.option("--dem-method", type=click.Choice(DEM_METHODS), default=defaults.dem_method, show_default=True,
-                            help="tin: Delaunay of the ground points, at cell centres (fills gaps); max / min / mean: the "
-                                 "highest / lowest / mean ground point of each cell (max is the dissertation's Point To "
-                                 "Raster MAXIMUM; empty cells stay nodata); idw: inverse-distance weighted ground points "
-                                 "within --dem-max-distance.")(fn)
-    return apply
-
-
-def fields_opt(names: str, example: str):
-    """--fields: the columns of some fields where a table does not name them as usual (QGIS's field pickers)."""
-    def parse(ctx, param, value):
-        if not value:
-            return None
-        pairs = [p.split("=", 1) for p in value.split(",") if p.strip()]
-        if any(len(p) != 2 or not p[1].strip() for p in pairs):
-            raise click.BadParameter(f"{value!r}: write field=column pairs, e.g. {example}")
-        wrong = sorted({k.strip() for k, _ in pairs} - set(names.split(",")))
-        if wrong:
-            raise click.BadParameter(f"{', '.join(wrong)}: the fields are {names}")
-        return {k.strip(): v.strip() for k, v in pairs}
-    return click.option("--fields", callback=parse, default=None,
-                        help=f"Columns of the fields ({names}) where the table names them otherwise, e.g. {example}.")

@@ -92,11 +92,6 @@ class PointChunk:
     def __len__(self) -> int:
         return len(self.raw) if self.raw is not None else len(self.x)
 
-    def subset(self, mask: np.ndarray) -> "PointChunk":
-        return PointChunk(
-            **{k: (None if v is None else v[mask]) for k, v in self.__dict__.items()},
-        )
-
 
 _LABELS: dict = {}  # id(crs) -> (crs, label): the tiles of a delivery share one CRS object (see _file_crs)
 

@@ -159,13 +159,6 @@ def _fill_rings_numpy(z: np.ndarray, rings: int) -> np.ndarray:
     return flat.reshape(h + 2, wp)[1:-1, 1:-1].copy()
 
 
-def _box3_sum(a: np.ndarray) -> np.ndarray:
-    """The sum of each cell's 3 x 3 neighbourhood (zero beyond the edges), as two 1-D passes."""
-    p = np.pad(a, 1)
-    rows = p[:-2] + p[1:-1] + p[2:]
-    return rows[:, :-2] + rows[:, 1:-1] + rows[:, 2:]
-
-
 _CROSS = kernel.function("gt_cross_filter")
 _FILL = kernel.function("gt_fill_rings")
 _PROGRESSIVE = kernel.function("gt_progressive")

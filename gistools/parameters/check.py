@@ -46,12 +46,6 @@ def in_data_units(settings, unit_is_foot: bool):
     return dataclasses.replace(settings, **changes) if changes else settings
 
 
-def canonical(name: str, value):
-    """A choice's value with an old word replaced by the current one (the caller warns)."""
-    p = PARAMETERS[name]
-    return p.aliases.get(value, value) if p.kind == "choice" else value
-
-
 def _error(*args, **kwargs):
     from ..errors import InputError
 
