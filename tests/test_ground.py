@@ -544,3 +544,19 @@ def test_a_damaged_neighbour_fails_alone_and_the_others_say_what_they_missed(tmp
     for name in ("35712", "35713", "35812"):
         assert by[name]["status"] == "ok" and any("35813" in w for w in by[name]["warnings"])
     assert not list((tmp_path / "out").glob(".gistools-scratch-*"))  # the strips' scratch folder is gone
+
+
+@pytest.mark.parametrize("shape", [(1, 7), (6, 1), (1, 1), (5, 8)])
+def test_the_slope_thresholds_numpy_form_equals_the_kernels_on_grids_of_one_row_or_column(shape, monkeypatch):
+    """The numpy form (where the kernel is not built) on grids one cell wide, as a small tile's edge gives: no
+    slope along an axis of one cell, the kernel's values exactly."""
+    from gistools import kernel
+    from gistools.lidar import ground
+
+    if not kernel.loaded():
+        pytest.fail("the compiled kernel is not built: the numpy form has nothing to be checked against")
+    z = np.random.default_rng(5).normal(100, 3, shape)
+    p = ground.SmrfParams(cell=1.5, slope=0.15, window=24.0, threshold=0.4, scalar=1.0, z_per_xy=1.0)
+    compiled = ground.slope_threshold(z, p)
+    monkeypatch.setattr(ground, "_SLOPE_THRESHOLD", None)
+    np.testing.assert_allclose(ground.slope_threshold(z, p), compiled, rtol=0, atol=1e-12)

@@ -254,3 +254,39 @@ def test_a_stock_qgis_344_gets_gistools_from_the_plugin_zip_and_its_installer(qg
         got = Path(str(rel).replace(str(tmp_path / "aquifer"), str(work / "out" / "aquifer")))
         with rasterio.open(got) as a, rasterio.open(rel) as b:
             np.testing.assert_allclose(a.read(1), b.read(1), rtol=1e-9, atol=1e-9)
+
+
+def test_every_command_block_runs_on_python_314_from_binary_wheels(qgis_today):
+    """The pip route on today's Python (3.14, the forky chroot's): a venv without system packages, gistools from a
+    copy of this tree with the newest binary wheel of every dependency (numpy 2), then every command block of the
+    README and the documentation as printed, in order (tests/test_readme.py on the pip route: the Debian and QGIS
+    set-up blocks are that route's own)."""
+    src = qgis_today / "work" / "gistools-pip"
+    shutil.rmtree(src, ignore_errors=True)
+    shutil.copytree(ROOT, src, ignore=_COPY_SKIP)
+    (src / "gistools").joinpath("_kernel.abi3.so").unlink(missing_ok=True)
+    venv = "/opt/gistools-pip314"
+    shared = qgis_today / "work" / "shared"
+    shared.mkdir(parents=True, exist_ok=True)
+    mounted = []
+    if (ROOT.parent / "shared").is_dir() and not os.path.ismount(shared):
+        subprocess.run(["mount", "--bind", "-o", "ro", str(ROOT.parent / "shared"), str(shared)], check=True)
+        mounted.append(shared)
+    try:
+        made = _chroot(qgis_today, "sh", "-c", f"test -x {venv}/bin/python || python3 -m venv {venv}")
+        assert made.returncode == 0, made.stderr[-2000:]
+        install = _chroot(qgis_today, f"{venv}/bin/python", "-m", "pip", "install", "-q", "--disable-pip-version-check",
+                          "--upgrade", "--only-binary", ":all:", "--no-binary", "gistools", "/work/gistools-pip",
+                          "pytest", "pyyaml", timeout=1800)
+        assert install.returncode == 0, install.stderr[-3000:]
+        version = _chroot(qgis_today, f"{venv}/bin/python", "-c", "import sys, numpy; print(sys.version_info[:2], "
+                          "numpy.__version__)")
+        assert version.returncode == 0 and "(3, 14)" in version.stdout and " 2." in version.stdout, version.stdout
+        run = _chroot(qgis_today, "sh", "-c", f"cd /work/gistools-pip && GISTOOLS_ROUTE=wheels CI={os.environ.get('CI', '')} "
+                      f"{venv}/bin/python -m pytest -q -p no:cacheprovider "
+                      "tests/test_readme.py::test_every_command_and_python_block_runs_as_printed", timeout=2400)
+    finally:
+        for m in reversed(mounted):
+            subprocess.run(["umount", str(m)], check=False)
+    print(run.stdout[-2000:])
+    assert run.returncode == 0 and "1 passed" in run.stdout, (run.stdout[-6000:], run.stderr[-3000:])

@@ -269,7 +269,9 @@ def slope_threshold(zipro: np.ndarray, p: "SmrfParams") -> np.ndarray:
         _SLOPE_THRESHOLD(np.ascontiguousarray(zipro, np.float64), zipro.shape[0], zipro.shape[1], float(p.cell),
                          float(p.z_per_xy), float(p.threshold), float(p.scalar), out)
         return out
-    gy, gx = np.gradient(zipro, p.cell)
+    # np.gradient refuses an axis of one cell: no slope along it, as the kernel has it
+    gy = np.gradient(zipro, p.cell, axis=0) if zipro.shape[0] > 1 else np.zeros_like(zipro)
+    gx = np.gradient(zipro, p.cell, axis=1) if zipro.shape[1] > 1 else np.zeros_like(zipro)
     grade = np.sqrt(gx * gx + gy * gy) / p.z_per_xy  # true rise over run (as the kernel computes it)
     return p.threshold + p.scalar * grade
 

@@ -261,7 +261,8 @@ def _slowness(slope, factor, fixed, a, b, c):
 def gradient_magnitude(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
     """The steepest slope of each cell (rise over run; central differences, one-sided at edges and beside nodata)."""
     z = dem * z_metres
-    gy, gx = np.gradient(z, cell_metres)
+    gy = np.gradient(z, cell_metres, axis=0) if z.shape[0] > 1 else np.zeros_like(z)  # an axis of one cell: flat
+    gx = np.gradient(z, cell_metres, axis=1) if z.shape[1] > 1 else np.zeros_like(z)
     # where a neighbour is NaN, np.gradient's central difference is NaN: take the cell as flat there
     return np.nan_to_num(np.hypot(gx, gy), nan=0.0)
 
