@@ -4,13 +4,13 @@ The vertical profile, in layers of thickness dz from the ground up, by one of tw
 ratio estimator (Pimont et al. 2018, for vertical pulses): every return above the ground in a layer is an
 interception, divided by k times the pulses' path through the layer down to their last return, less the bias that
 the paths cut short by a last return cause; NaN in a layer no pulse reaches. MacArthur and Horn (1969): ``N_in(i)``
-is the number of pulses that reach layer i (first returns in it or below it, ground returns included) and ``N_out(i)`` the
-number that leave it (first returns below it); ``LAD_i = ln(N_in / N_out) / (k dz)`` (Beer-Lambert, extinction k);
-a layer no pulse leaves takes ``N_out = 1``, a layer no pulse reaches has LAD 0. Bulk density is LAD times the leaf mass per
-area (LMA). Canopy bulk density (CBD) is the largest centred running mean of the bulk density above the canopy
-floor, canopy base height (CBH) the middle of the lowest layer whose running mean exceeds a threshold (Reinhardt and
-Crookston 2003, FVS-FFE; LANDFIRE). Canopy cover is the share of first returns above the canopy floor (percent),
-canopy height a high percentile of the canopy returns' heights.
+is the number of pulses that reach layer i (first returns in it or below it, ground returns included) and
+``N_out(i)`` the number that leave it (first returns below it); ``LAD_i = ln(N_in / N_out) / (k dz)`` (Beer-Lambert,
+extinction k); a layer no pulse leaves takes ``N_out = 1``, a layer no pulse reaches has LAD 0. Bulk density is LAD
+times the leaf mass per area (LMA). Canopy bulk density (CBD) is the largest centred running mean of the bulk
+density above the canopy floor, canopy base height (CBH) the middle of the lowest layer whose running mean exceeds a
+threshold (Reinhardt and Crookston 2003, FVS-FFE; LANDFIRE). Canopy cover is the share of first returns above the
+canopy floor (percent), canopy height a high percentile of the canopy returns' heights.
 
 Every height is in the heights' unit; the constants arrive as arguments (gistools.parameters.fuels declares them).
 """
@@ -69,11 +69,12 @@ def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers:
     # a pulse's path in layer i: dz in the layers above its last return's layer, (i + 1) dz - h in that layer
     lasts = np.asarray(last, bool)
     hl, cl = hv[lasts], cell[lasts]
-    lj = np.where(np.isfinite(hl), np.minimum(np.floor(np.where(np.isfinite(hl), hl, 0.0) / dz), top - 1), -1).astype(np.int64)
+    hl0 = np.where(np.isfinite(hl), hl, 0.0)
+    lj = np.where(np.isfinite(hl), np.minimum(np.floor(hl0 / dz), top - 1), -1).astype(np.int64)
     width = top + 1  # column 0: the pulses that end on the ground, below every layer
     ended = np.bincount(cl * width + lj + 1, minlength=n * width).reshape(n, width)
-    inside = np.bincount(cl * width + lj + 1, weights=np.where(lj >= 0, (lj + 1) * dz - np.where(np.isfinite(hl), hl, 0.0),
-                                                               0.0), minlength=n * width).reshape(n, width)
+    inside = np.bincount(cl * width + lj + 1, weights=np.where(lj >= 0, (lj + 1) * dz - hl0, 0.0),
+                         minlength=n * width).reshape(n, width)
     below = np.cumsum(ended, axis=1)[:, :-1]  # pulses whose last return is below layer i
     cut = inside[:, 1:]  # sum(z): the paths of the pulses whose last return is in layer i
     exposure = dz * below + cut
@@ -84,16 +85,19 @@ def ratio_profile(cell, n: int, h, ground, last, *, dz: float, k: float, layers:
 
 
 def running_mean(profile: np.ndarray, window: int) -> np.ndarray:
-    """Centred running mean over ``window`` layers (odd; outside the profile counts as 0), along the last axis."""
+    """Centred running mean over ``window`` layers (odd; outside the profile counts as 0), along the last axis. The
+    sums are differences of one cumulative sum whose ends are clipped to the profile: a window wider than the
+    profile costs no more than the profile."""
     window = max(1, int(window) | 1)
-    half = window // 2
-    padded = np.pad(profile, [(0, 0)] * (profile.ndim - 1) + [(half, half)])
-    c = np.cumsum(padded, axis=-1)
-    c = np.concatenate([np.zeros(profile.shape[:-1] + (1,)), c], axis=-1)
-    return (c[..., window:] - c[..., :-window]) / window
+    layers = profile.shape[-1]
+    half = min(window // 2, layers)  # a half-window past the profile's end reaches as far
+    c = np.concatenate([np.zeros(profile.shape[:-1] + (1,)), np.cumsum(profile, axis=-1)], axis=-1)
+    i = np.arange(layers)
+    return (c[..., np.minimum(i + half + 1, layers)] - c[..., np.maximum(i - half, 0)]) / float(window)
 
 
-def cbd_cbh(bulk: np.ndarray, *, dz: float, floor: float, window: int, threshold: float) -> tuple[np.ndarray, np.ndarray]:
+def cbd_cbh(bulk: np.ndarray, *, dz: float, floor: float, window: int,
+            threshold: float) -> tuple[np.ndarray, np.ndarray]:
     """(CBD, CBH) per cell from the bulk density profile (cells x layers): the layers whose bottom is below
     ``floor`` are set to 0, the rest smoothed by :func:`running_mean`; CBD its maximum, CBH the middle of the
     lowest layer above the floor whose mean exceeds ``threshold`` (0 where none does)."""

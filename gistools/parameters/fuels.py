@@ -19,7 +19,7 @@ declare(
               "(100: the highest, as LANDFIRE's canopy height of the tallest trees).", "Canopy height percentile",
               default=100.0, minimum=50.0, maximum=100.0, example="99", advanced=True),
     Parameter("layer", "length", "Thickness of the layers of the vertical profile (FVS uses 1 ft, LidarForFuel 1 m).",
-              "Profile layer thickness", default="1m", minimum=0.0, example="1m", advanced=True),
+              "Profile layer thickness", default="1m", example="1m", advanced=True),  # no minimum: positive
     Parameter("extinction", "float", "Extinction coefficient k of the Beer-Lambert (MacArthur-Horn) profile: "
               "LAD = ln(N_in / N_out) / (k dz); 0.5 is a spherical leaf-angle distribution seen from above.",
               "Extinction coefficient k", default=0.5, minimum=0.0, example="0.5", advanced=True),
@@ -33,9 +33,9 @@ declare(
               "this (kg/m3; FVS 0.011, LANDFIRE and LidarForFuel 0.012).", "Canopy base threshold (kg/m3)",
               default=0.012, minimum=0.0, example="0.012", advanced=True),
     Parameter("column", "length", "The profile is computed in columns of the cell (voxels of a column by a layer), "
-              "then averaged over the cell, so that gaps between crowns do not dilute the crowns' density; wider columns "
-              "mix crown and gap and read the crowns too thin, narrower ones get too few pulses. The cell is split into "
-              "equal square columns about this wide (0: one profile per cell).", "Profile column width",
+              "then averaged over the cell, so that gaps between crowns do not dilute the crowns' density; wider "
+              "columns mix crown and gap and read the crowns too thin, narrower ones get too few pulses. The cell is "
+              "split into equal square columns about this wide (0: one profile per cell).", "Profile column width",
               default_text=f"columns that get {option('column_pulses')} pulses each (1 m at 20 pulses per m2)",
               minimum=0.0, example="1m", advanced=True),
     Parameter("column_pulses", "int", f"Without {option('column')}, each cell is split into the square columns that "
@@ -54,13 +54,14 @@ declare(
               "same code three times is a constant fuel model.", "Fuel models for light / medium / heavy shrub",
               default=(121, 142, 145), count=3, minimum=0.0, maximum=32767.0, example="121,142,145"),
     Parameter("latitude", "float", "The landscape's latitude for the .lcp header (degrees).",
-              "Latitude for the .lcp", default_text="the centre of the tiles, from their CRS", minimum=-90.0, maximum=90.0,
-              advanced=True, example="44.1"),
+              "Latitude for the .lcp", default_text="the centre of the tiles, from their CRS", minimum=-90.0,
+              maximum=90.0, advanced=True, example="44.1"),
 )
 
 FUELS = command("fuels", "cell_size", "canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area",
-                "running_mean", "cbh_threshold", "column", "column_pulses", "profile", "bands", "noise_floor", "class_breaks", "fuel_raster", "fuel_codes",
-                "latitude", "buffer", "crs", "jobs", "overwrite", "scheduler")
+                "running_mean", "cbh_threshold", "column", "column_pulses", "profile", "bands", "noise_floor",
+                "class_breaks", "fuel_raster", "fuel_codes", "latitude", "buffer", "crs", "jobs", "overwrite",
+                "scheduler")
 
 # LANDFIRE's 30 m lattice; 100 ft on data in feet (30.48 m) reads naturally there
 COMMAND_DEFAULTS.update({"fuels": {"cell_size": ByUnits("100ft", "30m", "LANDFIRE's 30 m cells"), "buffer": "30m"}})

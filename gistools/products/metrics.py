@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError, raise_if_every_tile_failed
+from ..errors import DataFileError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..grid import cell_index, snapped_grid
 from ..io.outdir import claim_output
@@ -28,8 +28,8 @@ from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo, points_around,
-                       read_headers, write_batch_report)
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo,
+                               points_around, read_headers, write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
 
@@ -101,11 +101,13 @@ def _run(settings: MetricsSettings, info, crs, out: Path) -> _Run:
         if spec.attribute == "i" or spec.statistic == "percentile":
             thresholds[spec.name] = [v for v, _ in spec.numbers]
         else:
-            thresholds[spec.name] = [length_to_crs_units(f"{v}{u}" if u else v, z, name=spec.name) for v, u in spec.numbers]
+            thresholds[spec.name] = [length_to_crs_units(f"{v}{u}" if u else v, z, name=spec.name)
+                                     for v, u in spec.numbers]
     cell = length_to_crs_units(settings.cell_size, xy, name="cell size")
-    return _Run(cell, tuple(specs), thresholds, LAYER_HEIGHT_M / z.metres, None if settings.classes is None else
-                tuple(int(c) for c in settings.classes), settings.returns, length_to_crs_units(settings.buffer, xy, name="buffer"),
-                str(out), crs.to_wkt(), z.short, (cell * xy.metres) ** 2)
+    classes = None if settings.classes is None else tuple(int(c) for c in settings.classes)
+    return _Run(cell, tuple(specs), thresholds, LAYER_HEIGHT_M / z.metres, classes, settings.returns,
+                length_to_crs_units(settings.buffer, xy, name="buffer"), str(out), crs.to_wkt(), z.short,
+                (cell * xy.metres) ** 2)
 
 
 def _selected(pts: dict, run: _Run) -> np.ndarray:
@@ -127,6 +129,10 @@ def tile_metrics(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, di
     hag, inside = None, None
     if needs_heights(run.specs):
         g = np.isin(allp["classification"], GROUND_CLASSES)
+        if not g.any():
+            raise DataFileError("no ground (class 2 or 9) points in the tile or its buffer, so no heights above "
+                                f"ground for {', '.join(s.name for s in run.specs if s.on_heights)}",
+                                hint="Classify ground first (gistools ground)")
         vertex = np.full(len(g), -1, np.int64)
         vertex[g] = np.arange(int(np.count_nonzero(g)))  # a ground point is a vertex of the TIN: no search for it
         hag, inside = height_above_ground(allp["x"][use], allp["y"][use], allp["z"][use], allp["x"][g], allp["y"][g],
@@ -147,7 +153,10 @@ def _metrics_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
     own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
     w, s, e, n = grid.bounds
     b = run.buffer if needs_heights(run.specs) else 0.0
-    arrays, counts = tile_metrics(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
+    try:
+        arrays, counts = tile_metrics(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
+    except DataFileError as err:
+        raise DataFileError(str(err), path=path) from None
     outputs = {}
     for spec in run.specs:
         target = Path(run.out) / spec.name / f"{info.name}.tif"
@@ -160,7 +169,7 @@ def _metrics_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
 def _description(spec: MetricSpec, z_unit: str) -> str:
     if spec.statistic == "density":
         return "points per square metre"
-    if spec.statistic in ("count", "above", "cover", "fuel", "fhd", "vci") or spec.attribute == "i" or spec.statistic == "cv":
+    if spec.statistic in ("count", "above", "cover", "fuel", "fhd", "vci", "cv") or spec.attribute == "i":
         return spec.name
     return f"{spec.name} ({z_unit})"
 
@@ -181,7 +190,8 @@ class _TileState(TileState):
 def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int | str = "auto",
                        scheduler: str | None = None, overwrite: bool = False,
                        progress: ProgressCallback | None = None) -> dict:
-    """Cell metrics (point count, density, height statistics, cover, ...) of the tiles of ``inputs``: ``gistools metrics``.
+    """Cell metrics (point count, density, height statistics, cover, ...) of the tiles of ``inputs``:
+    ``gistools metrics``.
 
     Writes ``out/<metric>/<tile>.tif``, the mosaics ``out/<metric>.vrt`` and ``out/report.json``; cells without points
     are nodata. A tile whose every metric exists is kept unless ``overwrite``; a tile that fails is reported and the
@@ -271,7 +281,8 @@ def _mosaics(out: Path, run: _Run | None, states: dict) -> dict:
     return mosaics
 
 
-def _report(out, settings: MetricsSettings, run: _Run | None, infos: dict, states: dict, mosaics: dict, started) -> dict:
+def _report(out, settings: MetricsSettings, run: _Run | None, infos: dict, states: dict, mosaics: dict,
+            started) -> dict:
     first = next(iter(infos.values()), None)
     units = None if run is None else {"cell_size": run.cell_size, "buffer": run.buffer, "thresholds": run.thresholds,
                                       "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name,
