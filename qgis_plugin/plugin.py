@@ -113,9 +113,28 @@ def bundled_libraries(module) -> Path | None:
     Read from the installed files, on every platform (no /proc): auditwheel (Linux) and delvewheel (Windows) put
     them in ``<site-packages>/<name>.libs``, delocate (macOS) in ``<package>/.dylibs``."""
     where = getattr(module, "__file__", None)
-    if not where:
-        return None
-    package = Path(where).parent
+    return _bundled_folder(Path(where).parent) if where else None
+
+
+def bundled_before_import() -> list[str]:
+    """The GDAL / PROJ / GEOS bound packages that are binary wheels carrying their own libraries, found from their
+    installed files before any of them is imported: importing one loads its copy of GEOS or GDAL into QGIS's process
+    beside QGIS's own, which crashes QGIS (at the latest when it exits), so such a set-up is refused first."""
+    import importlib.util
+
+    found = []
+    for package in sorted(_BOUND):
+        try:
+            spec = importlib.util.find_spec(package)
+        except (ImportError, ValueError):
+            continue
+        folder = _bundled_folder(Path(spec.origin).parent) if spec is not None and spec.origin else None
+        if folder is not None:
+            found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
+    return found
+
+
+def _bundled_folder(package: Path) -> Path | None:
     for folder in (package.parent / f"{package.name}.libs", package / ".dylibs"):
         try:
             if folder.is_dir() and any(folder.iterdir()):
@@ -144,6 +163,10 @@ class GistoolsPlugin:
         from .install import add_to_path, default_target
 
         add_to_path(default_target())  # what install_dependencies() put in the profile, after QGIS's own packages
+        self.mismatches = bundled_before_import()  # before any of them loads its own GDAL / GEOS into QGIS
+        if self.mismatches:
+            QgsMessageLog.logMessage(mismatch_message(self.mismatches), "gistools", CRITICAL)
+            return
         self.missing = missing_requirements()
         if self.missing:
             QgsMessageLog.logMessage(missing_message(self.missing), "gistools", CRITICAL)

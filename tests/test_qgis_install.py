@@ -136,3 +136,26 @@ plugin.unload()
     run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300,
                          env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
     assert "DEPS True 7 True" in run.stdout, run.stdout + run.stderr[-3000:]
+
+
+def test_a_binary_wheel_of_a_gdal_bound_package_is_refused_before_it_is_imported(tmp_path, monkeypatch):
+    """QGIS on another Linux with a pip venv on its path: shapely's wheel (its own GEOS in shapely.libs) would be
+    loaded into QGIS's process by any import and crash it on exit. The plugin finds the wheel from its files and
+    refuses before anything imports it."""
+    from qgis_plugin import plugin
+
+    site = tmp_path / "site"
+    (site / "shapely").mkdir(parents=True)
+    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
+    (site / "shapely.libs").mkdir()
+    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
+    monkeypatch.syspath_prepend(str(site))
+    for name in list(sys.modules):
+        if name == "shapely" or name.startswith("shapely."):
+            monkeypatch.delitem(sys.modules, name)
+    found = plugin.bundled_before_import()
+    assert found == ["shapely carries its own libraries (shapely.libs, a binary wheel)"], found
+    assert "shapely" not in sys.modules  # found from the files: nothing imported
+    started = plugin.GistoolsPlugin()
+    started.initProcessing()
+    assert started.provider is None and started.mismatches == found and "shapely" not in sys.modules
