@@ -17,6 +17,14 @@
 #define SIMD_CLONES
 #endif
 
+/* C99's restrict, in the spelling every compiler of the kernel takes: MSVC's C compiler knows it as __restrict (its
+ * `restrict` keyword needs /std:c11); the kernel's sources write GT_RESTRICT, never the keyword */
+#if defined(_MSC_VER)
+#define GT_RESTRICT __restrict
+#else
+#define GT_RESTRICT restrict
+#endif
+
 /* a hint to fetch the cache line of *p (GCC / Clang; nothing elsewhere) */
 #if defined(__GNUC__) || defined(__clang__)
 #define PREFETCH(p) __builtin_prefetch(p)

@@ -44,44 +44,69 @@ void gt_cell_min(int64_t n, const int64_t *flat, const double *z, double *out) {
 }
 
 
-/* Ascending, NaN after every number (numpy's order). */
-static int order_doubles(double a, double b) {
-    if (a < b) return -1;
-    if (a > b) return 1;
-    if (a == b) return 0;
-    return isnan(a) ? (isnan(b) ? 0 : 1) : -1;
+/* a goes before b in numpy's order: ascending, NaN after every number (equal values, -0.0 and 0.0 among them, and
+ * NaNs keep their order: neither goes before the other) */
+static inline int before(double a, double b) { return a < b || (isnan(b) && !isnan(a)); }
+
+/* a[0..m) in numpy's order, stable: equal values keep their input order */
+static void insertion_sort(double *a, int64_t m) {
+    for (int64_t i = 1; i < m; i++) {
+        double x = a[i];
+        int64_t j = i - 1;
+        while (j >= 0 && before(x, a[j])) {
+            a[j + 1] = a[j];
+            j--;
+        }
+        a[j + 1] = x;
+    }
 }
 
-static int compare_doubles(const void *a, const void *b) {
-    return order_doubles(*(const double *)a, *(const double *)b);
+#define SORT_RUN 24 /* a cell of up to this many values: an insertion sort (a cell holds a few dozen points) */
+
+/* a[0..m) in numpy's order, stable: runs of SORT_RUN by insertion, then merged pairwise (bottom-up), between a and
+ * tmp (m doubles). Written out rather than the C library's qsort, which is not stable everywhere (msvcrt's is not:
+ * the signs of zeros and the NaNs' bits would come out in another order on Windows). */
+static void merge_sort(double *a, double *tmp, int64_t m) {
+    for (int64_t lo = 0; lo < m; lo += SORT_RUN) insertion_sort(a + lo, m - lo < SORT_RUN ? m - lo : SORT_RUN);
+    double *src = a, *dst = tmp;
+    for (int64_t w = SORT_RUN; w < m; w *= 2) {
+        for (int64_t lo = 0; lo < m; lo += 2 * w) {
+            int64_t mid = lo + w < m ? lo + w : m, hi = lo + 2 * w < m ? lo + 2 * w : m, i = lo, j = mid, k = lo;
+            while (i < mid && j < hi) dst[k++] = before(src[j], src[i]) ? src[j++] : src[i++]; /* ties: the left */
+            while (i < mid) dst[k++] = src[i++];
+            while (j < hi) dst[k++] = src[j++];
+        }
+        double *t = src;
+        src = dst;
+        dst = t;
+    }
+    if (src != a) memcpy(a, src, (size_t)m * sizeof(double));
 }
 
 /* The values of each cell, ascending (metrics' medians and percentiles): out holds the values of cell 0, then cell
- * 1, ..., each ascending with NaN last, as v[numpy.lexsort((v, cell))]; start[c] is where cell c begins
- * (start[ncells] = n). A counting sort by cell (cells 0..ncells-1), then each cell's few values sorted in place.
- * start (ncells + 1) and pos (ncells, scratch) are caller-owned. */
+ * 1, ..., each ascending with NaN last, as v[numpy.lexsort((v, cell))] bit for bit (a stable order: equal values,
+ * -0.0 and 0.0 among them, in point order); start[c] is where cell c begins (start[ncells] = n). A counting sort
+ * by cell (cells 0..ncells-1), then each cell's values sorted in place, stably (merge_sort: the same order with
+ * every C library). start (ncells + 1) and pos (ncells, scratch) are caller-owned; the merges' scratch (the longest
+ * cell) is allocated here: without memory for it, insertion sorts (the same order, slower). */
 void gt_cell_sort(int64_t n, const int64_t *cell, const double *v, int64_t ncells, int64_t *start, int64_t *pos,
                   double *out) {
     memset(start, 0, (size_t)(ncells + 1) * sizeof(int64_t));
     for (int64_t k = 0; k < n; k++) start[cell[k] + 1]++;
-    for (int64_t c = 0; c < ncells; c++) start[c + 1] += start[c];
+    int64_t longest = 0;
+    for (int64_t c = 0; c < ncells; c++) {
+        if (start[c + 1] > longest) longest = start[c + 1];
+        start[c + 1] += start[c];
+    }
     memcpy(pos, start, (size_t)ncells * sizeof(int64_t));
     for (int64_t k = 0; k < n; k++) out[pos[cell[k]]++] = v[k];
+    double *tmp = longest > SORT_RUN ? (double *)malloc((size_t)longest * sizeof(double)) : NULL;
     for (int64_t c = 0; c < ncells; c++) {
-        double *a = out + start[c];
         int64_t m = start[c + 1] - start[c];
-        if (m > 24) {
-            qsort(a, (size_t)m, sizeof(double), compare_doubles);
-            continue;
-        }
-        for (int64_t i = 1; i < m; i++) {  /* insertion sort: a cell holds a few dozen points */
-            double x = a[i];
-            int64_t j = i - 1;
-            while (j >= 0 && order_doubles(a[j], x) > 0) {
-                a[j + 1] = a[j];
-                j--;
-            }
-            a[j + 1] = x;
-        }
+        if (m > SORT_RUN && tmp)
+            merge_sort(out + start[c], tmp, m);
+        else
+            insertion_sort(out + start[c], m);
     }
+    free(tmp);
 }

@@ -128,8 +128,8 @@ SIMD_CLONES static void diagonal_max(double *x, int64_t h, int64_t w, int64_t le
     while (m < len) {
         int64_t s = 2 * m <= len ? m : len - m;
         for (int64_t b = 0; b + s < h; b++) {
-            double *restrict row = x + b * w;
-            const double *restrict src = x + (b + s) * w + d * s;
+            double *GT_RESTRICT row = x + b * w;
+            const double *GT_RESTRICT src = x + (b + s) * w + d * s;
             int64_t c0 = d < 0 ? s : 0, c1 = d < 0 ? w : w - s;
             for (int64_t c = c0; c < c1; c++) row[c] = dmax(row[c], src[c]);
         }

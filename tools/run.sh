@@ -36,6 +36,8 @@ if [ "${1:-}" = test ]; then
   command -v chromium >/dev/null || need_apt+=(chromium)  # the web map tests render the page in headless Chromium
   command -v pdftoppm >/dev/null || need_apt+=(poppler-utils)  # the map book test renders its pages
   command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64)  # the kernel's Windows build is checked
+  # ... and run under Wine (Debian 12's wine64 package puts its loader in /usr/lib/wine, off the PATH)
+  command -v wine64 >/dev/null || [ -x /usr/lib/wine/wine64 ] || need_apt+=(wine64)
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then

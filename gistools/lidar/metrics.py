@@ -98,7 +98,9 @@ def cell_sorted(cell, values, ncells: int) -> tuple[np.ndarray, np.ndarray]:
         start, pos, out = np.empty(ncells + 1, np.int64), np.empty(ncells, np.int64), np.empty(len(values))
         _CELL_SORT(len(values), cell, values, ncells, start, pos, out)
         return out, start
-    by_value = np.argsort(values)  # then a stable sort by cell keeps each cell's values ascending
+    # stable, as lexsort (equal values, -0.0 and 0.0, in point order); then a stable sort by cell keeps each cell's
+    # values ascending
+    by_value = np.argsort(values, kind="stable")
     out = values[by_value[np.argsort(cell[by_value], kind="stable")]]
     start = np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=ncells))])
     return out, start
