@@ -23,7 +23,8 @@ def travel(out, last_seen, dem, shrub_classes, roads, hydro, waterbodies, overwr
     """Minutes for a walker to reach every cell of DEM from the nearest point last seen: Tobler's hiking function
     on the slope along each step (uphill and downhill differ), slowed by shrub, roads clear, water impassable.
     Writes OUT/travel_minutes.tif, OUT/isochrone_bands.tif, OUT/travel.gpkg (isochrones, last_seen) and
-    OUT/report.json.
+    OUT/report.json. A rerun with the same settings keeps the complete outputs (or makes again those a stopped run
+    left incomplete); one with other settings is refused unless --overwrite.
 
     \b
     Examples:
@@ -34,6 +35,9 @@ def travel(out, last_seen, dem, shrub_classes, roads, hydro, waterbodies, overwr
     with progress_bar(quiet) as progress:
         rep = travel_from_dem(dem, out, list(last_seen), settings, classes=shrub_classes, roads=roads, hydro=hydro,
                               waterbodies=waterbodies, overwrite=overwrite, progress=progress)
+    if rep.get("kept"):
+        click.echo(f"kept the complete outputs of an earlier run with the same settings in {out} (--overwrite makes "
+                   "them again)")
     click.echo(f"{len(rep['last_seen'])} point(s) last seen; {rep['reached_share']:.1%} of the cells reached, the "
                f"farthest in {rep['max_minutes']:.1f} min ({rep['neighbours']} neighbours)")
     for iso in rep["isochrones"]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import DataFileError, InputError
 from ..parameters import option
 from ..plot import VIEWSHED_RGBA  # the cells seen: cyan, semi-transparent; hidden ones are left clear
 
@@ -85,16 +85,59 @@ def check_folders(**folders) -> dict:
             what = "no such folder" if not path.is_dir() else f"no {', '.join(missing)} in it"
             raise InputError(f"{option(name, str(folder))}: {what}",
                              hint=f"Give the output folder of {MAKER[name]}")
+        if name == "travel":
+            _isochrones(path)  # its layers and columns, before anything is read or written
         found[name] = path
     return found
 
 
-def _isochrones(folder: Path):
-    import geopandas as gpd
+# the layers of travel.gpkg (gistools travel) and the number columns each must have
+TRAVEL_LAYERS = {"isochrones": ("minutes", "hectares", "acres"), "last_seen": ()}
+TRAVEL_HINT = "Give the output folder of gistools travel as it wrote it (or run gistools travel again)"
 
-    iso = gpd.read_file(folder / "travel.gpkg", layer="isochrones").sort_values("minutes")
-    seen = gpd.read_file(folder / "travel.gpkg", layer="last_seen")
-    return iso, seen
+
+def _travel_layer(path: Path, layer: str):
+    """A layer of a travel folder's GeoPackage, checked: there, with a CRS, its number columns numbers (as floats),
+    the isochrones not empty; else one line naming the file and the layer or column."""
+    import geopandas as gpd
+    import pyogrio
+
+    try:
+        names = [str(n) for n, _kind in pyogrio.list_layers(path)]
+        gdf = gpd.read_file(path, layer=layer) if layer in names else None
+    except Exception as err:  # noqa: BLE001 - not a GeoPackage, damaged: its reader's own words, on one line
+        raise DataFileError(f"cannot read layer {layer} ({' '.join(str(err).split())})", path=path,
+                            hint=TRAVEL_HINT) from None
+    if gdf is None:
+        raise InputError(f"no layer {layer} (its layers: {', '.join(names) or 'none'})", path=path, hint=TRAVEL_HINT)
+    if gdf.crs is None:
+        raise InputError(f"layer {layer} has no CRS", path=path, hint=TRAVEL_HINT)
+    if layer == "isochrones" and len(gdf) == 0:
+        raise InputError(f"layer {layer} has no features", path=path, hint=TRAVEL_HINT)
+    for column in TRAVEL_LAYERS[layer]:
+        gdf[column] = _number_column(gdf, column, path, layer)
+    return gdf
+
+
+def _number_column(gdf, column: str, path: Path, layer: str):
+    """The column ``column`` of ``gdf`` as finite floats; else one line naming the file, layer and column."""
+    import pandas as pd
+
+    if column not in gdf.columns:
+        raise InputError(f"layer {layer} has no {column} column", path=path, hint=TRAVEL_HINT)
+    values = pd.to_numeric(gdf[column], errors="coerce").astype("float64")
+    bad = ~np.isfinite(values.to_numpy())
+    if bad.any():
+        raise InputError(f"layer {layer}, column {column}: {gdf[column].iloc[int(np.argmax(bad))]!r} is not a "
+                         "finite number", path=path, hint=TRAVEL_HINT)
+    return values
+
+
+def _isochrones(folder: Path):
+    """(isochrones by minutes, points last seen) of a travel folder's travel.gpkg, checked (_travel_layer)."""
+    path = Path(folder) / "travel.gpkg"
+    iso = _travel_layer(path, "isochrones").sort_values("minutes")
+    return iso, _travel_layer(path, "last_seen")
 
 
 def travel_frames(folder: Path, crs=None):
@@ -102,6 +145,7 @@ def travel_frames(folder: Path, crs=None):
     isochrone band (the cells reached between the previous isochrone and this one), with ``minutes``, ``name``
     ("2-4 min") and ``colour`` (gistools travel's band colours)."""
     import geopandas as gpd
+    import shapely
 
     from ..products.travel import band_categories
 
@@ -110,6 +154,7 @@ def travel_frames(folder: Path, crs=None):
     cats = band_categories(minutes)
     rows, inner = [], None
     for i, (m, geom) in enumerate(zip(minutes, iso.geometry)):
+        geom = geom if geom is not None else shapely.MultiPolygon()
         band = geom if inner is None else geom.difference(inner)
         rows.append({"minutes": m, "name": cats[i + 1][0], "colour": cats[i + 1][1], "hectares": float(iso["hectares"].iloc[i]),
                      "acres": float(iso["acres"].iloc[i]), "geometry": band})

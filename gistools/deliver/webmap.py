@@ -12,6 +12,7 @@ under the cursor, the cells seen, the canopy base height classes.
 from __future__ import annotations
 
 import json
+import logging
 import time
 from importlib import resources
 from pathlib import Path
@@ -29,6 +30,8 @@ from .layers import COORD_DIGITS, check_folders, rounded as _rounded  # noqa: F4
 from ..engine.record import add_run, read_folder_report
 
 __all__ = ["web_map", "check_options", "GENERATOR"]
+
+log = logging.getLogger("gistools.deliver.webmap")
 
 GENERATOR = "<meta name='generator' content='gistools web map'>"  # the mark of a page gistools wrote
 
@@ -138,7 +141,8 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
     Returns
     -------
     dict
-        ``html`` (the path, as text), ``bytes``, ``features`` and ``parts``.
+        ``html`` (the path, as text), ``bytes``, ``features``, ``parts`` and ``warnings`` (a layer of ``travel``,
+        ``viewshed`` or ``fuels`` that does not overlap the map's polygons: drawn off the map; each also logged).
 
     Raises
     ------
@@ -166,7 +170,7 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
         result = _web_map(out, basemap=basemap, basemap_attribution=basemap_attribution, split_mb=split_mb, **layers)
         add_run(out, {"tool": "gistools webmap", "seconds": round(time.time() - started, 3),
                       "settings": {"basemap": basemap, "split_mb": split_mb,
-                                   **{k: str(v) for k, v in layers.items()}}})
+                                   **{k: str(v) for k, v in layers.items()}}, "warnings": result["warnings"]})
     return result
 
 
@@ -205,8 +209,10 @@ def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None
     js, css = _leaflet()
     title = report.get("map_title") or f"Shrub density - {out.name}"
     params = _parameters(report, len(features))
+    extra = _layers(travel, viewshed, fuels)
+    warnings = _off_the_map(features, extra, {"travel": travel, "viewshed": viewshed, "fuels": fuels})
     common = dict(classes=classes, leaflet_js=js, leaflet_css=css, basemap=basemap,
-                  basemap_attribution=basemap_attribution, layers=_layers(travel, viewshed, fuels))
+                  basemap_attribution=basemap_attribution, layers=extra)
     size = len(json.dumps({"type": "FeatureCollection", "features": features}))
     parts = _parts(features, int(split_mb * 1e6)) if size > split_mb * 1e6 else [features]
     written = []
@@ -228,7 +234,59 @@ def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None
     html_path = out / "shrub_map.html"
     text = page.replace("<head>\n", "<head>\n" + GENERATOR + "\n", 1)
     _write_page(html_path, text)
-    return {"html": str(html_path), "bytes": len(text.encode("utf-8")), "features": len(features), "parts": written}
+    return {"html": str(html_path), "bytes": len(text.encode("utf-8")), "features": len(features), "parts": written,
+            "warnings": warnings}
+
+
+def _extent(coordinates) -> tuple | None:
+    """(west, south, east, north) of GeoJSON coordinates (nested lists of [lon, lat]); None when there are none."""
+    flat = np.asarray([c for c in _positions(coordinates)], dtype=np.float64).reshape(-1, 2)
+    if not len(flat):
+        return None
+    return float(flat[:, 0].min()), float(flat[:, 1].min()), float(flat[:, 0].max()), float(flat[:, 1].max())
+
+
+def _positions(coordinates):
+    """The [lon, lat] positions of nested GeoJSON coordinates."""
+    if len(coordinates) and isinstance(coordinates[0], (int, float)):
+        yield coordinates[:2]
+        return
+    for c in coordinates:
+        yield from _positions(c)
+
+
+def _layer_extents(extra: dict) -> dict:
+    """{folder option: (west, south, east, north) in degrees} of the page's extra layers."""
+    extents = {}
+    if "isochrones" in extra:
+        extents["travel"] = _extent([f["geometry"]["coordinates"] for f in extra["isochrones"]["features"]]
+                                    + [[p["lon"], p["lat"]] for p in extra["last_seen"]])
+    if "viewshed" in extra:
+        (south, west), (north, east) = extra["viewshed"]["bounds"]
+        extents["viewshed"] = (west, south, east, north)
+    if "cbh" in extra:
+        extents["fuels"] = _extent([f["geometry"]["coordinates"] for f in extra["cbh"]["features"]])
+    return extents
+
+
+def _off_the_map(features: list[dict], extra: dict, folders: dict) -> list[str]:
+    """A warning (logged, and returned) for each extra layer that does not overlap the map's class polygons: it
+    would be drawn off the map, as a layer of another area does."""
+    from ..parameters import render
+
+    box = _extent([f["geometry"]["coordinates"] for f in features])
+    warnings = []
+    for name, ext in _layer_extents(extra).items():
+        if box is None or ext is None or (ext[0] <= box[2] and box[0] <= ext[2] and ext[1] <= box[3]
+                                          and box[1] <= ext[3]):
+            continue
+        text = render(f"{option(name, str(folders[name]))}: its layer (lon {ext[0]:.5f} to {ext[2]:.5f}, lat "
+                      f"{ext[1]:.5f} to {ext[3]:.5f}) does not overlap the map's extent (lon {box[0]:.5f} to "
+                      f"{box[2]:.5f}, lat {box[1]:.5f} to {box[3]:.5f}): it is drawn off the map; check it is "
+                      "of the same area")
+        log.warning(text)
+        warnings.append(text)
+    return warnings
 
 
 def _footprint(part: list[dict], number: int) -> dict:

@@ -16,11 +16,19 @@ the nearest source). The whole grid's graph (about ``BYTES_PER_CELL`` bytes a ce
 ``max_memory``; else block by block (``plan_memory``): the cell arrays whole (``CELL_BYTES`` a cell), the graph of
 one block and a halo of ``HALO`` cells at a time, solved again while a neighbour's solve lowers a time in it
 (label-correcting, the block with the lowest lowered time first), to the same shortest paths. A grid whose cell
-arrays pass ``max_memory`` is refused before anything is written.
+arrays pass ``max_memory`` is refused from the DEM's width and height, before any cell is read.
+
+The DEM: a projected CRS (a geographic one is refused, naming the UTM zone to warp it to), no rotation (refused: warp
+it north-up); a south-up (or east-to-west) DEM is read flipped, north-up. The outputs are one set: written in a
+scratch folder, put in place together, report.json last (it records how each output was made, as
+``gistools.engine.resume.made_record``), so a rerun keeps a complete set of the same settings, makes again one a
+stopped run left, and refuses one of other settings naming both values.
 """
 
 from __future__ import annotations
 
+import json
+import logging
 import math
 import time
 from dataclasses import dataclass
@@ -29,6 +37,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError, OutOfMemoryError
+
+log = logging.getLogger("gistools.products.travel")
 
 __all__ = ["TravelSettings", "travel_minutes", "tobler_speed", "neighbour_offsets", "travel_from_dem", "SHRUB_FACTORS",
            "ISOCHRONES", "BYTES_PER_CELL", "CELL_BYTES", "NEIGHBOUR_BOUND", "plan_memory"]
@@ -69,6 +79,8 @@ def plan_memory(shape, neighbours: int, max_memory: float, block=None) -> dict:
     ``{"method": "whole" or "blocks", "block": (rows, columns) or None, "bytes": the estimate, "graph_bytes": the
     whole graph's estimate}``; OutOfMemoryError when even the cell arrays pass ``max_memory``.
     """
+    from ..parameters import option
+
     rows, cols = shape
     per = BYTES_PER_CELL[int(neighbours)]
     whole = per * rows * cols
@@ -79,7 +91,8 @@ def plan_memory(shape, neighbours: int, max_memory: float, block=None) -> dict:
         raise OutOfMemoryError(f"the travel time of {rows:,} x {cols:,} cells needs about {cells / 1e9:.2f} GB for "
                                f"its cell arrays ({CELL_BYTES} bytes a cell, the graph then block by block; the whole "
                                f"graph {whole / 1e9:.2f} GB), more than the {max_memory / 1e9:.2f} GB allowed",
-                               hint="Clip the DEM to the search area, use coarser cells, or raise the memory limit")
+                               hint="Clip the DEM to the search area, use coarser cells, or raise "
+                                    f"{option('max_memory')} if the machine has the memory")
     if block is None:
         side = max(MIN_BLOCK, math.isqrt(int((max_memory - cells) / per)) - 2 * HALO)
         block = (side, side)
@@ -421,9 +434,29 @@ class TravelSettings:
         if self.tobler[0] <= 0:
             raise InputError(f"{option('tobler', tuple(self.tobler))}: the speed A must be above 0",
                              hint=f"e.g. {option('tobler', (6, 3.5, 0.05))}")
-        if not self.isochrones or min(self.isochrones) <= 0:
-            raise InputError(f"{option('isochrones', tuple(self.isochrones))}: give minutes above 0",
-                             hint=f"e.g. {option('isochrones', (30, 60, 120, 240))}")
+        _check_isochrones(tuple(self.isochrones))
+
+
+MAX_ISOCHRONES = BAND_NODATA - 2  # codes 1 ... n within them and n + 1 beyond the last, all below the nodata 255
+
+
+def _check_isochrones(values: tuple) -> None:
+    """Isochrones are finite minutes above 0 (NaN and infinity are refused: report.json is JSON), at most
+    ``MAX_ISOCHRONES`` of them (each a code of the uint8 bands raster, one more beyond the last, 255 no data)."""
+    from ..parameters import option
+
+    example = f"e.g. {option('isochrones', '30,60,120,240')}"
+    given = ",".join(f"{float(v):g}" for v in values)
+    if not all(math.isfinite(float(v)) for v in values):
+        raise InputError(f"{option('isochrones', given)}: every isochrone must be a finite number of minutes "
+                         "(not nan or inf)", hint=example)
+    if not values or min(values) <= 0:
+        raise InputError(f"{option('isochrones', given or 'none')}: give minutes above 0", hint=example)
+    if len(values) > MAX_ISOCHRONES:
+        raise InputError(f"{option('isochrones')}: {len(values)} isochrones need {len(values) + 1} band codes (one "
+                         f"each and one beyond the last) but isochrone_bands.tif (uint8) has {MAX_ISOCHRONES + 1} "
+                         f"(1-{MAX_ISOCHRONES + 1}; {BAND_NODATA} is no data)",
+                         hint=f"Give at most {MAX_ISOCHRONES} isochrones")
 
 
 def _point_text(text):
@@ -439,30 +472,47 @@ def _point_text(text):
 
 def _last_seen_points(last_seen, crs, reproject: bool) -> list[tuple[float, float, str]]:
     """(x, y, where from) of every point last seen: "X,Y" texts, (x, y) pairs or point layers."""
-    from ..io.vector import check_crs, read_layer
     from ..parameters import option
 
     items = [last_seen] if isinstance(last_seen, (str, Path)) else list(last_seen or [])
     if items and all(isinstance(v, (int, float)) for v in items) and len(items) == 2:
         items = [tuple(items)]
-    points = []
-    for item in items:
-        if isinstance(item, (tuple, list)) and len(item) == 2:
-            points.append((float(item[0]), float(item[1]), f"{item[0]},{item[1]}"))
-            continue
-        xy = _point_text(item)
-        if xy is not None:
-            points.append((*xy, str(item)))
-            continue
-        gdf = check_crs(read_layer(item, kinds=("point",), what=option("last_seen")), crs, str(item),
-                        reproject=reproject, against="the DEM's")
-        for geom in gdf.geometry.explode(index_parts=False):
-            if geom is not None and not geom.is_empty:
-                points.append((geom.x, geom.y, str(item)))
+    points = [p for item in items for p in _points_of(item, crs, reproject)]
     if not points:
         raise InputError(f"no point last seen: give {option('last_seen')}",
                          hint=f"e.g. {option('last_seen', '431000,1811000')} (X,Y in the DEM's CRS) or a point layer")
     return points
+
+
+FROM_HINT = "Give X,Y in the DEM's CRS (two numbers, e.g. {}) or a point layer (file.gpkg:LAYER)"
+
+
+def _points_of(item, crs, reproject: bool) -> list[tuple[float, float, str]]:
+    """The points last seen of one ``last_seen`` item: an (x, y) pair, an "X,Y" text or a point layer."""
+    from ..io.vector import check_crs, read_layer, split_layer_spec
+    from ..parameters import option
+
+    if isinstance(item, (tuple, list)) and len(item) == 2:
+        return [_finite_point(float(item[0]), float(item[1]), f"{item[0]},{item[1]}")]
+    xy = _point_text(item)
+    if xy is not None:
+        return [_finite_point(*xy, str(item))]
+    if not str(item).strip() or not split_layer_spec(item)[0].exists():  # "", "1,2,3", a file that is not there
+        raise InputError(f"{option('last_seen', str(item))} is neither X,Y nor a point layer that exists",
+                         hint=FROM_HINT.format(option('last_seen', '431000,1811000')))
+    gdf = check_crs(read_layer(item, kinds=("point",), what=option("last_seen")), crs, str(item),
+                    reproject=reproject, against="the DEM's")
+    return [_finite_point(g.x, g.y, str(item)) for g in gdf.geometry.explode(index_parts=False)
+            if g is not None and not g.is_empty]
+
+
+def _finite_point(x: float, y: float, where: str) -> tuple[float, float, str]:
+    from ..parameters import option
+
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise InputError(f"{option('last_seen', where)}: the coordinates must be finite numbers (not nan or inf)",
+                         hint=FROM_HINT.format(option('last_seen', '431000,1811000')))
+    return x, y, where
 
 
 def _dem_inputs(dem, classes):
@@ -484,27 +534,79 @@ def _dem_inputs(dem, classes):
     return path, (Path(classes) if classes is not None else None)
 
 
-def _read_dem(path):
-    """(heights with NaN for nodata, Grid, horizontal LinearUnit, vertical LinearUnit)."""
-    import rasterio
+@dataclass(frozen=True)
+class _Dem:
+    """What travel knows of a DEM before reading its cells: its north-up grid, units, and how its rows and columns
+    run (``flip_rows``: south-up, ``flip_cols``: east to west; read flipped to north-up)."""
 
-    from ..io.raster import read_raster
+    path: Path
+    grid: object
+    xy: object
+    z: object
+    flip_rows: bool
+    flip_cols: bool
+
+
+def _dem_meta(path) -> _Dem:
+    """The DEM's grid (north-up), horizontal and vertical units, from its header: nothing of its cells is read.
+    Refused: no CRS, a geographic CRS, a rotated geotransform, cells that are not square."""
+    import rasterio
+    from affine import Affine
+
+    from ..grid import Grid
+    from ..io.raster import crs_from_wkt
     from ..units import horizontal_unit, unit_from_word, vertical_unit
 
-    data, grid, _nodata = read_raster(path)
-    if grid.crs is None:
+    try:
+        with rasterio.open(path) as src:
+            t, width, height, word = src.transform, src.width, src.height, (src.units or (None,))[0]
+            crs = crs_from_wkt(src.crs.to_wkt()) if src.crs else None
+    except rasterio.errors.RasterioError as err:
+        raise DataFileError(f"cannot read the DEM ({err})", path=path) from None
+    if crs is None:
         raise InputError("the DEM has no CRS", path=path, hint="Assign one (gdal_edit.py -a_srs) so its units are known")
-    xy = horizontal_unit(grid.crs)
-    with rasterio.open(path) as src:
-        word = (src.units or (None,))[0]
-        res = src.res
-    if abs(abs(res[0]) - abs(res[1])) > 1e-9 * abs(res[0]):
-        raise InputError(f"the DEM's cells are not square ({res[0]:g} x {res[1]:g})", path=path,
+    _refuse_geographic(path, crs, t, width, height)
+    if t.b != 0 or t.d != 0:
+        raise InputError(f"the DEM is rotated (geotransform rotation terms {t.b:g}, {t.d:g})", path=path,
+                         hint="Warp it north-up first (gdalwarp)")
+    if abs(abs(t.a) - abs(t.e)) > 1e-9 * abs(t.a):
+        raise InputError(f"the DEM's cells are not square ({abs(t.a):g} x {abs(t.e):g})", path=path,
                          hint="Resample it to square cells (gdalwarp -tr)")
-    z = unit_from_word(word) if word else vertical_unit(grid.crs)
+    west = t.c + min(0.0, t.a * width)
+    north = t.f + max(0.0, t.e * height)
+    grid = Grid(Affine(abs(t.a), 0.0, west, 0.0, -abs(t.e), north), width, height, crs)
+    z = unit_from_word(word) if word else vertical_unit(crs)
+    return _Dem(Path(path), grid, horizontal_unit(crs), z, bool(t.e > 0), bool(t.a < 0))
+
+
+def _refuse_geographic(path, crs, t, width: int, height: int) -> None:
+    """A DEM in degrees (latitude / longitude) is refused, naming the UTM zone of its centre to warp it to."""
+    horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
+    if not horizontal.is_geographic:
+        return
+    lon, lat = t * (width / 2, height / 2)
+    epsg = "XXXX (a projected CRS in metres or feet)"
+    if -180 <= lon <= 180 and -80 <= lat <= 84:
+        epsg = f"{(32600 if lat >= 0 else 32700) + int((lon + 180) // 6) % 60 + 1} (its centre's UTM zone)"
+    raise InputError(f"the DEM is in a geographic CRS ({horizontal.name}: degrees); travel needs a CRS in metres or "
+                     "feet", path=path, hint=f"Warp it first: gdalwarp -t_srs EPSG:{epsg} {Path(path).name} "
+                                             "dem_projected.tif")
+
+
+def _read_heights(dem: _Dem) -> np.ndarray:
+    """The DEM's heights (float64, NaN for nodata), rows north to south and columns west to east."""
+    from ..io.raster import read_raster
+
+    data, _grid, nodata = read_raster(dem.path)
     if not np.issubdtype(data.dtype, np.floating):
         data = data.astype(np.float64)
-    return data, grid, xy, z
+        if nodata is not None:
+            data[data == nodata] = np.nan
+    if dem.flip_rows:
+        data = data[::-1]
+    if dem.flip_cols:
+        data = data[:, ::-1]
+    return np.ascontiguousarray(data)
 
 
 def _classes_on(path, grid) -> np.ndarray:
@@ -627,14 +729,11 @@ def raster_style_qml(isochrones, maximum: float) -> str:
             "  </pipe>\n</qgis>\n")
 
 
-def _write_style(path: Path, text: str) -> None:
-    from ..io.atomic import atomic_path
+def _style_is_ours(path: Path) -> bool:
+    """Whether the style ``path`` may be (re)written: missing, or written by gistools (a user's own is kept)."""
     from ..io.styles import MARK
 
-    if path.exists() and MARK not in path.read_text(encoding="utf-8", errors="replace")[:4096]:
-        return  # the user's own style
-    with atomic_path(path, overwrite=True) as tmp:
-        tmp.write_text(text, encoding="utf-8")
+    return not path.exists() or MARK in path.read_text(encoding="utf-8", errors="replace")[:4096]
 
 
 def _start_cells(points, grid) -> list[tuple[int, int]]:
@@ -688,27 +787,300 @@ def _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths) -> tupl
     return road, water
 
 
-def _write_outputs(out: Path, minutes, grid, settings, points, xy, top: float):
-    """The minutes raster and its style, the isochrone bands, the GeoPackage; returns the isochrones' GeoDataFrame."""
+def _write_outputs(folder: Path, minutes, grid, settings, points, xy, top: float, style: bool = True):
+    """The minutes raster and its style, the isochrone bands, the GeoPackage, in ``folder``; returns the isochrones'
+    GeoDataFrame."""
     import geopandas as gpd
     import shapely
 
+    from ..io.atomic import atomic_path
     from ..io.raster import write_raster
     from ..io.vector import write_layers
 
     reached = np.isfinite(minutes)
-    write_raster(out / "travel_minutes.tif", np.where(reached, minutes, np.nan), grid, overwrite=True,
+    write_raster(folder / "travel_minutes.tif", np.where(reached, minutes, np.nan), grid, overwrite=True,
                  tags={"GISTOOLS_PRODUCT": "travel_minutes"}, description="travel time (minutes)", units="min")
-    _write_style(out / "travel_minutes.qml", raster_style_qml(settings.isochrones, top))
-    write_raster(out / "isochrone_bands.tif", isochrone_bands(minutes, settings.isochrones), grid, nodata=BAND_NODATA,
-                 dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "isochrone_bands"},
+    if style:
+        with atomic_path(folder / STYLE, overwrite=True) as tmp:
+            tmp.write_text(raster_style_qml(settings.isochrones, top), encoding="utf-8")
+    write_raster(folder / "isochrone_bands.tif", isochrone_bands(minutes, settings.isochrones), grid,
+                 nodata=BAND_NODATA, dtype="uint8", overwrite=True, tags={"GISTOOLS_PRODUCT": "isochrone_bands"},
                  description="isochrone band", categories=band_categories(settings.isochrones))
     iso = isochrone_polygons(minutes, grid, settings.isochrones, xy.metres)
     seen = gpd.GeoDataFrame({"source": [w for *_xy, w in points], "x": [p[0] for p in points],
                              "y": [p[1] for p in points]},
                             geometry=[shapely.Point(p[0], p[1]) for p in points], crs=grid.crs.to_wkt())
-    write_layers({"isochrones": iso, "last_seen": seen}, out / "travel.gpkg", overwrite=True)
+    write_layers({"isochrones": iso, "last_seen": seen}, folder / "travel.gpkg", overwrite=True)
     return iso
+
+
+# --- the outputs as one set: written aside, put in place together, recorded last; a rerun keeps or redoes them -------
+
+TOOL = "gistools travel"
+STYLE = "travel_minutes.qml"
+PRODUCTS = {"minutes": "travel_minutes.tif", "bands": "isochrone_bands.tif", "polygons": "travel.gpkg"}
+# the files of one run, in the order they are put in place (the bands' category names in their GDAL sidecar)
+SET = ("travel_minutes.tif", STYLE, "isochrone_bands.tif", "isochrone_bands.tif.aux.xml", "travel.gpkg")
+INCOMPLETE = ("gistools travel stopped while it was putting new outputs in place: they may mix two runs; a rerun "
+              "makes them again")
+
+
+def _write_set(out: Path, minutes, grid, settings, points, xy, top: float):
+    """Write the outputs in a scratch folder under ``out``, then put them in place together: report.json's list of
+    how the outputs were made is dropped first (marked ``incomplete``) and written again last (by the caller), so a
+    run stopped midway leaves a set a rerun knows to make again. Returns the isochrones' GeoDataFrame."""
+    import shutil
+    import tempfile
+
+    from ..io.atomic import replace
+    from ..io.outdir import SCRATCH_PREFIX
+
+    staging = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}travel-", dir=out))
+    try:  # a run killed in here leaves the scratch folder, which the next run's claim on the folder removes
+        iso = _write_outputs(staging, minutes, grid, settings, points, xy, top, style=_style_is_ours(out / STYLE))
+        _mark_incomplete(out)
+        for name in SET:
+            if (staging / name).exists():
+                replace(staging / name, out / name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return iso
+
+
+def _mark_incomplete(out: Path) -> None:
+    """report.json without its record of how the outputs were made, and saying so, before they are replaced."""
+    from ..engine.record import read_folder_report
+    from ..io.atomic import atomic_path
+
+    previous = read_folder_report(out)
+    if previous is None:
+        return  # no record: outputs without one are made again by a rerun
+    previous.update(made={}, incomplete=INCOMPLETE)
+    with atomic_path(out / "report.json", overwrite=True) as tmp:
+        tmp.write_text(json.dumps(previous, indent=2, default=str), encoding="utf-8")
+
+
+def _fingerprint(settings: TravelSettings, points, dem_path, inputs: dict) -> dict:
+    """The settings the outputs depend on, as JSON values (``max_memory`` changes the method, not the minutes)."""
+    import dataclasses
+
+    from ..io.vector import absolute_spec
+
+    fields = {k: v for k, v in dataclasses.asdict(settings).items() if k != "max_memory"}
+    fields.update(isochrones=sorted(float(v) for v in settings.isochrones), neighbours=int(settings.neighbours),
+                  tobler=[float(v) for v in settings.tobler], shrub_factors=[float(v) for v in settings.shrub_factors])
+    classes = inputs["classes"]
+    raw = {"dem": str(Path(dem_path).resolve()), "last_seen": sorted([x, y] for x, y, _w in points), **fields,
+           "shrub_classes": str(Path(classes).resolve()) if classes is not None else None,
+           **{k: absolute_spec(inputs[k]) if inputs[k] else None for k in ("roads", "hydro", "waterbodies")}}
+    return json.loads(json.dumps(raw, default=str))
+
+
+def _input_stamps(dem_path, inputs: dict) -> dict:
+    """What tells a rerun an input file changed since (gistools.engine.resume.input_stamp), per input."""
+    from ..engine.resume import input_stamp
+    from ..io.vector import split_layer_spec
+
+    files = {"dem": dem_path, "shrub_classes": inputs["classes"],
+             **{k: split_layer_spec(inputs[k])[0] if inputs[k] else None for k in ("roads", "hydro", "waterbodies")}}
+    return json.loads(json.dumps({k: input_stamp(f) for k, f in files.items() if f is not None}))
+
+
+def _ours(path: Path) -> bool:
+    """Whether an output file was written by gistools travel: a raster with the gistools tag, the GeoPackage of
+    its two layers."""
+    from ..engine.resume import written_by_gistools
+
+    if path.suffix.lower() != ".gpkg":
+        return written_by_gistools(path)
+    try:
+        import pyogrio
+
+        return {"isochrones", "last_seen"} <= {str(n) for n, _kind in pyogrio.list_layers(path)}
+    except Exception:  # noqa: BLE001 - not a GeoPackage, unreadable: not known to be ours
+        return False
+
+
+def _shown(value) -> str:
+    """A setting's value in a message: points as X,Y, numbers as they were given, None as none."""
+    if value is None:
+        return "none"
+    if isinstance(value, list):
+        nested = bool(value) and isinstance(value[0], list)
+        return (" " if nested else ",").join(_shown(v) for v in value) if value else "none"
+    if isinstance(value, float):
+        return f"{value:.12g}"
+    return str(value)
+
+
+def _refuse_other_settings(existing: dict, made: dict, now: dict) -> None:
+    """InputError naming both values when an output there was made with other settings or from another input."""
+    from ..parameters import PARAMETERS, option
+
+    for key, path in existing.items():
+        before = made.get(key, {}).get("settings") if isinstance(made.get(key), dict) else None
+        if not isinstance(before, dict):
+            continue
+        for name in [*now, *(k for k in before if k not in now)]:
+            if before.get(name) != now.get(name):
+                named = option(name) if name in PARAMETERS else name.replace("_", " ")
+                raise InputError(f"{path} was made with {named} {_shown(before.get(name))}, this run asks "
+                                 f"{_shown(now.get(name))}",
+                                 hint=f"Pass {option('overwrite')} to make the outputs again with the new settings, "
+                                      "or choose another output folder")
+
+
+def _complete(out: Path, made: dict, previous: dict, stamps: dict) -> bool:
+    """Whether every output is there as the record says it was written, from inputs unchanged since."""
+    from ..io.raster import file_stamp
+
+    for key, name in PRODUCTS.items():
+        entry, path = made.get(key), out / name
+        if not path.exists() or not isinstance(entry, dict) or entry.get("stamp") != file_stamp(path):
+            log.info("%s: missing, or changed since it was written: making the outputs again", path)
+            return False
+    if previous.get("input_stamps") != stamps:
+        log.warning("%s: an input changed since its outputs were made: making them again", out)
+        return False
+    return True
+
+
+def _refuse_foreign(existing: dict, made: dict) -> None:
+    """OutputExistsError for an output file neither recorded nor written by gistools travel (never replaced)."""
+    from ..errors import OutputExistsError
+
+    for key, path in existing.items():
+        if key not in made and not _ours(path):
+            raise OutputExistsError("a file gistools did not write is in the way", path=path,
+                                    hint="Move or rename it, or choose another output folder")
+
+
+def _earlier_run(out: Path, now: dict, stamps: dict, overwrite: bool) -> dict | None:
+    """The record of an earlier run whose outputs in ``out`` are kept: complete, whole, made with the settings
+    ``now`` from the same inputs (``stamps``). None: the outputs are (re)made. Refused before any work: an output
+    of other settings (InputError naming both values, unless ``overwrite``), a file gistools did not write or a link
+    (OutputExistsError, with or without ``overwrite``), the outputs of an earlier version that did not record how
+    they were made (unless ``overwrite``)."""
+    from ..engine.record import read_folder_report
+    from ..engine.resume import check_targets
+    from ..errors import OutputExistsError
+    from ..io.outdir import check_record
+    from ..parameters import option
+
+    targets = {k: out / name for k, name in PRODUCTS.items()}
+    check_targets(targets.values())
+    existing = {k: p for k, p in targets.items() if p.exists()}
+    if not existing:
+        return None
+    check_record(out, TOOL)
+    previous = read_folder_report(out) or {}
+    made = previous.get("made") if previous.get("tool") == TOOL else None
+    _refuse_foreign(existing, made if isinstance(made, dict) else {})
+    if overwrite:
+        return None
+    if not isinstance(made, dict) and previous.get("tool") == TOOL:
+        first = next(iter(existing.values()))
+        raise OutputExistsError(f"{first.name} is there from an earlier run that did not record its settings",
+                                path=out, hint=f"Give another folder, or replace it: {option('overwrite')}")
+    _refuse_other_settings(existing, made or {}, now)
+    return previous if _complete(out, made or {}, previous, stamps) else None
+
+
+def _kept(out: Path, earlier: dict, started: float) -> dict:
+    """The record of a rerun that keeps the complete outputs of an earlier one (its line added to ``runs``)."""
+    from ..engine.record import write_folder_report
+
+    log.info("%s: the outputs of an earlier run with the same settings are complete: kept", out)
+    rep = {k: v for k, v in earlier.items() if k not in ("schema", "version")}
+    rep.update(kept=list(PRODUCTS), seconds=round(time.time() - started, 3))
+    return write_folder_report(out, rep)
+
+
+@dataclass(frozen=True)
+class _Job:
+    """A run of gistools travel once its inputs are checked."""
+
+    dem: _Dem
+    settings: TravelSettings
+    points: list
+    cells: list
+    plan: dict
+    inputs: dict
+    now: dict
+    stamps: dict
+    started: float
+
+
+def _speeds(job: _Job, heights) -> tuple[np.ndarray, np.ndarray, dict]:
+    """(factor, fixed speed, {road_cells, water_cells}) of the DEM's cells: the shrub classes, the roads and water of
+    the breaklines; a point last seen on a cell the walker cannot be on is refused."""
+    from ..units import length_to_crs_units
+
+    grid, settings, classes = job.dem.grid, job.settings, job.inputs["classes"]
+    lengths = {name: length_to_crs_units(getattr(settings, name), job.dem.xy, name=name)
+               for name in ("snap", "max_road_width", "max_hydro_width", "single_line_width")}
+    class_codes = _classes_on(classes, grid) if classes is not None else None
+    road, water = _roads_and_water(grid, job.inputs["roads"], job.inputs["hydro"], job.inputs["waterbodies"],
+                                   settings, lengths)
+    factor, fixed = speed_model(class_codes, road, water, settings)
+    if class_codes is not None:
+        road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
+    _check_starts(job.points, job.cells, (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed), water & ~road)
+    return factor, fixed, {"road_cells": int(road.sum()), "water_cells": int((water & ~road).sum())}
+
+
+def _solve_and_write(out: Path, job: _Job, heights, speeds, progress) -> dict:
+    """The minutes, the outputs put in place as one set, and the record (report.json) written last."""
+    from ..engine.record import read_folder_report, write_folder_report
+    from ..engine.resume import made_record
+    from ..progress import report, sub_progress
+
+    factor, fixed, counts = speeds
+    grid, settings, plan, neighbours = job.dem.grid, job.settings, job.plan, int(job.settings.neighbours)
+    how = "the whole grid" if plan["method"] == "whole" else "blocks of {} x {} cells".format(*plan["block"])
+    report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours, {how})")
+    solve, solver = time.time(), {}
+    minutes = travel_minutes(heights, grid.cell_size, job.cells, factor=factor, fixed_speed=fixed,
+                             xy_metres=job.dem.xy.metres, z_metres=job.dem.z.metres, neighbours=neighbours,
+                             isotropic=settings.isotropic, tobler=tuple(settings.tobler),
+                             max_memory=settings.max_memory * 1e9, block=plan["block"],
+                             progress=sub_progress(progress, 0.1, 0.8), info=solver)
+    solve = time.time() - solve
+    report(progress, 0.8, "writing the rasters and isochrones")
+    reached = np.isfinite(minutes)
+    top = float(minutes[reached].max()) if reached.any() else 0.0
+    iso = _write_set(out, minutes, grid, settings, job.points, job.dem.xy, top)
+    rep = _record(job, iso, {**counts, "reached_share": float(reached.mean()), "max_minutes": top,
+                             "solver": solver, "solve_seconds": round(solve, 3)})
+    rep["made"] = made_record(read_folder_report(out), TOOL, str(job.dem.path), job.now,
+                              {k: out / name for k, name in PRODUCTS.items()})
+    return write_folder_report(out, rep)
+
+
+def _record(job: _Job, iso, found: dict) -> dict:
+    """report.json of a run (but ``made``)."""
+    grid, settings, plan, xy, z = job.dem.grid, job.settings, job.plan, job.dem.xy, job.dem.z
+    neighbours, solver = int(settings.neighbours), found["solver"]
+    return {
+        "tool": TOOL, "crs_wkt": grid.crs.to_wkt(), "dem": str(job.dem.path),
+        "classes": str(job.inputs["classes"]) if job.inputs["classes"] else None, "unit": xy.short,
+        "vertical_unit": z.short, "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size,
+        "cells": int(grid.width * grid.height), "graph_bytes_estimate": plan["graph_bytes"],
+        "memory_estimate": plan["bytes"],
+        "solver": {"method": plan["method"], "block": list(plan["block"]) if plan["block"] else None,
+                   **{k: solver[k] for k in ("block_solves", "blocks", "blocks_reached") if k in solver}},
+        "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
+        "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in job.points],
+        "reached_share": found["reached_share"], "max_minutes": found["max_minutes"],
+        "isochrones": [{k: row[k] for k in ("minutes", "area", "hectares", "acres")} for _, row in iso.iterrows()],
+        "speed_model": {"tobler": list(settings.tobler), "shrub_factors": dict(zip(("light", "medium", "heavy"),
+                        settings.shrub_factors)), "road_speed": settings.road_speed, "wade_speed": settings.wade_speed,
+                        "isotropic": settings.isotropic, "road_cells": found["road_cells"],
+                        "water_cells": found["water_cells"]},
+        "outputs": dict(PRODUCTS), "kept": [], "input_stamps": job.stamps,
+        "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.__dict__.items()},
+        "solve_seconds": found["solve_seconds"], "seconds": round(time.time() - job.started, 3),
+    }
 
 
 def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None, *, classes=None, roads=None,
@@ -746,7 +1118,11 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     waterbodies : str, optional
         Water polygons, likewise.
     overwrite : bool
-        Replace the outputs of an earlier run in ``out`` (else they are refused).
+        Make the outputs again whatever an earlier run left in ``out``. Without it, the complete outputs of an
+        earlier run with the same settings from the same inputs are kept (``kept`` in the report); outputs an
+        earlier run left incomplete, or of an input changed since, are made again; outputs of other settings are
+        refused. The outputs are written aside and put in place together, report.json last (marked ``incomplete``
+        in between), so a run stopped midway never leaves a set that looks complete.
     progress : callable, optional
         ``progress(fraction, message)``, called as the work goes; returning False cancels the run.
 
@@ -758,22 +1134,27 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
         of the DEM's cells a walk reaches), ``max_minutes``, ``unit`` and ``vertical_unit``, ``cell_size``,
         ``speed_model`` (with the ``road_cells`` and ``water_cells`` counted), ``solver`` (``method``: "whole"
         or "blocks", the ``block`` in cells, and block by block the ``block_solves``), ``memory_estimate`` and
-        ``graph_bytes_estimate`` (the whole graph's) in bytes, ``outputs``, ``settings``, ``seconds``.
+        ``graph_bytes_estimate`` (the whole graph's) in bytes, ``outputs``, ``settings``, ``seconds``, ``kept``
+        (the outputs of an earlier run kept), ``made`` and ``input_stamps`` (what a rerun compares).
 
     Raises
     ------
     InputError
-        An option is not valid; the folder has no ``dem.vrt``; the DEM has no CRS or its cells are not square; no
-        point last seen is given, or one is outside the DEM or on a cell the walker cannot be on (water, no data);
-        the classes raster is in another CRS.
+        An option is not valid (an isochrone or a point last seen not finite, more isochrones than the bands raster
+        has codes); the folder has no ``dem.vrt``; the DEM has no CRS, a geographic CRS, a rotated geotransform or
+        cells that are not square; no point last seen is given, or one is outside the DEM or on a cell the walker
+        cannot be on (water, no data); the classes raster is in another CRS; ``out`` holds outputs of other
+        settings or inputs and ``overwrite`` is False.
     CRSMismatchError
         A layer is in another CRS than the DEM (``settings.reproject_vectors`` reprojects it).
     DataFileError
         The DEM is not found, or the classes raster cannot be read.
     OutOfMemoryError
-        Even the cell arrays of the block-wise method (``CELL_BYTES`` a cell) pass ``settings.max_memory``.
+        Even the cell arrays of the block-wise method (``CELL_BYTES`` a cell) pass ``settings.max_memory``: told
+        from the DEM's width and height before any of its cells is read.
     OutputExistsError
-        ``out`` holds the outputs of an earlier run and ``overwrite`` is False.
+        A file gistools did not write is at an output's name; or ``out`` holds the outputs of an earlier version
+        that did not record its settings, and ``overwrite`` is False.
     Cancelled
         ``progress`` returned False.
 
@@ -787,12 +1168,9 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     >>> [(i["minutes"], round(i["hectares"], 1)) for i in report["isochrones"]]  # doctest: +SKIP
     [(2.0, 8.5), (4.0, 29.4), (6.0, 35.1)]
     """
-    from ..engine.record import write_folder_report
-    from ..errors import OutputExistsError
     from ..io.outdir import claim_output, output_folder
-    from ..parameters import in_data_units, option
-    from ..progress import report, sub_progress
-    from ..units import length_to_crs_units
+    from ..parameters import in_data_units
+    from ..progress import report
 
     started = time.time()
     settings = settings or TravelSettings()
@@ -800,58 +1178,21 @@ def travel_from_dem(dem, out, last_seen, settings: TravelSettings | None = None,
     out = output_folder(out)
     dem_path, classes_path = _dem_inputs(dem, classes)
     report(progress, 0.0, "reading the DEM")
-    heights, grid, xy, z = _read_dem(dem_path)
-    settings = in_data_units(settings, xy.is_foot)
-    lengths = {name: length_to_crs_units(getattr(settings, name), xy, name=name)
-               for name in ("snap", "max_road_width", "max_hydro_width", "single_line_width")}
-    points = _last_seen_points(last_seen, grid.crs, settings.reproject_vectors)
-    cells = _start_cells(points, grid)
-    class_codes = _classes_on(classes_path, grid) if classes_path is not None else None
-    road, water = _roads_and_water(grid, roads, hydro, waterbodies, settings, lengths)
-    factor, fixed = speed_model(class_codes, road, water, settings)
-    if class_codes is not None:
-        road, water = road | (class_codes == CLASS_ROAD), water | (class_codes == CLASS_WATER)
-    road_cells, water_cells = int(road.sum()), int((water & ~road).sum())
-    _check_starts(points, cells, (np.isfinite(heights) & (factor > 0)) | np.isfinite(fixed), water & ~road)
-    del class_codes, road, water
-    neighbours = int(settings.neighbours)
-    plan = plan_memory(grid.shape, neighbours, settings.max_memory * 1e9)
-    written = [out / name for name in OUTPUTS if (out / name).exists()]
-    if written and not overwrite:
-        raise OutputExistsError(f"{written[0].name} is there from an earlier run", path=out,
-                                hint=f"Give another folder, or replace it: {option('overwrite')}")
-    with claim_output(out, "gistools travel"):
-        how = "the whole grid" if plan["method"] == "whole" else "blocks of {} x {} cells".format(*plan["block"])
-        report(progress, 0.1, f"travel times over {grid.width:,} x {grid.height:,} cells ({neighbours} neighbours, "
-                              f"{how})")
-        solve, solver = time.time(), {}
-        minutes = travel_minutes(heights, grid.cell_size, cells, factor=factor, fixed_speed=fixed, xy_metres=xy.metres,
-                                 z_metres=z.metres, neighbours=neighbours, isotropic=settings.isotropic,
-                                 tobler=tuple(settings.tobler), max_memory=settings.max_memory * 1e9,
-                                 block=plan["block"], progress=sub_progress(progress, 0.1, 0.8), info=solver)
-        solve = time.time() - solve
-        report(progress, 0.8, "writing the rasters and isochrones")
-        reached = np.isfinite(minutes)
-        top = float(minutes[reached].max()) if reached.any() else 0.0
-        iso = _write_outputs(out, minutes, grid, settings, points, xy, top)
-        rep = {
-            "tool": "gistools travel", "crs_wkt": grid.crs.to_wkt(), "dem": str(dem_path),
-            "classes": str(classes_path) if classes_path else None, "unit": xy.short, "vertical_unit": z.short,
-            "area_unit": f"{xy.name} squared", "cell_size": grid.cell_size, "cells": int(grid.width * grid.height),
-            "graph_bytes_estimate": plan["graph_bytes"], "memory_estimate": plan["bytes"],
-            "solver": {"method": plan["method"], "block": list(plan["block"]) if plan["block"] else None,
-                       **{k: solver[k] for k in ("block_solves", "blocks", "blocks_reached") if k in solver}},
-            "neighbours": neighbours, "straight_line_bound": NEIGHBOUR_BOUND[neighbours],
-            "last_seen": [{"x": x, "y": y, "from": w} for x, y, w in points],
-            "reached_share": float(reached.mean()), "max_minutes": top,
-            "isochrones": [{k: row[k] for k in ("minutes", "area", "hectares", "acres")} for _, row in iso.iterrows()],
-            "speed_model": {"tobler": list(settings.tobler), "shrub_factors": dict(zip(("light", "medium", "heavy"),
-                            settings.shrub_factors)), "road_speed": settings.road_speed, "wade_speed": settings.wade_speed,
-                            "isotropic": settings.isotropic, "road_cells": road_cells, "water_cells": water_cells},
-            "outputs": {"minutes": "travel_minutes.tif", "bands": "isochrone_bands.tif", "polygons": "travel.gpkg"},
-            "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in settings.__dict__.items()},
-            "solve_seconds": round(solve, 3), "seconds": round(time.time() - started, 3),
-        }
-        rep = write_folder_report(out, rep)
+    meta = _dem_meta(dem_path)
+    plan = plan_memory(meta.grid.shape, int(settings.neighbours), settings.max_memory * 1e9)  # before any cell is read
+    settings = in_data_units(settings, meta.xy.is_foot)
+    points = _last_seen_points(last_seen, meta.grid.crs, settings.reproject_vectors)
+    inputs = {"classes": classes_path, "roads": roads, "hydro": hydro, "waterbodies": waterbodies}
+    now, stamps = _fingerprint(settings, points, dem_path, inputs), _input_stamps(dem_path, inputs)
+    job = _Job(meta, settings, points, _start_cells(points, meta.grid), plan, inputs, now, stamps, started)
+    earlier = _earlier_run(out, now, stamps, overwrite)
+    if earlier is not None:
+        with claim_output(out, TOOL):
+            rep = _kept(out, earlier, started)
+    else:
+        heights = _read_heights(meta)
+        speeds = _speeds(job, heights)  # refusals (a point last seen in water) before the folder is made
+        with claim_output(out, TOOL):
+            rep = _solve_and_write(out, job, heights, speeds, progress)
     report(progress, 1.0, "done")
     return rep
