@@ -16,6 +16,10 @@ which fail or crash inside QGIS, so this function never installs them, and while
 nothing (pip would fetch their wheels as dependencies of geopandas or gistools); it names the one command that
 installs QGIS's (or the system's) builds instead. When it cannot install (no pip, no network), its message holds the
 one command to run by hand.
+
+The checks of what QGIS's Python has (``missing_requirements``, ``library_mismatches``, ``bundled_before_import``)
+are this module's too: the plugin's start (plugin.py) imports them from here, and this module imports nothing of the
+plugin, so the two never import each other.
 """
 
 from __future__ import annotations
@@ -31,7 +35,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 __all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "install_dependencies", "add_to_path",
-           "site_folders"]
+           "site_folders", "missing_requirements", "library_mismatches", "bundled_libraries", "bundled_before_import",
+           "mismatch_message"]
 
 DEPS_FOLDER = "gistools_deps"
 # pip run by an isolated interpreter (-I: neither the current folder, nor PYTHONPATH / PYTHONHOME, nor the user's
@@ -39,6 +44,128 @@ DEPS_FOLDER = "gistools_deps"
 # variable, never runs in its place; the run's own folder is a fresh empty one (``_pip``)
 PIP = ("-I", "-m", "pip")
 BOUND = ("rasterio", "pyogrio", "pyproj", "shapely")  # built against GDAL / PROJ / GEOS: QGIS's builds only
+
+# what the provider needs in QGIS's Python: (module, what to install)
+REQUIREMENTS = (
+    ("numpy", "numpy"),
+    ("scipy", "scipy"),
+    ("rasterio", "rasterio"),
+    ("laspy", "laspy"),
+    ("lazrs", "lazrs"),
+    ("pyproj", "pyproj"),
+    ("shapely", "shapely>=2"),
+    ("geopandas", "geopandas"),
+    ("pyogrio", "pyogrio"),
+)
+
+
+def missing_requirements() -> list[str]:
+    """The pip names of the packages QGIS's Python cannot import (empty when all are there).
+
+    gistools itself is named only when its dependencies are all there (else it fails because of them).
+    """
+    missing = []
+    for module, pip_name in REQUIREMENTS + (("gistools", "gistools"),):
+        if module == "gistools" and missing:
+            break
+        try:
+            importlib.import_module(module)
+        except Exception:  # ImportError, or a broken binary wheel raising something else
+            missing.append(pip_name)
+    try:
+        import shapely
+
+        if int(shapely.__version__.split(".")[0]) < 2:
+            missing.append("shapely>=2")
+    except Exception:
+        pass
+    return sorted(set(missing))
+
+
+def _major_minor(version: str) -> tuple[int, ...]:
+    return tuple(int(p) for p in version.split("-")[0].split(".")[:2])
+
+
+def library_mismatches() -> list[str]:
+    """Where shapely / pyproj / rasterio / pyogrio use another GEOS / PROJ / GDAL than QGIS links: their own copy
+    from a binary wheel (its folder of libraries beside the package) or another version. Two copies of one
+    library in QGIS's process fail (GEOS: 'WKB output dimension must be 2 or 3') or crash QGIS on exit."""
+    from qgis.core import Qgis, QgsProjUtils
+
+    found = []
+    try:
+        import pyogrio
+        import pyproj
+        import rasterio
+        import shapely
+    except Exception:  # reported as missing instead
+        return found
+    qgis_geos = _major_minor(Qgis.geosVersion())
+    qgis_proj = (QgsProjUtils.projVersionMajor(),)
+    try:
+        from osgeo import gdal
+
+        qgis_gdal = _major_minor(gdal.__version__)
+    except Exception:
+        qgis_gdal = None
+    # QGIS reports the PROJ it was built with (runtime minors differ under one soname): PROJ is compared by major only
+    checks = [("shapely", "GEOS", shapely.geos_version_string, qgis_geos),
+              ("pyproj", "PROJ", pyproj.proj_version_str, qgis_proj),
+              ("rasterio", "GDAL", rasterio.__gdal_version__, qgis_gdal),
+              ("pyogrio", "GDAL", pyogrio.__gdal_version_string__, qgis_gdal)]
+    for package, lib, version, want in checks:
+        parts = 1 if lib == "PROJ" else 2
+        if want is not None and _major_minor(version)[:parts] != tuple(want)[:parts]:
+            found.append(f"{package} uses {lib} {version}, QGIS {'.'.join(map(str, want))}.x")
+    for package in sorted(BOUND):
+        folder = bundled_libraries(importlib.import_module(package))
+        if folder is not None:
+            found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
+    return found
+
+
+def bundled_libraries(module) -> Path | None:
+    """The folder of shared libraries a binary wheel brought with ``module``, None where it uses the system's.
+
+    Read from the installed files, on every platform (no /proc): auditwheel (Linux) and delvewheel (Windows) put
+    them in ``<site-packages>/<name>.libs``, delocate (macOS) in ``<package>/.dylibs``."""
+    where = getattr(module, "__file__", None)
+    return _bundled_folder(Path(where).parent) if where else None
+
+
+def bundled_before_import() -> list[str]:
+    """The GDAL / PROJ / GEOS bound packages that are binary wheels carrying their own libraries, found from their
+    installed files before any of them is imported: importing one loads its copy of GEOS or GDAL into QGIS's process
+    beside QGIS's own, which crashes QGIS (at the latest when it exits), so such a set-up is refused first."""
+    found = []
+    for package in sorted(BOUND):
+        try:
+            spec = importlib.util.find_spec(package)
+        except (ImportError, ValueError):
+            continue
+        folder = _bundled_folder(Path(spec.origin).parent) if spec is not None and spec.origin else None
+        if folder is not None:
+            found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
+    return found
+
+
+def _bundled_folder(package: Path) -> Path | None:
+    for folder in (package.parent / f"{package.name}.libs", package / ".dylibs"):
+        try:
+            if folder.is_dir() and any(folder.iterdir()):
+                return folder
+        except OSError:
+            continue
+    return None
+
+
+def mismatch_message(found: list[str]) -> str:
+    return ("gistools: the Processing algorithms are not available: " + "; ".join(found) + ". Rebuild them against "
+            "the libraries QGIS links, as the documentation's QGIS page (docs/qgis.md) shows (Debian: "
+            "`PIP_NO_BINARY=rasterio,pyogrio,shapely,pyproj pip install --user --break-system-packages "
+            "--force-reinstall --no-deps rasterio pyogrio "
+            "shapely pyproj`, after the build packages it lists), or use Debian's python3-rasterio / python3-pyproj / "
+            "python3-shapely / python3-pyogrio. Then restart QGIS.")
 
 
 @dataclass
@@ -182,8 +309,6 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
         ``ok`` when every requirement imports and uses QGIS's GDAL / PROJ / GEOS; else ``message`` says what is
         missing and the one command that installs it.
     """
-    from .plugin import library_mismatches, missing_requirements
-
     target = Path(target).expanduser().absolute() if target is not None else default_target()
     result = InstallResult(target=target)
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
@@ -227,8 +352,6 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
 
 
 def _message(result: InstallResult, notes: list) -> str:
-    from .plugin import mismatch_message
-
     if notes:
         return "gistools: " + "; ".join(notes)
     if result.mismatches:

@@ -5,6 +5,10 @@
 
 PROFILE_DIR is a QGIS profile folder, e.g. ~/.local/share/QGIS/QGIS3/profiles/default. The plugin folder
 is named gistools_qgis (not gistools, which would hide the gistools library on QGIS's sys.path).
+
+The zip is what plugins.qgis.org accepts (tests/test_plugin_package.py applies its upload checks): metadata.txt
+with every required and recommended field (the project's homepage, repository, tracker and email are declared
+once, in qgis_plugin/metadata.txt), the LICENSE, no caches or hidden files.
 """
 
 from __future__ import annotations
@@ -32,10 +36,46 @@ def version() -> str:
     return found.group(1)
 
 
+# what plugins.qgis.org requires in metadata.txt (its upload refuses a zip without one), then what it recommends and
+# QGIS reads; the project's public home among them is declared once, in qgis_plugin/metadata.txt
+REQUIRED = ("name", "qgisMinimumVersion", "description", "about", "version", "author", "email", "repository", "tracker")
+RECOMMENDED = ("homepage", "tags", "icon", "category", "qgisMaximumVersion", "experimental", "deprecated",
+               "supportsQt6")
+URLS = ("homepage", "repository", "tracker")
+
+
+def declared() -> dict:
+    """The [general] fields of qgis_plugin/metadata.txt (the one declaration of the project's homepage, repository,
+    tracker and email), checked: every required and recommended field given, each URL an http(s) address."""
+    from urllib.parse import urlparse
+
+    cfg = configparser.ConfigParser(interpolation=None)
+    cfg.optionxform = str
+    cfg.read(SOURCE / "metadata.txt", encoding="utf-8")
+    fields = dict(cfg["general"]) if cfg.has_section("general") else {}
+    lacking = [k for k in REQUIRED + RECOMMENDED if not fields.get(k, "").strip()]
+    if lacking:
+        raise SystemExit(f"qgis_plugin/metadata.txt lacks {', '.join(lacking)} (plugins.qgis.org needs them)")
+    bad = [k for k in URLS if urlparse(fields[k]).scheme not in ("http", "https") or not urlparse(fields[k]).netloc]
+    if bad:
+        raise SystemExit(f"qgis_plugin/metadata.txt: {', '.join(bad)} must be http(s) addresses")
+    return fields
+
+
 def metadata() -> str:
-    """qgis_plugin/metadata.txt with version= set to the gistools version."""
+    """qgis_plugin/metadata.txt with version= set to the gistools version (after :func:`declared` checked it)."""
+    declared()
     lines = (SOURCE / "metadata.txt").read_text().splitlines()
     return "\n".join(f"version={version()}" if line.startswith("version=") else line for line in lines) + "\n"
+
+
+def shipped(path: Path) -> bool:
+    """Whether a file of qgis_plugin/ goes into the zip: not Python's caches, nor hidden files or folders (.git,
+    .DS_Store), nor macOS's __MACOSX, which plugins.qgis.org refuses, nor a help/ folder (the built site goes
+    there)."""
+    parts = path.relative_to(SOURCE).parts
+    return (path.is_file() and path.suffix != ".pyc" and "__pycache__" not in parts and "__MACOSX" not in parts
+            and parts[0] != "help" and not any(p.startswith(".") for p in parts))
 
 
 def build_site(into: Path) -> bool:
@@ -53,22 +93,20 @@ def build_site(into: Path) -> bool:
 
 
 def build(dist: Path) -> Path:
-    """The plugin zip: qgis_plugin/ as gistools_qgis/, its metadata given the gistools version, and the
-    documentation site as gistools_qgis/help/ (each algorithm's Help opens its page there, offline)."""
+    """The plugin zip: qgis_plugin/ as gistools_qgis/, its metadata given the gistools version, the project's
+    LICENSE, and the documentation site as gistools_qgis/help/ (each algorithm's Help opens its page there,
+    offline)."""
     import tempfile
 
     dist.mkdir(parents=True, exist_ok=True)
     target = dist / f"{PLUGIN}-{version()}.zip"
     tmp = target.with_name(target.name + ".partial")
+    meta = metadata()  # refused (SystemExit) before anything is written when the declaration is incomplete
     with tempfile.TemporaryDirectory() as work, zipfile.ZipFile(tmp, "w", zipfile.ZIP_DEFLATED) as zf:
-        for path in sorted(SOURCE.rglob("*")):
-            if path.is_dir() or "__pycache__" in path.parts or path.suffix == ".pyc":
-                continue
-            name = f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}"
-            if path == SOURCE / "metadata.txt":
-                zf.writestr(name, metadata())
-            else:
-                zf.write(path, name)
+        zf.writestr(f"{PLUGIN}/metadata.txt", meta)
+        for path in sorted(p for p in SOURCE.rglob("*") if shipped(p) and p != SOURCE / "metadata.txt"):
+            zf.write(path, f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}")
+        zf.write(ROOT / "LICENSE", f"{PLUGIN}/LICENSE")  # plugins.qgis.org requires it in the plugin's folder
         site = Path(work) / "help"
         if build_site(site):
             for path in sorted(p for p in site.rglob("*") if p.is_file()):

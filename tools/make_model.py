@@ -30,7 +30,6 @@ HELP = (
 def build():
     from qgis.core import (
         QgsApplication,
-        QgsProcessing,
         QgsProcessingModelAlgorithm,
         QgsProcessingModelChildAlgorithm,
         QgsProcessingModelChildParameterSource as Src,
@@ -42,7 +41,8 @@ def build():
     )
     from qgis.PyQt.QtCore import QPointF
 
-    from gistools_qgis.compat import OPTIONAL  # the plugin as load_plugin() imported it
+    # the plugin as load_plugin() imported it; its enums by the names of the running QGIS (3.22 to 4)
+    from gistools_qgis.compat import FOLDER, OPTIONAL, VECTOR_LINE, VECTOR_POLYGON
 
     from gistools.lidar.bands import PRESETS
     from gistools.lidar.dsmfill import DSM_FILLS
@@ -56,15 +56,15 @@ def build():
     model.setHelpContent({"ALG_DESC": HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1", "HELP_URL": help_url()})
 
     inputs = [
-        (QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=QgsProcessingParameterFile.Folder), 0),
-        (QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [QgsProcessing.TypeVectorLine], optional=True), 1),
-        (QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [QgsProcessing.TypeVectorLine],
+        (QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=FOLDER), 0),
+        (QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [VECTOR_LINE], optional=True), 1),
+        (QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [VECTOR_LINE],
                                            optional=True), 2),
-        (QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [QgsProcessing.TypeVectorPolygon],
+        (QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [VECTOR_POLYGON],
                                            optional=True), 3),
-        (QgsProcessingParameterVectorLayer("WETLANDS", "Wetland polygons", [QgsProcessing.TypeVectorPolygon],
+        (QgsProcessingParameterVectorLayer("WETLANDS", "Wetland polygons", [VECTOR_POLYGON],
                                            optional=True), 4),
-        (QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", [QgsProcessing.TypeVectorPolygon],
+        (QgsProcessingParameterVectorLayer("TILE_INDEX", "Tile index (footprints)", [VECTOR_POLYGON],
                                            optional=True), 5),
         (QgsProcessingParameterString("TILE_FIELD", "Tile number field", defaultValue=D.tile_field), 6),
         # the dissertation's chain on its data in feet: its 5 ft cells and 25 ft radius (the command line and the
@@ -138,12 +138,19 @@ def build():
     return model
 
 
+# the model's section of the documentation: docs/qgis.md's "The shrub density model", as MkDocs publishes it
+HELP_PAGE = "qgis/#the-shrub-density-model"
+
+
 def help_url() -> str:
-    """The README's QGIS section on the project's homepage (qgis_plugin/metadata.txt), as the algorithms' Help."""
-    for line in (ROOT / "qgis_plugin" / "metadata.txt").read_text().splitlines():
-        if line.startswith("homepage="):
-            return line.split("=", 1)[1].strip() + "#qgis"
-    return ""
+    """The model's section of the documentation site at the project's homepage (declared once, in
+    qgis_plugin/metadata.txt): the same site the plugin ships in help/, online (a model file holds no path of the
+    plugin's folder)."""
+    if str(ROOT / "tools") not in sys.path:
+        sys.path.insert(0, str(ROOT / "tools"))
+    from build_plugin import declared
+
+    return declared()["homepage"].rstrip("/") + "/" + HELP_PAGE
 
 
 def load_plugin():
