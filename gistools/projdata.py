@@ -51,7 +51,7 @@ def _works() -> bool:
     try:
         pyproj.CRS.from_epsg(4326)
         return True
-    except pyproj.exceptions.CRSError:
+    except (pyproj.exceptions.CRSError, pyproj.exceptions.DataDirError):  # newer pyproj: DataDirError
         return False
 
 

@@ -290,3 +290,29 @@ def test_every_command_block_runs_on_python_314_from_binary_wheels(qgis_today):
             subprocess.run(["umount", str(m)], check=False)
     print(run.stdout[-2000:])
     assert run.returncode == 0 and "1 passed" in run.stdout, (run.stdout[-6000:], run.stderr[-3000:])
+
+
+def test_without_the_proj_command_gistools_finds_the_systems_proj_data(qgis_today):
+    """Debian forky's pyproj (a system build, /opt/gistools-venv sees it) with no ``proj`` command on the PATH finds
+    no PROJ data by itself (pyproj's DataDirError); gistools finds /usr/share/proj and the run completes."""
+    src = qgis_today / "work" / "gistools-proj"
+    shutil.rmtree(src, ignore_errors=True)
+    shutil.copytree(ROOT, src, ignore=_COPY_SKIP)
+    (src / "gistools" / "_kernel.abi3.so").unlink(missing_ok=True)
+    env = ["env", "-i", "HOME=/root", "PATH=/opt/gistools-venv/bin", "PYTHONPATH=/work/gistools-proj"]
+    mounted = not os.path.ismount(qgis_today / "proc")
+    if mounted:
+        subprocess.run(["mount", "-t", "proc", "proc", str(qgis_today / "proc")], check=True)
+    try:
+        alone = subprocess.run(["chroot", str(qgis_today), *env, "/opt/gistools-venv/bin/python", "-c",
+                                "import pyproj; pyproj.datadir.get_data_dir()"], capture_output=True, text=True)
+        run = subprocess.run(["chroot", str(qgis_today), *env, "/opt/gistools-venv/bin/python", "-m",
+                              "gistools.cli.main", "rasters", "/work/gistools-proj/sample_tiles", "--out",
+                              "/tmp/gistools-proj-out", "--overwrite", "-q"], capture_output=True, text=True,
+                             timeout=900)
+    finally:
+        if mounted:
+            subprocess.run(["umount", str(qgis_today / "proc")], check=False)
+    assert alone.returncode != 0 and "DataDirError" in alone.stderr  # the set-up of the fault: pyproj alone fails
+    assert run.returncode == 0 and "4 tiles ok" in run.stdout, run.stdout + run.stderr[-3000:]
+    assert "proj.db" not in run.stderr and "CRS" not in run.stderr, run.stderr[-2000:]
