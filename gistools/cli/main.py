@@ -234,8 +234,13 @@ def main():  # console_scripts entry point
     finally:
         from ..engine.batch import join_workers
 
-        join_workers()  # no worker of the command outlives it (a script or a scheduler waits for the group)
-        _ENDED.set()
+        try:
+            join_workers()  # no worker of the command outlives it (a script or a scheduler waits for the group)
+        except KeyboardInterrupt:  # the interrupt was reported: the exit status stays 128 + the signal
+            if not _INTERRUPTS["n"]:
+                raise
+        finally:
+            _ENDED.set()
 
 
 if __name__ == "__main__":
