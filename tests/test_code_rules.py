@@ -106,23 +106,10 @@ def _import_graph() -> dict:
 def test_the_package_has_no_import_cycle():
     """No module imports, directly or through others, a module that imports it (a package's __init__ running
     before its modules is Python's order, not an edge here)."""
-    graph = _import_graph()
-    state: dict = {}
-    cycles = []
+    from test_plugin_package import cycles
 
-    def visit(module, path):
-        state[module] = "open"
-        for dep in sorted(graph[module]):
-            if state.get(dep) == "open":
-                cycles.append(path[path.index(dep):] + [dep])
-            elif dep not in state:
-                visit(dep, path + [dep])
-        state[module] = "done"
-
-    for module in sorted(graph):
-        if module not in state:
-            visit(module, [module])
-    assert not cycles, cycles
+    found = cycles(_import_graph())
+    assert not found, found
 
 
 def test_the_version_is_written_in_one_place():

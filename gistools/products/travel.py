@@ -585,7 +585,7 @@ def _refuse_geographic(path, crs, t, width: int, height: int) -> None:
     if not horizontal.is_geographic:
         return
     lon, lat = t * (width / 2, height / 2)
-    epsg = "XXXX (a projected CRS in metres or feet)"
+    epsg = "<the code of a projected CRS in metres or feet>"  # a centre off the globe: no zone to name
     if -180 <= lon <= 180 and -80 <= lat <= 84:
         epsg = f"{(32600 if lat >= 0 else 32700) + int((lon + 180) // 6) % 60 + 1} (its centre's UTM zone)"
     raise InputError(f"the DEM is in a geographic CRS ({horizontal.name}: degrees); travel needs a CRS in metres or "
