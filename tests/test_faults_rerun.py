@@ -84,6 +84,8 @@ def test_a_rerun_keeps_what_the_tiles_found_and_remakes_a_truncated_tile(chm_out
     again = _tile_pits(chm_out)
     assert again[TILE] == ("ok", *first[TILE][1:])  # remade, the same pits as the first run
     assert all(again[n] == ("skipped", *first[n][1:]) for n in first if n != TILE)  # kept with what they found
+    totals = [json.loads((o / "report.json").read_text())["pits"] for o in (chm_done, chm_out)]
+    assert totals[0] == totals[1] == sum(p for _, p, _ in first.values())  # the run's total counts kept tiles
     with rasterio.open(tif) as a, rasterio.open(chm_done / "chm" / f"{TILE}.tif") as b:
         assert np.array_equal(a.read(1), b.read(1))
 

@@ -248,4 +248,4 @@ def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, 
                                       "pit_depth": run.pit_depth, "vertical_unit": run.z_unit}
     return write_batch_report(out, "gistools chm", crs_label(first.crs) if first else None, settings, states, started,
                               units=units, mosaic=str(write_vrt(out / "chm.vrt", tifs)) if tifs else None,
-                              pits=sum(st.pits for st in states.values() if st.status == "ok"))
+                              pits=sum(st.pits for st in states.values() if st.status in ("ok", "skipped")))
