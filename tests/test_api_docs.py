@@ -68,7 +68,7 @@ def api_page(tmp_path_factory):
     proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-d", str(site)], cwd=ROOT,
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stdout[-3000:] + proc.stderr[-5000:]
-    return (site / "api" / "index.html").read_text()
+    return (site / "api.html").read_text()
 
 
 def test_the_api_page_speaks_to_users(api_page):

@@ -26,7 +26,7 @@ def site(tmp_path_factory):
 
 
 def test_the_documentation_site_builds_strictly(site):
-    for page in ("index.html", "quickstart/index.html", "commands/shrub/index.html", "concepts/index.html"):
+    for page in ("index.html", "quickstart.html", "commands/shrub.html", "concepts.html"):
         assert (site / page).is_file(), page
     assert (site / "webmap.png").is_file()
 
@@ -73,7 +73,7 @@ def test_every_command_has_a_reference_page_whose_options_table_is_its_help(site
         command = " ".join(words)
         printed = _section(_help(*words), "Options")
         help_text = "".join(printed.split())
-        rows = _table_rows(site / "reference" / page / "index.html")
+        rows = _table_rows(site / "reference" / f"{page}.html")
         # the options column of --help: the lines of the section that start with an option's name
         at = 0
         for option, what in rows:

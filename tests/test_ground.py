@@ -560,3 +560,50 @@ def test_the_slope_thresholds_numpy_form_equals_the_kernels_on_grids_of_one_row_
     compiled = ground.slope_threshold(z, p)
     monkeypatch.setattr(ground, "_SLOPE_THRESHOLD", None)
     np.testing.assert_allclose(ground.slope_threshold(z, p), compiled, rtol=0, atol=1e-12)
+
+
+def _cloth_scene(n: int = 120_000):
+    """A 300 m square of ground on a slope with 40 % of the points on 2-12 m canopy above it (metres)."""
+    rng = np.random.default_rng(5)
+    x, y = rng.uniform(0, 300, n), rng.uniform(0, 300, n)
+    ground = rng.random(n) > 0.4
+    z = 0.05 * x + rng.normal(0, 0.03, n) + np.where(ground, 0.0, rng.uniform(2, 12, n))
+    return x, y, z, ground
+
+
+def test_csf_from_the_main_process_runs_in_a_helper_that_leaves_the_interpreter_free():
+    """The cloth library holds the interpreter's lock for its whole call: from the main process it runs in a helper
+    process, so another thread of this process keeps running throughout (a stop signal's watchdog, QGIS's Cancel),
+    and its ground is the library's own call's, in this process, point for point."""
+    import threading
+    import time
+
+    pytest.importorskip("CSF")
+    from gistools.lidar.cloth import cloth_ground_indices
+    from gistools.lidar.ground import CsfParams, csf_ground
+
+    x, y, z, truth = _cloth_scene()
+    p = CsfParams(resolution=0.5)
+    ticks, done = [], threading.Event()
+
+    def tick():
+        while not done.is_set():
+            ticks.append(time.monotonic())
+            time.sleep(0.02)
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    started = time.monotonic()
+    got = csf_ground(x, y, z, np.ones(len(x), bool), p)
+    took = time.monotonic() - started
+    done.set()
+    ticker.join()
+    gaps = np.diff([started, *ticks])
+    assert took > 0.5 and gaps.max() < 0.5, (took, gaps.max())  # the thread ran all along
+    pts = np.column_stack([x, y, z])
+    settings = {"bSloopSmooth": p.slope_smooth, "cloth_resolution": p.resolution, "class_threshold": p.threshold,
+                "rigidness": p.rigidness, "time_step": p.time_step, "interations": p.iterations}
+    direct = np.zeros(len(x), bool)
+    direct[cloth_ground_indices(pts - pts.min(axis=0), settings)] = True
+    np.testing.assert_array_equal(got, direct)
+    assert (got == truth).mean() > 0.95  # and it is ground: the slope under the canopy

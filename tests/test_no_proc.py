@@ -4,6 +4,7 @@ plugin still sees a binary wheel's own GDAL / PROJ / GEOS. Real processes, /proc
 from __future__ import annotations
 
 import json
+import shutil
 import socket
 import subprocess
 import sys
@@ -44,8 +45,27 @@ def _lock(out: Path, pid: int, start):
                                                     "command": "rasters", "since": "earlier"}))
 
 
-def test_without_proc_and_without_psutil_the_platform_call_decides(no_proc, no_psutil, processes, tmp_path):
+@pytest.mark.skipif(sys.platform == "win32" or shutil.which("ps") is None, reason="the ps command (macOS, the BSDs)")
+def test_without_proc_and_without_psutil_ps_tells_a_reused_pid_apart(no_proc, no_psutil, processes, tmp_path):
     live, dead = processes
+    start = outdir._process_start(live.pid)
+    reference = subprocess.run(["ps", "-o", "lstart=", "-p", str(live.pid)], capture_output=True, text=True,
+                               env={"LC_ALL": "C", "PATH": "/usr/bin:/bin"}).stdout
+    assert start == "p" + " ".join(reference.split())
+    assert outdir._alive(live.pid, start) and not outdir._alive(dead, start)
+    assert not outdir._alive(live.pid, "pMon Jan  1 00:00:00 2001")  # that pid now runs another process
+    assert live.poll() is None  # asked, not signalled
+    _lock(tmp_path / "busy", live.pid, start)
+    with pytest.raises(OutputBusyError):
+        outdir._take_lock(tmp_path / "busy", "rasters")
+    _lock(tmp_path / "reused", live.pid, "pMon Jan  1 00:00:00 2001")
+    lock = outdir._take_lock(tmp_path / "reused", "rasters")
+    assert json.loads(lock.read_text())["pid"] == outdir.os.getpid()
+
+
+def test_without_proc_psutil_or_ps_the_pid_decides(no_proc, no_psutil, processes, tmp_path, monkeypatch):
+    live, dead = processes
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))  # no ps on the path
     assert outdir._process_start(live.pid) is None
     assert outdir._alive(live.pid, None) and not outdir._alive(dead, None)
     assert outdir._alive(live.pid, "4711")  # a /proc start from elsewhere cannot be checked: the pid decides

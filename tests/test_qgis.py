@@ -25,7 +25,7 @@ os.environ.setdefault("QT_QPA_PLATFORM", "offscreen")
 try:
     from qgis.core import QgsApplication, QgsProcessingException, QgsProcessingFeedback
 except ImportError as err:  # pragma: no cover - depends on the machine
-    if os.environ.get("CI"):
+    if os.environ.get("CI") and os.environ.get("GISTOOLS_ROUTE") != "wheels":  # the pip route has no QGIS bindings
         raise RuntimeError(f"CI must run the QGIS tests, but qgis does not import ({err}); "
                            "the test command installs python3-qgis") from None
     pytest.skip(f"QGIS tests: qgis does not import here ({err}); apt-get install python3-qgis qgis",

@@ -139,7 +139,7 @@ def build():
 
 
 # the model's section of the documentation: docs/qgis.md's "The shrub density model", as MkDocs publishes it
-HELP_PAGE = "qgis/#the-shrub-density-model"
+HELP_PAGE = "qgis.html#the-shrub-density-model"
 
 
 def help_url() -> str:

@@ -307,7 +307,7 @@ class ProcessPool:
     Workers die with the parent (kill -9 included) and ignore Ctrl-C; closing the pool after an error or an
     interrupt stops them at once instead of waiting for their tiles."""
 
-    def __init__(self, jobs: int, method: str = "spawn"):
+    def __init__(self, jobs: int, method: str = "spawn", warm: bool = True):
         ctx = multiprocessing.get_context(method)
         python = python_executable()
         if python != sys.executable and method == "spawn":
@@ -315,9 +315,9 @@ class ProcessPool:
         self.workers = jobs
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
                                         initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
-        self._manager, self._processes = None, []
+        self._manager, self._processes, self.closed = None, [], False
         _STARTED.append(self)
-        for _ in range(jobs):  # every worker starts now (a task each), importing while the parent plans the run
+        for _ in range(jobs if warm else 0):  # every worker starts now (a task each), importing while the parent plans
             self.pool.submit(os.getpid)
 
     def submit(self, fn, *args):
@@ -331,12 +331,13 @@ class ProcessPool:
         for them. With every task done, the workers exit on their own while the caller goes on (their
         interpreters' teardown, about 0.1 s, overlaps the mosaics, the reports or the map); Python joins them
         at its exit at the latest."""
+        self.closed = True
         # what join() waits for: shutdown(wait=False) lets go of the executor's thread and processes
         self._manager = getattr(self.pool, "_executor_manager_thread", None) or self._manager
         self._processes = list((getattr(self.pool, "_processes", None) or {}).values()) or self._processes
         if futures:
             for fut in futures:
-                fut.cancel()
+                getattr(fut, "cancel", bool)()
             for proc in self._processes:
                 if proc.is_alive():
                     proc.kill()

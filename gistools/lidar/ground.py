@@ -657,26 +657,20 @@ def csf_ground(x, y, z, candidates: np.ndarray, p: CsfParams) -> np.ndarray:
     """Ground by the Cloth Simulation Filter (Zhang et al. 2016) through ``cloth-simulation-filter`` (its ``CSF``
     module); True for the ``candidates`` it calls ground."""
     try:
-        import CSF
+        import CSF  # noqa: F401 - run in gistools.lidar.cloth
     except ImportError:
         raise ImportError("the csf method needs cloth-simulation-filter: pip install 'gistools[ground]'") from None
+    from .cloth import stoppable_cloth_ground_indices
+
     ground = np.zeros(len(x), bool)
     idx = np.flatnonzero(candidates)
     if len(idx) == 0:
         return ground
     pts = np.column_stack([x[idx], y[idx], z[idx]])
-    shift = pts.min(axis=0)
-    csf = CSF.CSF()
-    csf.params.bSloopSmooth = p.slope_smooth
-    csf.params.cloth_resolution = p.resolution
-    csf.params.class_threshold = p.threshold
-    csf.params.rigidness = p.rigidness
-    csf.params.time_step = p.time_step
-    csf.params.interations = p.iterations  # sic: the library's spelling
-    csf.setPointCloud(pts - shift)
-    g, ng = CSF.VecInt(), CSF.VecInt()
-    csf.do_filtering(g, ng, exportCloth=False)
-    ground[idx[np.asarray(g, np.int64)]] = True
+    settings = {"bSloopSmooth": p.slope_smooth, "cloth_resolution": p.resolution, "class_threshold": p.threshold,
+                "rigidness": p.rigidness, "time_step": p.time_step,
+                "interations": p.iterations}  # sic: the library's spellings
+    ground[idx[stoppable_cloth_ground_indices(pts - pts.min(axis=0), settings)]] = True
     return ground
 
 

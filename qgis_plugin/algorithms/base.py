@@ -51,7 +51,7 @@ def help_url(page: str, anchor: str = "") -> str:
     the plugin (help/), else a checkout's docs/ source beside the plugin's folder; "" where neither is there."""
     from qgis.PyQt.QtCore import QUrl
 
-    for path in (HERE / "help" / page / "index.html", HERE.parent / "docs" / f"{page}.md"):
+    for path in (HERE / "help" / f"{page}.html", HERE.parent / "docs" / f"{page}.md"):
         if path.is_file():
             url = QUrl.fromLocalFile(str(path))
             if anchor:
