@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import shutil
+import subprocess
 from pathlib import Path
 
 import laspy
@@ -161,3 +163,28 @@ def reference_tin_heights(x, y, z, gx, gy, gz):
         tie_tri[np.flatnonzero(has)[np.abs(det) <= 1e-9 * scale]] = True
     tied[inside] = tie_tri[s[inside]]
     return h, tied
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+SIZE = (1000, 800)
+QUIET = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--disable-background-networking",
+         "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-default-apps",
+         "--disable-features=MediaRouter,OptimizationHints,Translate,NetworkTimeServiceQuerying", "--virtual-time-budget=4000"]
+BLOCKED = ["--proxy-server=127.0.0.1:9", "--host-resolver-rules=MAP * ~NOTFOUND"]  # no network: a request fails
+
+
+def need_chromium(what: str) -> None:
+    """Skip the calling module where Debian's chromium is missing; fail it in CI (the test command installs it)."""
+    if CHROMIUM is None:  # pragma: no cover - depends on the machine
+        if os.environ.get("CI"):
+            raise RuntimeError(f"CI must run the {what} tests: the test command installs Debian's chromium")
+        pytest.skip(f"{what} tests: chromium is not installed (apt-get install chromium)", allow_module_level=True)
+
+
+def chromium(*args, home, size=SIZE):
+    """A real headless Chromium run with ``args`` (a page, --dump-dom, --screenshot=...), its profile under ``home``."""
+    env = {**os.environ, "HOME": str(home)}
+    run = subprocess.run([CHROMIUM, *QUIET, f"--window-size={size[0]},{size[1]}", f"--user-data-dir={home}/profile", *args],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run

@@ -4,6 +4,7 @@ left out of mkdocs.yml's nav fails."""
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -67,7 +68,7 @@ def test_every_command_has_a_reference_page_whose_options_table_is_its_help(site
         subcommands = re.findall(r"^  (\S+)", _section(_help(name), "Commands"), re.M)
         commands += [(f"{name}-{sub}", (name, sub)) for sub in subcommands] or [(name, (name,))]
     assert len(commands) >= 20
-    pages = sorted(p.name for p in (site / "reference").iterdir())
+    pages = sorted(p.stem for p in (site / "reference").glob("*.html"))
     assert pages == sorted(page for page, _ in commands), "a reference page per command, no other"
     for page, words in commands:
         command = " ".join(words)
@@ -109,3 +110,46 @@ def test_no_page_speaks_of_the_projects_own_history():
              for m in re.finditer(pattern, p.read_text(), re.I)]
     assert not found, found
     assert (ROOT / "README.md").stat().st_size < 10_000
+
+
+def _hrefs(html: str) -> list[str]:
+    return re.findall(r'(?:href|src)="([^"]+)"', html)
+
+
+def test_the_site_works_from_files_every_link_a_file_nothing_fetched(site):
+    """Opened from disk (a folder, the QGIS plugin's help/): every link of every page is a file of the site (no
+    folder URL a browser would list), and no page loads a script, a style or a font from the network."""
+    from urllib.parse import unquote, urlparse
+
+    pages = sorted(p for p in site.rglob("*.html") if p.name != "404.html")  # 404: a web server's, by absolute paths
+    assert len(pages) > 20
+    for page in pages:
+        html = page.read_text(encoding="utf-8")
+        for ref in _hrefs(html):
+            url = urlparse(ref)
+            if url.scheme or ref.startswith(("#", "//", "mailto:")):
+                continue
+            target = (page.parent / unquote(url.path)).resolve() if url.path else page
+            assert target.is_file(), f"{page.relative_to(site)}: {ref}"
+        for tag in re.findall(r"<(?:script|link)\b[^>]*>", html):
+            assert "http://" not in tag and "https://" not in tag, (page, tag)
+
+
+def test_the_search_works_from_files_in_a_real_browser(site, tmp_path):
+    """The search of the site opened as file:// with the network blocked (Debian's chromium): a query finds the
+    pages that hold it, and each result is a file of the site."""
+    from urllib.parse import unquote, urlparse
+
+    from conftest import BLOCKED, chromium, need_chromium
+
+    need_chromium("offline documentation")
+    page = (site / "commands" / "shrub.html").as_uri() + "?q=canopy"
+    dom = chromium("--virtual-time-budget=8000", *BLOCKED, "--dump-dom", page, home=tmp_path).stdout
+    found = re.search(r"(\d+) matching documents?", dom)
+    assert found and int(found.group(1)) >= 3, dom[-2000:]
+    links = re.findall(r'<a href="([^"]+)" class="md-search-result__link', dom)
+    assert links, "no result links"
+    for link in links:
+        url = urlparse(link)
+        assert url.scheme == "file" and Path(unquote(url.path)).is_file(), link
+

@@ -252,7 +252,7 @@ def test_the_models_help_opens_its_section_of_the_documentation(unpacked, metada
     home = metadata["homepage"].rstrip("/") + "/"
     assert url.startswith(home)
     page, _, anchor = url[len(home):].partition("#")
-    html = unpacked / "help" / f"{page}.html"
+    html = unpacked / "help" / page
     assert html.is_file() and f'id="{anchor}"' in html.read_text(encoding="utf-8"), url
 
 

@@ -5,10 +5,8 @@ run with the network blocked draws the same), and the polygons inlined in the pa
 from __future__ import annotations
 
 import json
-import os
 import re
 import shutil
-import subprocess
 from pathlib import Path
 
 import geopandas as gpd
@@ -19,31 +17,12 @@ import rasterio.features
 import shapely
 from shapely.geometry import box
 
-from conftest import SAMPLE
+from conftest import BLOCKED, SAMPLE, SIZE, chromium, need_chromium
 from gistools.errors import InputError, OutputExistsError
 from gistools.lidar.shrub import CLASS_STYLE
 from gistools.deliver.webmap import web_map
 
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
-if CHROMIUM is None:  # pragma: no cover - depends on the machine
-    if os.environ.get("CI"):
-        raise RuntimeError("CI must run the web map tests: the test command installs Debian's chromium")
-    pytest.skip("web map tests: chromium is not installed (apt-get install chromium)", allow_module_level=True)
-
-SIZE = (1000, 800)
-QUIET = ["--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars", "--disable-background-networking",
-         "--disable-component-update", "--disable-sync", "--no-first-run", "--disable-default-apps",
-         "--disable-features=MediaRouter,OptimizationHints,Translate,NetworkTimeServiceQuerying", "--virtual-time-budget=4000"]
-BLOCKED = ["--proxy-server=127.0.0.1:9", "--host-resolver-rules=MAP * ~NOTFOUND"]
-
-
-def chromium(*args, home, size=SIZE):
-    env = {**os.environ, "HOME": str(home)}
-    run = subprocess.run([CHROMIUM, *QUIET, f"--window-size={size[0]},{size[1]}", f"--user-data-dir={home}/profile", *args],
-                         capture_output=True,
-                         text=True, timeout=120, env=env)
-    assert run.returncode == 0, run.stderr[-2000:]
-    return run
+need_chromium("web map")
 
 
 @pytest.fixture(scope="module")
