@@ -5,10 +5,14 @@ install still succeeds and gistools runs its numpy forms, with the same results,
 --version`` says which engine runs, and the test suite fails in CI when the kernel was not built.
 """
 
+import os
 import runpy
 
 from setuptools import setup
 
+if os.environ.get("GISTOOLS_PURE") == "1":  # the QGIS plugin's fallback wheel (py3-none-any): the numpy engine
+    setup()
+    raise SystemExit(0)
 ffibuilder = runpy.run_path("csrc/kernel_build.py")["ffibuilder"]
 kernel = ffibuilder.distutils_extension("build/cffi")
 kernel.optional = True  # a machine without a C compiler still installs gistools

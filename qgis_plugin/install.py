@@ -44,6 +44,7 @@ DEPS_FOLDER = "gistools_deps"
 # variable, never runs in its place; the run's own folder is a fresh empty one (``_pip``)
 PIP = ("-I", "-m", "pip")
 BOUND = ("rasterio", "pyogrio", "pyproj", "shapely")  # built against GDAL / PROJ / GEOS: QGIS's builds only
+WHEELS = Path(__file__).resolve().parent / "wheels"  # gistools' own wheels in the plugin's zip (tools/build_plugin.py)
 
 # what the provider needs in QGIS's Python: (module, what to install)
 REQUIREMENTS = (
@@ -215,13 +216,22 @@ def add_to_path(target: Path) -> bool:
 
 
 def qgis_python() -> Path | None:
-    """The Python interpreter of this QGIS (inside QGIS ``sys.executable`` is QGIS itself on Windows and macOS):
-    the first candidate of this process's version, None where none is found."""
+    """The Python interpreter of this QGIS, found without starting QGIS: inside QGIS ``sys.executable`` is QGIS
+    itself on Windows (``qgis-bin.exe``) and macOS (``QGIS.app/Contents/MacOS/QGIS``), and running it would open a
+    second QGIS, so only files named ``python*`` are run (to ask their version), in the places the installers put
+    them: ``sys.prefix`` (OSGeo4W's and the standalone installer's ``apps/Python3x/python.exe``), its ``bin``, the
+    macOS bundle's ``Contents/MacOS/bin/python3`` beside QGIS's binary, and Linux's ``/usr/bin/python3.X``.
+    The first of this process's version; None where none is found."""
     version = f"{sys.version_info.major}.{sys.version_info.minor}"
     names = ("python.exe", "python3.exe") if os.name == "nt" else (f"python{version}", "python3", "python")
-    prefixes = [Path(sys.executable).parent, Path(sys.prefix), Path(sys.base_prefix), Path(sys.exec_prefix)]
+    here = Path(sys.executable).parent
+    prefixes = [Path(sys.prefix), Path(sys.base_prefix), Path(sys.exec_prefix), here]
     candidates = [Path(sys.executable)] + [p / sub / n for p in prefixes for sub in ("", "bin") for n in names]
+    seen = set()
     for exe in candidates:
+        if exe in seen or not exe.name.lower().startswith("python"):
+            continue  # QGIS's own binary (or a copy seen already): never run
+        seen.add(exe)
         if exe.is_file() and _version_of(exe) == version:
             return exe
     return None
@@ -313,9 +323,10 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     result = InstallResult(target=target)
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
-    failure = None
+    failure, engine = None, ""
     if wanted and not bound:
-        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
+        shipped = ["--find-links", str(WHEELS)] if "gistools" in wanted else []  # the zip's gistools wheels
+        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input", *shipped,
                "--prefix", str(target), *wanted]
         result.installed = wanted
         failure = _run_pip(exe, cmd, target, timeout, result)
@@ -325,13 +336,14 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     if requirements is None:
         result.missing = missing_requirements()
         result.mismatches = [] if result.missing else library_mismatches()
+        engine = _engine_note() if not failure and "gistools" in wanted and not result.missing else ""
     elif failure:
         result.missing = wanted
     if bound:
         notes.append(f"{', '.join(bound)} must be QGIS's own builds (pip's wheels bring other GDAL / PROJ / GEOS "
                      f"libraries, which crash QGIS); install them with: {_bound_command(bound)}; then run "
                      "install_dependencies() again" + (f" (it installs {', '.join(wanted)})" if wanted else ""))
-    result.message = _message(result, notes)
+    result.message = _message(result, notes) + (f"; {engine}" if engine else "")
     return result
 
 
@@ -345,10 +357,27 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
     if lacks and gistools is not None:
         given = Path(gistools).expanduser()
         wanted.append(str(given.absolute()) if given.exists() else str(gistools))  # pip runs in a folder of its own
+    elif lacks and any(WHEELS.glob("gistools-*.whl")):
+        wanted.append("gistools")  # pip picks this platform's wheel of the zip's, else the pure one
     elif lacks:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
                      "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     return bound, wanted, notes
+
+
+def _engine_note() -> str:
+    """Where the gistools installed has no compiled kernel (the zip's pure wheel, no wheel of this platform): a
+    note saying that the numpy engine runs ("" where the kernel runs)."""
+    try:
+        from gistools import kernel
+
+        if kernel.loaded():
+            return ""
+    except Exception:  # noqa: BLE001 - reported as missing instead
+        return ""
+    return ("gistools runs its numpy engine here (no wheel with the compiled kernel for this platform): the same "
+            "results, several times slower on large tiles; a platform wheel given as install_dependencies("
+            "gistools='gistools-<version>-cp311-abi3-<platform>.whl') brings the kernel")
 
 
 def _message(result: InstallResult, notes: list) -> str:
@@ -371,12 +400,14 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
     if exe is None or not Path(exe).is_file():
         return "QGIS's Python interpreter was not found"
     have = _installed()
-    wanted = cmd[cmd.index("--prefix") + 2:]
+    at = cmd.index("--prefix")
+    wanted = cmd[at + 2:]
     with tempfile.TemporaryDirectory() as tmp:
         pins, report = Path(tmp) / "constraints.txt", Path(tmp) / "report.json"
         pins.write_text(_constraints(have), encoding="utf-8")
         head = len(PIP) + 2  # the interpreter, -I -m pip, install
-        plan = cmd[:head] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[head:head + 2], *wanted]
+        plan = cmd[:head] + ["--dry-run", "--quiet", "--report", str(report), "--constraint", str(pins), *cmd[head:at],
+                             *wanted]
         failure = _pip(plan, timeout)
         if failure:
             result.command = plan
@@ -388,7 +419,7 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
             if name in BOUND or name in have:
                 continue  # QGIS's build, or what QGIS's Python has (its copy comes first on the path anyway)
             chosen.append(_local(url) if url.startswith("file:") else f"{meta['name']}=={meta['version']}")
-    result.command = cmd[:head] + ["--no-deps"] + cmd[head:cmd.index("--prefix") + 2] + chosen
+    result.command = cmd[:head] + ["--no-deps"] + cmd[head:at + 2] + chosen
     if not chosen:
         return None
     target.mkdir(parents=True, exist_ok=True)

@@ -40,7 +40,7 @@ from urllib.parse import unquote, urlparse
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, SAMPLE
 
 sys.path.insert(0, str(ROOT / "tools"))
 import build_plugin  # noqa: E402
@@ -370,3 +370,31 @@ def test_no_two_modules_of_the_plugin_import_each_other(unpacked):
     assert cycles(graph) == []
     source = import_graph(ROOT / "qgis_plugin", "qgis_plugin")  # the checkout's, as QGIS loads it from a link
     assert cycles(source) == [] and set(source) == {m.replace(build_plugin.PLUGIN, "qgis_plugin", 1) for m in graph}
+
+
+def test_the_zip_carries_gistools_as_a_pure_wheel_that_runs_its_numpy_engine(unpacked, tmp_path):
+    """The plugin's installer takes gistools from the zip (wheels/): its pure wheel (py3-none-any, no compiled file)
+    installed alone runs a real command with the numpy engine, and says so; pip picks it for gistools."""
+    wheels = sorted((unpacked / "wheels").glob("gistools-*.whl"))
+    assert [w.name for w in wheels] == [f"gistools-{build_plugin.version()}-py3-none-any.whl"]
+    with zipfile.ZipFile(wheels[0]) as z:
+        names = z.namelist()
+    assert "gistools/cli/main.py" in names and not [n for n in names if n.endswith((".so", ".pyd", ".dylib"))]
+    site = tmp_path / "site"
+    pip = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--disable-pip-version-check",
+                          "--no-index", "--find-links", str(unpacked / "wheels"), "--target", str(site), "gistools"],
+                         capture_output=True, text=True, timeout=300)
+    assert pip.returncode == 0, pip.stderr[-2000:]
+    assert (site / "gistools").is_dir() and not list((site / "gistools").glob("_kernel*"))
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    # this interpreter as QGIS's would be: without the checkout's editable install (its finder maps gistools._kernel)
+    alone = ("import sys; sys.path.insert(0, sys.argv[1]); "
+             "sys.meta_path[:] = [f for f in sys.meta_path if 'editable' not in repr(f).lower()]; ")
+    run = subprocess.run([sys.executable, "-I", "-c", alone + "from gistools.cli.main import main; sys.argv[1:] = sys.argv[2:]; main()", str(site),
+                          "rasters", str(SAMPLE / "35813.laz"), "--out", str(tmp_path / "out"), "--cell-size", "6ft",
+                          "-q"], capture_output=True, text=True, timeout=600, env=env, cwd=tmp_path)
+    assert run.returncode == 0, run.stderr[-2000:]
+    version = subprocess.run([sys.executable, "-I", "-c", alone + "import gistools.kernel as k, gistools; print(k.loaded(), gistools.__file__)", str(site)],
+                             capture_output=True, text=True, timeout=120)
+    assert version.stdout.split()[0] == "False" and version.stdout.split()[1].startswith(str(site)), version
+    assert list((tmp_path / "out" / "dsm").glob("*.tif"))

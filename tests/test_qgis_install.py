@@ -34,6 +34,32 @@ def test_the_interpreter_found_is_this_pythons_version():
     assert exe is not None and install._version_of(exe) == f"{sys.version_info.major}.{sys.version_info.minor}"
 
 
+@pytest.mark.parametrize("layout", ["macos", "windows"])
+def test_the_interpreter_is_found_without_starting_qgis(tmp_path, monkeypatch, layout):
+    """Inside QGIS on macOS and Windows, sys.executable is QGIS's own binary: it is never run (here a program that
+    leaves a mark); the bundle's bin/python3 (macOS) or the installer's apps/Python3x/python.exe (the prefix,
+    Windows) is found instead. The layouts are imitated with this Python under those names."""
+    mark = tmp_path / "QGIS-STARTED"
+    if layout == "macos":
+        macos = tmp_path / "QGIS.app" / "Contents" / "MacOS"
+        qgis, prefix, python = macos / "QGIS", tmp_path / "QGIS.app" / "Contents" / "Frameworks", macos / "bin" / "python3"
+    else:
+        root = tmp_path / "QGIS 3.44"
+        qgis, prefix = root / "bin" / "qgis-bin.exe", root / "apps" / "Python312"
+        python = prefix / ("python.exe" if install.os.name == "nt" else "python3")
+    for folder in (qgis.parent, prefix, python.parent):
+        folder.mkdir(parents=True, exist_ok=True)
+    qgis.write_text(f"#!/bin/sh\ntouch '{mark}'\n")
+    qgis.chmod(0o755)
+    python.symlink_to(sys.executable)
+    for name in ("executable",):
+        monkeypatch.setattr(sys, name, str(qgis))
+    for name in ("prefix", "base_prefix", "exec_prefix"):
+        monkeypatch.setattr(sys, name, str(prefix))
+    assert install.qgis_python() == python
+    assert not mark.exists(), "QGIS's binary was run"
+
+
 def test_pip_installs_into_the_profile_folder_which_goes_last_on_the_path(tmp_path, monkeypatch):
     monkeypatch.setattr(sys, "path", list(sys.path))
     target = tmp_path / "profile" / "python" / install.DEPS_FOLDER
@@ -159,3 +185,25 @@ def test_a_binary_wheel_of_a_gdal_bound_package_is_refused_before_it_is_imported
     started = plugin.GistoolsPlugin()
     started.initProcessing()
     assert started.provider is None and started.mismatches == found and "shapely" not in sys.modules
+
+
+def test_gistools_comes_from_the_zips_wheels_where_none_is_given(tmp_path, monkeypatch):
+    """Without a wheel given, gistools is taken from the plugin's wheels/ folder (pip picks this platform's wheel
+    of it, else the pure one); with neither, the message says how to give one."""
+    monkeypatch.setattr(install.importlib.util, "find_spec", lambda name, *a: None if name == "gistools" else True)
+    monkeypatch.setattr(install, "WHEELS", tmp_path / "wheels")
+    bound, wanted, notes = install._plan(["gistools"], None)
+    assert wanted == [] and "give its wheel" in notes[0]
+    (tmp_path / "wheels").mkdir()
+    _wheel(tmp_path / "wheels", "gistools", "0.1.0")
+    bound, wanted, notes = install._plan(["gistools"], None)
+    assert bound == [] and wanted == ["gistools"] and notes == []
+
+
+def test_the_engine_note_names_the_numpy_engine_where_the_kernel_is_missing(monkeypatch):
+    from gistools import kernel
+
+    monkeypatch.setattr(kernel, "loaded", lambda: False)
+    assert "numpy engine" in install._engine_note()
+    monkeypatch.setattr(kernel, "loaded", lambda: True)
+    assert install._engine_note() == ""

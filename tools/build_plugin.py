@@ -15,7 +15,9 @@ from __future__ import annotations
 
 import argparse
 import configparser
+import os
 import shutil
+import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -81,7 +83,6 @@ def shipped(path: Path) -> bool:
 def build_site(into: Path) -> bool:
     """The documentation site (mkdocs.yml, docs/) built into ``into``, for the algorithms' Help buttons; False
     (with a note) where MkDocs is not installed (pip install mkdocs mkdocs-material)."""
-    import subprocess
 
     proc = subprocess.run([sys.executable, "-m", "mkdocs", "build", "-q", "-f", str(ROOT / "mkdocs.yml"), "-d", str(into)],
                           capture_output=True, text=True)
@@ -92,7 +93,32 @@ def build_site(into: Path) -> bool:
     return True
 
 
-def build(dist: Path) -> Path:
+def pure_wheel(into: Path) -> Path | None:
+    """gistools as a pure-Python wheel (``py3-none-any``, the numpy engine) built from a copy of the sources (no
+    compiled file of the checkout's build/ can slip in); None (with a note) where pip cannot build it. The plugin's
+    installer takes it where no wheel of the platform is there (gistools_qgis/wheels/)."""
+    import tempfile
+
+    into.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as work:
+        src = Path(work) / "src"
+        for name in ("pyproject.toml", "setup.py", "README.md", "LICENSE"):
+            (src / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(ROOT / name, src / name)
+        shutil.copytree(ROOT / "gistools", src / "gistools", ignore=shutil.ignore_patterns(
+            "__pycache__", "*.so", "*.pyd", "*.dylib", "*.c", "*.o"))
+        proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--disable-pip-version-check",
+                               "-w", str(into), str(src)], capture_output=True, text=True, timeout=900,
+                              env={**os.environ, "GISTOOLS_PURE": "1"})
+    found = sorted(into.glob(f"gistools-{version()}-py3-none-any.whl"))
+    if proc.returncode != 0 or not found:
+        print(f"build_plugin: the gistools wheel is left out (pip: {(proc.stderr or proc.stdout).strip()[-300:]})",
+              file=sys.stderr)
+        return None
+    return found[0]
+
+
+def build(dist: Path, wheels: Path | None = None) -> Path:
     """The plugin zip: qgis_plugin/ as gistools_qgis/, its metadata given the gistools version, the project's
     LICENSE, and the documentation site as gistools_qgis/help/ (each algorithm's Help opens its page there,
     offline)."""
@@ -107,6 +133,10 @@ def build(dist: Path) -> Path:
         for path in sorted(p for p in SOURCE.rglob("*") if shipped(p) and p != SOURCE / "metadata.txt"):
             zf.write(path, f"{PLUGIN}/{path.relative_to(SOURCE).as_posix()}")
         zf.write(ROOT / "LICENSE", f"{PLUGIN}/LICENSE")  # plugins.qgis.org requires it in the plugin's folder
+        # gistools itself for the installer: the pure wheel, and the platform wheels of a release (``wheels``)
+        made = pure_wheel(Path(work) / "wheels")
+        for path in sorted({*([made] if made else []), *(Path(wheels).glob("gistools-*.whl") if wheels else [])}):
+            zf.write(path, f"{PLUGIN}/wheels/{path.name}")
         site = Path(work) / "help"
         if build_site(site):
             for path in sorted(p for p in site.rglob("*") if p.is_file()):
@@ -141,8 +171,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--dist", type=Path, default=ROOT / "dist", help="where the zip goes (default dist/)")
     ap.add_argument("--install", type=Path, metavar="PROFILE_DIR", help="also install into this QGIS profile folder")
+    ap.add_argument("--wheels", type=Path, metavar="DIR",
+                    help="also ship the gistools wheels of this folder (a release's per-platform wheels)")
     args = ap.parse_args(argv)
-    zip_path = build(args.dist)
+    zip_path = build(args.dist, args.wheels)
     print(zip_path)
     if args.install:
         print(install(zip_path, args.install))
