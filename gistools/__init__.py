@@ -9,7 +9,7 @@ tile by one engine (``gistools.engine``). The CLI and the QGIS plugin call the s
     >>> callable(gistools.rasters_from_tiles) and callable(gistools.shrub_from_tiles)
     True
 
-The product functions and their settings are imported when first used (``import gistools`` stays quick).
+The functions and settings are imported when first used (``import gistools`` stays quick).
 """
 
 import importlib
@@ -23,11 +23,10 @@ warnings.filterwarnings("ignore", message="Valid PROJ data directory not found",
 
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors
-from .grid import Grid, cell_centres, cell_index, snapped_grid  # noqa: F401
-from .lidar import dem_from_ground_points, dsm_from_points, ndsm_from, tin_to_grid  # noqa: F401
-
-# name -> the module that defines it (imported on first use)
+# name -> the module that defines it (imported on first use: ``gistools --help`` imports no numpy)
 _PRODUCTS = {
+    "grid": ("Grid", "cell_centres", "cell_index", "snapped_grid"),
+    "lidar": ("dem_from_ground_points", "dsm_from_points", "ndsm_from", "tin_to_grid"),
     "products.rasters": ("RasterSettings", "rasters_from_tiles"),
     "products.ground": ("GroundSettings", "ground_from_tiles"),
     "products.normalize": ("NormalizeSettings", "normalize_from_tiles"),
@@ -52,8 +51,7 @@ _PRODUCTS = {
 }
 _LAZY = {name: module for module, names in _PRODUCTS.items() for name in names}
 
-__all__ = ["__version__", *_errors, "Grid", "cell_centres", "cell_index", "snapped_grid", "dem_from_ground_points",
-           "dsm_from_points", "ndsm_from", "tin_to_grid", *_LAZY]
+__all__ = ["__version__", *_errors, *_LAZY]
 
 
 def __getattr__(name):

@@ -12,8 +12,10 @@ import math
 
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
-import pyproj
+if TYPE_CHECKING:  # the CRS is read by the caller: the command line starts without PROJ
+    import pyproj
 
 from .errors import InputError
 from .parameters.core import option

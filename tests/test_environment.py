@@ -15,3 +15,19 @@ def test_matplotlib_3d_axes_are_available():
     assert isinstance(ax, Axes3D)
     assert tuple(int(v) for v in matplotlib.__version__.split(".")[:2]) >= (3, 8)  # the venv's wheel, not Debian's 3.6
     plt.close(fig)
+
+
+def test_the_command_list_and_a_commands_help_import_no_numerical_library():
+    """``gistools --help`` and ``gistools rasters --help`` import neither numpy nor GDAL, PROJ, pandas or the
+    product modules: each command's module imports its libraries when it runs (start-up in a tenth of a second)."""
+    import subprocess
+    import sys
+
+    heavy = ("numpy", "rasterio", "pyproj", "pandas", "geopandas", "laspy", "scipy", "gistools.products.rasters")
+    for words in (["--help"], ["rasters", "--help"], ["shrub", "--help"], ["bands", "--help"]):
+        script = ("import sys\nfrom gistools.cli.main import cli\n"
+                  f"try:\n    cli({words!r}, prog_name='gistools')\nexcept SystemExit:\n    pass\n"
+                  f"print([m for m in {heavy!r} if m in sys.modules])")
+        run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 0, run.stderr
+        assert run.stdout.strip().splitlines()[-1] == "[]", (words, run.stdout[-300:])

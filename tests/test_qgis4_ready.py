@@ -27,7 +27,7 @@ CHECKER = ("qgis-pyqt5to6==0.0.0.dev0", "PyQt6>=6.5", "PyQt6-QScintilla>=2.14", 
 
 
 def _need(what: str, reason: str):
-    if os.environ.get("CI"):
+    if os.environ.get("CI") and os.environ.get("GISTOOLS_ROUTE") != "wheels":  # the pip route has no QGIS bindings
         pytest.fail(f"CI must run the QGIS 4 readiness check: {reason}")
     pytest.skip(f"{what}: {reason}")
 

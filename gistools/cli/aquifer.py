@@ -6,9 +6,7 @@ from json import dumps
 
 import click
 
-from ..io.contacts import is_layer_file
 from ..parameters import option, render
-from ..products.aquifer import AquiferSettings, aquifer_model, aquifer_query
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -69,6 +67,9 @@ def model(inputs, out, overwrite, quiet, layers, crs, swap_xy, within, clip, fie
       $ gistools aquifer model LS=LSInput.txt AU=AUInput.txt AD=ADInput.txt AQ=AQInput.txt \\
           --layers LS,AU,AD,AQ --crs EPSG:3003 --swap-xy --out milan --within area.gpkg:AREA
     """
+    from ..io.contacts import is_layer_file
+    from ..products.aquifer import AquiferSettings, aquifer_model
+
     names = [s.strip() for s in layers.split(",") if s.strip()]
     settings["cell_size"] = settings.pop("thickness_cell_size")
     settings = AquiferSettings(figures=not no_figures, **{k: v for k, v in settings.items() if v is not None})
@@ -92,6 +93,8 @@ def query(out, x, y, height_method, k, json):
     Example:
       $ gistools aquifer query milan --x 1517365 --y 5031638 --method knn --k 10
     """
+    from ..products.aquifer import aquifer_query
+
     result = aquifer_query(out, x, y, height_method, **({} if k is None else {"k": k}))
     if json:
         click.echo(dumps(result, indent=2))

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.chm import ChmSettings, chm_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -31,6 +30,8 @@ def chm(inputs, out, chm_method, cell_size, thresholds, threshold_step, max_edge
       $ gistools chm sample_tiles --out out/chm --cell-size 5ft
       $ gistools chm tiles --out chm_p2r --method p2r --cell-size 0.5m --jobs 2
     """
+    from ..products.chm import ChmSettings, chm_from_tiles
+
     settings = ChmSettings(cell_size=cell_size, method=chm_method, thresholds=_lengths(thresholds),
                            threshold_step=threshold_step, max_edge=_lengths(max_edge), tin_max_edge=tin_max_edge,
                            buffer=buffer, crs=crs)

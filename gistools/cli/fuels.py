@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.fuels import FuelsSettings, fuels_from_tiles
 from .options import batch_report, finish_batch, out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -28,6 +27,8 @@ def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinc
       $ gistools fuels sample_tiles --out out/fuels
       $ gistools fuels tiles --out f --cell-size 20m --fuel-codes 102,142,145 --jobs 2
     """
+    from ..products.fuels import FuelsSettings, fuels_from_tiles
+
     settings = FuelsSettings(cell_size=cell_size, canopy_floor=canopy_floor, height_percentile=height_percentile,
                              layer=layer, extinction=extinction, leaf_mass_area=leaf_mass_area, running_mean=running_mean,
                              cbh_threshold=cbh_threshold, column=column, column_pulses=column_pulses, profile=profile,

@@ -6,7 +6,6 @@ import click
 
 from ..parameters import PARAMETERS, render
 from ..parameters.lidar import DEFAULT_TEXTS
-from ..products.ground import GroundSettings, ground_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -50,6 +49,8 @@ def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, sc
       $ gistools ground tiles --out classified --method smrftin
       $ gistools ground tiles.vpc --out classified --noise sor --format las
     """
+    from ..products.ground import GroundSettings, ground_from_tiles
+
     settings = GroundSettings(method=ground_method, noise=noise, cell=cell, slope=slope, window=window,
                               threshold=threshold, scalar=scalar, smrftin_cell=smrftin_cell,
                               smrftin_slope=smrftin_slope, smrftin_window=smrftin_window,

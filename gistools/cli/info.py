@@ -7,8 +7,6 @@ import json as _json
 import click
 
 from ..errors import GistoolsError
-from ..io.tiles import find_tiles
-from ..products.info import tile_summary
 from .spec import spec_options
 
 
@@ -24,6 +22,9 @@ def info(tiles, crs, json):
       $ gistools info sample_tiles/35712.las
       $ gistools info sample_tiles --json
     """
+    from ..io.tiles import find_tiles
+    from ..products.info import tile_summary
+
     failed = 0
     summaries = []
     for path in find_tiles(tiles):

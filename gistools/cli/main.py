@@ -133,7 +133,9 @@ class GistoolsGroup(click.Group):
         try:
             from ..projdata import ensure_proj_data
 
-            ensure_proj_data()  # once, before a command reads anything: a missing PROJ is one line
+            words = [*(getattr(ctx, "_protected_args", None) or getattr(ctx, "protected_args", [])), *ctx.args]
+            if not {"--help", "-h"} & set(words):  # a help page reads nothing (and starts without PROJ)
+                ensure_proj_data()  # once, before a command reads anything: a missing PROJ is one line
             value = super().invoke(ctx)
         except Cancelled as err:
             click.echo(f"gistools: {err}", err=True)
@@ -175,18 +177,20 @@ class GistoolsGroup(click.Group):
         return value
 
 
-def _version_line() -> str:
-    """What ``gistools --version`` prints: the version and the engine that runs (a failed kernel build shows)."""
+def _print_version(ctx, _param, value) -> None:
+    """``gistools --version``: the version and the engine that runs (a failed kernel build shows). The kernel (and
+    numpy) is imported only here, not for every command's start."""
+    if not value or ctx.resilient_parsing:
+        return
     from .. import kernel
 
-    return f"%(prog)s, version %(version)s\nengine: {kernel.engine()}"
-
-
-VERSION_LINE = _version_line()
+    click.echo(f"gistools, version {__version__}\nengine: {kernel.engine()}")
+    ctx.exit()
 
 
 @click.group(cls=GistoolsGroup)
-@click.version_option(__version__, prog_name="gistools", message=VERSION_LINE)
+@click.option("--version", is_flag=True, expose_value=False, is_eager=True, callback=_print_version,
+              help="Show the version and the engine that runs, and exit.")
 @click.option("-v", "--verbose", count=True, help="More log output (-vv for debug).")
 def cli(verbose):
     """Open tools for LiDAR (ground and noise classes, DSM / DEM / nDSM, the shrub density chain), aquifer models,

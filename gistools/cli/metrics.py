@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.metrics import MetricsSettings, metrics_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -42,6 +41,8 @@ def metrics(inputs, out, cell_size, metrics, more_metrics, normalized, classes, 
       $ gistools metrics tiles --out m --metrics z_p95,cover_above2m,fuel_1_3m,fhd --classes 1,2,3,4,5 --jobs 2
       $ gistools metrics tiles --out m --metrics z_max,z_p50 --normalized --returns first
     """
+    from ..products.metrics import MetricsSettings, metrics_from_tiles
+
     names = metrics + _names(None, None, more_metrics)
     settings = MetricsSettings(cell_size=cell_size, metrics=names, normalized=normalized, classes=classes,
                                returns=returns, buffer=buffer, crs=crs)

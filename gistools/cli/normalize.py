@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.normalize import NormalizeSettings, normalize_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -29,6 +28,8 @@ def normalize(inputs, out, replace_z, classify_vegetation, bands, noise_floor, r
       $ gistools normalize tiles --out veg --classify-vegetation --roads breaklines.gpkg:ROADBREAKLINE \\
           --waterbodies breaklines.gpkg:WATERBODY
     """
+    from ..products.normalize import NormalizeSettings, normalize_from_tiles
+
     settings = NormalizeSettings(buffer=buffer, replace_z=replace_z, classify_vegetation=classify_vegetation, bands=bands,
                                  noise_floor=noise_floor, format=format, crs=crs)
     with progress_bar(quiet) as progress:

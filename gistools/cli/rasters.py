@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.rasters import RasterSettings, rasters_from_tiles
 from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -32,6 +31,8 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
       $ gistools rasters tiles --out out --hydro-flatten breaklines.gpkg:WATERBODY
       $ gistools rasters /shared/tiles --out /shared/out --scheduler tcp://scheduler:8786
     """
+    from ..products.rasters import RasterSettings, rasters_from_tiles
+
     settings = RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, buffer=buffer, crs=crs, chunk_size=chunk_size,
                               classify_ground=classify_ground, dem_fill=dem_fill, dsm_fill=dsm_fill,

@@ -6,8 +6,6 @@ import click
 
 from ..errors import GistoolsError
 from ..parameters import flag_of
-from ..runway.survey import SurveyChecks
-from ..products.runway import RunwaySettings, runway_earthworks, runway_metres
 from .aquifer import parse_fields
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
@@ -16,6 +14,8 @@ from .spec import spec_options
 def _metres(name: str, value):
     """A length with its unit ("10m", "30ft", "32.8ftUS", or a bare number in metres) in metres (the ICAO template and
     the survey's CRS are in metres)."""
+    from ..products.runway import runway_metres
+
     if value is None:
         return None
     try:
@@ -39,6 +39,9 @@ def runway(survey, out, crs, fields, overwrite, quiet, z_max, max_offset, min_of
       $ gistools runway survey.csv --code 4E --crs EPSG:3003 --out orio
       $ gistools runway survey.gpkg:POINTS --code 4E --template dissertation --spacing 10m --out orio_diss
     """
+    from ..products.runway import RunwaySettings, runway_earthworks
+    from ..runway.survey import SurveyChecks
+
     for name in ("spacing", "free_haul"):
         settings[name] = _metres(name, settings[name])
     checks = SurveyChecks(z_max=z_max, max_offset=_metres("max_offset", max_offset),

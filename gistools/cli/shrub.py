@@ -6,8 +6,6 @@ import click
 from click.core import ParameterSource
 
 from ..parameters import COMMANDS, option, render
-from ..products.rasters import RasterSettings
-from ..products.shrub import STAGE_SETTINGS, STEP_COMMANDS, ShrubSettings, shrub_from_tiles
 from .options import out_opt, batch_report, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -50,6 +48,9 @@ def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_fie
           --tile-index sample_tiles/breaklines.gpkg:FOOTPRINT
       $ gistools shrub tiles --out out --roads roads.shp --hydro hydro.shp --density-bands 1 --bands text_literal
     """
+    from ..products.rasters import RasterSettings
+    from ..products.shrub import ShrubSettings, shrub_from_tiles
+
     settings = ShrubSettings(
         raster=RasterSettings(cell_size=cell_size, dem_method=dem_method, dsm_classes=dsm_classes,
                               dem_max_distance=dem_max_distance, crs=crs, chunk_size=chunk_size,
@@ -112,6 +113,8 @@ def _step_command(stage):
     """A one-step command: OUT, the options of its own step (each defaulting to what the earlier run recorded), the
     map, the pool and progress options. The steps after it are redone with the settings they were made with."""
     def wrap(fn):
+        from ..parameters.shrub import STAGE_SETTINGS, STEP_COMMANDS
+
         fn = click.option("--quiet", "-q", is_flag=True, help="No progress bar.")(fn)
         fn = _spec(STEP_COMMANDS[stage], recorded=STAGE_SETTINGS[stage])(fn)
         return click.argument("out", type=click.Path(exists=True, file_okay=False))(fn)
@@ -121,7 +124,7 @@ def _step_command(stage):
 def _run_step(stage, out, make_map, scheduler, jobs, quiet, **given):
     """Rerun ``stage`` (and the steps after it) on ``out`` with the options given on the command line changed (the
     others keep what the earlier run recorded)."""
-    from ..products.shrub import step_settings
+    from ..products.shrub import shrub_from_tiles, step_settings
 
     ctx = click.get_current_context()
     changes = {k: tuple(v) if isinstance(v, list) else v for k, v in given.items()

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import click
 
-from ..products.structure import structure_model
 from .options import out_opt, overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -25,6 +24,8 @@ def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overw
       $ gistools structure cctv.txt --out cctv
       $ gistools structure cctv.txt --out cctv --height-interval 8 --distance 15 --tolerance 4
     """
+    from ..products.structure import structure_model
+
     with progress_bar(quiet) as progress:
         rep = structure_model(source, out, h=h, d=d, t=t, columns=columns, scales=scales, rotations=rotations,
                               loop_mode=loop_mode, overwrite=overwrite, progress=progress)

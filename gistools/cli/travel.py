@@ -5,7 +5,6 @@ from __future__ import annotations
 import click
 
 from ..parameters import PARAMETERS
-from ..products.travel import TravelSettings, travel_from_dem
 from .options import overwrite_opt, progress_bar
 from .spec import spec_options
 
@@ -31,6 +30,8 @@ def travel(out, last_seen, dem, shrub_classes, roads, hydro, waterbodies, overwr
       $ gistools travel out/travel --dem out --from 431000,1811000
       $ gistools travel sar --dem dem.vrt --classes classes.vrt --from seen.gpkg:POINTS --wade-speed 1
     """
+    from ..products.travel import TravelSettings, travel_from_dem
+
     settings = TravelSettings(**settings)
     with progress_bar(quiet) as progress:
         rep = travel_from_dem(dem, out, list(last_seen), settings, classes=shrub_classes, roads=roads, hydro=hydro,

@@ -74,7 +74,13 @@ SHRUB = command("shrub", "roads", "hydro", "waterbodies", "wetlands", "tile_inde
                 "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks", "max_road_width",
                 "snap", "make_map", "web_map", "basemap", "band_points", "scheduler", "crs", "jobs", "chunk_size",
                 "overwrite")
-# the step commands: each takes its own step's settings (products.shrub.STAGE_SETTINGS), then how it runs
+# the settings each step of a run records and a step rerun may change; the command that reruns each step
+STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
+                  "clip": ("snap", "max_road_width", "max_hydro_width", "single_line_width", "tile_field", "roads", "hydro",
+                           "waterbodies", "wetlands", "tile_index", "reproject_vectors"),
+                  "density": ("radius", "density_bands"), "classes": ("classify", "class_breaks")}
+STEP_COMMANDS = {"bands": "bands", "clip": "clip", "density": "density", "classes": "classify"}
+# the step commands: each takes its own step's settings (STAGE_SETTINGS), then how it runs
 BANDS = command("bands", "bands", "band_breaks_m", "noise_floor", *_RUN)
 CLIP = command("clip", "roads", "hydro", "waterbodies", "wetlands", "tile_index", "tile_field", "reproject_vectors",
                "max_road_width", "snap", *_RUN)

@@ -41,6 +41,7 @@ from ..io.styles import write_polygon_style
 from ..lidar.shrub import CLASS_NAMES, CLASS_STYLE, DEFAULT_BREAKS
 from ..progress import ProgressCallback, report, sub_progress
 from ..parameters import in_data_units, option, render
+from ..parameters.shrub import STAGE_SETTINGS, STEP_COMMANDS  # noqa: F401 - the step tables, declared there
 from ..units import LinearUnit, horizontal_unit, length_to_crs_units
 from ..vector.breaklines import road_polygons, water_polygons
 from ..validation import check_jobs, check_scheduler
@@ -643,12 +644,7 @@ def _shrub_report(summary: dict, base: dict, states: dict, good: list, p: StepPa
 # the report's parameters of each stage: a step rerun from a later stage keeps the earlier stages' as they were made
 _STAGE_PARAMETERS = {"bands": ("band_thresholds", "band_unit"), "density": ("density_radius", "density_bands")}
 # the settings (as given: lengths with their units) and the layers of each stage, recorded in report.json["settings"]
-STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
-                  "clip": ("snap", "max_road_width", "max_hydro_width", "single_line_width", "tile_field", "roads", "hydro",
-                           "waterbodies", "wetlands", "tile_index", "reproject_vectors"),
-                  "density": ("radius", "density_bands"), "classes": ("classify", "class_breaks")}
 LAYERS = ("roads", "hydro", "waterbodies", "wetlands", "tile_index")
-STEP_COMMANDS = {"bands": "bands", "clip": "clip", "density": "density", "classes": "classify"}
 
 
 def settings_record(settings: ShrubSettings, layers: dict, reproject_vectors: bool) -> dict:
