@@ -972,6 +972,22 @@ def test_terrain_and_viewshed_in_processing_equal_the_library(qgis, reference, t
 
 # the steps in QGIS take rasters; on the command line they rerun on a folder, whose record gives these
 RASTER_STEP_ONLY = {"z_unit"}
+# what an algorithm leaves of its command's options, and why (every other option is the algorithm's too); overwrite
+# is never one: an algorithm writes to the folder its dialog names, replacing what it held
+_STEP_RUN = {"jobs", "scheduler", "make_map"}  # the steps in QGIS run on rasters; on the command line they rerun a folder
+LEFT_OUT = {
+    "aquifer": {"fields", "no_figures"},  # fields: the layer's field pickers; the figures are always drawn
+    "runway": {"fields"},  # the layer's field pickers
+    "bands": _STEP_RUN, "density": _STEP_RUN, "classify": _STEP_RUN,
+    # the clip step in QGIS is two algorithms: breaklines (the layers and their widths) and clip
+    "clip": _STEP_RUN | {"roads", "hydro", "waterbodies", "tile_index", "tile_field", "max_road_width", "snap"},
+    "rasters": {"products"},  # the algorithm writes every product
+    "dsm": {"products", "buffer", "classify_ground", "dem_fill", "dem_max_distance", "dem_method", "hydro_flatten",
+            "shore_width"},  # the DSM alone: the DEM's options are gistools:dem's
+    "dem": {"products", "dsm_classes", "dsm_fill", "subcircle"},  # the DEM alone
+    "shrubchain": {"web_map", "basemap"},  # the web map is its own algorithm (gistools:webmap), chained after
+    "viewshed": {"hiding_surface"},  # the algorithm takes the surface raster itself, not a folder of rasters
+}
 
 
 @pytest.mark.parametrize("name", sorted(COMMAND_OF))
@@ -1015,6 +1031,9 @@ def test_every_parameter_comes_from_its_one_declaration(qgis, name):
                 assert (p.words[0] if d.defaultValue() == 0 else str(d.defaultValue())) == str(o.default), qname
             elif p.kind in ("length", "text", "int") and not p.choices and not o.required and not isinstance(p.default, ByUnits) and d.defaultValue() is not None:
                 assert str(d.defaultValue()) == str(o.default), qname
+    if command:  # and the other way: the algorithm's options are the command's, but those it leaves out (above)
+        mine = set(declared.values()) - RASTER_STEP_ONLY  # the raster steps' own input: the rasters' vertical unit
+        assert set(COMMANDS[command]) - {"overwrite"} == mine | LEFT_OUT.get(name, set()), name
 
 
 def test_a_renamed_parameter_is_refused_naming_its_new_name(qgis, reference, tmp_path):

@@ -17,7 +17,7 @@ from .steps import add_tile_field, given
 from ..compat import VECTOR_POLYGON
 
 LAYERS = ("roads", "hydro", "waterbodies", "wetlands", "tile_index")
-RUN = ("reproject_vectors", "make_map", "jobs", "scheduler")  # shrub_from_tiles' own arguments
+RUN = ("reproject_vectors", "make_map", "band_points", "jobs", "scheduler")  # shrub_from_tiles' own arguments
 
 
 class ShrubChainAlgorithm(GistoolsAlgorithm):
@@ -33,8 +33,8 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         # the rasters' settings the chain takes, then the steps', then the run's
         self.add_spec("cell_size", "dsm_classes", "dem_method", "dem_max_distance", "dsm_fill", "classify_ground",
                       "bands", "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks",
-                      "max_road_width", "snap", "reproject_vectors", "make_map", "crs", "jobs", "scheduler",
-                      "chunk_size")
+                      "max_road_width", "snap", "reproject_vectors", "make_map", "band_points", "crs", "jobs",
+                      "scheduler", "chunk_size")
         self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
         self.addOutput(QgsProcessingOutputRasterLayer("CLASSES", "Shrub classes"))
         self.addOutput(QgsProcessingOutputRasterLayer("COVER", "Vegetation cover"))
