@@ -188,3 +188,13 @@ def chromium(*args, home, size=SIZE):
                          capture_output=True, text=True, timeout=120, env=env)
     assert run.returncode == 0, run.stderr[-2000:]
     return run
+
+
+def need_kernel(what: str = "the compiled kernel") -> None:
+    """Skip a test of the compiled kernel where it is not built; fail it in CI, whose install builds it."""
+    from gistools import kernel
+
+    if not kernel.loaded():
+        if os.environ.get("CI"):
+            pytest.fail(f"CI must test {what}, but the kernel is not built: {kernel.engine()}")
+        pytest.skip(f"{what}: the compiled kernel is not built here")

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from conftest import AUTZEN, MEGAPLOT, SHARED_DATA, need_shared
+from conftest import AUTZEN, MEGAPLOT, SHARED_DATA, need_shared, need_kernel
 from gistools.cli.main import cli
 from gistools.io.points import read_tile_info, write_tile
 from gistools.lidar.ground import SmrfParams, classify_ground_and_noise, smrf_ground
@@ -287,12 +287,10 @@ def test_plane_residuals_equal_least_squares_planes_through_qhulls_delaunay_neig
 def test_plane_residuals_of_the_kernel_are_those_of_its_numpy_form_bit_for_bit():
     """The compiled pass and the numpy form (installs without a C compiler) give the same float64 residuals, repeated
     positions (no triangle: NaN) and a straight hull edge included."""
-    from gistools import kernel
     from gistools.lidar import ground
     from gistools.lidar.tin import delaunay_triangles
 
-    if not kernel.loaded():
-        pytest.skip("the compiled kernel is not built")
+    need_kernel()
     rng = np.random.default_rng(12)
     x, y = rng.uniform(0, 300, 5000), rng.uniform(0, 300, 5000)
     x[:40], y[:40] = np.arange(40) * 7.5, 0.0  # collinear points along the hull
@@ -309,11 +307,9 @@ def test_raised_patches_of_the_kernel_are_those_of_its_numpy_form_and_find_roofs
     rolling ground with roofs, a terrace step, a pit and empty cells; the roofs (narrower than the patch width,
     standing above all around) are marked, the terrace (joined to the ground along its length) and the ground are
     not."""
-    from gistools import kernel
     from gistools.lidar import ground
 
-    if not kernel.loaded():
-        pytest.skip("the compiled kernel is not built")
+    need_kernel()
     rng = np.random.default_rng(5)
     n = 60_000
     x, y = rng.uniform(0, 400, n), rng.uniform(0, 300, n)
@@ -429,7 +425,7 @@ def test_the_compiled_morphology_equals_the_numpy_one(monkeypatch):
     from gistools.lidar import ground as G
 
     if G._PROGRESSIVE is None or G._FILL is None:
-        pytest.skip("the compiled kernel is not built here")
+        need_kernel()
     rng = np.random.default_rng(3)
     a = np.cumsum(rng.normal(size=(300, 400)), axis=1) * 0.1 + rng.uniform(0, 3, (300, 400)) * (rng.uniform(size=(300, 400)) < 0.2)
     holes = a.copy()
@@ -457,7 +453,7 @@ def test_the_compiled_point_steps_of_smrf_equal_the_numpy_ones(monkeypatch, shap
     from gistools.lidar import ground as G
 
     if G._BILINEAR is None:
-        pytest.skip("the compiled kernel is not built here")
+        need_kernel()
     rng = np.random.default_rng(5)
     n = 20 * shape[0] * shape[1]
     x, y = rng.uniform(0, shape[1], n) + 1000.0, rng.uniform(0, shape[0], n) + 5000.0
@@ -478,7 +474,7 @@ def test_the_striped_dilations_equal_the_numpy_ones_at_stripe_edges(monkeypatch,
     from gistools.lidar import ground as G
 
     if G._PROGRESSIVE is None:
-        pytest.skip("the compiled kernel is not built here")
+        need_kernel()
     a = np.random.default_rng(4).normal(0, 3, shape).cumsum(0)
     compiled = G.progressive_filter(a, 1.0, 0.15, 40.0)
     monkeypatch.setattr(G, "_PROGRESSIVE", None)

@@ -29,7 +29,7 @@ import laspy
 import numpy as np
 import pytest
 
-from conftest import ROOT, SAMPLE
+from conftest import ROOT, SAMPLE, need_kernel
 
 CSRC = ROOT / "csrc"
 HEADER = CSRC / "gistools_kernel.h"
@@ -605,8 +605,7 @@ def test_the_driver_gives_what_python_s_kernel_gives(calls, replayed):
     the calls compared are the calls the package makes."""
     from gistools import kernel
 
-    if not kernel.loaded():
-        pytest.skip("the compiled kernel is not built here")
+    need_kernel()
     for (name, params, args), (ret, arrays) in zip(calls, decode(replayed["native"], calls)):
         copies = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in args.items()}
         values = [copies[p.name] for p in params]

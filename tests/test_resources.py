@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from conftest import SAMPLE
+from conftest import SAMPLE, need_kernel
 from gistools.machine import available_memory, free_memory, usable_cpus
 from gistools.engine.batch import worker_count
 
@@ -194,13 +194,11 @@ def test_a_thread_pool_closed_early_stops_its_tiles_at_their_next_kernel_call_an
 
     import numpy as np
 
-    from gistools import kernel
     from gistools.engine.batch import ThreadPool
     from gistools.errors import Cancelled
     from gistools.lidar.tin import delaunay_triangles
 
-    if not kernel.loaded():
-        pytest.skip("the compiled kernel is not built")
+    need_kernel()
     running = threading.Event()
     x, y = np.random.default_rng(1).uniform(0, 10, (2, 50))
 
