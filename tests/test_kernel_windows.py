@@ -635,3 +635,45 @@ def test_cell_sort_is_numpys_stable_order_bit_for_bit(calls, replayed, monkeypat
         want = v[np.lexsort((v, cell))].view(np.uint64)
         assert np.array_equal(np.frombuffer(arrays["out"], np.uint64), want)
         assert np.array_equal(metrics.cell_sorted(cell, v, args["ncells"])[0].view(np.uint64), want)
+
+
+# Microsoft's C dialect: a real front end in MSVC compatibility mode (clang's cl driver: _MSC_VER defined, neither
+# __clang__ nor __GNUC__, no __int128), against the runtime's declarations as Microsoft spells them
+# (tests/windows/msvc_crt: only the functions the kernel calls). Warnings are errors, variable length arrays
+# (which MSVC lacks) and GNU extensions included.
+MSVC_MODE = ["--driver-mode=cl", "--target=x86_64-pc-windows-msvc", "/Zs", "/W4", "/WX", "/std:c11", "-U__clang__",
+             "-U__SIZEOF_INT128__", "-D__int128=__int128_is_not_in_msvc", "-Wvla", "-Wpedantic"]
+
+
+def _msvc_mode(source: Path, include: Path = ROOT / "csrc"):
+    clang = shutil.which("clang")
+    if clang is None:
+        if os.environ.get("CI"):
+            pytest.fail("CI must compile the kernel in MSVC's dialect: clang is missing (tools/run.sh test installs it)")
+        pytest.skip("clang is missing here (apt-get install clang)")
+    return subprocess.run([clang, *MSVC_MODE, "-imsvc", str(ROOT / "tests" / "windows" / "msvc_crt"), f"-I{include}",
+                           "--", str(source)], capture_output=True, text=True, timeout=300)  # --: a path, not a /flag
+
+
+@pytest.mark.parametrize("part", ["grid", "morphology", "scan", "tin"])
+def test_the_kernel_compiles_in_microsofts_c_dialect(part):
+    run = _msvc_mode(ROOT / "csrc" / f"{part}.c")
+    assert run.returncode == 0, run.stdout + run.stderr
+
+
+@pytest.mark.parametrize("code,error", [
+    ("int f(int n) { int a[n]; a[0] = 1; return a[0]; }", "variable length array"),
+    ("int g(long long a) { __int128 x = a; return (int)(x >> 1); }", "__int128_is_not_in_msvc"),
+    ("int h(int a) { return ({ int b = a; b; }); }", "statement expression"),
+    ("#ifndef _MSC_VER\n#error not MSVC\n#endif\n#if defined(__GNUC__) || defined(__clang__)\n#error GNU\n#endif\n"
+     "int k(void) { return 0; }", None),
+])
+def test_the_msvc_mode_refuses_what_microsofts_compiler_refuses(tmp_path, code, error):
+    """The check has teeth: what MSVC's C compiler lacks fails it, and it sees the compiler as MSVC, not as GCC."""
+    source = tmp_path / "probe.c"
+    source.write_text(code + "\n", encoding="utf-8")
+    run = _msvc_mode(source)
+    if error is None:
+        assert run.returncode == 0, run.stdout + run.stderr
+    else:
+        assert run.returncode != 0 and error in run.stdout + run.stderr, run.stdout + run.stderr

@@ -38,6 +38,7 @@ if [ "${1:-}" = test ]; then
   command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64)  # the kernel's Windows build is checked
   # ... and run under Wine (Debian 12's wine64 package puts its loader in /usr/lib/wine, off the PATH)
   command -v wine64 >/dev/null || [ -x /usr/lib/wine/wine64 ] || need_apt+=(wine64)
+  command -v clang >/dev/null || need_apt+=(clang)  # ... and compiled in MSVC's dialect (clang --driver-mode=cl)
 fi
 if [ ${#need_apt[@]} -gt 0 ]; then
   if [ "$(id -u)" = 0 ]; then
