@@ -86,3 +86,67 @@ def test_shrub_chain_on_dask_equals_local(sample_tiles, tmp_path, dask_cluster):
         a, _, _ = read_raster(tmp_path / "local" / f"{product}.vrt")
         c, _, _ = read_raster(tmp_path / "dask" / f"{product}.vrt")
         assert np.array_equal(a, c, equal_nan=True), product
+
+
+def _block(folder, k: int = 4):
+    """The sample block repeated k x k times side by side (64 tiles of 2,000 ft): a run of several seconds."""
+    import laspy
+
+    from conftest import SAMPLE
+
+    folder.mkdir()
+    for p in sorted(SAMPLE.glob("*.la[sz]")):
+        las = laspy.read(p)
+        x, y = np.asarray(las.x), np.asarray(las.y)
+        for i in range(k):
+            for j in range(k):
+                las.x, las.y = x + 2000 * i, y + 2000 * j
+                las.write(folder / f"{p.stem}_{i}{j}.laz")
+    return folder
+
+
+def test_a_worker_lost_in_the_middle_of_a_run_the_run_completes_with_the_same_rasters(tmp_path):
+    """A cluster of a scheduler and two workers (separate processes, no nanny to restart them); one worker is
+    killed (SIGKILL) once the run has written a few tiles: the scheduler gives its tiles to the other, the command
+    exits 0 with every tile, and the rasters equal a run on this machine's processes."""
+    import signal
+
+    tiles = _block(tmp_path / "tiles")
+    reference = rasters_from_tiles(tiles, tmp_path / "local", jobs=1)
+    assert reference["counts"]["ok"] == 64
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    bin_dir = __import__("pathlib").Path(sys.executable).parent
+    quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    procs = [subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                               "--no-dashboard"], **quiet)]
+    try:
+        time.sleep(1.5)
+        workers = [subprocess.Popen([str(bin_dir / "dask"), "worker", address, "--nthreads", "1", "--no-nanny",
+                                     "--no-dashboard"], **quiet) for _ in range(2)]
+        procs += workers
+        from dask.distributed import Client
+
+        with Client(address, timeout=30) as client:
+            client.wait_for_workers(2, timeout=60)
+        out = tmp_path / "dask"
+        run = subprocess.Popen([sys.executable, "-m", "gistools.cli.main", "rasters", str(tiles), "--out", str(out),
+                                "--scheduler", address, "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+        deadline = time.monotonic() + 300
+        while len(list((out / "dsm").glob("*.tif"))) < 6 and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert run.poll() is None, "the run ended before a worker could be lost: " + run.communicate()[1]
+        workers[0].send_signal(signal.SIGKILL)
+        workers[0].wait(timeout=30)
+        _, stderr = run.communicate(timeout=600)
+        assert run.returncode == 0, stderr
+        written = len(list((out / "dsm").glob("*.tif")))
+        assert written == 64
+        _same(out, tmp_path / "local")
+    finally:
+        for p in procs[::-1]:
+            if p.poll() is None:
+                p.terminate()
+        for p in procs:
+            p.wait(timeout=30)
