@@ -113,15 +113,18 @@ WORKER_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS
 
 
 def one_thread_per_worker() -> None:
-    """In a worker process: the BLAS and OpenMP pools already loaded limited to one thread (threadpoolctl),
-    unless the user set one of WORKER_THREAD_ENV. Changes nothing in the parent (its environment included)."""
+    """In a worker process: its BLAS and OpenMP pools limited to one thread, those loaded later by
+    WORKER_THREAD_ENV in the worker's own environment, those loaded already by threadpoolctl, unless the user set
+    one of WORKER_THREAD_ENV. Changes nothing in the parent (its environment included)."""
     if any(k in os.environ for k in WORKER_THREAD_ENV):
         return
+    for k in WORKER_THREAD_ENV:  # the pools loaded later (numpy, scipy: imported when a task needs them) start at 1
+        os.environ[k] = "1"
     try:
         from threadpoolctl import threadpool_limits
-    except ImportError:  # an install without it: the pools keep their size
+    except ImportError:  # an install without it: the pools loaded already keep their size
         return
-    threadpool_limits(limits=1)
+    threadpool_limits(limits=1)  # the pools loaded already (by the worker's start)
 
 
 def worker_thread_environment() -> None:
