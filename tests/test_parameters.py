@@ -9,7 +9,7 @@ import pytest
 from gistools.cli.main import cli
 from gistools.errors import InputError
 from gistools.parameters import COMMANDS, PARAMETERS, ByUnits, option, render, speaks
-from gistools.parameters.core import COMMAND_DEFAULTS
+from gistools.parameters.core import COMMAND_DEFAULTS, DEFAULT_TEXTS
 
 # what a command's line has beside its settings: where the tiles and outputs are, how it runs in a terminal
 STRUCTURAL = {"out", "quiet", "resume", "overwrite", "help", "inputs", "json"}
@@ -66,3 +66,113 @@ def test_a_library_error_names_the_python_argument_and_the_command_line_the_flag
     assert "cell_size" in str(err.value) and "--" not in str(err.value)
     run = CliRunner().invoke(cli, ["rasters", "sample_tiles", "--out", str(tmp_path / "o"), "--cell-size", "-5ft"])
     assert run.exit_code != 0 and "--cell-size '-5ft' must be a finite length" in run.output
+
+
+# ---------------------------------------------------------------------------------------------- the library's side
+def _library(command: str):
+    """(the function, the settings class or None, the command-line-only names) declared for ``command``."""
+    import importlib
+
+    from gistools.parameters import LIBRARY
+
+    function, settings, command_line = LIBRARY[command]
+
+    def load(spec):
+        module, name = spec.split(":")
+        return getattr(importlib.import_module(f"gistools.{module}"), name)
+
+    return load(function), (load(settings) if settings else None), set(command_line)
+
+
+def _fields(cls) -> dict:
+    """{field: default} of a settings dataclass and of the settings it holds (a shrub run's raster settings, a
+    runway's survey checks), one level down."""
+    import dataclasses
+
+    found = {}
+    for f in dataclasses.fields(cls):
+        default = (f.default if f.default is not dataclasses.MISSING else
+                   f.default_factory() if f.default_factory is not dataclasses.MISSING else None)
+        found[f.name] = default
+        if dataclasses.is_dataclass(default):
+            for sub, value in _fields(type(default)).items():
+                found.setdefault(sub, value)
+    return found
+
+
+def _same_default(declared, library) -> bool:
+    """The declaration's default and the library's are one value (a tuple for a list of choices, text for a
+    length; None in the library where the declaration's default follows the data's unit)."""
+    if isinstance(declared, ByUnits):
+        return library is None or library in (declared.ft, declared.m)
+    if isinstance(declared, (list, tuple)) and isinstance(library, (list, tuple)):
+        return len(declared) == len(library) and all(_same_default(a, b) for a, b in zip(declared, library))
+    if isinstance(declared, (int, float)) and isinstance(library, (int, float)) and not isinstance(declared, bool):
+        return float(declared) == float(library)
+    if isinstance(declared, str) and isinstance(library, float) and declared.endswith("m") and declared[:-1]:
+        return float(declared[:-1]) == library  # a length the library holds in metres (the runway's checks)
+    if isinstance(declared, str) and isinstance(library, (list, tuple)):
+        return declared.split(",") == [str(v) for v in library]
+    return declared == library or str(declared) == str(library)
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_every_declared_parameter_is_a_keyword_of_the_library_with_the_same_default(name):
+    """Each parameter of a command is a keyword of its library function or a field of its settings (its declared
+    ``keyword`` where the name is taken), with the default the command line shows (the command's own, where it
+    has one); a required parameter has no default in the library either. Only the declared command-line-only
+    parameters are not the library's (what the command line composes around the call)."""
+    import inspect
+
+    function, settings, command_line = _library(name)
+    keywords = {k: p.default for k, p in inspect.signature(function).parameters.items()}
+    fields = _fields(settings) if settings else {}
+    own = COMMAND_DEFAULTS.get(name, {})
+    for pname in COMMANDS[name]:
+        if pname in command_line:
+            assert pname not in keywords and pname not in fields, f"{pname} is the library's: not command-line-only"
+            continue
+        p = PARAMETERS[pname]
+        keyword = p.python_name
+        assert keyword in keywords or keyword in fields, (
+            f"gistools {name} --{pname}: {keyword!r} is neither a keyword of {function.__name__} nor a field of "
+            f"{settings.__name__ if settings else 'its settings'}")
+        library = fields[keyword] if keyword in fields else keywords[keyword]
+        declared = own.get(pname, p.default)
+        if p.kind == "flag" and pname == f"no_{keyword}":  # --no-figures: the library's figures=True
+            declared = not declared
+        if library is inspect.Parameter.empty:
+            assert p.required or declared is None, f"{name} {pname}: the library requires it, the command does not"
+            continue
+        assert _same_kind(p, library), f"gistools {name} --{pname}: a {p.kind}, the library's {library!r}"
+        if declared is None and (p.default_text or pname in DEFAULT_TEXTS.get(name, {})):
+            continue  # a default the run computes (its help says how), which the library holds as a value or None
+        assert _same_default(declared, library), f"gistools {name} --{pname}: {declared!r}, the library {library!r}"
+
+
+def _same_kind(p, library) -> bool:
+    """The library's default is of the declared kind (None: given by the run, or optional)."""
+    kind = p.kind
+    if library is None or (kind == "choice" and library in p.choices):
+        return True
+    if kind == "text" and isinstance(library, tuple):  # a comma list (the CHM's thresholds), parsed
+        return True
+    if kind == "flag":
+        return isinstance(library, bool)
+    if kind == "int":
+        return isinstance(library, int) and not isinstance(library, bool) or library == "auto"
+    if kind == "float":
+        return isinstance(library, (int, float)) and not isinstance(library, bool)
+    if kind in ("choice", "text", "crs", "layer", "raster", "file", "folder"):
+        return isinstance(library, str)
+    if kind == "length":
+        return isinstance(library, (str, int, float)) and not isinstance(library, bool)
+    return isinstance(library, (str, tuple, list))  # choices, classes, numbers, fields: several values
+
+
+def test_a_python_message_names_the_librarys_keyword_where_the_declared_name_differs():
+    """gistools ground's --method is ``ground_method`` in the register, ``method`` of GroundSettings: a Python
+    caller reads ``method``; --no-figures is ``figures=False`` of AquiferSettings."""
+    text = f"{option('ground_method', 'csf')}, {option('no_figures')}, {option('dem_z_unit')}"
+    assert render(text, "python") == "method='csf', figures=False, z_unit"
+    assert render(text, "cli") == "--method csf, --no-figures, --z-unit"

@@ -45,13 +45,14 @@ declare(
     # AquiferSettings.cell_size; "cell_size" is the rasters' (a default of 5ft): messages name it cell_size all the same
     Parameter("thickness_cell_size", "length", "Thickness raster cell.", "Thickness raster cell size",
               flag="--cell-size", qgis="CELL_SIZE", default_text="about 500 cells across", advanced=True,
-              example="10m"),
+              example="10m", keyword="cell_size"),
     Parameter("matching", "choice", "How the boundaries of two neighbouring layers are matched into walls: by 3D or "
               "plan distance.", "Wall matching", default="3d", choices=MATCHINGS, advanced=True),
     Parameter("mesh_format", "choice", "Format of the unit meshes.", "Mesh format", default="ply", flag="--mesh",
               qgis="MESH", choices=MESH_FORMATS, advanced=True),
     # AquiferSettings.figures, negated: the figures are drawn unless this is given
-    Parameter("no_figures", "flag", "Skip the PNG figures.", "Skip the PNG figures", default=False, advanced=True),
+    Parameter("no_figures", "flag", "Skip the PNG figures.", "Skip the PNG figures", default=False, advanced=True,
+              keyword="figures"),  # AquiferSettings(figures=False)
     Parameter("order", "choice", "stratigraphic: a lower surface is never above the one above it (a unit that "
               "pinches out has thickness 0, not negative); raw: the TINs as they are. The crossing's area and volume "
               "are reported either way.", "Where the TINs of a unit's top and base cross", default="stratigraphic",
@@ -64,10 +65,12 @@ declare(
     # aquifer_query's method; "method" is the ground / CHM methods' word
     Parameter("height_method", "choice", "tin: the TIN of each surface (nothing outside its boundary); knn: mean of "
               f"the {option('k')} nearest contacts; idw: their inverse-distance weighted mean.", "Method",
-              default="tin", flag="--method", qgis="METHOD", choices=HEIGHT_METHODS),
+              default="tin", flag="--method", qgis="METHOD", choices=HEIGHT_METHODS, keyword="method"),
 )
 
 AQUIFER_MODEL = command("aquifer model", "layers", "crs", "swap_xy", "within", "clip", "concave_ratio", "xy_tol", "k",
                         "abs_thr", "c", "f_nn", "order_tol", "n_per_edge", "densify", "thickness_cell_size",
-                        "matching", "mesh_format", "no_figures", "order", "fields", "overwrite")
-AQUIFER_QUERY = command("aquifer query", "x", "y", "height_method", "k")
+                        "matching", "mesh_format", "no_figures", "order", "fields", "overwrite",
+    library="products.aquifer:aquifer_model", settings="products.aquifer:AquiferSettings")
+AQUIFER_QUERY = command("aquifer query", "x", "y", "height_method", "k",
+    library="products.aquifer:aquifer_query")

@@ -18,7 +18,7 @@ import os
 import re
 from dataclasses import dataclass, field
 
-__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
+__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "LIBRARY", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
            "by_units", "ByUnits"]
 
 _OPEN, _SEP, _CLOSE = "\ue000", "\ue001", "\ue002"  # private-use marks around a parameter's name in a message
@@ -76,6 +76,15 @@ class Parameter:
     example: str = ""
     words: tuple = ()  # words a number also takes (jobs: "auto"); the dialog offers the first as 0
     qgis: str = ""  # the QGIS parameter's name when it is not the Python name in capitals
+    # the library's keyword when it is not ``name`` (a name two commands would share with other meanings: the
+    # ground filter's ``method`` is ``ground_method`` here); a dotted path reaches a settings' own settings
+    # (``checks.z_max``). A Python caller's message names this keyword.
+    keyword: str = ""
+
+    @property
+    def python_name(self) -> str:
+        """What a Python caller writes: the keyword of the library function or settings field."""
+        return (self.keyword or self.name).rsplit(".", 1)[-1]
 
     @property
     def cli_flag(self) -> str:
@@ -98,6 +107,7 @@ class Parameter:
 PARAMETERS: dict[str, Parameter] = {}
 COMMANDS: dict[str, tuple[str, ...]] = {}
 COMMAND_DEFAULTS: dict[str, dict] = {}  # a command's own default of a shared parameter (metrics: 5 m cells)
+LIBRARY: dict[str, tuple] = {}  # command -> (its function, its settings class, its command-line-only parameters)
 DEFAULT_TEXTS: dict[str, dict] = {}  # what a command's help says of a default it computes
 
 
@@ -111,12 +121,18 @@ def declare(*parameters: Parameter) -> None:
         PARAMETERS[p.name] = p
 
 
-def command(name: str, *parameters: str) -> tuple[str, ...]:
-    """Declare which parameters command ``name`` takes (in its help's order)."""
+def command(name: str, *parameters: str, library: str = "", settings: str = "",
+            command_line: tuple = ()) -> tuple[str, ...]:
+    """Declare which parameters command ``name`` takes (in its help's order), and what runs it: ``library`` the
+    function (``module:function`` under gistools), ``settings`` its settings class (``module:Class``, or ""). Each
+    parameter is a keyword of the function or a field of the settings (tests/test_parameters.py walks them) but
+    those of ``command_line``: what the command line composes around the call (a web map after the chain)."""
     missing = [p for p in parameters if p not in PARAMETERS]
     if missing:
         raise RuntimeError(f"command {name!r} takes undeclared parameters {missing}")
     COMMANDS[name] = tuple(parameters)
+    if library:
+        LIBRARY[name] = (library, settings, tuple(command_line))
     return COMMANDS[name]
 
 
@@ -215,10 +231,11 @@ def render(text: str, speaks: str | None = None) -> str:
         if speaks == "qgis":
             label = labels.get(name) or (p.label if p else name)
             return f"'{label}'" + ("" if value is None or is_flag else f" = {_cli_value(value)}")
-        if is_flag:
-            return f"{name}=True"
+        keyword = p.python_name if p is not None else name
+        if is_flag:  # a --no-... flag is its keyword set False (no_figures: figures=False)
+            return f"{keyword}={name != 'no_' + keyword}"
         if value is None:
-            return name
-        return f"{name}={_python_value(p, value)!r}"
+            return keyword
+        return f"{keyword}={_python_value(p, value)!r}"
 
     return _MARK.sub(one, text)

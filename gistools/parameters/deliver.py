@@ -50,6 +50,9 @@ declare(
               default=1000, minimum=1, advanced=True, example="1000"),
 )
 
-WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb")
-SCENE = command("scene", "exaggeration", "max_mb", "surface")
-MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages")
+WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb",
+    library="deliver.webmap:web_map")
+SCENE = command("scene", "exaggeration", "max_mb", "surface",
+    library="deliver.scene:scene_glb")
+MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages",
+    library="deliver.mapbook:map_book")

@@ -33,7 +33,7 @@ declare(
               "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, one step of TIN "
               "densification, raised patches (roofs, decks) removed, thresholds from the survey's measured ground "
               "noise: best on the ISPRS filter test and on the real surveys, a quarter of smrf's speed.", "Ground filter", default="smrf", choices=GROUND_METHODS,
-              flag="--method", qgis="METHOD"),
+              flag="--method", qgis="METHOD", keyword="method"),
     Parameter("noise", "choice", "Noise first: ivf (isolated points in voxels, lasR classify_with_ivf), sor "
               "(statistical outliers) or none.", "Noise filter", default="ivf", choices=NOISE_METHODS),
     Parameter("cell", "length", "SMRF cell size.", "SMRF cell size", default="1m", advanced=True, example="1m"),
@@ -137,7 +137,7 @@ declare(
 declare(
     Parameter("chm_method", "choice", "p2r: the highest first return of each cell; pitfree: Khosravipour et al. 2014 "
               "(lidR pitfree()); tin: a TIN of the first returns.", "Method", default="pitfree", choices=CHM_METHODS,
-              flag="--method", qgis="METHOD"),
+              flag="--method", qgis="METHOD", keyword="method"),
     Parameter("thresholds", "text", f"pitfree: the height thresholds of the layers, comma-separated lengths (then one "
               f"every {option('threshold_step')}).", "Pit-free height thresholds (comma-separated, with unit)",
               default="0m,2m", advanced=True, example="0m,2m,5m,10m,15m"),
@@ -157,15 +157,21 @@ GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", 
                  "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution",
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
-                 "overwrite", "scheduler")
+                 "overwrite", "scheduler",
+    library="products.ground:ground_from_tiles", settings="products.ground:GroundSettings")
 NORMALIZE = command("normalize", "replace_z", "classify_vegetation", "bands", "noise_floor", "roads", "hydro",
-                    "waterbodies", "reproject_vectors", "buffer", "format", "crs", "jobs", "overwrite", "scheduler")
+                    "waterbodies", "reproject_vectors", "buffer", "format", "crs", "jobs", "overwrite", "scheduler",
+    library="products.normalize:normalize_from_tiles", settings="products.normalize:NormalizeSettings")
 METRICS = command("metrics", "cell_size", "metrics", "more_metrics", "normalized", "classes", "returns", "buffer", "crs",
-                  "jobs", "overwrite", "scheduler")
+                  "jobs", "overwrite", "scheduler",
+    library="products.metrics:metrics_from_tiles", settings="products.metrics:MetricsSettings", command_line=('more_metrics',))
 CHM = command("chm", "chm_method", "cell_size", "thresholds", "threshold_step", "max_edge", "tin_max_edge", "buffer",
-              "crs", "jobs", "overwrite", "scheduler")
-POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite")
-INFO = command("info", "crs")
+              "crs", "jobs", "overwrite", "scheduler",
+    library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings")
+POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite",
+    library="products.points:points_from_tiles")
+INFO = command("info", "crs",
+    library="products.info:tiles_summary")
 
 # the commands' own defaults of shared parameters (spec_options / add_spec ``defaults=``)
 BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer

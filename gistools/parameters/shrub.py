@@ -73,7 +73,8 @@ SHRUB = command("shrub", "roads", "hydro", "waterbodies", "wetlands", "tile_inde
                 "cell_size", "dsm_classes", "dem_method", "dem_max_distance", "dsm_fill", "classify_ground", "bands",
                 "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks", "max_road_width",
                 "snap", "make_map", "web_map", "basemap", "band_points", "scheduler", "crs", "jobs", "chunk_size",
-                "overwrite")
+                "overwrite",
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", command_line=('web_map', 'basemap'))
 # the settings each step of a run records and a step rerun may change; the command that reruns each step
 STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
                   "clip": ("snap", "max_road_width", "max_hydro_width", "single_line_width", "tile_field", "roads", "hydro",
@@ -81,9 +82,14 @@ STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
                   "density": ("radius", "density_bands"), "classes": ("classify", "class_breaks")}
 STEP_COMMANDS = {"bands": "bands", "clip": "clip", "density": "density", "classes": "classify"}
 # the step commands: each takes its own step's settings (STAGE_SETTINGS), then how it runs
-BANDS = command("bands", "bands", "band_breaks_m", "noise_floor", *_RUN)
+BANDS = command("bands", "bands", "band_breaks_m", "noise_floor", *_RUN,
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
 CLIP = command("clip", "roads", "hydro", "waterbodies", "wetlands", "tile_index", "tile_field", "reproject_vectors",
-               "max_road_width", "snap", *_RUN)
-DENSITY = command("density", "radius", "density_bands", *_RUN)
-CLASSIFY = command("classify", "classify", "class_breaks", *_RUN)
-MAP = command("map", "title")
+               "max_road_width", "snap", *_RUN,
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+DENSITY = command("density", "radius", "density_bands", *_RUN,
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+CLASSIFY = command("classify", "classify", "class_breaks", *_RUN,
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+MAP = command("map", "title",
+    library="products.shrub:map_from_classes")

@@ -25,4 +25,5 @@ declare(
               "lines).", "Loops", default="classic", choices=LOOP_MODES, advanced=True),
 )
 
-STRUCTURE = command("structure", "h", "d", "t", "columns", "scales", "rotations", "loop_mode", "overwrite")
+STRUCTURE = command("structure", "h", "d", "t", "columns", "scales", "rotations", "loop_mode", "overwrite",
+    library="products.structure:structure_model")

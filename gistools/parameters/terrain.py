@@ -13,19 +13,20 @@ declare(
               "clockwise from north, flat cells nodata), hillshade (1-255) and tri (Riley's terrain ruggedness index, in "
               "the DEM's vertical unit), as gdaldem slope / slope -p / aspect / hillshade / TRI.", "Rasters to write",
               choices=TERRAIN_PRODUCTS, default=tuple(TERRAIN_PRODUCTS), flag="--products", qgis="PRODUCTS",
-              example="slope,hillshade"),
+              example="slope,hillshade", keyword="products"),
     Parameter("azimuth", "float", "Hillshade: the direction of the light, degrees clockwise from north.",
               "Hillshade light azimuth (degrees from north)", default=315.0, minimum=0.0, maximum=360.0, advanced=True),
     Parameter("altitude", "float", "Hillshade: the height of the light above the horizon, degrees.",
               "Hillshade light altitude (degrees)", default=45.0, minimum=0.0, maximum=90.0, advanced=True),
     Parameter("dem_z_unit", "choice", "The vertical unit of the elevations: the raster's own (its band unit, else "
               "its CRS's vertical unit, else its horizontal unit), or the one given here.", "Vertical unit of the "
-              "elevations", default="raster", choices=Z_UNITS, flag="--z-unit", qgis="Z_UNIT", advanced=True),
+              "elevations", default="raster", choices=Z_UNITS, flag="--z-unit", qgis="Z_UNIT", advanced=True,
+              keyword="z_unit"),
     Parameter("observer", "text", "An observer's position X,Y in the raster's CRS; give it again for more observers "
               "(in Python a list of (x, y)).", "Observer position(s): X,Y; several separated by ;", flag="--from",
-              metavar="X,Y", example="565300,654400"),
+              metavar="X,Y", example="565300,654400", keyword="observers"),
     Parameter("observers", "layer", "A point layer of observers (file.gpkg:LAYER or a shapefile), in the raster's CRS.",
-              "Observers (point layer)", geometry="point", metavar="LAYER"),
+              "Observers (point layer)", geometry="point", metavar="LAYER", keyword="observers_layer"),
     Parameter("observer_height", "length", "The observer's eye above the surface.", "Observer height above the surface",
               default=ByUnits("6ft", "2m", "a standing person's eye, rounded up"), minimum=0.0, flag="--height",
               example="6ft"),
@@ -33,7 +34,7 @@ declare(
               "Target height above the surface", default="0", minimum=0.0, example="6ft"),
     Parameter("hiding_surface", "choice", "The surface that hides: the DSM (trees and buildings hide a person) or the DEM "
               "(bare ground only). Used when the input is a folder of gistools rasters.", "Surface that hides",
-              default="dsm", choices=SURFACES, flag="--surface", qgis="SURFACE"),
+              default="dsm", choices=SURFACES, flag="--surface", qgis="SURFACE", keyword="surface_kind"),
     Parameter("max_distance", "length", "Only cells within this distance of an observer are computed (gdal_viewshed "
               "-md); the output covers the observers' ranges only, and cells beyond every range are 0. 0: no limit, "
               "the whole raster (read into memory).", "Maximum distance from an observer (0: no limit)", default="0",
@@ -46,7 +47,9 @@ declare(
               minimum=0.0, maximum=1.0, advanced=True),
 )
 
-TERRAIN = command("terrain", "terrain_products", "azimuth", "altitude", "dem_z_unit", "overwrite")
+TERRAIN = command("terrain", "terrain_products", "azimuth", "altitude", "dem_z_unit", "overwrite",
+    library="products.terrain:terrain_from_dem")
 VIEWSHED = command("viewshed", "observer", "observers", "observer_height", "target_height", "hiding_surface", "max_distance", "curvature",
-                   "curvature_coefficient", "dem_z_unit", "overwrite")
+                   "curvature_coefficient", "dem_z_unit", "overwrite",
+    library="products.viewshed:viewshed_from_surface")
 COMMAND_DEFAULTS.update({"terrain": {}, "viewshed": {}})

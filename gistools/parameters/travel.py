@@ -16,7 +16,7 @@ declare(
     Parameter("shrub_classes", "raster", "A shrub classes raster of gistools shrub (0 none, 1 light, 2 medium, 3 heavy, "
               "4 road, 5 water) on the DEM's grid.",
               "Shrub classes raster (gistools shrub classes.vrt)", flag="--classes", qgis="CLASSES", metavar="RASTER",
-              default_text="classes.vrt of the folder when the DEM is a gistools shrub folder"),
+              default_text="classes.vrt of the folder when the DEM is a gistools shrub folder", keyword="classes"),
     Parameter("tobler", "numbers", "Tobler's hiking function v = A exp(-B |slope + C|) km/h: A,B,C (the slope along "
               "each step, rise over run, uphill positive).", "Tobler's function A,B,C of v = A exp(-B |s + C|) km/h",
               default=(6, 3.5, 0.05), count=3, minimum=0.0, example="6,3.5,0.05", advanced=True),
@@ -44,4 +44,5 @@ declare(
 
 TRAVEL = command("travel", "dem", "last_seen", "shrub_classes", "roads", "hydro", "waterbodies", "road_speed",
                  "wade_speed", "isochrones", "tobler", "shrub_factors", "neighbours", "isotropic", "max_memory", "snap",
-                 "max_road_width", "max_hydro_width", "single_line_width", "reproject_vectors", "overwrite")
+                 "max_road_width", "max_hydro_width", "single_line_width", "reproject_vectors", "overwrite",
+    library="products.travel:travel_from_dem", settings="products.travel:TravelSettings")
