@@ -153,7 +153,7 @@ def test_every_declared_parameter_is_a_keyword_of_the_library_with_the_same_defa
 def _same_kind(p, library) -> bool:
     """The library's default is of the declared kind (None: given by the run, or optional)."""
     kind = p.kind
-    if library is None or (kind == "choice" and library in p.choices):
+    if library is None or (kind == "choice" and str(library) in {str(c) for c in p.choices}):
         return True
     if kind == "text" and isinstance(library, tuple):  # a comma list (the CHM's thresholds), parsed
         return True
