@@ -51,6 +51,16 @@ _PRODUCTS = {
 }
 _LAZY = {name: module for module, names in _PRODUCTS.items() for name in names}
 
+
+def _declared_functions() -> dict:
+    """{function: module} of the commands declared whole (their library function is exported from here too)."""
+    from .parameters import DECLARED, LIBRARY
+
+    return {LIBRARY[c][0].split(":")[1]: LIBRARY[c][0].split(":")[0] for c in DECLARED}
+
+
+_LAZY.update(_declared_functions())
+
 __all__ = ["__version__", *_errors, *_LAZY]
 
 

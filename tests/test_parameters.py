@@ -42,7 +42,8 @@ def test_every_option_of_a_command_comes_from_its_declaration(name):
             assert list(o.type.choices) == list(p.choices) + list(p.aliases)
         default = COMMAND_DEFAULTS.get(name, {}).get(n, p.default)
         if default is not None and not isinstance(default, ByUnits):
-            shown = default if not isinstance(default, tuple) else ",".join(map(str, default))
+            shown = default if not isinstance(default, tuple) else ",".join(
+                f"{v:g}" if isinstance(v, float) else str(v) for v in default)
             assert o.default == shown, n
         if isinstance(default, ByUnits):  # no click default: the data's unit decides, as the help says
             assert (o.default is None or "UNSET" in repr(o.default)) and default.text() in o.help, n

@@ -947,6 +947,7 @@ COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize
               "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
               "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
               "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed", "travel": "travel"}
+COMMAND_OF.update({c.replace("-", "_"): c for c in __import__("gistools.parameters").parameters.DECLARED})
 
 
 def test_terrain_and_viewshed_in_processing_equal_the_library(qgis, reference, tmp_path):
@@ -968,6 +969,25 @@ def test_terrain_and_viewshed_in_processing_equal_the_library(qgis, reference, t
     assert res["CELLS_SEEN"] == lib["cells_seen"] > 0
     for name in ("viewshed", "viewshed_count"):
         same_cells(tmp_path / "vlib" / f"{name}.tif", tmp_path / "vq" / f"{name}.tif")
+
+
+def test_a_command_declared_whole_runs_in_processing_as_on_the_command_line(qgis, reference, tmp_path):
+    """gistools:slope_classes, made from the declaration alone (no module of its own in the plugin): the cells of
+    gistools slope-classes on the same DEM, its raster loaded, its help its section of the terrain page."""
+    from click.testing import CliRunner
+    from qgis.core import QgsApplication
+
+    from gistools.cli.main import cli as gistools_cli
+
+    res = qgis.run("gistools:slope_classes", {"DEM": str(reference / "dem.vrt"), "BREAKS": "1,2,5",
+                                              "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert res["SLOPE_CLASSES"] and res["FOLDER"] == str(tmp_path / "q")
+    done = CliRunner().invoke(gistools_cli, ["slope-classes", str(reference / "dem.vrt"), "--out",
+                                             str(tmp_path / "cli"), "--breaks", "1,2,5"])
+    assert done.exit_code == 0, done.output
+    same_cells(tmp_path / "cli" / "slope_classes.tif", tmp_path / "q" / "slope_classes.tif")
+    alg = QgsApplication.processingRegistry().algorithmById("gistools:slope_classes")
+    assert alg.group() == "Terrain and visibility" and alg.helpUrl().endswith("terrain.html#qgis-slope_classes")
 
 
 # the steps in QGIS take rasters; on the command line they rerun on a folder, whose record gives these

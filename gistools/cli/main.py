@@ -115,14 +115,22 @@ def one_line(text: str, longest: int = 160) -> str:
 
 class GistoolsGroup(click.Group):
     def list_commands(self, ctx):
-        return sorted({*self.commands, *COMMANDS})
+        from ..parameters import DECLARED
+
+        return sorted({*self.commands, *COMMANDS, *DECLARED})
 
     def get_command(self, ctx, name):
+        from ..parameters import DECLARED
+
         if name not in self.commands and name in COMMANDS:
             import importlib
 
             module, attr = COMMANDS[name]
             self.add_command(getattr(importlib.import_module(f"{__package__}.{module}"), attr), name)
+        elif name not in self.commands and name in DECLARED:  # made from its declaration (cli/declared.py)
+            from .declared import declared_command
+
+            self.add_command(declared_command(name), name)
         return self.commands.get(name)
 
     def invoke(self, ctx):

@@ -18,7 +18,7 @@ import os
 import re
 from dataclasses import dataclass, field
 
-__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "LIBRARY", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
+__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "LIBRARY", "DECLARED", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
            "by_units", "ByUnits"]
 
 _OPEN, _SEP, _CLOSE = "\ue000", "\ue001", "\ue002"  # private-use marks around a parameter's name in a message
@@ -108,6 +108,7 @@ PARAMETERS: dict[str, Parameter] = {}
 COMMANDS: dict[str, tuple[str, ...]] = {}
 COMMAND_DEFAULTS: dict[str, dict] = {}  # a command's own default of a shared parameter (metrics: 5 m cells)
 LIBRARY: dict[str, tuple] = {}  # command -> (its function, its settings class, its command-line-only parameters)
+DECLARED: dict[str, dict] = {}  # command -> its inputs, summary, page, group: front ends made from the declaration
 DEFAULT_TEXTS: dict[str, dict] = {}  # what a command's help says of a default it computes
 
 
@@ -122,17 +123,29 @@ def declare(*parameters: Parameter) -> None:
 
 
 def command(name: str, *parameters: str, library: str = "", settings: str = "",
-            command_line: tuple = ()) -> tuple[str, ...]:
+            command_line: tuple = (), inputs: tuple = (), summary: str = "", page: str = "",
+            group: str = "", outputs: tuple = ()) -> tuple[str, ...]:
     """Declare which parameters command ``name`` takes (in its help's order), and what runs it: ``library`` the
     function (``module:function`` under gistools), ``settings`` its settings class (``module:Class``, or ""). Each
     parameter is a keyword of the function or a field of the settings (tests/test_parameters.py walks them) but
-    those of ``command_line``: what the command line composes around the call (a web map after the chain)."""
+    those of ``command_line``: what the command line composes around the call (a web map after the chain).
+
+    A command declared whole also gives ``inputs`` ((keyword, kind, label), ...: the function's first arguments,
+    before its output folder ``out``), a one-line ``summary``, its documentation ``page``, its QGIS ``group`` and
+    its rasters' names (``outputs``: the keys of the report's ``outputs``, loaded into QGIS):
+    its command-line command (gistools.cli.declared), its QGIS algorithm (qgis_plugin/algorithms/declared.py), its
+    export from ``gistools`` and its reference page are then made from this declaration alone."""
     missing = [p for p in parameters if p not in PARAMETERS]
     if missing:
         raise RuntimeError(f"command {name!r} takes undeclared parameters {missing}")
     COMMANDS[name] = tuple(parameters)
     if library:
         LIBRARY[name] = (library, settings, tuple(command_line))
+    if inputs:
+        if not (library and summary and page and group):
+            raise RuntimeError(f"command {name!r}: a command declared whole needs its library, summary, page, group")
+        DECLARED[name] = {"inputs": tuple(inputs), "summary": summary, "page": page, "group": group,
+                          "outputs": tuple(outputs)}
     return COMMANDS[name]
 
 

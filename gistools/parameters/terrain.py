@@ -47,6 +47,19 @@ declare(
               minimum=0.0, maximum=1.0, advanced=True),
 )
 
+declare(
+    Parameter("slope_breaks", "numbers", "Slope limits between the classes, degrees, increasing (0-90): class 1 "
+              "below the first, the last class at or above the last limit.", "Slope class limits (degrees, e.g. "
+              "5,15,30)", default=(5.0, 15.0, 30.0), minimum=0.0, maximum=90.0, flag="--breaks", qgis="BREAKS",
+              example="5,15,30", keyword="breaks"),
+)
+# a command declared whole: its front ends (command line, QGIS algorithm, reference page) are made from this
+SLOPE_CLASSES = command("slope-classes", "slope_breaks", "dem_z_unit", "overwrite",
+                        library="products.slope_classes:slope_classes_from_dem",
+                        inputs=(("dem", "raster", "DEM (GeoTIFF or VRT mosaic)"),),
+                        summary="Slope classes of a DEM (gdaldem's slope in degrees, cut at limits).",
+                        page="commands/terrain", group="terrain", outputs=("slope_classes",))
+
 TERRAIN = command("terrain", "terrain_products", "azimuth", "altitude", "dem_z_unit", "overwrite",
     library="products.terrain:terrain_from_dem")
 VIEWSHED = command("viewshed", "observer", "observers", "observer_height", "target_height", "hiding_surface", "max_distance", "curvature",

@@ -219,14 +219,41 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
     >>> report["units"]  # doctest: +SKIP
     {'horizontal': 'ftUS', 'vertical': 'ftUS', 'vertical_from': 'band', 'scale': 1.0}
     """
-    started = time.time()
     products = _check(products, azimuth, altitude, z_unit)
+
+    def compute(z, ewres, nsres, scale):
+        return terrain_arrays(z, ewres, nsres, scale=scale, products=products, azimuth=azimuth, altitude=altitude)
+
+    def outputs(zu):
+        made = {}
+        for p in products:
+            unit = PRODUCT_UNITS[p] if PRODUCT_UNITS[p] is not None else zu.short
+            made[p] = ("float32", NODATA, {"GISTOOLS_PRODUCT": p, **({"units": unit} if unit else {})})
+        return made
+
+    settings = {"products": list(products), "azimuth": azimuth, "altitude": altitude, "z_unit": z_unit}
+    return dem_product(dem, out, "gistools terrain", settings, outputs, compute, z_unit=z_unit, overwrite=overwrite,
+                       block=block, progress=progress, label="terrain",
+                       method="Horn (1981) 3 x 3 gradient, as gdaldem; edge and nodata-adjacent cells nodata; "
+                              "tri: Riley et al. (1999)")
+
+
+def dem_product(dem, out, tool: str, settings: dict, outputs, compute, *, z_unit: str | None = "raster",
+                overwrite: bool = False, block: int = BLOCK, progress: ProgressCallback | None = None,
+                label: str = "terrain", method: str = "", extra: dict | None = None) -> dict:
+    """The run of a product of a DEM's 3 x 3 windows (terrain, slope classes): the DEM resolved and checked
+    (north-up, its units), read window by window with a one-cell halo, ``compute(z, ewres, nsres, scale)`` ->
+    {name: array} on each window, written as ``out/<name>.tif``, kept on a rerun of the same settings, and the
+    report (``tool``, ``settings``, ``method``, and ``extra``) written to ``out/report.json``. ``outputs(vertical unit)`` ->
+    {name: (dtype, nodata, tags)}."""
+    started = time.time()
     dem = resolve_dem(dem)
     out = output_folder(out)
-    targets = {p: out / f"{p}.tif" for p in products}
-    check_outputs_are_not_inputs(targets, [dem])
     with open_raster(dem, "DEM") as src:
         xy, zu, source = elevation_units(src, dem, z_unit)
+        made = outputs(zu)
+        targets = {p: out / f"{p}.tif" for p in made}
+        check_outputs_are_not_inputs(targets, [dem])
         t = src.transform
         if t.b != 0 or t.d != 0:
             raise InputError("the DEM is rotated", path=dem, hint="Warp it north-up first (gdalwarp)")
@@ -237,38 +264,31 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
         scale = xy.metres / zu.metres
         if abs(scale - 1.0) < 1e-12:
             scale = 1.0
-        with claim_output(out, "gistools terrain"):
-            def compute(win):
+        with claim_output(out, tool):
+            def window(win):
                 z = read_window(src, src, win, halo=1, fill=np.nan)
                 if src.dtypes[0] != "float64":
                     z = z.astype(np.float32)
-                return terrain_arrays(z, ewres, nsres, scale=scale, products=products, azimuth=azimuth, altitude=altitude)
+                return compute(z, ewres, nsres, scale)
 
             from ..engine.record import read_folder_report, write_folder_report
             from ..engine.resume import made_record, rerun_plan
 
-            settings = {"products": list(products), "azimuth": azimuth, "altitude": altitude, "z_unit": z_unit}
             previous = read_folder_report(out)
-            kept = rerun_plan(previous, "gistools terrain", str(dem), settings,
-                              {p: targets[p] for p in products}, overwrite)
-            outputs = {}
-            for p in products:
-                unit = PRODUCT_UNITS[p] if PRODUCT_UNITS[p] is not None else zu.short
-                outputs[p] = (None if p in kept else targets[p], "float32", NODATA,
-                              {"GISTOOLS_PRODUCT": p, **({"units": unit} if unit else {})})
+            kept = rerun_plan(previous, tool, str(dem), settings, targets, overwrite)
+            todo = {p: (None if p in kept else targets[p], *made[p]) for p in made}
             paths = {p: targets[p] for p in kept}
-            if len(kept) < len(products):
-                paths.update(run_blockwise(src, outputs, compute, progress=progress, label="terrain",
+            if len(kept) < len(made):
+                paths.update(run_blockwise(src, todo, window, progress=progress, label=label,
                                            overwrite=True, block=block))  # rerun_plan refused what it may not replace
 
-            report = {"tool": "gistools terrain", "input": str(dem),
-                      "made": made_record(previous, "gistools terrain", str(dem), settings,
-                                          {k: paths[k] for k in products}), "crs": raster_crs(src, dem).name,
-                      "outputs": {k: str(paths[k]) for k in products}, "kept": kept, "settings": settings,
+            report = {"tool": tool, "input": str(dem),
+                      "made": made_record(previous, tool, str(dem), settings, {k: paths[k] for k in made}),
+                      "crs": raster_crs(src, dem).name, "outputs": {k: str(paths[k]) for k in made}, "kept": kept,
+                      "settings": settings,
                       "units": {"horizontal": xy.short, "vertical": zu.short, "vertical_from": source, "scale": scale},
-                      "method": "Horn (1981) 3 x 3 gradient, as gdaldem; edge and nodata-adjacent cells nodata; "
-                                "tri: Riley et al. (1999)",
-                      "cells": [src.width, src.height], "seconds": round(time.time() - started, 3)}
+                      "method": method, **(extra or {}), "cells": [src.width, src.height],
+                      "seconds": round(time.time() - started, 3)}
             if source == "horizontal":
                 report["warnings"] = [f"the DEM carries no vertical unit: its elevations are taken in {xy.short}, the "
                                       f"horizontal unit (give the unit with {option('dem_z_unit', 'm')} otherwise)"]

@@ -12,7 +12,10 @@ travel     travel (search and rescue: a walker's travel time)
 deliver    webmap, scene, mapbook (deliverables for field teams)
 terrain    terrain, viewshed (slope, aspect, hillshade, ruggedness; what observers see)
 
-A new algorithm goes in its group's module and into ALGORITHMS below.
+declared   the algorithm of a command declared whole (gistools.parameters: its inputs, summary, page, group),
+           made from the declaration: slope_classes
+
+A new algorithm goes in its group's module and into ALGORITHMS below; a command declared whole needs neither.
 """
 
 from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
@@ -33,3 +36,16 @@ ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorith
               AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
               SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm,
               TravelAlgorithm)
+
+
+def _declared() -> tuple:
+    """The algorithms of the commands declared whole, in the groups of the algorithms above."""
+    from gistools.parameters import DECLARED
+
+    from .declared import declared_algorithm
+
+    groups = {a._group[1]: a._group for a in ALGORITHMS}
+    return tuple(declared_algorithm(command, groups) for command in sorted(DECLARED))
+
+
+ALGORITHMS = ALGORITHMS + _declared()
