@@ -65,10 +65,24 @@ def declared() -> dict:
 
 
 def metadata() -> str:
-    """qgis_plugin/metadata.txt with version= set to the gistools version (after :func:`declared` checked it)."""
+    """qgis_plugin/metadata.txt with version= set to the gistools version (after :func:`declared` checked it), and
+    the algorithms of the commands declared whole (gistools.parameters) named in about= beside the others."""
     declared()
-    lines = (SOURCE / "metadata.txt").read_text().splitlines()
-    return "\n".join(f"version={version()}" if line.startswith("version=") else line for line in lines) + "\n"
+    if str(ROOT) not in sys.path:
+        sys.path.insert(0, str(ROOT))
+    from gistools.parameters import DECLARED
+
+    more = "".join(f" {name.replace('-', '_')} ({spec['summary'].split(' (')[0].rstrip('.')});"
+                   for name, spec in sorted(DECLARED.items()))
+    lines = []
+    for line in (SOURCE / "metadata.txt").read_text().splitlines():
+        if line.startswith("version="):
+            line = f"version={version()}"
+        elif line.startswith("about=") and more:
+            line = line.replace(" Needs the gistools Python package", f" Also{more.rstrip(';')}. Needs the gistools "
+                                "Python package", 1)
+        lines.append(line)
+    return "\n".join(lines) + "\n"
 
 
 def shipped(path: Path) -> bool:
