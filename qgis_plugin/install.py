@@ -324,9 +324,16 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
     failure, engine = None, ""
+    if "gistools" in wanted and not bound:  # the zip's own wheel, never an index's (another project has the name)
+        chosen = _zip_wheel(exe, timeout) if exe is not None else None
+        wanted.remove("gistools")
+        if chosen is not None:
+            wanted.append(chosen)
+        else:
+            notes.append("no gistools wheel of the plugin fits this QGIS's Python: give one, install_dependencies("
+                         "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     if wanted and not bound:
-        shipped = ["--find-links", str(WHEELS)] if "gistools" in wanted else []  # the zip's gistools wheels
-        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input", *shipped,
+        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
                "--prefix", str(target), *wanted]
         result.installed = wanted
         failure = _run_pip(exe, cmd, target, timeout, result)
@@ -336,7 +343,7 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     if requirements is None:
         result.missing = missing_requirements()
         result.mismatches = [] if result.missing else library_mismatches()
-        engine = _engine_note() if not failure and "gistools" in wanted and not result.missing else ""
+        engine = _engine_note() if not failure and _takes_gistools(wanted) and not result.missing else ""
     elif failure:
         result.missing = wanted
     if bound:
@@ -358,11 +365,33 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
         given = Path(gistools).expanduser()
         wanted.append(str(given.absolute()) if given.exists() else str(gistools))  # pip runs in a folder of its own
     elif lacks and any(WHEELS.glob("gistools-*.whl")):
-        wanted.append("gistools")  # pip picks this platform's wheel of the zip's, else the pure one
+        wanted.append("gistools")  # the zip's wheel for this platform (install_dependencies: _zip_wheel)
     elif lacks:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
                      "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     return bound, wanted, notes
+
+
+def _takes_gistools(wanted: list) -> bool:
+    return any(Path(str(w)).name.startswith("gistools-") or str(w) == "gistools" for w in wanted)
+
+
+def _zip_wheel(exe, timeout: float) -> str | None:
+    """The path of the plugin's gistools wheel (wheels/) that pip, run by ``exe``, takes for this platform: its
+    platform wheel (the compiled kernel) where one fits, else the pure one; from that folder alone, never an
+    index. None where none fits."""
+    import json
+
+    with tempfile.TemporaryDirectory() as tmp:
+        report = Path(tmp) / "report.json"
+        failure = _pip([str(exe), *PIP, "install", "--dry-run", "--quiet", "--no-deps", "--no-index",
+                        "--ignore-installed", "--disable-pip-version-check", "--find-links", str(WHEELS), "--report",
+                        str(report), "gistools"], timeout)
+        if failure or not report.is_file():
+            return None
+        items = json.loads(report.read_text(encoding="utf-8")).get("install", [])
+    urls = [item.get("download_info", {}).get("url", "") for item in items]
+    return next((_local(url) for url in urls if url.startswith("file:")), None)
 
 
 def _engine_note() -> str:

@@ -603,3 +603,30 @@ def test_csf_from_the_main_process_runs_in_a_helper_that_leaves_the_interpreter_
     direct[cloth_ground_indices(pts - pts.min(axis=0), settings)] = True
     np.testing.assert_array_equal(got, direct)
     assert (got == truth).mean() > 0.95  # and it is ground: the slope under the canopy
+
+
+def test_a_csf_helper_killed_between_calls_is_replaced_and_the_run_ends_it():
+    """The system ending the helper between two tiles (out of memory, a kill) costs nothing: the next call starts a
+    new one; close_helper (the end of a ground run) leaves no helper process."""
+    import os
+    import signal
+
+    pytest.importorskip("CSF")
+    from gistools.lidar import cloth
+    from gistools.lidar.ground import CsfParams, csf_ground
+
+    x, y, z, _truth = _cloth_scene(20_000)
+    p = CsfParams(resolution=1.0)
+    first = csf_ground(x, y, z, np.ones(len(x), bool), p)
+    pool = cloth._HELPER["pool"]
+    helpers = list(pool.pool._processes.values())
+    assert helpers
+    for proc in helpers:
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.join(timeout=30)
+    second = csf_ground(x, y, z, np.ones(len(x), bool), p)
+    np.testing.assert_array_equal(first, second)
+    assert cloth._HELPER["pool"] is not pool
+    last = list(cloth._HELPER["pool"].pool._processes.values())
+    cloth.close_helper()
+    assert "pool" not in cloth._HELPER and not any(proc.is_alive() for proc in last)

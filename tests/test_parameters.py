@@ -177,3 +177,8 @@ def test_a_python_message_names_the_librarys_keyword_where_the_declared_name_dif
     text = f"{option('ground_method', 'csf')}, {option('no_figures')}, {option('dem_z_unit')}"
     assert render(text, "python") == "method='csf', figures=False, z_unit"
     assert render(text, "cli") == "--method csf, --no-figures, --z-unit"
+
+
+def test_a_no_flag_reaches_the_library_as_its_keyword_negated():
+    assert PARAMETERS["no_figures"].library_value(True) is False and PARAMETERS["no_figures"].python_name == "figures"
+    assert PARAMETERS["overwrite"].library_value(True) is True

@@ -207,3 +207,17 @@ def test_the_engine_note_names_the_numpy_engine_where_the_kernel_is_missing(monk
     assert "numpy engine" in install._engine_note()
     monkeypatch.setattr(kernel, "loaded", lambda: True)
     assert install._engine_note() == ""
+
+
+def test_the_zips_wheel_for_this_platform_is_taken_never_an_index_one(tmp_path, monkeypatch):
+    """pip (this Python's) picks from the plugin's wheels/ alone: the pure wheel where the folder's platform wheel
+    is another system's; an index's distribution of the same name (PyPI has an unrelated gistools 1.2) is never
+    asked for (--no-index), so nothing is chosen where no wheel of the folder fits."""
+    wheels = tmp_path / "wheels"
+    wheels.mkdir()
+    monkeypatch.setattr(install, "WHEELS", wheels)
+    other = _wheel(wheels, "gistools", "0.1.0").rename(wheels / "gistools-0.1.0-cp311-abi3-win_arm64.whl")
+    assert install._zip_wheel(sys.executable, 120) is None  # only another system's wheel: none fits
+    pure = _wheel(wheels, "gistools", "0.1.0")
+    chosen = install._zip_wheel(sys.executable, 120)
+    assert chosen is not None and Path(chosen) == pure and Path(chosen) != other

@@ -75,7 +75,8 @@ def test_a_rerun_keeps_the_same_limits_and_refuses_others(dem, tmp_path):
     assert slope_classes_from_dem(dem, out, breaks=(10, 20), overwrite=True)["kept"] == []
 
 
-@pytest.mark.parametrize("breaks,words", [((15, 5), "increasing"), ((5, 95), "0 - 90"), ((), "needs")])
+@pytest.mark.parametrize("breaks,words", [((15, 5), "increasing"), ((5, 95), "0 - 90"), ((), "needs 1 to 254"),
+                                          (tuple(range(1, 256)), "needs 1 to 254")])
 def test_limits_that_cannot_be_classes_are_refused_before_anything_is_written(dem, tmp_path, breaks, words):
     with pytest.raises(InputError, match=words) as err:
         slope_classes_from_dem(dem, tmp_path / "out", breaks=breaks)

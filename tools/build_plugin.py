@@ -121,9 +121,12 @@ def pure_wheel(into: Path) -> Path | None:
             shutil.copy2(ROOT / name, src / name)
         shutil.copytree(ROOT / "gistools", src / "gistools", ignore=shutil.ignore_patterns(
             "__pycache__", "*.so", "*.pyd", "*.dylib", "*.c", "*.o"))
-        proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--disable-pip-version-check",
-                               "-w", str(into), str(src)], capture_output=True, text=True, timeout=900,
-                              env={**os.environ, "GISTOOLS_PURE": "1"})
+        try:
+            proc = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps",
+                                   "--disable-pip-version-check", "-w", str(into), str(src)], capture_output=True,
+                                  text=True, timeout=900, env={**os.environ, "GISTOOLS_PURE": "1"})
+        except subprocess.TimeoutExpired:
+            proc = subprocess.CompletedProcess([], 1, "", "pip wheel took more than 15 minutes")
     found = sorted(into.glob(f"gistools-{version()}-py3-none-any.whl"))
     if proc.returncode != 0 or not found:
         print(f"build_plugin: the gistools wheel is left out (pip: {(proc.stderr or proc.stdout).strip()[-300:]})",
@@ -149,8 +152,10 @@ def build(dist: Path, wheels: Path | None = None) -> Path:
         zf.write(ROOT / "LICENSE", f"{PLUGIN}/LICENSE")  # plugins.qgis.org requires it in the plugin's folder
         # gistools itself for the installer: the pure wheel, and the platform wheels of a release (``wheels``)
         made = pure_wheel(Path(work) / "wheels")
-        for path in sorted({*([made] if made else []), *(Path(wheels).glob("gistools-*.whl") if wheels else [])}):
-            zf.write(path, f"{PLUGIN}/wheels/{path.name}")
+        ship = {path.name: path for path in ([made] if made else [])}
+        ship.update({path.name: path for path in (sorted(Path(wheels).glob("gistools-*.whl")) if wheels else [])})
+        for name, path in sorted(ship.items()):
+            zf.write(path, f"{PLUGIN}/wheels/{name}")
         site = Path(work) / "help"
         if build_site(site):
             for path in sorted(p for p in site.rglob("*") if p.is_file()):

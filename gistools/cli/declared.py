@@ -26,11 +26,13 @@ def declared_command(name: str) -> click.Command:
 
     def run(quiet, out, **values):
         args = [values.pop(keyword) for keyword in inputs]
-        given = {PARAMETERS[p].python_name: value for p, value in values.items()}
+        given = {PARAMETERS[p].python_name: PARAMETERS[p].library_value(value) for p, value in values.items()
+                 if value is not None}
         with progress_bar(quiet) as progress:
             report = library_function(name)(*args, out, **given, progress=progress)
         kept = report.get("kept") or []
-        parts = [f"{', '.join(k for k in report.get('outputs', {}) if k not in kept)} written"]
+        made = [k for k in report.get("outputs", {}) if k not in kept]
+        parts = [f"{', '.join(made)} written"] if made else []
         if kept:
             parts.append(f"{', '.join(kept)} kept (made before with these settings; --overwrite remakes them)")
         click.echo("; ".join(parts + [f"report: {out}/report.json"]))

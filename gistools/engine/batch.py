@@ -310,14 +310,15 @@ class ProcessPool:
     Workers die with the parent (kill -9 included) and ignore Ctrl-C; closing the pool after an error or an
     interrupt stops them at once instead of waiting for their tiles."""
 
-    def __init__(self, jobs: int, method: str = "spawn", warm: bool = True):
+    def __init__(self, jobs: int, method: str = "spawn", warm: bool = True, tie_to_thread: bool = True):
         ctx = multiprocessing.get_context(method)
         python = python_executable()
         if python != sys.executable and method == "spawn":
             ctx.set_executable(python)
         self.workers = jobs
         self.pool = ProcessPoolExecutor(max_workers=jobs, mp_context=ctx, initializer=_worker_start,
-                                        initargs=(os.getpid(), threading.current_thread() is threading.main_thread()))
+                                        initargs=(os.getpid(), tie_to_thread and
+                                                  threading.current_thread() is threading.main_thread()))
         self._manager, self._processes, self.closed = None, [], False
         _STARTED.append(self)
         for _ in range(jobs if warm else 0):  # every worker starts now (a task each), importing while the parent plans

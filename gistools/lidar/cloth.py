@@ -10,7 +10,6 @@ parent stops, call the library directly.
 
 from __future__ import annotations
 
-import os
 import threading
 from concurrent.futures import FIRST_COMPLETED, wait
 
@@ -37,40 +36,61 @@ def cloth_ground_indices(points: np.ndarray, settings: dict) -> np.ndarray:
 
 def stoppable_cloth_ground_indices(points: np.ndarray, settings: dict) -> np.ndarray:
     """cloth_ground_indices, from the main process in the helper process (waited for in steps of 0.25 s, so that a
-    signal, a Cancel or a run's stop reaches this thread); in a worker process (or where no process can be
-    started) in this process."""
+    signal, a Cancel or a run's stop reaches this thread); in a worker process, or where a helper could only be
+    forked (a script without a ``__main__`` guard) or not started at all, in this process."""
     import multiprocessing
+    from concurrent.futures.process import BrokenProcessPool
 
     from ..engine.batch import start_method
-
-    method, _warning = start_method()
-    if multiprocessing.parent_process() is not None or method is None:
-        return cloth_ground_indices(points, settings)
+    from ..errors import Cancelled
     from ..progress import check_stop
 
-    future = _helper(method).submit(cloth_ground_indices, points, settings)
-    try:
-        while not wait([future], timeout=0.25, return_when=FIRST_COMPLETED)[0]:
-            check_stop()
-        return future.result()
-    except BaseException:
-        _discard()  # a stop, or a helper that died: the next call starts a new one
-        raise
+    method, _warning = start_method()
+    if multiprocessing.parent_process() is not None or method != "spawn":
+        return cloth_ground_indices(points, settings)
+    for attempt in (1, 2):  # a helper that died between calls (the system ended it): a new one, once
+        pool = _helper(method)
+        try:
+            future = pool.submit(cloth_ground_indices, points, settings)
+            while not wait([future], timeout=0.25, return_when=FIRST_COMPLETED)[0]:
+                check_stop()
+            return future.result()
+        except BrokenProcessPool:
+            _discard(pool)
+            if attempt == 2:
+                raise
+        except (Cancelled, KeyboardInterrupt):
+            _discard(pool)  # stopped: the simulation in the helper ends now, not when it is done
+            raise
+    raise AssertionError("unreachable")
 
 
 def _helper(method: str):
     from ..engine.batch import ProcessPool
+    from ..machine import usable_cpus
 
     with _LOCK:
         pool = _HELPER.get("pool")
         if pool is None or pool.closed:
-            # a process a core at most, started as calls come (the threads of a ThreadPool may call at once)
-            pool = _HELPER["pool"] = ProcessPool(os.cpu_count() or 1, method, warm=False)
+            # a process a core at most (61: Windows' limit), started as calls come (a ThreadPool's threads may call
+            # at once); not tied to the thread that starts it (PDEATHSIG follows a thread): the helper's watchdog
+            # ends it with this process
+            workers = max(1, min(usable_cpus(), 61))
+            pool = _HELPER["pool"] = ProcessPool(workers, method, warm=False, tie_to_thread=False)
         return pool
 
 
-def _discard() -> None:
+def _discard(pool) -> None:
+    """Stop ``pool``'s processes now, and forget it if it is still the helper."""
+    with _LOCK:
+        if _HELPER.get("pool") is pool:
+            del _HELPER["pool"]
+    pool.close(futures=[None])
+
+
+def close_helper() -> None:
+    """End the helper processes (at the end of a run: a library or QGIS session does not keep them)."""
     with _LOCK:
         pool = _HELPER.pop("pool", None)
     if pool is not None:
-        pool.close(futures=[None])  # stops its processes now, whatever they are running
+        pool.join()

@@ -114,15 +114,11 @@ def _classes(p, value):
 def _numbers(p, value):
     from ..validation import check_breaks
 
-    if not p.count and p.minimum is None and p.maximum is None:
+    if not p.count:
         return value
     low = -math.inf if p.minimum is None else p.minimum
     high = math.inf if p.maximum is None else p.maximum
-    try:  # without a declared count: one or more (limits between classes)
-        count = p.count or max(len(tuple(value)), 1)
-    except TypeError:
-        count = 1
-    return check_breaks(value, p.name, count=count, low=low, high=high, example=p.example or None)
+    return check_breaks(value, p.name, count=p.count, low=low, high=high, example=p.example or None)
 
 
 def _flag(p, value):

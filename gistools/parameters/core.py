@@ -86,6 +86,10 @@ class Parameter:
         """What a Python caller writes: the keyword of the library function or settings field."""
         return (self.keyword or self.name).rsplit(".", 1)[-1]
 
+    def library_value(self, value):
+        """A front end's value as the library's keyword takes it: a ``no_...`` flag is its keyword negated."""
+        return not value if self.kind == "flag" and self.name == f"no_{self.python_name}" else value
+
     @property
     def cli_flag(self) -> str:
         return self.flag or "--" + self.name.replace("_", "-")

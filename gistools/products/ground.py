@@ -386,8 +386,14 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = output_folder(out)
     with claim_output(out, "gistools ground"):
-        return raise_if_every_tile_failed(_ground_in(paths, out, settings, override, jobs, scheduler, overwrite, progress,
-                                                     water))
+        try:
+            return raise_if_every_tile_failed(_ground_in(paths, out, settings, override, jobs, scheduler, overwrite,
+                                                         progress, water))
+        finally:
+            if settings.method == "csf":  # the cloth's helper processes end with the run (gistools.lidar.cloth)
+                from ..lidar.cloth import close_helper
+
+                close_helper()
 
 
 def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, scheduler, overwrite, progress,

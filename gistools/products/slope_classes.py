@@ -7,11 +7,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.blocks import BLOCK
-from ..parameters import check
+from ..parameters import check, option
 from ..progress import ProgressCallback
 from .terrain import dem_product, terrain_arrays
 
 NODATA_CLASS = 0
+MAX_LIMITS = 254  # classes 1-255 in a byte; 0 is nodata
 # a colour a class, from flat to steep (ColorBrewer's YlOrRd, then a dark red for more classes)
 COLOURS = ("#ffffb2", "#fed976", "#feb24c", "#fd8d3c", "#f03b20", "#bd0026", "#800026")
 
@@ -30,6 +31,21 @@ def class_names(breaks) -> dict:
     names = {k + 1: f"{limits[k]:g}-{limits[k + 1]:g} deg" for k in range(len(breaks))}
     names[len(breaks) + 1] = f">= {limits[-1]:g} deg"
     return {k: (name, COLOURS[min(k - 1, len(COLOURS) - 1)]) for k, name in names.items()}
+
+
+def _limits(breaks) -> tuple[float, ...]:
+    """The slope limits checked: 1 to 254 increasing numbers within 0-90 (the classes fit a byte beside nodata 0)."""
+    from ..errors import InputError
+    from ..validation import check_breaks
+
+    try:
+        count = len(tuple(breaks))
+    except TypeError:
+        count = 1
+    if not 1 <= count <= MAX_LIMITS:
+        raise InputError(f"{option('slope_breaks')} needs 1 to {MAX_LIMITS} limits, got {count}",
+                         hint=f"Give e.g. {option('slope_breaks', '5,15,30')}")
+    return check_breaks(breaks, "slope_breaks", count=count, low=0.0, high=90.0, example="5,15,30")
 
 
 def slope_classes_from_dem(dem, out, *, breaks=(5.0, 15.0, 30.0), z_unit: str | None = "raster",
@@ -84,7 +100,7 @@ def slope_classes_from_dem(dem, out, *, breaks=(5.0, 15.0, 30.0), z_unit: str | 
     >>> report["classes"]  # doctest: +SKIP
     {'1': '0-5 deg', '2': '5-15 deg', '3': '15-30 deg', '4': '>= 30 deg'}
     """
-    breaks = tuple(float(b) for b in check("slope_breaks", tuple(breaks)))
+    breaks = _limits(breaks)
     z_unit = check("dem_z_unit", z_unit) or "raster"
     categories = class_names(breaks)
 

@@ -52,8 +52,8 @@ def declared_algorithm(command: str, groups: dict) -> type:
 
             out = self.output_folder(parameters, context)
             args = [self.raster_path(parameters, keyword.upper(), context) for keyword, _kind, _label in inputs]
-            given = {PARAMETERS[n].python_name: v for n, v in self.spec_values(parameters, context, feedback).items()
-                     if v is not None}
+            given = {PARAMETERS[n].python_name: PARAMETERS[n].library_value(v)
+                     for n, v in self.spec_values(parameters, context, feedback).items() if v is not None}
             report = library_function(command)(*args, out, **given, overwrite=True, progress=self.progress(feedback))
             for warning in report.get("warnings", []):
                 feedback.pushWarning(f"WARNING {warning}") if hasattr(feedback, "pushWarning") else \
