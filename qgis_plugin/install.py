@@ -324,14 +324,8 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
     failure, engine = None, ""
-    if "gistools" in wanted and not bound:  # the zip's own wheel, never an index's (another project has the name)
-        chosen = _zip_wheel(exe, timeout) if exe is not None else None
-        wanted.remove("gistools")
-        if chosen is not None:
-            wanted.append(chosen)
-        else:
-            notes.append("no gistools wheel of the plugin fits this QGIS's Python: give one, install_dependencies("
-                         "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
+    if "gistools" in wanted and not bound:
+        _take_zip_wheel(wanted, exe, timeout, notes)
     if wanted and not bound:
         cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
                "--prefix", str(target), *wanted]
@@ -370,6 +364,18 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
                      "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     return bound, wanted, notes
+
+
+def _take_zip_wheel(wanted: list, exe, timeout: float, notes: list) -> None:
+    """``"gistools"`` in ``wanted`` replaced by the path of the zip's own wheel for this platform, never an index's
+    (another project has the name); a note where none fits."""
+    chosen = _zip_wheel(exe, timeout) if exe is not None else None
+    wanted.remove("gistools")
+    if chosen is not None:
+        wanted.append(chosen)
+    else:
+        notes.append("no gistools wheel of the plugin fits this QGIS's Python: give one, install_dependencies("
+                     "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
 
 
 def _takes_gistools(wanted: list) -> bool:
