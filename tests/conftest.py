@@ -198,3 +198,17 @@ def need_kernel(what: str = "the compiled kernel") -> None:
         if os.environ.get("CI"):
             pytest.fail(f"CI must test {what}, but the kernel is not built: {kernel.engine()}")
         pytest.skip(f"{what}: the compiled kernel is not built here")
+
+
+def repeated_block(folder: Path, k: int = 4) -> Path:
+    """The sample block repeated k x k times side by side (64 tiles of 2,000 ft at k = 4): a run of several
+    seconds even on a fast machine (a stop's moments, a worker lost in the middle)."""
+    folder.mkdir()
+    for p in sorted(SAMPLE.glob("*.la[sz]")):
+        las = laspy.read(p)
+        x, y = np.asarray(las.x), np.asarray(las.y)
+        for i in range(k):
+            for j in range(k):
+                las.x, las.y = x + 2000 * i, y + 2000 * j
+                las.write(folder / f"{p.stem}_{i}{j}.laz")
+    return folder

@@ -88,30 +88,15 @@ def test_shrub_chain_on_dask_equals_local(sample_tiles, tmp_path, dask_cluster):
         assert np.array_equal(a, c, equal_nan=True), product
 
 
-def _block(folder, k: int = 4):
-    """The sample block repeated k x k times side by side (64 tiles of 2,000 ft): a run of several seconds."""
-    import laspy
-
-    from conftest import SAMPLE
-
-    folder.mkdir()
-    for p in sorted(SAMPLE.glob("*.la[sz]")):
-        las = laspy.read(p)
-        x, y = np.asarray(las.x), np.asarray(las.y)
-        for i in range(k):
-            for j in range(k):
-                las.x, las.y = x + 2000 * i, y + 2000 * j
-                las.write(folder / f"{p.stem}_{i}{j}.laz")
-    return folder
-
-
 def test_a_worker_lost_in_the_middle_of_a_run_the_run_completes_with_the_same_rasters(tmp_path):
     """A cluster of a scheduler and two workers (separate processes, no nanny to restart them); one worker is
     killed (SIGKILL) once the run has written a few tiles: the scheduler gives its tiles to the other, the command
     exits 0 with every tile, and the rasters equal a run on this machine's processes."""
     import signal
 
-    tiles = _block(tmp_path / "tiles")
+    from conftest import repeated_block
+
+    tiles = repeated_block(tmp_path / "tiles")
     reference = rasters_from_tiles(tiles, tmp_path / "local", jobs=1)
     assert reference["counts"]["ok"] == 64
     port = _free_port()

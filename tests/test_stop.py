@@ -23,7 +23,7 @@ import pytest
 import rasterio
 from rasterio.transform import from_origin
 
-from conftest import SAMPLE
+from conftest import SAMPLE, repeated_block
 from gistools.cli.main import GRACE, INTERRUPTED
 
 GISTOOLS = [sys.executable, "-m", "gistools.cli.main"]
@@ -71,26 +71,12 @@ def inputs(tmp_path_factory) -> dict:
     tiles.mkdir()
     for p in sorted(SAMPLE.glob("*.la[sz]")):
         shutil.copy(p, tiles / p.name)
-    many = _many(root / "many")
+    many = repeated_block(root / "many")
     ground = root / "ground"  # fuels needs ground points: the tiles classified once
     done = subprocess.run(GISTOOLS + ["ground", str(many), "--out", str(ground), "-q"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     return {"tiles": tiles, "many": many, "ground": ground, "dem": _dem(root / "dem.tif", 2000),
             "big": _dem(root / "big.tif", 5000)}
-
-
-def _many(folder: Path, k: int = 4) -> Path:
-    """The sample block repeated k x k times side by side (64 tiles of 2,000 ft): a run of seconds even on a fast
-    machine, so that its moments fall well after the interpreter's start."""
-    folder.mkdir()
-    for p in sorted(SAMPLE.glob("*.la[sz]")):
-        las = laspy.read(p)
-        x, y = np.asarray(las.x), np.asarray(las.y)
-        for i in range(k):
-            for j in range(k):
-                las.x, las.y = x + 2000 * i, y + 2000 * j
-                las.write(folder / f"{p.stem}_{i}{j}.laz")
-    return folder
 
 
 def _args(case: str, inputs: dict, out: Path) -> list[str]:
