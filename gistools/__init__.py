@@ -23,43 +23,35 @@ warnings.filterwarnings("ignore", message="Valid PROJ data directory not found",
 
 from .errors import *  # noqa: F401,F403
 from .errors import __all__ as _errors
-# name -> the module that defines it (imported on first use: ``gistools --help`` imports no numpy)
-_PRODUCTS = {
+# name -> the module that defines it (imported on first use: ``gistools --help`` imports no numpy): the functions
+# on arrays and the steps; every command's library function and settings class come from its declaration
+# (gistools.parameters, ``command(..., library=, settings=)``)
+_FUNCTIONS = {
     "grid": ("Grid", "cell_centres", "cell_index", "snapped_grid"),
     "lidar": ("dem_from_ground_points", "dsm_from_points", "ndsm_from", "tin_to_grid"),
-    "products.rasters": ("RasterSettings", "rasters_from_tiles"),
-    "products.ground": ("GroundSettings", "ground_from_tiles"),
-    "products.normalize": ("NormalizeSettings", "normalize_from_tiles"),
-    "products.metrics": ("MetricsSettings", "metrics_from_tiles"),
-    "products.chm": ("ChmSettings", "chm_from_tiles"),
-    "products.fuels": ("FuelsSettings", "fuels_from_tiles"),
-    "products.points": ("points_from_tiles",),
-    "products.info": ("tile_summary", "tiles_summary"),
-    "products.shrub": ("ShrubSettings", "shrub_from_tiles", "map_from_classes"),
+    "products.info": ("tile_summary",),
     "products.steps": ("ndsm_from_rasters", "bands_from_ndsm", "breakline_polygons", "clip_bands",
                        "density_from_vegetation", "classes_from_cover"),
-    "products.aquifer": ("AquiferSettings", "aquifer_model", "aquifer_query"),
-    "products.runway": ("RunwaySettings", "runway_earthworks"),
-    "products.structure": ("structure_model", "reconstruct"),
-    "products.terrain": ("terrain_from_dem",),
-    "products.viewshed": ("viewshed_from_surface",),
-    "products.travel": ("TravelSettings", "travel_from_dem", "travel_minutes"),
-    "deliver.webmap": ("web_map",),
-    "deliver.scene": ("scene_glb",),
-    "deliver.mapbook": ("map_book",),
+    "products.structure": ("reconstruct",),
+    "terrain.travel": ("travel_minutes",),
     "datasets.examples": ("write_examples",),
 }
-_LAZY = {name: module for module, names in _PRODUCTS.items() for name in names}
 
 
-def _declared_functions() -> dict:
-    """{function: module} of the commands declared whole (their library function is exported from here too)."""
-    from .parameters import DECLARED, LIBRARY
+def _library_exports() -> dict:
+    """{name: module} of every declared command's library function and settings class."""
+    from .parameters import LIBRARY
 
-    return {LIBRARY[c][0].split(":")[1]: LIBRARY[c][0].split(":")[0] for c in DECLARED}
+    found = {}
+    for function, settings, _command_line in LIBRARY.values():
+        for path in filter(None, (function, settings)):
+            module, name = path.split(":")
+            found[name] = module
+    return found
 
 
-_LAZY.update(_declared_functions())
+_LAZY = {name: module for module, names in _FUNCTIONS.items() for name in names}
+_LAZY.update(_library_exports())
 
 __all__ = ["__version__", *_errors, *_LAZY]
 
@@ -69,8 +61,22 @@ def __getattr__(name):
     if module is None:
         raise AttributeError(f"module 'gistools' has no attribute {name!r}")
     value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+    if callable(value):  # a misnamed argument is refused naming the real ones (gistools.arguments)
+        from .arguments import checked
+
+        value = checked(value, _settings_of(name), exported_as=(__name__, name))
+    return globals().setdefault(name, value)  # one object a name, also when two threads ask at once
+
+
+def _settings_of(function: str):
+    """The settings class of the command whose library function is ``function``, or None."""
+    from .parameters import LIBRARY
+
+    for path, settings, _cli in LIBRARY.values():
+        if path.split(":")[1] == function and settings:
+            module, cls = settings.split(":")
+            return getattr(importlib.import_module(f".{module}", __name__), cls)
+    return None
 
 
 def __dir__():

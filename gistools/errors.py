@@ -7,6 +7,7 @@ also kept as attributes so adapters (CLI, QGIS) never parse message text.
 __all__ = [
     "GistoolsError",
     "InputError",
+    "ArgumentError",
     "CRSMismatchError",
     "EmptyTileError",
     "DataFileError",
@@ -50,6 +51,11 @@ class GistoolsError(Exception):
 
 class InputError(GistoolsError, ValueError):
     """A parameter or an input's content is not acceptable."""
+
+
+class ArgumentError(InputError, TypeError):
+    """A library call names an argument the function (or settings class) does not take; the message names the
+    ones it takes."""
 
 
 class CRSMismatchError(InputError):

@@ -15,6 +15,23 @@ __all__ = ["SHRUB_COLOURS", "map_parameters", "shrub_map"]
 SHRUB_COLOURS = CLASS_STYLE  # the dissertation's legend (lidar/shrub.py)
 
 
+def map_frame_ticks(ax, bounds) -> float:
+    """The map's frame on ``bounds`` (west, south, east, north): coordinates every round length on all four
+    sides, in CRS units with thousands separators; returns that length."""
+    from matplotlib.ticker import FuncFormatter, MultipleLocator
+
+    west, south, east, north = bounds
+    ax.set_xlim(west, east)
+    ax.set_ylim(south, north)
+    step = _nice_length((east - west) / 5)
+    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_locator(MultipleLocator(step))
+        axis.set_major_formatter(fmt)
+    ax.tick_params(labelsize=7, top=True, right=True, labeltop=True, labelright=True)
+    return step
+
+
 def _nice_length(target: float) -> float:
     exp = 10 ** np.floor(np.log10(target))
     for m in (1, 2, 5, 10):
@@ -245,7 +262,6 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
     last seen), GeoDataFrames in the page's CRS (gistools.deliver.layers.travel_frames), drawn over the classes;
     ``seen``: the cells seen of a viewshed on ``data``'s grid, a semi-transparent cyan."""
     from matplotlib.patches import Rectangle
-    from matplotlib.ticker import FuncFormatter, MultipleLocator
 
     fig = new_figure(PAPER_IN[paper])
     ax = fig.add_axes(MAP_FRAME)
@@ -261,14 +277,7 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
         handles.append(Patch(facecolor=np.array(VIEWSHED_RGBA) / 255, edgecolor="black", label="seen (viewshed)"))
     if travel is not None:
         handles += draw_travel(ax, *travel)
-    ax.set_xlim(west, east)
-    ax.set_ylim(south, north)
-    step = _nice_length((east - west) / 5)
-    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_locator(MultipleLocator(step))
-        axis.set_major_formatter(fmt)
-    ax.tick_params(labelsize=7, top=True, right=True, labeltop=True, labelright=True)
+    step = map_frame_ticks(ax, bounds)
     plt_y = ax.get_yticklabels()
     for label in plt_y:
         label.set_rotation(90)
@@ -339,7 +348,6 @@ def fuels_page(cbh_classes: np.ndarray, bounds, *, title: str, unit: LinearUnit,
     codes of ``classes`` = {code: (name, colour, top)}) over ``bounds``, a grid, legend, scale bar and north arrow."""
     import matplotlib
     from matplotlib.patches import Patch
-    from matplotlib.ticker import FuncFormatter, MultipleLocator
 
     fig = new_figure(PAPER_IN[paper])
     ax = fig.add_axes(MAP_FRAME)
@@ -348,14 +356,7 @@ def fuels_page(cbh_classes: np.ndarray, bounds, *, title: str, unit: LinearUnit,
     for code, (_name, colour, _top) in classes.items():
         lut[code, :3] = np.round(np.array(matplotlib.colors.to_rgb(colour)) * 255)
     ax.imshow(lut[cbh_classes], extent=(west, east, south, north), interpolation="nearest")
-    ax.set_xlim(west, east)
-    ax.set_ylim(south, north)
-    step = _nice_length((east - west) / 5)
-    fmt = FuncFormatter(lambda v, _pos: f"{v:,.0f}")
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_locator(MultipleLocator(step))
-        axis.set_major_formatter(fmt)
-    ax.tick_params(labelsize=7, top=True, right=True, labeltop=True, labelright=True)
+    step = map_frame_ticks(ax, bounds)
     ax.grid(True, color="black", linewidth=0.4, alpha=0.5)
     ax.set_title(plain(title), fontsize=12, pad=18)
     scale_bar(ax, bounds, unit, fontsize=8)

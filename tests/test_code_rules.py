@@ -21,7 +21,7 @@ def test_no_matplotlib_backend_switch_in_library_or_plugin():
 import ast  # noqa: E402
 
 # the domain packages: pure functions over arrays, no I/O (readers and writers live in gistools.io)
-DOMAIN = ("grid.py", "units.py", "mesh.py", "lidar", "aquifer", "runway", "structure", "vector")
+DOMAIN = ("grid.py", "units.py", "mesh.py", "lidar", "aquifer", "runway", "structure", "vector", "terrain")
 IO_MODULES = {"laspy", "lazrs", "pyogrio", "fiona", "csv", "pickle", "sqlite3", "shutil", "tempfile", "io", "pathlib",
               "glob", "json", "tqdm"}
 IO_PARTS = {"gistools.io", "rasterio.io", "rasterio.env"}  # rasterio.features / .transform are array functions

@@ -1,6 +1,6 @@
-"""Reruns of the commands that write per tile or per input (chm, metrics, fuels, terrain, viewshed): a rerun keeps
-only outputs made with its settings, from its input as it is now, and whole; it refuses other settings naming both
-values, remakes a damaged output, and never replaces a file gistools did not write (nor writes through a link).
+"""Reruns of the commands that write per tile or per input (chm, metrics, fuels, terrain, viewshed) or one model
+(aquifer, runway, structure): a rerun keeps only outputs made with its settings, from its input as it is now, and
+whole; it refuses other settings naming both values, remakes a damaged output, and never replaces a file gistools did not write (nor writes through a link).
 
 Each case is run through the command line as a user would, and asserts the exit status, the one line, and the bytes
 of the files that must not change (the outputs' values against an independent computation where they change).
@@ -184,3 +184,79 @@ def test_viewshed_remakes_a_damaged_output_and_refuses_other_settings(tmp_path):
     code, text = run([*args, "--height", "20ft"])
     line = one_line(text)
     assert code == 1 and "--height" in line and "--overwrite" in line, line
+
+
+# the commands that make their outputs together from their inputs: (arguments before --out, a changed setting)
+TOGETHER = {
+    "runway": (["runway", "survey.csv", "--code", "4E", "--crs", "EPSG:3003"], ["--code", "4D"], "--code 4E"),
+    "aquifer": (["aquifer", "model", "contacts.csv", "--layers", "LS,AU,AD,AQ", "--crs", "EPSG:3003"], ["--k", "10"],
+                "--k 12"),
+    "structure": (["structure", "scan.txt"], ["--loop-mode", "catmull-rom"], "--loop-mode classic"),
+}
+
+
+@pytest.fixture(scope="module")
+def example_inputs(tmp_path_factory):
+    from gistools.datasets.examples import write_examples
+
+    folder = tmp_path_factory.mktemp("examples")
+    write_examples(folder, sample_tiles=SAMPLE)
+    return folder
+
+
+def _digests(folder: Path) -> dict:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())
+            if p.is_file() and p.name != "report.json"}
+
+
+@pytest.mark.parametrize("command", sorted(TOGETHER))
+def test_a_command_of_one_model_reruns_as_every_command(command, example_inputs, tmp_path, monkeypatch):
+    """aquifer, runway and structure rerun as the tile commands do: the same settings from the same inputs keep the
+    outputs (not one byte rewritten, the record says ``kept``); another setting is refused before any work, naming
+    both values; --overwrite makes them again; an input changed since makes them again."""
+    args, other, before = TOGETHER[command]
+    work = tmp_path / "inputs"
+    shutil.copytree(example_inputs, work, ignore=shutil.ignore_patterns("sample_tiles", "tiles"))
+    monkeypatch.chdir(work)
+    out = tmp_path / "out"
+    code, text = run([*args, "--out", out, "-q"])
+    assert code == 0, text
+    first = _digests(out)
+    mtimes = {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file() and p.name != "report.json"}
+    code, text = run([*args, "--out", out, "-q"])
+    assert code == 0 and "outputs kept" in text, text
+    assert _digests(out) == first
+    assert {p.name: p.stat().st_mtime_ns for p in out.iterdir() if p.is_file() and p.name != "report.json"} == mtimes
+    record = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert record["kept"] and [r["tool"] for r in record["runs"]] == [record["tool"]] * 2
+    code, text = run([*args, *other, "--out", out, "-q"])
+    assert code == 1 and f"with {before}, this run asks" in text and "--overwrite" in text, text
+    assert _digests(out) == first  # refused before any work
+    code, text = run([*args, *other, "--out", out, "-q", "--overwrite"])
+    assert code == 0 and "outputs kept" not in text, text
+    source = work / args[2 if command == "aquifer" else 1]
+    source.write_text(source.read_text(encoding="utf-8") + "\n", encoding="utf-8")  # the input rewritten
+    code, text = run([*args, *other, "--out", out, "-q"])
+    assert code == 0 and "outputs kept" not in text, text
+    assert "kept" not in json.loads((out / "report.json").read_text(encoding="utf-8"))
+
+
+def test_a_model_of_per_layer_files_is_made_again_when_one_changes(example_inputs, tmp_path, monkeypatch):
+    """The aquifer's per-layer files (``LS=LSInput.txt ...``): each is stamped, so an edit of one makes the model
+    again instead of keeping it; a --z-max change of the runway is refused naming --z-max."""
+    work = tmp_path / "inputs"
+    shutil.copytree(example_inputs, work, ignore=shutil.ignore_patterns("sample_tiles", "tiles"))
+    monkeypatch.chdir(work)
+    layers = [f"{name}={name}Input.txt" for name in ("LS", "AU", "AD", "AQ")]
+    args = ["aquifer", "model", *layers, "--layers", "LS,AU,AD,AQ", "--crs", "EPSG:3003", "--out", tmp_path / "aq", "-q"]
+    code, text = run(args)
+    assert code == 0, text
+    code, text = run(args)
+    assert code == 0 and "outputs kept" in text, text
+    (work / "AUInput.txt").write_text((work / "AUInput.txt").read_text(encoding="utf-8") + "\n", encoding="utf-8")
+    code, text = run(args)
+    assert code == 0 and "outputs kept" not in text, text
+    runway = ["runway", "survey.csv", "--code", "4E", "--crs", "EPSG:3003", "--out", tmp_path / "rw", "-q"]
+    assert run(runway)[0] == 0
+    code, text = run([*runway, "--z-max", "2.5"])
+    assert code == 1 and "with --z-max 3.5, this run asks 2.5" in text, text

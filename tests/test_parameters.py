@@ -182,3 +182,61 @@ def test_a_python_message_names_the_librarys_keyword_where_the_declared_name_dif
 def test_a_no_flag_reaches_the_library_as_its_keyword_negated():
     assert PARAMETERS["no_figures"].library_value(True) is False and PARAMETERS["no_figures"].python_name == "figures"
     assert PARAMETERS["overwrite"].library_value(True) is True
+
+
+@pytest.mark.parametrize("name", sorted(n for n, module in __import__("gistools")._LAZY.items()
+                                        if module.startswith(("products", "deliver"))))
+def test_a_misnamed_argument_of_a_library_function_is_refused_naming_the_real_ones(name):
+    """Every exported product function refuses a keyword it does not take before it runs (nothing read or written), with
+    ArgumentError (a TypeError, as Python's own refusal) naming every argument it takes."""
+    import inspect
+
+    import gistools
+    from gistools.errors import ArgumentError
+
+    function = getattr(gistools, name)
+    takes = [p for p in inspect.signature(function).parameters]
+    with pytest.raises(ArgumentError) as err:
+        function(no_such_argument=1)
+    assert isinstance(err.value, TypeError)
+    message = str(err.value)
+    assert "'no_such_argument'" in message and message.startswith(f"{name}()")
+    assert message.split("it takes ")[1].split(", ") == takes
+
+
+def test_a_misnamed_argument_names_the_closest_one_and_a_settings_field_says_where_it_goes(tmp_path):
+    import gistools
+    from gistools.errors import ArgumentError
+
+    with pytest.raises(ArgumentError, match=r"no argument 'dem_z_unit': did you mean 'z_unit'\?"):
+        gistools.slope_classes_from_dem("dem.tif", tmp_path / "out", dem_z_unit="m")
+    with pytest.raises(ArgumentError, match=r"no argument 'cell_size': it is a field of ChmSettings. "
+                                            r"Pass ChmSettings\(cell_size=...\) as the settings"):
+        gistools.chm_from_tiles("sample_tiles", tmp_path / "out", cell_size="1m")
+    with pytest.raises(ArgumentError, match=r"did you mean ChmSettings\(cell_size=...\)\?"):
+        gistools.chm_from_tiles("sample_tiles", tmp_path / "out", cel_size="1m")
+    with pytest.raises(ArgumentError, match=r"ChmSettings\(\) has no argument 'cel_size': did you mean 'cell_size'"):
+        gistools.ChmSettings(cel_size="1m")
+    with pytest.raises(TypeError, match="missing a required argument: 'height'") as err:  # not a user's input error
+        gistools.Grid(1, 2)
+    assert not isinstance(err.value, ArgumentError)
+    assert not (tmp_path / "out").exists()  # refused before anything is written
+
+
+def test_an_exported_function_still_pickles_by_name():
+    """The checked functions stay picklable (a process pool or a cluster sends them by name)."""
+    import pickle
+
+    import gistools
+
+    for name in ("rasters_from_tiles", "terrain_from_dem", "ChmSettings", "dsm_from_points", "travel_minutes"):
+        value = getattr(gistools, name)
+        assert pickle.loads(pickle.dumps(value)) is value
+    from gistools.lidar.gridding import dem_from_ground_points
+    from gistools.products.rasters import rasters_from_tiles
+
+    gistools.dem_from_ground_points, gistools.rasters_from_tiles  # noqa: B018 - exported (checked) first
+    for original in (dem_from_ground_points, rasters_from_tiles):  # the originals keep pickling by their own names
+        assert pickle.loads(pickle.dumps(original)) is original
+    settings = gistools.ChmSettings(cell_size="1m")
+    assert pickle.loads(pickle.dumps(settings)) == settings

@@ -192,6 +192,7 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
     tools = {n: a for n, a in algs.items() if n != "shrub_density"}  # the model's help is its own text
     for a in tools.values():  # Help opens the algorithm's page of the shipped documentation, offline
         assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
+        assert len(a.shortHelpString().split("<br>")[0]) > 40, a.name()  # its own text first (algorithms/texts.py)
         page = Path(QUrl(a.helpUrl()).toLocalFile())
         assert a.helpUrl().startswith("file://") and page.is_file(), (a.name(), a.helpUrl())
         anchor = QUrl(a.helpUrl()).fragment()  # its own section of the built page, an id that is there

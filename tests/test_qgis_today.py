@@ -29,9 +29,20 @@ def qgis_today():
     return CHROOT
 
 
+def _is_mount(path: Path) -> bool:
+    """Whether ``path`` is a mount point, a bind mount of a folder of the same file system included (which
+    os.path.ismount, comparing devices, does not see): the kernel's own table."""
+    try:
+        table = Path("/proc/self/mounts").read_text(encoding="utf-8")
+    except OSError:
+        return os.path.ismount(path)
+    target = str(Path(path).resolve())
+    return any(line.split()[1].replace("\\040", " ") == target for line in table.splitlines() if line.split())
+
+
 def _in_qgis(root: Path, code: str) -> dict:
     """Run ``code`` (which prints one JSON line last) in the chroot's QGIS, headless; its JSON."""
-    proc_mounted = os.path.ismount(root / "proc")
+    proc_mounted = _is_mount(root / "proc")
     if not proc_mounted:
         subprocess.run(["mount", "-t", "proc", "proc", str(root / "proc")], check=True)
     try:
@@ -87,10 +98,10 @@ def test_the_plugin_tests_pass_in_qgis_344(qgis_today):
     shutil.copytree(ROOT, src, ignore=_COPY_SKIP)
     mounted = []
     shared.mkdir(parents=True, exist_ok=True)
-    if (ROOT.parent / "shared").is_dir() and not os.path.ismount(shared):
+    if (ROOT.parent / "shared").is_dir() and not _is_mount(shared):
         subprocess.run(["mount", "--bind", "-o", "ro", str(ROOT.parent / "shared"), str(shared)], check=True)
         mounted.append(shared)
-    if not os.path.ismount(qgis_today / "proc"):
+    if not _is_mount(qgis_today / "proc"):
         subprocess.run(["mount", "-t", "proc", "proc", str(qgis_today / "proc")], check=True)
         mounted.append(qgis_today / "proc")
     py = "/opt/gistools-venv/bin/python"
@@ -131,7 +142,7 @@ def qgis_stock():
 
 def _chroot(root: Path, *cmd, timeout=900) -> subprocess.CompletedProcess:
     """``cmd`` inside ``root`` (proc mounted meanwhile), headless, pip given the chroot's CAs and no host settings."""
-    mounted = not os.path.ismount(root / "proc")
+    mounted = not _is_mount(root / "proc")
     if mounted:
         subprocess.run(["mount", "-t", "proc", "proc", str(root / "proc")], check=True)
     env = ["env", "-u", "PIP_CONSTRAINT", "-u", "PIP_FIND_LINKS", "-u", "PIP_INDEX_URL", "-u", "PYTHONPATH",
@@ -269,7 +280,7 @@ def test_every_command_block_runs_on_python_314_from_binary_wheels(qgis_today):
     shared = qgis_today / "work" / "shared"
     shared.mkdir(parents=True, exist_ok=True)
     mounted = []
-    if (ROOT.parent / "shared").is_dir() and not os.path.ismount(shared):
+    if (ROOT.parent / "shared").is_dir() and not _is_mount(shared):
         subprocess.run(["mount", "--bind", "-o", "ro", str(ROOT.parent / "shared"), str(shared)], check=True)
         mounted.append(shared)
     try:
@@ -300,7 +311,7 @@ def test_without_the_proj_command_gistools_finds_the_systems_proj_data(qgis_toda
     shutil.copytree(ROOT, src, ignore=_COPY_SKIP)
     (src / "gistools" / "_kernel.abi3.so").unlink(missing_ok=True)
     env = ["env", "-i", "HOME=/root", "PATH=/opt/gistools-venv/bin", "PYTHONPATH=/work/gistools-proj"]
-    mounted = not os.path.ismount(qgis_today / "proc")
+    mounted = not _is_mount(qgis_today / "proc")
     if mounted:
         subprocess.run(["mount", "-t", "proc", "proc", str(qgis_today / "proc")], check=True)
     try:

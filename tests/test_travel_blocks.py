@@ -17,7 +17,8 @@ from shapely.geometry import box
 from gistools.errors import Cancelled, OutOfMemoryError
 from gistools.grid import Grid
 from gistools.io.raster import write_raster
-from gistools.products.travel import (BYTES_PER_CELL, CELL_BYTES, HALO, TravelSettings, plan_memory, travel_from_dem,
+from gistools.terrain.travel import HALO
+from gistools.products.travel import (BYTES_PER_CELL, CELL_BYTES, TravelSettings, plan_memory, travel_from_dem,
                                       travel_minutes)
 
 RTOL = 1e-9

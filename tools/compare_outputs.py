@@ -12,8 +12,8 @@ With ``--cells`` a change of GeoTIFF tags or GeoPackage layer names only is list
 intended metadata change); cells, geometries and attributes must still be identical.
 
 What is compared: GeoTIFFs by their decoded cells, transform, CRS, nodata and tags; GeoPackages by every
-layer's features (geometry WKB and attributes); JSON with run times and absolute paths left out; PNG by its
-pixels; CSV / PLY / OBJ / VRT byte for byte (VRT paths are relative). PDFs hold a creation date: left out.
+layer's features (geometry WKB and attributes); JSON with run times, file stamps (``made``: the sizes and times of
+inputs and outputs) and absolute paths left out; PNG by its pixels; CSV / PLY / OBJ / VRT byte for byte (VRT paths are relative). PDFs hold a creation date: left out.
 Runs on sample_tiles/, the real files of ../shared/data (when present) and the synthetic aquifer, runway and
 structure inputs.
 """
@@ -43,7 +43,7 @@ def gistools(*args) -> None:
 
 def _scrub(value, root: str):
     if isinstance(value, dict):
-        return {k: _scrub(v, root) for k, v in value.items() if k not in ("seconds", "scratch_peak_tiles", "finished", "stamps", "stage_seconds")}
+        return {k: _scrub(v, root) for k, v in value.items() if k not in ("seconds", "scratch_peak_tiles", "finished", "stamps", "stage_seconds", "made")}
     if isinstance(value, list):
         return [_scrub(v, root) for v in value]
     if isinstance(value, str):

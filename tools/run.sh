@@ -35,6 +35,7 @@ if [ "${1:-}" = test ]; then
   [ -x /usr/bin/qgis_process.bin ] || need_apt+=(qgis)
   command -v chromium >/dev/null || need_apt+=(chromium)  # the web map tests render the page in headless Chromium
   command -v pdftoppm >/dev/null || need_apt+=(poppler-utils)  # the map book test renders its pages
+  command -v nginx >/dev/null || [ -x /usr/sbin/nginx ] || need_apt+=(nginx-light)  # serves point clouds by range
   command -v x86_64-w64-mingw32-gcc >/dev/null || need_apt+=(gcc-mingw-w64-x86-64)  # the kernel's Windows build is checked
   # ... and run under Wine (Debian 12's wine64 package puts its loader in /usr/lib/wine, off the PATH)
   command -v wine64 >/dev/null || [ -x /usr/lib/wine/wine64 ] || need_apt+=(wine64)

@@ -7,7 +7,7 @@ from json import dumps
 import click
 
 from ..parameters import option, render
-from .options import out_opt, overwrite_opt, progress_bar
+from .options import folder_command, kept_note, progress_bar
 from .spec import spec_options
 
 
@@ -49,12 +49,7 @@ def _print_model(rep: dict) -> None:
                           "raw": f"counted negative ({render(option('order', 'raw'))})"}[u["thickness_method"]])
 
 
-@aquifer.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("aquifer model", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True)
+@folder_command("aquifer model", click.argument("inputs", nargs=-1, required=True), group=aquifer)
 def model(inputs, out, overwrite, quiet, layers, crs, swap_xy, within, clip, fields, no_figures, **settings):
     """Cleaned TIN surfaces, boundaries, walls, closed unit meshes, thickness and volumes.
 
@@ -80,6 +75,7 @@ def model(inputs, out, overwrite, quiet, layers, crs, swap_xy, within, clip, fie
                             overwrite=overwrite, progress=progress, fields=fields)
     _print_model(rep)
     click.echo(f"report: {out}/report.json")
+    kept_note(rep)
 
 
 @aquifer.command()

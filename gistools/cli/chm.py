@@ -2,10 +2,7 @@
 
 from __future__ import annotations
 
-import click
-
-from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
 def _lengths(text: str) -> tuple:
@@ -13,12 +10,7 @@ def _lengths(text: str) -> tuple:
     return tuple(v.strip() for v in str(text).split(",") if v.strip())
 
 
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("chm", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("chm")
 def chm(inputs, out, chm_method, cell_size, thresholds, threshold_step, max_edge, tin_max_edge, buffer, crs, jobs,
         overwrite, scheduler, quiet):
     """Canopy height model of every tile of INPUTS (files, folders, globs or a .vpc): first returns' heights above
@@ -35,9 +27,7 @@ def chm(inputs, out, chm_method, cell_size, thresholds, threshold_step, max_edge
     settings = ChmSettings(cell_size=cell_size, method=chm_method, thresholds=_lengths(thresholds),
                            threshold_step=threshold_step, max_edge=_lengths(max_edge), tin_max_edge=tin_max_edge,
                            buffer=buffer, crs=crs)
-    with progress_bar(quiet) as progress:
-        report = batch_report(lambda: chm_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
-                                                     overwrite=overwrite, progress=progress))
-    counts = report["counts"]
-    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"{report['pits']:,} pits left; mosaic: {report['mosaic']}; report: {out}/report.json")
+    report = run_batch(quiet, chm_from_tiles, inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                       overwrite=overwrite)
+    finish_batch(report, f"{tiles_counted(report)}; {report['pits']:,} pits left; mosaic: {report['mosaic']}"
+                 f"; report: {out}/report.json")

@@ -2,18 +2,10 @@
 
 from __future__ import annotations
 
-import click
-
-from .options import batch_report, finish_batch, out_opt, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("fuels", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("fuels")
 def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinction, leaf_mass_area, running_mean,
           cbh_threshold, column, column_pulses, profile, bands, noise_floor, class_breaks, fuel_raster, fuel_codes, latitude,
           buffer, crs, jobs, overwrite, scheduler, quiet):
@@ -35,10 +27,8 @@ def fuels(inputs, out, cell_size, canopy_floor, height_percentile, layer, extinc
                              bands=bands, noise_floor=noise_floor,
                              class_breaks=class_breaks, fuel_raster=fuel_raster, fuel_codes=fuel_codes,
                              latitude=latitude, buffer=buffer, crs=crs)
-    with progress_bar(quiet) as progress:
-        report = batch_report(lambda: fuels_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
-                                                       overwrite=overwrite, progress=progress))
-    counts = report["counts"]
+    report = run_batch(quiet, fuels_from_tiles, inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                       overwrite=overwrite)
     land = report.get("landscape") or {}
-    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} "
-                 f"failed; landscape {land.get('lcp', 'not written')}; report: {out}/report.json")
+    finish_batch(report, f"{tiles_counted(report)}; landscape {land.get('lcp', 'not written')}"
+                 f"; report: {out}/report.json")

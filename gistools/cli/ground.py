@@ -6,8 +6,7 @@ import click
 
 from ..parameters import PARAMETERS, render
 from ..parameters.lidar import DEFAULT_TEXTS
-from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
 def own_default_texts(texts: dict):
@@ -24,12 +23,7 @@ def own_default_texts(texts: dict):
 
 
 @own_default_texts(DEFAULT_TEXTS["ground"])
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("ground", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("ground")
 def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, scalar, smrftin_cell, smrftin_slope,
            smrftin_window, smrftin_threshold, smrftin_scalar, smrftin_step, smrftin_patch, csf_resolution, csf_threshold,
            csf_rigidness, csf_iterations, csf_time_step, csf_slope_smooth, ivf_res, ivf_n, sor_k, sor_multiplier,
@@ -61,9 +55,7 @@ def ground(inputs, out, ground_method, noise, cell, slope, window, threshold, sc
                               csf_time_step=csf_time_step, csf_slope_smooth=csf_slope_smooth, ivf_res=ivf_res,
                               ivf_n=ivf_n, sor_k=sor_k, sor_multiplier=sor_multiplier, low_noise_depth=low_noise_depth,
                               buffer=buffer, keep_classes=keep_classes, format=format, crs=crs)
-    with progress_bar(quiet) as progress:
-        report = batch_report(lambda: ground_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
-                                                        overwrite=overwrite, progress=progress))
-    counts = report["counts"]
-    finish_batch(report, f"{counts['ok']} tiles classified, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"virtual point cloud: {report['vpc']}; report: {out}/report.json")
+    report = run_batch(quiet, ground_from_tiles, inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                       overwrite=overwrite)
+    finish_batch(report, f"{tiles_counted(report, 'classified')}; virtual point cloud: {report['vpc']}"
+                 f"; report: {out}/report.json")

@@ -6,7 +6,7 @@ import json as _json
 
 import click
 
-from ..errors import GistoolsError
+from .options import progress_bar
 from .spec import spec_options
 
 
@@ -22,32 +22,29 @@ def info(tiles, crs, json):
       $ gistools info sample_tiles/35712.las
       $ gistools info sample_tiles --json
     """
-    from ..io.tiles import find_tiles
-    from ..products.info import tile_summary
+    from ..products.info import tiles_summary
 
-    failed = 0
-    summaries = []
-    for path in find_tiles(tiles):
-        try:
-            s = tile_summary(path, crs)
-        except GistoolsError as err:
-            click.echo(f"gistools: error: {err}", err=True)
-            failed += 1
-            continue
-        summaries.append(s)
-        if not json:
-            click.echo(f"{s['file']}")
-            click.echo(f"  LAS {s['las_version']}, point format {s['point_format']}, {s['points']:,} points"
-                       f"{' (LAZ)' if s['compressed'] else ''}")
-            if s["crs_source"]:
-                click.echo(f"  CRS: {s['crs']} (from {s['crs_source']}); units: x/y {s['horizontal_unit']}, z {s['vertical_unit']}")
-            if s["crs_note"]:
-                click.echo(f"  CRS: {s['crs_note']}")
-            w, so, e, n = s["bounds"]
-            click.echo(f"  bounds: x {w:.2f} .. {e:.2f}, y {so:.2f} .. {n:.2f}, z {s['z_range'][0]:.2f} .. {s['z_range'][1]:.2f}")
-            click.echo("  by class: " + ", ".join(f"{c}: {n:,}" for c, n in s["points_by_class"].items()))
-            click.echo("  by return: " + ", ".join(f"{r}: {n:,}" for r, n in s["points_by_return"].items()))
+    with progress_bar(False) as progress:  # on a terminal only (stderr), done before the first line is printed
+        result = tiles_summary(tiles, crs=crs, progress=progress)
+    summaries = [{k: v for k, v in t.items() if k != "status"} for t in result["tiles"] if t["status"] == "ok"]
+    for tile in result["tiles"]:
+        if tile["status"] == "failed":
+            click.echo(f"gistools: error: {tile['error']}", err=True)
     if json:
         click.echo(_json.dumps(summaries, indent=2))
-    if failed:
+    for s in [] if json else summaries:
+        click.echo(f"{s['file']}")
+        click.echo(f"  LAS {s['las_version']}, point format {s['point_format']}, {s['points']:,} points"
+                   f"{' (LAZ)' if s['compressed'] else ''}")
+        if s["crs_source"]:
+            click.echo(f"  CRS: {s['crs']} (from {s['crs_source']}); units: x/y {s['horizontal_unit']}, "
+                       f"z {s['vertical_unit']}")
+        if s["crs_note"]:
+            click.echo(f"  CRS: {s['crs_note']}")
+        w, so, e, n = s["bounds"]
+        click.echo(f"  bounds: x {w:.2f} .. {e:.2f}, y {so:.2f} .. {n:.2f}, z {s['z_range'][0]:.2f} .. "
+                   f"{s['z_range'][1]:.2f}")
+        click.echo("  by class: " + ", ".join(f"{c}: {n:,}" for c, n in s["points_by_class"].items()))
+        click.echo("  by return: " + ", ".join(f"{r}: {n:,}" for r, n in s["points_by_return"].items()))
+    if result["counts"]["failed"]:
         raise SystemExit(1)

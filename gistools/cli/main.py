@@ -209,18 +209,18 @@ def cli(verbose):
         logging.getLogger("laspy").setLevel(logging.CRITICAL)
 
 
-# command -> (its module in gistools.cli, its function): a command's module (and the libraries it needs) is imported
-# only when that command runs, or when --help lists them all, so `gistools rasters` does not wait for geopandas
-COMMANDS = {
-    "info": ("info", "info"), "points": ("points", "points"), "ground": ("ground", "ground"),
-    "rasters": ("rasters", "rasters"), "normalize": ("normalize", "normalize"), "metrics": ("metrics", "metrics"),
-    "chm": ("chm", "chm"), "shrub": ("shrub", "shrub"), "bands": ("shrub", "bands"), "clip": ("shrub", "clip"),
-    "density": ("shrub", "density"), "classify": ("shrub", "classify"), "map": ("shrub", "map_"),
-    "webmap": ("deliver", "webmap"), "scene": ("deliver", "scene"), "mapbook": ("deliver", "mapbook"),
-    "aquifer": ("aquifer", "aquifer"), "runway": ("runway", "runway"), "structure": ("structure", "structure"),
-    "examples": ("examples", "examples"), "terrain": ("terrain", "terrain"), "viewshed": ("terrain", "viewshed"),
-    "travel": ("travel", "travel"), "fuels": ("fuels", "fuels"),
-}
+def _commands() -> dict:
+    """{command: (its module in gistools.cli, its function)} from the declarations (``command(..., cli=...)``; a
+    sub-command names its group), and ``examples``, which takes no option. A command's module (and the libraries it
+    needs) is imported only when that command runs, or when --help lists them all, so `gistools rasters` does not
+    wait for geopandas."""
+    from ..parameters import COMMAND_LINE
+
+    found = {name.split()[0]: tuple(where.split(":")) for name, where in COMMAND_LINE.items()}
+    return {**found, "examples": ("examples", "examples")}
+
+
+COMMANDS = _commands()
 
 
 def all_commands() -> dict:

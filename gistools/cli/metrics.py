@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
 def _names(ctx, param, value):
@@ -22,12 +21,7 @@ def any_metric_name(command: click.Command) -> click.Command:
 
 
 @any_metric_name
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("metrics", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("metrics")
 def metrics(inputs, out, cell_size, metrics, more_metrics, normalized, classes, returns, buffer, crs, jobs, overwrite,
             scheduler, quiet):
     """Cell metrics of every tile of INPUTS (files, folders, globs or a .vpc): OUT/<metric>/<tile>.tif, OUT/<metric>.vrt
@@ -46,9 +40,7 @@ def metrics(inputs, out, cell_size, metrics, more_metrics, normalized, classes, 
     names = metrics + _names(None, None, more_metrics)
     settings = MetricsSettings(cell_size=cell_size, metrics=names, normalized=normalized, classes=classes,
                                returns=returns, buffer=buffer, crs=crs)
-    with progress_bar(quiet) as progress:
-        report = batch_report(lambda: metrics_from_tiles(inputs, out, settings, jobs=jobs, scheduler=scheduler,
-                                                         overwrite=overwrite, progress=progress))
-    counts = report["counts"]
-    finish_batch(report, f"{counts['ok']} tiles done, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"metrics {', '.join(report['metrics'])}; mosaics {out}/<metric>.vrt; report: {out}/report.json")
+    report = run_batch(quiet, metrics_from_tiles, inputs, out, settings, jobs=jobs, scheduler=scheduler,
+                       overwrite=overwrite)
+    finish_batch(report, f"{tiles_counted(report)}; metrics {', '.join(report['metrics'])}; mosaics {out}/<metric>.vrt"
+                 f"; report: {out}/report.json")

@@ -2,18 +2,10 @@
 
 from __future__ import annotations
 
-import click
-
-from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("normalize", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("normalize")
 def normalize(inputs, out, replace_z, classify_vegetation, bands, noise_floor, roads, hydro, waterbodies, reproject_vectors,
               buffer, format, crs, jobs, overwrite, scheduler, quiet):  # noqa: A002
     """Height above ground of every point of INPUTS (files, folders, globs or a .vpc), from the TIN of the ground
@@ -32,11 +24,8 @@ def normalize(inputs, out, replace_z, classify_vegetation, bands, noise_floor, r
 
     settings = NormalizeSettings(buffer=buffer, replace_z=replace_z, classify_vegetation=classify_vegetation, bands=bands,
                                  noise_floor=noise_floor, format=format, crs=crs)
-    with progress_bar(quiet) as progress:
-        report = batch_report(lambda: normalize_from_tiles(inputs, out, settings, roads=roads, hydro=hydro,
-                                                           waterbodies=waterbodies, reproject_vectors=reproject_vectors,
-                                                           jobs=jobs, scheduler=scheduler, overwrite=overwrite,
-                                                           progress=progress))
-    counts = report["counts"]
-    finish_batch(report, f"{counts['ok']} tiles normalized, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"virtual point cloud: {report['vpc']}; report: {out}/report.json")
+    report = run_batch(quiet, normalize_from_tiles, inputs, out, settings, roads=roads, hydro=hydro,
+                       waterbodies=waterbodies, reproject_vectors=reproject_vectors, jobs=jobs, scheduler=scheduler,
+                       overwrite=overwrite)
+    finish_batch(report, f"{tiles_counted(report, 'normalized')}; virtual point cloud: {report['vpc']}"
+                 f"; report: {out}/report.json")

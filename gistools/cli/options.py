@@ -79,3 +79,51 @@ def finish_batch(report: dict, summary: str) -> None:
             click.echo(f"  FAILED {tile['error']}", err=True)
     if (report.get("counts") or {}).get("failed"):
         raise SystemExit(1)
+
+
+def quiet_opt(fn):
+    """--quiet / -q: no progress bar."""
+    return click.option("--quiet", "-q", is_flag=True, help="No progress bar.")(fn)
+
+
+def folder_command(name: str, *arguments, options=None, group=None):
+    """A command that writes a folder, its front matter once: its ``arguments`` (click arguments), ``--out``, its
+    declared options (``options``: ``spec_options`` or a wrapper of it, called with the command's name), ``--overwrite``
+    / ``--resume`` and ``--quiet``; a command of ``group`` (a click group) when given."""
+
+    def apply(fn):
+        from .spec import spec_options
+
+        fn = quiet_opt(fn)
+        fn = overwrite_opt(fn)
+        fn = (options or spec_options)(name, skip=("overwrite",))(fn)
+        fn = out_opt()(fn)
+        for argument in reversed(arguments):
+            fn = argument(fn)
+        return (group.command() if group else click.command())(fn)
+
+    return apply
+
+
+def tiles_command(name: str, options=None):
+    """``folder_command`` of a command of tiles: INPUTS are files, folders, globs or a .vpc."""
+    return folder_command(name, click.argument("inputs", nargs=-1, required=True), options=options)
+
+
+def run_batch(quiet: bool, function, *args, **keywords) -> dict:
+    """``function(*args, **keywords)`` of the library under a progress bar (``progress=`` added): its report, also
+    when every tile failed (``batch_report``)."""
+    with progress_bar(quiet) as progress:
+        return batch_report(lambda: function(*args, **keywords, progress=progress))
+
+
+def tiles_counted(report: dict, done: str = "done") -> str:
+    """'4 tiles done, 0 skipped (outputs exist), 0 failed': the start of a batch command's summary line."""
+    counts = report["counts"]
+    return f"{counts['ok']} tiles {done}, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed"
+
+
+def kept_note(report: dict) -> None:
+    """A line when a rerun kept the outputs of an earlier run with the same settings."""
+    if report.get("kept"):
+        click.echo("outputs kept: made before with these settings from the same inputs (--overwrite makes them again)")

@@ -2,18 +2,10 @@
 
 from __future__ import annotations
 
-import click
-
-from .options import out_opt, batch_report, finish_batch, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import finish_batch, run_batch, tiles_command, tiles_counted
 
 
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@spec_options("rasters", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("rasters")
 def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, buffer, products, classify_ground,
             dem_fill, dsm_fill, subcircle, hydro_flatten, shore_width, crs, jobs, chunk_size, overwrite, scheduler, quiet):
     """DSM, DEM and nDSM GeoTIFFs for every tile of INPUTS (files, folders or globs).
@@ -38,10 +30,7 @@ def rasters(inputs, out, cell_size, dem_method, dsm_classes, dem_max_distance, b
                               classify_ground=classify_ground, dem_fill=dem_fill, dsm_fill=dsm_fill,
                               subcircle=subcircle, hydro_flatten=hydro_flatten, shore_width=shore_width,
                               products=products)
-    with progress_bar(quiet) as progress:
-        summary = batch_report(lambda: rasters_from_tiles(inputs, out, settings, jobs=jobs, overwrite=overwrite,
-                                                          scheduler=scheduler, progress=progress))
-    counts = summary["counts"]
+    summary = run_batch(quiet, rasters_from_tiles, inputs, out, settings, jobs=jobs, overwrite=overwrite,
+                        scheduler=scheduler)
     cell = f"cell size {summary['cell_size']:.6g} {summary['horizontal_unit']}; " if summary["cell_size"] is not None else ""
-    finish_batch(summary, f"{counts['ok']} tiles ok, {counts['skipped']} skipped (outputs exist), {counts['failed']} failed; "
-               f"{cell}report: {out}/report.json")
+    finish_batch(summary, f"{tiles_counted(summary, 'ok')}; {cell}report: {out}/report.json")

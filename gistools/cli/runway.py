@@ -7,8 +7,7 @@ import click
 from ..errors import GistoolsError
 from ..parameters import flag_of
 from .aquifer import parse_fields
-from .options import out_opt, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import folder_command, kept_note, progress_bar
 
 
 def _metres(name: str, value):
@@ -24,12 +23,7 @@ def _metres(name: str, value):
         raise click.BadParameter(str(err), param_hint=f"'{flag_of(name)}'") from None
 
 
-@click.command()
-@click.argument("survey")
-@out_opt()
-@spec_options("runway", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True)
+@folder_command("runway", click.argument("survey"))
 def runway(survey, out, crs, fields, overwrite, quiet, z_max, max_offset, min_offset, **settings):
     """Cut and fill of a runway: SURVEY (id, type, x, y, z; type 1 = centre-line light, 2 = other) and the
     aerodrome reference code to a design model, cross sections, area diagram and Brueckner curve.
@@ -62,3 +56,4 @@ def runway(survey, out, crs, fields, overwrite, quiet, z_max, max_offset, min_of
     r = rep["removed"]
     click.echo(f"removed: {r['duplicates']} duplicates, {r['outliers']} outliers; {r['renumbered']} renumbered; "
                f"report: {out}/report.json")
+    kept_note(rep)

@@ -6,7 +6,7 @@ import click
 from click.core import ParameterSource
 
 from ..parameters import COMMANDS, option, render
-from .options import out_opt, batch_report, overwrite_opt, progress_bar
+from .options import batch_report, progress_bar, tiles_command
 from .spec import spec_options
 
 _RECORDED = "Default: as the earlier run (OUT/report.json)."
@@ -27,12 +27,7 @@ def _spec(command, *, recorded=(), skip=()):
     return apply
 
 
-@click.command()
-@click.argument("inputs", nargs=-1, required=True)
-@out_opt()
-@_spec("shrub", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
+@tiles_command("shrub", options=_spec)
 def shrub(inputs, out, roads, hydro, waterbodies, wetlands, tile_index, tile_field, reproject_vectors, cell_size,
           dsm_classes, dem_method, dem_max_distance, dsm_fill, classify_ground, bands, band_breaks_m, noise_floor, radius,
           density_bands, classify, class_breaks, max_road_width, snap, make_map, web_map, basemap, band_points,

@@ -4,16 +4,10 @@ from __future__ import annotations
 
 import click
 
-from .options import out_opt, overwrite_opt, progress_bar
-from .spec import spec_options
+from .options import folder_command, kept_note, progress_bar
 
 
-@click.command()
-@click.argument("source")
-@out_opt()
-@spec_options("structure", skip=("overwrite",))
-@overwrite_opt
-@click.option("--quiet", "-q", is_flag=True)
+@folder_command("structure", click.argument("source"))
 def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overwrite, quiet):
     """Closed 3D mesh of a structure from SOURCE, "ID X Y Z" rows (text / CSV) or a LAS/LAZ file:
     levels by height, clusters by distance, floor plates ("sown") and outlines ("chain"), loops with
@@ -34,3 +28,4 @@ def structure(source, out, h, d, t, columns, scales, rotations, loop_mode, overw
                f"{rep['matched_pairs']} matched pairs; h {p['height_interval']:.3f}, d {p['distance']:.3f}, t {p['tolerance']:.3f} m")
     click.echo(f"mesh: {rep['triangles']} triangles, volume {rep['volume']:,.1f} m3, area {rep['surface_area']:,.1f} m2, "
                f"watertight {rep['watertight']}, Euler {rep['euler']}; report: {out}/report.json")
+    kept_note(rep)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..docstrings import shared_sections
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
@@ -66,6 +67,7 @@ def _surface(out: Path, surface: str):
     return z, classes, grid
 
 
+@shared_sections
 def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: str = "dsm") -> dict:
     """A 3D scene (glTF binary) of a shrub chain's surface and classes: ``gistools scene``.
 
@@ -88,12 +90,7 @@ def scene_glb(out, *, exaggeration: float = 1.0, max_mb: float = 50.0, surface: 
         ``glb`` (the path, as text), ``bytes``, ``vertices``, ``faces``, ``step`` (cells per vertex) and
         ``height_range_m``.
 
-    Raises
-    ------
-    InputError
-        An option is not valid, or ``out`` is not a folder.
-    OutputExistsError
-        A file gistools did not write is in the way.
+    {deliverable_raise}
 
     Examples
     --------

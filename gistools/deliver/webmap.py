@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .._version import __version__
+from ..docstrings import shared_sections
 from ..errors import InputError, OutputExistsError
 from ..io.outdir import claim_output, output_folder
 from ..io.atomic import atomic_path
@@ -112,6 +113,7 @@ def _parts(features: list[dict], limit: int) -> list[list[dict]]:
     return parts
 
 
+@shared_sections
 def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None = None,
             basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
     """One HTML file of a shrub chain's outputs, for a tablet in the field: ``gistools webmap``.
@@ -144,12 +146,7 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
         ``html`` (the path, as text), ``bytes``, ``features``, ``parts`` and ``warnings`` (a layer of ``travel``,
         ``viewshed`` or ``fuels`` that does not overlap the map's polygons: drawn off the map; each also logged).
 
-    Raises
-    ------
-    InputError
-        An option is not valid, or ``out`` is not a folder.
-    OutputExistsError
-        A file gistools did not write is in the way.
+    {deliverable_raise}
 
     Examples
     --------

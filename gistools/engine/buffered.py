@@ -14,7 +14,7 @@ from ..parameters import option, render
 import logging
 import shutil
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +29,7 @@ from .schedule import neighbour_pairs
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TileState", "gridded_todo", "marked_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
+__all__ = ["TileState", "RasterTileState", "RASTER_FOUND", "PointTileState", "gridded_tile", "gridded_todo", "marked_todo", "STRIP_FIELDS", "neighbour_table", "points_around", "buffered_passes", "read_headers", "batch_inputs",
            "write_batch_report"]
 
 STRIP_FIELDS = ("x", "y", "z", "return_number", "number_of_returns", "classification", "intensity")
@@ -176,6 +176,25 @@ def _strip_in_box(path: str, box) -> dict:
     return {k: np.ascontiguousarray(records[k]) for k in STRIP_FIELDS}
 
 
+def gridded_tile(path: str, sources: list, crs_text, cell_size: float, crs_wkt: str, buffer: float, compute) -> tuple:
+    """A tile of a product gridded over its neighbours' points: (its TileInfo, its grid on the lattice of
+    ``cell_size``, ``own``, ``compute(own, around, grid)``), where ``own`` are the tile's points and ``around`` the points of
+    ``sources`` within ``buffer`` (CRS units) of the grid; a DataFileError of ``compute`` names the tile."""
+    from ..errors import DataFileError
+    from ..grid import snapped_grid
+    from ..io.raster import crs_from_wkt
+
+    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
+    grid = snapped_grid(info.bounds, cell_size, crs_from_wkt(crs_wkt))
+    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    w, s, e, n = grid.bounds
+    try:
+        return info, grid, own, compute(own, points_around(sources, (w - buffer, s - buffer, e + buffer,
+                                                                     n + buffer), crs_text), grid)
+    except DataFileError as err:
+        raise DataFileError(str(err), path=path) from None
+
+
 def points_around(sources: list, box, crs_text=None) -> list[dict]:
     """The neighbours' points inside ``box`` (west, south, east, north), one dict of STRIP_FIELDS per source given
     to the tile function by buffered_passes (withheld points left out)."""
@@ -195,6 +214,29 @@ class TileState(EngineTileState):
 
     neighbours: list | None = None  # the neighbours whose points it read
     seconds: float = 0.0
+
+
+@dataclass
+class RasterTileState(TileState):
+    """A tile's line of a command that grids its points into rasters (``gistools metrics``, ``gistools fuels``)."""
+
+    outputs: dict = field(default_factory=dict)
+    points: int = 0
+    points_used: int = 0
+    cells_with_points: int = 0
+    heights_outside_tin: int | None = None
+
+
+# what a gridded tile's run found, kept in its mark (tile_reports/) and reported again when a rerun keeps the tile
+RASTER_FOUND = ("points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours")
+
+
+@dataclass
+class PointTileState(TileState):
+    """A tile's line of a command that writes a point file per tile (``gistools ground``, ``gistools normalize``)."""
+
+    output: str | None = None
+    points: int = 0
 
 
 def gridded_todo(infos: dict, states: dict, cell_size: float, outputs_of, overwrite: bool, keep,

@@ -327,18 +327,24 @@ def _refuse_foreign(existing: dict, made: dict) -> None:
                                     hint="Move or rename it, or choose another output folder")
 
 
+def refuse_other_settings(what: str, before: dict, now: dict) -> None:
+    """InputError at the first setting whose value differs between an earlier run (``before``) and this one:
+    "<what> with --code 4E, this run asks 4D", and the fix (--overwrite, or another --out)."""
+    for name in _keys(before, now):
+        if before.get(name) != now.get(name):
+            raise InputError(f"{what} with {_named(name)} {_shown(name, before.get(name))}, this run asks "
+                             f"{_shown(name, now.get(name))}",
+                             hint=f"Pass {option('overwrite')} to make it again with the new settings, or choose "
+                                  f"another {option('out')}")
+
+
 def _keeps(path: Path, entry, now: dict, source: str, ignore) -> bool:
     """Whether the existing output ``path``, made as ``entry`` says (made_record), is kept by a run of ``now``."""
     if not isinstance(entry, dict) or not isinstance(entry.get("settings"), dict):
         log.info("%s: no record of how it was made: making it again", path)
         return False
     before = {**{k: v for k, v in entry["settings"].items() if k not in ignore}, "input": entry.get("input")}
-    for name in _keys(before, now):
-        if before.get(name) != now.get(name):
-            raise InputError(f"{path} was made with {_named(name)} {_shown(name, before.get(name))}, this run "
-                             f"asks {_shown(name, now.get(name))}",
-                             hint=f"Pass {option('overwrite')} to make it again with the new settings, or choose "
-                                  f"another {option('out')}")
+    refuse_other_settings(f"{path} was made", before, now)
     if entry.get("input_stamp") != input_stamp(source):
         log.warning("%s changed since %s was made: making it again", source, path.name)
         return False
@@ -359,3 +365,99 @@ def made_record(previous: dict | None, tool: str, source: str, settings: dict, p
         made[key] = {"path": str(path), "stamp": file_stamp(path), "settings": settings, "input": str(source),
                      "input_stamp": stamp}
     return made
+
+
+def _json_normal(value):
+    """``value`` as report.json gives it back (tuples as lists, paths and other objects as text)."""
+    return json.loads(json.dumps(value, default=str))
+
+
+def _input_paths(inputs) -> list[Path]:
+    """The files behind ``inputs``: a path, a layer ``file.gpkg:LAYER``, a per-layer file ``LAYER=path``, a dict of
+    them, or a list; a shapefile with its sidecars (.dbf, .shx, .prj hold what it reads too)."""
+    from ..io.contacts import is_layer_file
+    from ..io.vector import split_layer_spec
+
+    if isinstance(inputs, dict):
+        inputs = list(inputs.values())
+    items = inputs if isinstance(inputs, (list, tuple)) else [inputs]
+    paths = []
+    for item in items:
+        if item is None or (hasattr(item, "geom_type") and not isinstance(item, (str, Path))):
+            continue  # a geometry given as such: its value is among the settings
+        text = str(item).split("=", 1)[1] if is_layer_file(item) else str(item)
+        path = split_layer_spec(text)[0]
+        paths.append(path)
+        if path.suffix.lower() == ".shp":
+            paths += [path.with_suffix(s) for s in (".dbf", ".shx", ".prj") if path.with_suffix(s).exists()]
+    return paths
+
+
+def _output_files(outputs) -> list[str]:
+    """Every file path of a report's ``outputs`` (nested dicts and lists of paths)."""
+    if isinstance(outputs, dict):
+        return [p for v in outputs.values() for p in _output_files(v)]
+    if isinstance(outputs, (list, tuple)):
+        return [p for v in outputs for p in _output_files(v)]
+    return [str(outputs)] if isinstance(outputs, str) and Path(outputs).suffix else []
+
+
+def run_record(settings: dict, inputs, outputs) -> dict:
+    """report.json's ``made`` of a command that makes its outputs together (aquifer, runway, structure): the
+    settings, each input's stamp and each output's stamp, what ``kept_run`` compares on a rerun."""
+    return {"settings": _json_normal(settings),
+            "inputs": {str(p): input_stamp(p) for p in _input_paths(inputs)},
+            "outputs": {p: file_stamp(p) for p in _output_files(outputs) if Path(p).is_file()}}
+
+
+def kept_run(out: Path, tool: str, settings: dict, inputs, overwrite: bool) -> dict | None:
+    """The rerun of a command that makes its outputs together, as every command reruns: the record of an earlier
+    run of ``tool`` in ``out`` that is kept (made with these ``settings`` from the same ``inputs``, unchanged
+    since, its outputs all there as written), or None: none there, ``overwrite``, or an input changed or an output
+    is missing or changed since (made again, with a log line). Refused before any work unless ``overwrite``: an
+    earlier run of other settings (InputError naming the first difference), or one that did not record how it
+    was made (OutputExistsError)."""
+    from ..errors import OutputExistsError
+    from ..io.outdir import check_record
+    from .record import read_folder_report
+
+    check_record(out, tool)  # a folder of another command, or a report.json gistools did not write: refused now
+    previous = read_folder_report(out)
+    if overwrite or not previous or previous.get("tool") != tool:
+        return None
+    made = previous.get("made")
+    if not isinstance(made, dict) or not isinstance(made.get("settings"), dict):
+        raise OutputExistsError(f"the outputs of an earlier {tool} that did not record its settings are there",
+                                path=out, hint=f"Pass {option('overwrite')} to replace them, or choose another "
+                                               f"{option('out')}")
+    before, now = made["settings"], _json_normal(settings)
+    refuse_other_settings(f"{out} holds a run of {tool}", before, now)
+    inputs_now = {str(p): input_stamp(p) for p in _input_paths(inputs)}
+    if made.get("inputs") != _json_normal(inputs_now) or None in inputs_now.values():
+        log.warning("%s: an input changed since the earlier run (or cannot be checked): making the outputs again", out)
+        return None
+    outputs = made.get("outputs") or {}
+    changed = [p for p, stamp in outputs.items() if not Path(p).is_file() or file_stamp(p) != stamp]
+    if changed or not outputs:
+        log.warning("%s: %s missing or changed since it was written: making the outputs again", out,
+                    changed[0] if changed else "an output")
+        return None
+    log.info("%s: the outputs of an earlier run with the same settings are there: kept", out)
+    return previous
+
+
+def rerun_kept(out: Path, tool: str, settings: dict, inputs, overwrite: bool, started: float) -> dict | None:
+    """``kept_run``; when the earlier run is kept, its record written again with this run's line (``kept``: its
+    outputs' keys) and returned. None: the command makes its outputs."""
+    import time
+
+    from ..io.outdir import claim_output
+    from .record import write_folder_report
+
+    previous = kept_run(out, tool, settings, inputs, overwrite)
+    if previous is None:
+        return None
+    rep = {k: v for k, v in previous.items() if k not in ("schema", "version")}
+    rep.update(kept=sorted(previous.get("outputs") or {}), seconds=round(time.time() - started, 3))
+    with claim_output(out, tool):
+        return write_folder_report(out, rep)

@@ -20,7 +20,7 @@ from ..errors import DataFileError, InputError
 from ..parameters import option
 from .text import check_text_file, shown
 from .vector import split_layer_spec
-from .points import parse_crs_text
+from .points import chosen_crs
 from .text import read_id_xyz
 
 __all__ = ["read_contacts", "ALIASES", "chosen_columns"]
@@ -198,13 +198,7 @@ def _check_layers(pts: pd.DataFrame, layers, min_points: int) -> None:
 
 
 def _contacts_crs(crs, found_crs, where) -> pyproj.CRS:
-    if crs is not None:
-        out_crs = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
-    elif found_crs is not None:
-        out_crs = pyproj.CRS.from_user_input(found_crs)
-    else:
-        raise InputError("the contacts carry no CRS", path=where,
-                         hint=f"Give one with {option('crs')} (the Milan data: EPSG:3003, Monte Mario / Italy zone 1)")
+    out_crs = chosen_crs(crs, found_crs, "the contacts", where, "the Milan data: EPSG:3003, Monte Mario / Italy zone 1")
     if out_crs.is_geographic:
         raise InputError(f"CRS {out_crs.name!r} is geographic (degrees)", path=where,
                          hint="Give the contacts in a projected CRS in metres or feet")

@@ -119,6 +119,17 @@ def parse_crs_text(text: str) -> pyproj.CRS:
         raise InputError(f"{option('crs')} {text!r} is not a CRS ({err})", hint="Give e.g. EPSG:2882 or a WKT string") from None
 
 
+def chosen_crs(given, found, what: str, path, example: str) -> pyproj.CRS:
+    """The CRS of an input: ``given`` (text or a pyproj CRS: the --crs option, which wins), else ``found`` (the
+    file's own), else refused naming ``what`` carries none, with ``example`` of a --crs to give."""
+    if given is not None:
+        return parse_crs_text(given) if isinstance(given, str) else pyproj.CRS.from_user_input(given)
+    if found is not None:
+        return pyproj.CRS.from_user_input(found)
+    raise InputError(f"{what} carr{'y' if what.endswith('s') else 'ies'} no CRS", path=path,
+                     hint=f"Give one with {option('crs')} ({example})")
+
+
 def _open_error(path: Path, err: Exception) -> DataFileError:
     return DataFileError(
         f"not a readable LAS/LAZ file ({type(err).__name__}: {err})",

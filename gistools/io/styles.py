@@ -49,14 +49,44 @@ def write_polygon_style(layer_path, field: str, categories: dict) -> Path | None
     """``<layer file stem>.qml`` beside a vector file, atomically; QGIS applies it when it opens the layer. A .qml
     there that gistools did not write (no ``MARK`` line: the user's own style) is kept: None is returned."""
     path = Path(layer_path).with_suffix(".qml")
-    if path.exists():
-        try:
-            ours = MARK in path.read_text(errors="replace", encoding="utf-8")[:4096]
-        except OSError:
-            ours = False
-        if not ours:
-            log.info("%s: kept (a style gistools did not write)", path)
-            return None
+    if not style_is_ours(path):
+        log.info("%s: kept (a style gistools did not write)", path)
+        return None
     with atomic_path(path, overwrite=True) as tmp:
         tmp.write_text(categorized_fill_qml(field, categories), encoding="utf-8")
     return path
+
+
+def style_is_ours(path) -> bool:
+    """Whether the style ``path`` may be (re)written: missing, or written by gistools (its ``MARK`` line); a user's
+    own style, or one that cannot be read, is kept."""
+    path = Path(path)
+    if not path.exists():
+        return True
+    try:
+        return MARK in path.read_text(errors="replace", encoding="utf-8")[:4096]
+    except OSError:
+        return False
+
+
+def pseudocolour_qml(breaks, maximum: float, ramp, unit: str) -> str:
+    """A QGIS style (QML) of a single-band raster: a discrete pseudocolour ramp with a class at or below each of
+    ``breaks`` (``ramp``'s colours in turn, the last for the values above the last break, up to ``maximum``),
+    labelled in ``unit``."""
+    edges = sorted(breaks)
+    items = []
+    for i, t in enumerate(edges):
+        r, g, b, _ = rgba(ramp[min(i, len(ramp) - 2)])
+        items.append(f'          <item alpha="255" value="{t:g}" label="&lt;= {t:g} {html.escape(unit)}" '
+                     f'color="#{r:02x}{g:02x}{b:02x}"/>')
+    r, g, b, _ = rgba(ramp[-1])
+    top = max(maximum, edges[-1])
+    items.append(f'          <item alpha="255" value="inf" label="&gt; {edges[-1]:g} {html.escape(unit)}" '
+                 f'color="#{r:02x}{g:02x}{b:02x}"/>')
+    return ("<!DOCTYPE qgis PUBLIC 'http://mrcc.com/qgis.dtd' 'SYSTEM'>\n" + MARK + "\n"
+            '<qgis version="3.22.0" styleCategories="Symbology">\n  <pipe>\n'
+            f'    <rasterrenderer type="singlebandpseudocolor" band="1" opacity="1" classificationMin="0" '
+            f'classificationMax="{top:g}">\n      <rastershader>\n'
+            '        <colorrampshader colorRampType="DISCRETE" classificationMode="1" clip="0">\n'
+            + "\n".join(items) + "\n        </colorrampshader>\n      </rastershader>\n    </rasterrenderer>\n"
+            "  </pipe>\n</qgis>\n")

@@ -183,23 +183,23 @@ def cross_filter(a: np.ndarray, iterations: int, maximum: bool) -> np.ndarray:
     return a
 
 
-def _erode1(a: np.ndarray) -> np.ndarray:
-    """Grey erosion by the 4-neighbour cross (a diamond of radius 1); edges use the neighbours they have."""
+def _cross1(a: np.ndarray, op) -> np.ndarray:
+    """``op`` (np.minimum: grey erosion, np.maximum: dilation) over the 4-neighbour cross (a diamond of radius 1);
+    edges use the neighbours they have."""
     out = a.copy()
-    np.minimum(out[1:], a[:-1], out=out[1:])
-    np.minimum(out[:-1], a[1:], out=out[:-1])
-    np.minimum(out[:, 1:], a[:, :-1], out=out[:, 1:])
-    np.minimum(out[:, :-1], a[:, 1:], out=out[:, :-1])
+    op(out[1:], a[:-1], out=out[1:])
+    op(out[:-1], a[1:], out=out[:-1])
+    op(out[:, 1:], a[:, :-1], out=out[:, 1:])
+    op(out[:, :-1], a[:, 1:], out=out[:, :-1])
     return out
+
+
+def _erode1(a: np.ndarray) -> np.ndarray:
+    return _cross1(a, np.minimum)
 
 
 def _dilate1(a: np.ndarray) -> np.ndarray:
-    out = a.copy()
-    np.maximum(out[1:], a[:-1], out=out[1:])
-    np.maximum(out[:-1], a[1:], out=out[:-1])
-    np.maximum(out[:, 1:], a[:, :-1], out=out[:, 1:])
-    np.maximum(out[:, :-1], a[:, 1:], out=out[:, :-1])
-    return out
+    return _cross1(a, np.maximum)
 
 
 def progressive_filter(surface: np.ndarray, cell: float, slope_z: float, window: float) -> np.ndarray:

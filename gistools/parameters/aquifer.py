@@ -71,6 +71,6 @@ declare(
 AQUIFER_MODEL = command("aquifer model", "layers", "crs", "swap_xy", "within", "clip", "concave_ratio", "xy_tol", "k",
                         "abs_thr", "c", "f_nn", "order_tol", "n_per_edge", "densify", "thickness_cell_size",
                         "matching", "mesh_format", "no_figures", "order", "fields", "overwrite",
-    library="products.aquifer:aquifer_model", settings="products.aquifer:AquiferSettings")
+    library="products.aquifer:aquifer_model", settings="products.aquifer:AquiferSettings", cli="aquifer:aquifer")
 AQUIFER_QUERY = command("aquifer query", "x", "y", "height_method", "k",
-    library="products.aquifer:aquifer_query")
+    library="products.aquifer:aquifer_query", cli="aquifer:aquifer")

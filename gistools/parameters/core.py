@@ -18,7 +18,7 @@ import os
 import re
 from dataclasses import dataclass, field
 
-__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "LIBRARY", "DECLARED", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
+__all__ = ["Parameter", "PARAMETERS", "COMMANDS", "LIBRARY", "DECLARED", "COMMAND_LINE", "COMMAND_DEFAULTS", "DEFAULT_TEXTS", "declare", "command", "option", "render", "speaking", "flag_of",
            "by_units", "ByUnits"]
 
 _OPEN, _SEP, _CLOSE = "\ue000", "\ue001", "\ue002"  # private-use marks around a parameter's name in a message
@@ -113,6 +113,7 @@ COMMANDS: dict[str, tuple[str, ...]] = {}
 COMMAND_DEFAULTS: dict[str, dict] = {}  # a command's own default of a shared parameter (metrics: 5 m cells)
 LIBRARY: dict[str, tuple] = {}  # command -> (its function, its settings class, its command-line-only parameters)
 DECLARED: dict[str, dict] = {}  # command -> its inputs, summary, page, group: front ends made from the declaration
+COMMAND_LINE: dict[str, str] = {}  # command -> its click command in gistools.cli (the commands not declared whole)
 DEFAULT_TEXTS: dict[str, dict] = {}  # what a command's help says of a default it computes
 
 
@@ -127,12 +128,14 @@ def declare(*parameters: Parameter) -> None:
 
 
 def command(name: str, *parameters: str, library: str = "", settings: str = "",
-            command_line: tuple = (), inputs: tuple = (), summary: str = "", page: str = "",
+            command_line: tuple = (), cli: str = "", inputs: tuple = (), summary: str = "", page: str = "",
             group: str = "", outputs: tuple = ()) -> tuple[str, ...]:
     """Declare which parameters command ``name`` takes (in its help's order), and what runs it: ``library`` the
     function (``module:function`` under gistools), ``settings`` its settings class (``module:Class``, or ""). Each
     parameter is a keyword of the function or a field of the settings (tests/test_parameters.py walks them) but
     those of ``command_line``: what the command line composes around the call (a web map after the chain).
+    ``cli``: its click command (``module:function`` under gistools.cli; a sub-command names its group), which
+    ``gistools`` lists and imports when the command runs.
 
     A command declared whole also gives ``inputs`` ((keyword, kind, label), ...: the function's first arguments,
     before its output folder ``out``), a one-line ``summary``, its documentation ``page``, its QGIS ``group`` and
@@ -143,6 +146,8 @@ def command(name: str, *parameters: str, library: str = "", settings: str = "",
     if missing:
         raise RuntimeError(f"command {name!r} takes undeclared parameters {missing}")
     COMMANDS[name] = tuple(parameters)
+    if cli:
+        COMMAND_LINE[name] = cli
     if library:
         LIBRARY[name] = (library, settings, tuple(command_line))
     if inputs:

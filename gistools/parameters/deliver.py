@@ -51,8 +51,8 @@ declare(
 )
 
 WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb",
-    library="deliver.webmap:web_map")
+    library="deliver.webmap:web_map", cli="deliver:webmap")
 SCENE = command("scene", "exaggeration", "max_mb", "surface",
-    library="deliver.scene:scene_glb")
+    library="deliver.scene:scene_glb", cli="deliver:scene")
 MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages",
-    library="deliver.mapbook:map_book")
+    library="deliver.mapbook:map_book", cli="deliver:mapbook")

@@ -62,7 +62,7 @@ FUELS = command("fuels", "cell_size", "canopy_floor", "height_percentile", "laye
                 "running_mean", "cbh_threshold", "column", "column_pulses", "profile", "bands", "noise_floor",
                 "class_breaks", "fuel_raster", "fuel_codes", "latitude", "buffer", "crs", "jobs", "overwrite",
                 "scheduler",
-    library="products.fuels:fuels_from_tiles", settings="products.fuels:FuelsSettings")
+    library="products.fuels:fuels_from_tiles", settings="products.fuels:FuelsSettings", cli="fuels:fuels")
 
 # LANDFIRE's 30 m lattice; 100 ft on data in feet (30.48 m) reads naturally there
 COMMAND_DEFAULTS.update({"fuels": {"cell_size": ByUnits("100ft", "30m", "LANDFIRE's 30 m cells"), "buffer": "30m"}})

@@ -158,20 +158,22 @@ GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", 
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
                  "overwrite", "scheduler",
-    library="products.ground:ground_from_tiles", settings="products.ground:GroundSettings")
+    library="products.ground:ground_from_tiles", settings="products.ground:GroundSettings", cli="ground:ground")
 NORMALIZE = command("normalize", "replace_z", "classify_vegetation", "bands", "noise_floor", "roads", "hydro",
                     "waterbodies", "reproject_vectors", "buffer", "format", "crs", "jobs", "overwrite", "scheduler",
-    library="products.normalize:normalize_from_tiles", settings="products.normalize:NormalizeSettings")
+    library="products.normalize:normalize_from_tiles", settings="products.normalize:NormalizeSettings",
+    cli="normalize:normalize")
 METRICS = command("metrics", "cell_size", "metrics", "more_metrics", "normalized", "classes", "returns", "buffer", "crs",
                   "jobs", "overwrite", "scheduler",
-    library="products.metrics:metrics_from_tiles", settings="products.metrics:MetricsSettings", command_line=('more_metrics',))
+    library="products.metrics:metrics_from_tiles", settings="products.metrics:MetricsSettings", command_line=('more_metrics',),
+    cli="metrics:metrics")
 CHM = command("chm", "chm_method", "cell_size", "thresholds", "threshold_step", "max_edge", "tin_max_edge", "buffer",
               "crs", "jobs", "overwrite", "scheduler",
-    library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings")
+    library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings", cli="chm:chm")
 POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite",
-    library="products.points:points_from_tiles")
+    library="products.points:points_from_tiles", cli="points:points")
 INFO = command("info", "crs",
-    library="products.info:tiles_summary")
+    library="products.info:tiles_summary", cli="info:info")
 
 # the commands' own defaults of shared parameters (spec_options / add_spec ``defaults=``)
 BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer

@@ -57,4 +57,4 @@ declare(
 RASTERS = command("rasters", "cell_size", "dsm_classes", "dem_method", "dem_max_distance", "buffer", "products",
                   "classify_ground", "hydro_flatten", "dem_fill", "dsm_fill", "subcircle", "shore_width", "crs", "jobs",
                   "chunk_size", "overwrite", "scheduler",
-    library="products.rasters:rasters_from_tiles", settings="products.rasters:RasterSettings")
+    library="products.rasters:rasters_from_tiles", settings="products.rasters:RasterSettings", cli="rasters:rasters")

@@ -46,4 +46,4 @@ declare(
 
 RUNWAY = command("runway", "code", "runway_type", "template", "spacing", "crs", "origin", "profile_window", "f_cut",
                  "f_fill", "free_haul", "area_method", "max_offset", "min_offset", "z_max", "fields", "overwrite",
-    library="products.runway:runway_earthworks", settings="products.runway:RunwaySettings")
+    library="products.runway:runway_earthworks", settings="products.runway:RunwaySettings", cli="runway:runway")

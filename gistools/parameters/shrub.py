@@ -74,7 +74,8 @@ SHRUB = command("shrub", "roads", "hydro", "waterbodies", "wetlands", "tile_inde
                 "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks", "max_road_width",
                 "snap", "make_map", "web_map", "basemap", "band_points", "scheduler", "crs", "jobs", "chunk_size",
                 "overwrite",
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", command_line=('web_map', 'basemap'))
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", command_line=('web_map', 'basemap'),
+    cli="shrub:shrub")
 # the settings each step of a run records and a step rerun may change; the command that reruns each step
 STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
                   "clip": ("snap", "max_road_width", "max_hydro_width", "single_line_width", "tile_field", "roads", "hydro",
@@ -83,13 +84,13 @@ STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),
 STEP_COMMANDS = {"bands": "bands", "clip": "clip", "density": "density", "classes": "classify"}
 # the step commands: each takes its own step's settings (STAGE_SETTINGS), then how it runs
 BANDS = command("bands", "bands", "band_breaks_m", "noise_floor", *_RUN,
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", cli="shrub:bands")
 CLIP = command("clip", "roads", "hydro", "waterbodies", "wetlands", "tile_index", "tile_field", "reproject_vectors",
                "max_road_width", "snap", *_RUN,
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", cli="shrub:clip")
 DENSITY = command("density", "radius", "density_bands", *_RUN,
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", cli="shrub:density")
 CLASSIFY = command("classify", "classify", "class_breaks", *_RUN,
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings")
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", cli="shrub:classify")
 MAP = command("map", "title",
-    library="products.shrub:map_from_classes")
+    library="products.shrub:map_from_classes", cli="shrub:map_")

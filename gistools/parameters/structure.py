@@ -26,4 +26,4 @@ declare(
 )
 
 STRUCTURE = command("structure", "h", "d", "t", "columns", "scales", "rotations", "loop_mode", "overwrite",
-    library="products.structure:structure_model")
+    library="products.structure:structure_model", cli="structure:structure")

@@ -61,8 +61,8 @@ SLOPE_CLASSES = command("slope-classes", "slope_breaks", "dem_z_unit", "overwrit
                         page="commands/terrain", group="terrain", outputs=("slope_classes",))
 
 TERRAIN = command("terrain", "terrain_products", "azimuth", "altitude", "dem_z_unit", "overwrite",
-    library="products.terrain:terrain_from_dem")
+    library="products.terrain:terrain_from_dem", cli="terrain:terrain")
 VIEWSHED = command("viewshed", "observer", "observers", "observer_height", "target_height", "hiding_surface", "max_distance", "curvature",
                    "curvature_coefficient", "dem_z_unit", "overwrite",
-    library="products.viewshed:viewshed_from_surface")
+    library="products.viewshed:viewshed_from_surface", cli="terrain:viewshed")
 COMMAND_DEFAULTS.update({"terrain": {}, "viewshed": {}})

@@ -45,4 +45,4 @@ declare(
 TRAVEL = command("travel", "dem", "last_seen", "shrub_classes", "roads", "hydro", "waterbodies", "road_speed",
                  "wade_speed", "isochrones", "tobler", "shrub_factors", "neighbours", "isotropic", "max_memory", "snap",
                  "max_road_width", "max_hydro_width", "single_line_width", "reproject_vectors", "overwrite",
-    library="products.travel:travel_from_dem", settings="products.travel:TravelSettings")
+    library="products.travel:travel_from_dem", settings="products.travel:TravelSettings", cli="travel:travel")

@@ -28,10 +28,10 @@ from ..aquifer.volume import common_footprint, overlay_volume, tin_integral
 from ..aquifer.walls import unit_mesh
 from ..io.meshes import write_obj, write_ply
 from ..mesh import is_closed, match_rings
-from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
+from ..errors import InputError
+from ..engine.resume import rerun_kept, run_record
+from ..io.outdir import claim_output, output_folder
 from ..grid import cell_centres, evaluate_on_grid, snapped_grid
-from ..io.outdir import claim_output
 from ..io.raster import atomic_path, write_raster
 from ..parameters import check_all, choices, option
 from ..validation import check_count, check_length, check_number
@@ -403,7 +403,8 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
         An option or the contacts are not valid (a missing layer, a column not found, ...), or they carry no CRS
         and ``crs`` is not given.
     OutputExistsError
-        ``out`` holds a model and ``overwrite`` is False.
+        ``out`` holds another command's outputs, or a model whose record does not say its settings (and
+        ``overwrite`` is False); a model of other settings is refused naming the first that differs (InputError).
 
     Examples
     --------
@@ -416,18 +417,23 @@ def aquifer_model(source, layers, out, *, crs=None, swap_xy: bool = False, setti
     s = settings or AquiferSettings()
     s.validate()
     out = output_folder(out)
-    if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("an aquifer model is already there", path=out,
-                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
+    now = {**s.__dict__, "layers": list(layers), "crs": crs, "swap_xy": swap_xy, "within": within, "clip": clip,
+           "fields": fields}
+    inputs = [*(source if isinstance(source, (list, tuple)) else [source]), within, clip]
+    kept = rerun_kept(out, "gistools aquifer model", now, inputs, overwrite, started)
+    if kept is not None:
+        return kept
     model = build_model(source, layers, crs=crs, swap_xy=swap_xy, settings=s, clip=clip, progress=progress,
                         fields=fields)
     compute_units(model, s, within=within, progress=progress)
     report(progress, 0.85, "writing")
     with claim_output(out, "gistools aquifer model"):
-        return _write_model(model, s, out, started, progress, swap_xy=swap_xy, within=within, clip=clip, source=source)
+        return _write_model(model, s, out, started, progress, swap_xy=swap_xy, within=within, clip=clip, source=source,
+                            made=(now, inputs))
 
 
-def _write_model(model, s: "AquiferSettings", out: Path, started: float, progress, *, swap_xy, within, clip, source) -> dict:
+def _write_model(model, s: "AquiferSettings", out: Path, started: float, progress, *, swap_xy, within, clip, source,
+                 made: tuple) -> dict:
     write_layers(_layers_gpkg(model), out / "aquifer.gpkg", overwrite=True)
     files = {"gpkg": str(out / "aquifer.gpkg"), "meshes": {}, "thickness": {}, "densified": {}}
     densified_counts = {}
@@ -501,6 +507,7 @@ def _write_model(model, s: "AquiferSettings", out: Path, started: float, progres
             "mesh_faces": int(len(u["mesh"][1])),
             "mesh_closed": is_closed(u["mesh"][1]),
         }
+    rep["made"] = run_record(*made, files)
     rep["seconds"] = round(time.time() - started, 3)
     rep = write_folder_report(out, rep)
     report(progress, 1.0, "done")

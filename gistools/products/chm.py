@@ -15,12 +15,12 @@ from pathlib import Path
 
 import numpy as np
 
+from ..docstrings import shared_sections
 from ..errors import DataFileError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
-from ..grid import snapped_grid
 from ..io.outdir import claim_output
-from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
-from ..io.raster import crs_from_wkt, write_raster, write_vrt
+from ..io.points import common_crs, crs_label
+from ..io.raster import write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.chm import CHM_METHODS, chm_p2r, chm_pitfree, chm_tin, pits
 from ..lidar.normalize import height_above_ground
@@ -29,8 +29,8 @@ from ..parameters.lidar import COMMAND_DEFAULTS, check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo, points_around,
-                       read_headers, write_batch_report)
+from ..engine.buffered import (STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_tile, marked_todo, read_headers,
+                               write_batch_report)
 
 __all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]
 
@@ -129,15 +129,8 @@ def tile_chm(own: dict, neighbours: list, grid, run: _Run) -> np.ndarray:
 
 
 def _chm_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
-    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    grid = snapped_grid(info.bounds, run.cell_size, crs_from_wkt(run.crs_wkt))
-    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
-    w, s, e, n = grid.bounds
-    b = run.buffer
-    try:
-        chm = tile_chm(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
-    except DataFileError as err:
-        raise DataFileError(str(err), path=path) from None
+    info, grid, _own, chm = gridded_tile(path, sources, crs_text, run.cell_size, run.crs_wkt, run.buffer,
+                                   lambda own, around, grid: tile_chm(own, around, grid, run))
     target = Path(run.out) / "chm" / f"{info.name}.tif"
     write_raster(target, chm, grid, overwrite=True, units=run.z_unit, tags={"GISTOOLS_PRODUCT": "chm",
                  "GISTOOLS_CHM_METHOD": run.method}, description=f"canopy height ({run.z_unit})")
@@ -152,6 +145,7 @@ class _TileState(TileState):
     cells: int = 0
 
 
+@shared_sections
 def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                    overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
     """A canopy height model GeoTIFF per tile of ``inputs``: ``gistools chm``.
@@ -162,38 +156,18 @@ def chm_from_tiles(inputs, out, settings: ChmSettings | None = None, *, jobs: in
 
     Parameters
     ----------
-    inputs : str, path or list
-        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
-    out : str or path
-        Output folder, made when missing.
+    {tiles_in}
     settings : ChmSettings, optional
         The options (``cell_size``, ``method`` p2r, pitfree or tin, ``thresholds``, ``max_edge``, ...; lengths as text
         with their unit or a number in CRS units). None: the defaults.
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    scheduler : str, optional
-        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
-    overwrite : bool
-        Remake tiles whose output exists.
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels the run.
+    {tiles_run}
 
     Returns
     -------
     dict
         The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``tiles``.
 
-    Raises
-    ------
-    InputError
-        An option is not valid, or ``inputs`` holds no tile.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise}
 
     Examples
     --------

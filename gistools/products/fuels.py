@@ -13,17 +13,18 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo,
-                               neighbour_table, points_around, read_headers, write_batch_report)
+from ..docstrings import shared_sections
+from ..engine.buffered import (RASTER_FOUND, STRIP_FIELDS, RasterTileState, batch_inputs, buffered_passes, gridded_tile,
+                               marked_todo, neighbour_table, read_headers, write_batch_report)
 from ..errors import DataFileError, InputError, raise_if_every_tile_failed
 from ..grid import cell_centres, cell_index, snapped_grid
 from ..io.outdir import claim_output, output_folder
-from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
+from ..io.points import common_crs, crs_label
 from ..io.raster import crs_from_wkt, write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.bands import band_thresholds
@@ -352,15 +353,8 @@ _DESCRIPTIONS = {"elevation": "ground elevation ({z})", "cover": "canopy cover (
 
 
 def _fuels_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
-    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    grid = snapped_grid(info.bounds, run.cell_size, crs_from_wkt(run.crs_wkt))
-    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
-    w, s, e, n = grid.bounds
-    b = run.buffer
-    try:
-        arrays, counts = tile_fuels(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
-    except DataFileError as err:
-        raise DataFileError(str(err), path=path) from None
+    info, grid, own, (arrays, counts) = gridded_tile(path, sources, crs_text, run.cell_size, run.crs_wkt, run.buffer,
+                                                lambda own, around, grid: tile_fuels(own, around, grid, run))
     outputs = {}
     for name in LAYERS:
         target = Path(run.out) / name / f"{info.name}.tif"
@@ -370,19 +364,8 @@ def _fuels_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
     return {"outputs": outputs, "points": int(len(own["x"])), "neighbours": [nb for _k, nb, _s in sources], **counts}
 
 
-# what a tile's run found, kept in its mark (tile_reports/) and reported again when a rerun keeps the tile
-FOUND = ("points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours")
 
-
-@dataclass
-class _TileState(TileState):
-    outputs: dict = field(default_factory=dict)
-    points: int = 0
-    points_used: int = 0
-    cells_with_points: int = 0
-    heights_outside_tin: int | None = None
-
-
+@shared_sections
 def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs: int | str = "auto",
                      scheduler: str | None = None, overwrite: bool = False,
                      progress: ProgressCallback | None = None) -> dict:
@@ -403,15 +386,7 @@ def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs
     settings : FuelsSettings, optional
         The options (``cell_size``, the profile's constants, the fuel model mapping; lengths as text with their
         unit). None: the defaults (30 m cells on metre data, 100 ft on data in feet).
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    scheduler : str, optional
-        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
-    overwrite : bool
-        Remake tiles whose outputs exist.
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels the run.
+    {tiles_run}
 
     Returns
     -------
@@ -426,10 +401,7 @@ def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs
         be done (too many profile layers or columns, more memory than there is, a landscape off the Earth or beyond
         the LCP's int16: refused before the first tile, with the numbers); or the landscape's values do not fit
         the LCP's int16 (raised once report.json and the fuel layers are written).
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise_rest}
 
     Examples
     --------
@@ -442,7 +414,7 @@ def fuels_from_tiles(inputs, out, settings: FuelsSettings | None = None, *, jobs
     started = time.time()
     paths, override = batch_inputs(inputs, settings, jobs, scheduler)
     out = output_folder(out)
-    states, infos = read_headers(paths, override, _TileState)
+    states, infos = read_headers(paths, override, RasterTileState)
     run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out) if infos else None
     if run is not None:
         _check_work(infos, run, settings)  # before anything is written
@@ -457,7 +429,7 @@ def _fuels_in(out: Path, settings: FuelsSettings, states: dict, infos: dict, run
     cannot hold, no cell of data) is raised after the report is written (the tiles' layers are kept)."""
     if run is not None:
         todo, on_done = marked_todo(infos, states, run, out, "gistools fuels",
-                                    lambda name: {k: out / k / f"{name}.tif" for k in LAYERS}, FOUND, overwrite)
+                                    lambda name: {k: out / k / f"{name}.tif" for k in LAYERS}, RASTER_FOUND, overwrite)
         buffered_passes(todo, infos, states, buffer=max(run.buffer, run.cell_size), crs_text=settings.crs, out=out,
                         jobs=jobs, scheduler=scheduler, progress=progress, tile_fn=_fuels_tile,
                         tile_args=lambda n, sources: (str(infos[n].path), sources, settings.crs, run),

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import shapely
 
+from ..docstrings import shared_sections
 from ..errors import InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.outdir import claim_output
@@ -33,7 +34,7 @@ from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, points_around,
+from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, PointTileState, batch_inputs, buffered_passes, points_around,
                                read_headers, write_batch_report)
 
 __all__ = ["GroundSettings", "ground_from_tiles", "FORMATS"]
@@ -322,13 +323,12 @@ def _wkt1(crs) -> str:
 
 
 @dataclass
-class _TileState(TileState):
-    output: str | None = None
-    points: int = 0
+class _TileState(PointTileState):
     changed: int = 0
     points_by_class: dict | None = None
 
 
+@shared_sections
 def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jobs: int | str = "auto", scheduler: str | None = None,
                       overwrite: bool = False, progress: ProgressCallback | None = None, water=None) -> dict:
     """Ground (class 2) and noise (7, 18) of every tile of ``inputs``, classified: ``gistools ground``.
@@ -339,22 +339,11 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
 
     Parameters
     ----------
-    inputs : str, path or list
-        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
-    out : str or path
-        Output folder, made when missing.
+    {tiles_in}
     settings : GroundSettings, optional
         The options (``method`` smrf or csf, the filter's parameters, ``noise``, ``format``, ...; lengths as text
         with their unit, e.g. ``"1m"``, or a number in CRS units; heights in the vertical unit). None: the defaults.
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    scheduler : str, optional
-        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
-    overwrite : bool
-        Remake tiles whose output exists.
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels the run.
+    {tiles_run}
     water : list of shapely geometries, optional
         Water polygons (shapely geometries, in CRS units) whose points of classes 0, 1, 2, 7, 18 become water (9)
         before the filters.
@@ -364,16 +353,7 @@ def ground_from_tiles(inputs, out, settings: GroundSettings | None = None, *, jo
     dict
         The run's report, also written to ``out/report.json``: ``counts`` (ok, skipped, failed), ``tiles``, ``vpc``.
 
-    Raises
-    ------
-    InputError
-        An option is not valid, or ``inputs`` holds no tile.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise}
 
     Examples
     --------

@@ -83,11 +83,16 @@ class ShoreMinima:
         return {k: dict(v) for k, v in self.profile.items()}
 
 
-def flatten_dem_tiles(results: dict, bodies, run) -> dict:
+def flatten_dem_tiles(results: dict, bodies, run, progress=None, out=None) -> dict:
     """Every DEM tile a water body reaches flattened: a lake at its lowest shore elevation, a river at levels
     stepping down along its flow (river_surface); the nDSM redone. Returns {"bodies": {key: {"kind", "elevation"
     (a lake's; a river's lowest), "highest" (a river's), "cells"}}, "tiles": {tile: cells changed}}. ``results``: the
-    rasters' TileResults (their ``shore_minima`` and ``shore_profile`` from pass 1, their ``outputs``)."""
+    rasters' TileResults (their ``shore_minima`` and ``shore_profile`` from pass 1, their ``outputs``). The tiles go
+    through the engine's task loop: ``progress`` told after each (and may cancel), a tile that fails is marked failed
+    with its error and the others go on, a failed write to the folder ``out`` (a full disk) stops the run."""
+    from ..engine.batch import run_each
+    from ..progress import report
+
     kept = [r for r in results.values() if r.status in ("ok", "skipped")]
     lows = merge_minima(r.shore_minima for r in kept)
     polys = {key: shapely.from_wkb(wkb) for key, wkb, _band, _cell in bodies}
@@ -97,13 +102,20 @@ def flatten_dem_tiles(results: dict, bodies, run) -> dict:
         levels = getattr(surface, "levels", None)
         kind, levels = ("river", levels) if levels is not None else ("lake", [lows[key]])
         summary["bodies"][key] = {"kind": kind, "elevation": float(min(levels)), "highest": float(max(levels)), "cells": 0}
-    for name, r in results.items():
-        dem_path = (r.outputs or {}).get("dem")
-        if r.status not in ("ok", "skipped") or not dem_path:
-            continue
-        changed = _flatten_tile(r, dem_path, polys, surfaces, run, summary["bodies"])
+    names = [n for n, r in results.items() if r.status in ("ok", "skipped") and (r.outputs or {}).get("dem")]
+    done = []
+
+    def on_done(name, changed, _seconds):
         if changed:
             summary["tiles"][name] = changed
+
+    def tick(message):
+        done.append(message)
+        report(progress, len(done) / len(names), message)
+
+    run_each(lambda name: _flatten_tile(results[name], results[name].outputs["dem"], polys, surfaces, run,
+                                        summary["bodies"]),
+             [(n,) for n in names], None, results, names, on_done, tick, "flattened", out)
     return summary
 
 

@@ -115,14 +115,26 @@ def tiles_summary(inputs, *, crs=None, out=None, progress: ProgressCallback | No
     >>> summary["counts"], summary["points"]  # doctest: +SKIP
     ({'ok': 4, 'failed': 0}, 258950)
     """
+    from ..engine.batch import run_each
+    from ..engine.passes import TileState
+
     paths = find_tiles(inputs)
-    tiles = []
-    for k, path in enumerate(paths):
-        try:
-            tiles.append({"status": "ok", **tile_summary(path, crs)})
-        except GistoolsError as err:
-            tiles.append({"status": "failed", "file": str(path), "error": str(err)})
-        report(progress, (k + 1) / len(paths), path.name)
+    keys = [str(k) for k in range(len(paths))]  # two folders may hold tiles of one name
+    states = {k: TileState(p.name, str(p)) for k, p in zip(keys, paths)}
+    found, ticks = {}, []
+
+    def on_done(key, summary, _seconds):
+        found[key] = summary
+
+    def tick(_message):
+        ticks.append(1)
+        report(progress, len(ticks) / len(paths), paths[len(ticks) - 1].name)
+
+    # the engine's task loop, in this process: a tile that cannot be read is listed with its error, the rest go on
+    run_each(lambda key: tile_summary(paths[int(key)], crs), [(k,) for k in keys], None, states, keys, on_done, tick,
+             "read")
+    tiles = [{"status": "ok", **found[k]} if k in found else
+             {"status": "failed", "file": str(paths[int(k)]), "error": states[k].error} for k in keys]
     ok = [t for t in tiles if t["status"] == "ok"]
     summary = {
         "tool": "gistools info",

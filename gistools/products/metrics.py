@@ -9,17 +9,18 @@ within the buffer, so a tiled run equals a run on the merged tiles. Definitions:
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..docstrings import shared_sections
 from ..errors import DataFileError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..grid import cell_index, snapped_grid
 from ..io.outdir import claim_output
-from ..io.points import common_crs, crs_label, parse_crs_text, points_in_box, read_tile_info
-from ..io.raster import crs_from_wkt, write_raster, write_vrt
+from ..io.points import common_crs, crs_label
+from ..io.raster import write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
 from ..lidar.metrics import LAYER_HEIGHT_M, MetricSpec, cell_metrics, needs_heights, parse_metric
 from ..lidar.normalize import height_above_ground
@@ -28,8 +29,8 @@ from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
 from ..validation import check_length
-from ..engine.buffered import (EVERYWHERE, STRIP_FIELDS, TileState, batch_inputs, buffered_passes, marked_todo,
-                               points_around, read_headers, write_batch_report)
+from ..engine.buffered import (RASTER_FOUND, STRIP_FIELDS, RasterTileState, batch_inputs, buffered_passes, gridded_tile,
+                               marked_todo, read_headers, write_batch_report)
 
 __all__ = ["MetricsSettings", "metrics_from_tiles", "RETURNS", "DEFAULT_METRICS", "GROUND_CLASSES"]
 
@@ -148,15 +149,9 @@ def tile_metrics(own: dict, neighbours: list, grid, run: _Run) -> tuple[dict, di
 
 def _metrics_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
     """One tile's metric rasters."""
-    info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    grid = snapped_grid(info.bounds, run.cell_size, crs_from_wkt(run.crs_wkt))
-    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
-    w, s, e, n = grid.bounds
-    b = run.buffer if needs_heights(run.specs) else 0.0
-    try:
-        arrays, counts = tile_metrics(own, points_around(sources, (w - b, s - b, e + b, n + b), crs_text), grid, run)
-    except DataFileError as err:
-        raise DataFileError(str(err), path=path) from None
+    info, grid, own, (arrays, counts) = gridded_tile(path, sources, crs_text, run.cell_size, run.crs_wkt,
+                                                run.buffer if needs_heights(run.specs) else 0.0,
+                                                lambda own, around, grid: tile_metrics(own, around, grid, run))
     outputs = {}
     for spec in run.specs:
         target = Path(run.out) / spec.name / f"{info.name}.tif"
@@ -174,19 +169,8 @@ def _description(spec: MetricSpec, z_unit: str) -> str:
     return f"{spec.name} ({z_unit})"
 
 
-# what a tile's run found, kept in its mark (tile_reports/) and reported again when a rerun keeps the tile
-FOUND = ("points", "points_used", "cells_with_points", "heights_outside_tin", "neighbours")
 
-
-@dataclass
-class _TileState(TileState):
-    outputs: dict = field(default_factory=dict)
-    points: int = 0
-    points_used: int = 0
-    cells_with_points: int = 0
-    heights_outside_tin: int | None = None
-
-
+@shared_sections
 def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, jobs: int | str = "auto",
                        scheduler: str | None = None, overwrite: bool = False,
                        progress: ProgressCallback | None = None) -> dict:
@@ -199,22 +183,11 @@ def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, 
 
     Parameters
     ----------
-    inputs : str, path or list
-        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
-    out : str or path
-        Output folder, made when missing.
+    {tiles_in}
     settings : MetricsSettings, optional
         The options (``cell_size`` as text with its unit or a number in CRS units, ``metrics``, ``normalized``,
         ``classes``, ``returns``, ...). None: the defaults.
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    scheduler : str, optional
-        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
-    overwrite : bool
-        Remake tiles whose outputs exist.
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels the run.
+    {tiles_run}
 
     Returns
     -------
@@ -226,12 +199,7 @@ def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, 
     ------
     InputError
         An option is not valid (an unknown metric, ...), or ``inputs`` holds no tile.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise_rest}
 
     Examples
     --------
@@ -250,12 +218,12 @@ def metrics_from_tiles(inputs, out, settings: MetricsSettings | None = None, *, 
 
 def _metrics_in(paths, out: Path, settings: MetricsSettings, override, jobs, scheduler, overwrite, progress) -> dict:
     started = time.time()
-    states, infos = read_headers(paths, override, _TileState)
+    states, infos = read_headers(paths, override, RasterTileState)
     run = None
     if infos:
         run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
         todo, on_done = marked_todo(infos, states, run, out, "gistools metrics",
-                                    lambda name: {s.name: out / s.name / f"{name}.tif" for s in run.specs}, FOUND,
+                                    lambda name: {s.name: out / s.name / f"{name}.tif" for s in run.specs}, RASTER_FOUND,
                                     overwrite)
 
         # without heights above ground a tile needs only the neighbours' points in its own cells (its grid snapped

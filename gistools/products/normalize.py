@@ -18,6 +18,7 @@ import laspy
 import numpy as np
 import shapely
 
+from ..docstrings import shared_sections
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.outdir import claim_output
@@ -31,7 +32,8 @@ from ..progress import ProgressCallback
 from ..units import horizontal_unit, length_to_crs_units
 from ..validation import check_length
 from ..vector.breaklines import road_polygons, water_polygons
-from ..engine.buffered import TileState, batch_inputs, buffered_passes, points_around, read_headers, write_batch_report
+from ..engine.buffered import (PointTileState, batch_inputs, buffered_passes, points_around, read_headers,
+                               write_batch_report)
 from .ground import _output_name, _wkt1, check_point_format
 
 __all__ = ["NormalizeSettings", "normalize_from_tiles", "HAG_DIMENSION", "GROUND_CLASSES"]
@@ -136,15 +138,14 @@ def _normalize_tile(path: str, sources: list, crs_text, p: _Params, target: str,
 
 
 @dataclass
-class _TileState(TileState):
-    output: str | None = None
-    points: int = 0
+class _TileState(PointTileState):
     outside_tin: int = 0
     hag_range: list | None = None
     reclassified: dict | None = None
     z_range: list | None = None
 
 
+@shared_sections
 def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None, *, roads=None, hydro=None,
                          waterbodies=None, reproject_vectors: bool = False, jobs: int | str = "auto", scheduler: str | None = None,
                          overwrite: bool = False, progress: ProgressCallback | None = None) -> dict:
@@ -171,15 +172,7 @@ def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None,
         Water polygons, likewise.
     reproject_vectors : bool
         Reproject breaklines in another CRS than the tiles' (else they are refused).
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    scheduler : str, optional
-        A dask.distributed scheduler address, or ``"local"``, to run the tiles on instead.
-    overwrite : bool
-        Remake tiles whose output exists.
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels the run.
+    {tiles_run}
 
     Returns
     -------
@@ -190,12 +183,7 @@ def normalize_from_tiles(inputs, out, settings: NormalizeSettings | None = None,
     ------
     InputError
         An option is not valid (breaklines without ``classify_vegetation``), or ``inputs`` holds no tile.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise_rest}
 
     Examples
     --------

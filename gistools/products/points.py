@@ -7,12 +7,16 @@ chunks: GeoPackage by default, GeoParquet (needs pyarrow) for tiles of millions 
 from __future__ import annotations
 
 import time
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ..docstrings import shared_sections
+from ..engine.batch import run_each
+from ..engine.passes import TileState
 from ..engine.record import write_folder_report
-from ..errors import GistoolsError, InputError, OutputError, raise_if_every_tile_failed
+from ..errors import GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.points import DEFAULT_CHUNK_SIZE, common_crs, crs_label, iter_chunks, parse_crs_text, read_tile_info
 from ..io.outdir import claim_output
@@ -21,7 +25,7 @@ from ..io.vector import GPKG_OPTIONS
 from ..parameters import check, choices, default_for, option
 from ..parameters.lidar import COMMAND_DEFAULTS, current_word
 from ..io.tiles import find_tiles
-from ..progress import check_interrupt, ProgressCallback, report
+from ..progress import ProgressCallback, report
 
 __all__ = ["points_from_tiles", "RETURNS"]
 
@@ -74,6 +78,7 @@ def _write_tile(info, path: Path, classes, returns, fmt, chunk_size) -> int:
     return written
 
 
+@shared_sections
 def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classes"], returns: str = default_for("returns"),
                       fmt: str = default_for("fmt"), crs: str | None = None, overwrite: bool = False,
                       chunk_size: int = DEFAULT_CHUNK_SIZE, progress: ProgressCallback | None = None) -> dict:
@@ -85,10 +90,7 @@ def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classe
 
     Parameters
     ----------
-    inputs : str, path or list
-        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
-    out : str or path
-        Output folder, made when missing.
+    {tiles_in}
     classes : sequence of int, optional
         ASPRS class codes kept; None: every class.
     returns : str
@@ -110,14 +112,7 @@ def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classe
         The run's report, also written to ``out/report.json``: ``counts`` (ok, failed, skipped), ``tiles`` (each
         with its point count and output).
 
-    Raises
-    ------
-    InputError
-        An option is not valid, or ``inputs`` holds no tile.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
+    {tiles_raise}
 
     Examples
     --------
@@ -147,37 +142,49 @@ def points_from_tiles(inputs, out, *, classes=COMMAND_DEFAULTS["points"]["classe
         return raise_if_every_tile_failed(write_folder_report(out, rep))
 
 
+@dataclass
+class _TileState(TileState):
+    points: int = 0
+    output: str | None = None
+    seconds: float = 0.0
+
+
+def _write_named(name: str, info, target: Path, classes, returns, fmt, chunk_size) -> int:
+    """_write_tile of the tile ``name`` (the engine's task: its first argument names the tile)."""
+    return _write_tile(info, target, classes, returns, fmt, chunk_size)
+
+
 def _points_in(paths, out: Path, override, classes, returns, fmt, overwrite, chunk_size, progress) -> dict:
-    tiles, infos = [], []
+    states = {p.stem: _TileState(p.stem, str(p)) for p in paths}
+    infos = {}
     for p in paths:
-        entry = {"name": p.stem, "path": str(p), "status": "ok", "error": None, "points": 0, "output": None}
-        tiles.append(entry)
         try:
-            infos.append((entry, read_tile_info(p, override)))
+            infos[p.stem] = read_tile_info(p, override)
         except GistoolsError as err:
-            entry["status"], entry["error"] = "failed", str(err)
+            states[p.stem].status, states[p.stem].error = "failed", str(err)
     if infos:
-        common_crs([i for _, i in infos])
-    for k, (entry, info) in enumerate(infos):
-        target = out / f"{info.name}.{fmt}"
-        if target.exists() and not overwrite:
-            entry["status"], entry["output"] = "skipped", str(target)
-        else:
-            t = time.perf_counter()
-            try:
-                entry["points"] = _write_tile(info, target, None if classes is None else tuple(classes), returns, fmt,
-                                              chunk_size)
-                entry["output"] = str(target)
-            except OutputError:  # a full disk or a read-only --out stops the run: it is no tile's fault
-                raise
-            except GistoolsError as err:
-                check_interrupt()
-                entry["status"], entry["error"] = "failed", str(err)
-            entry["seconds"] = round(time.perf_counter() - t, 3)
-        report(progress, (k + 1) / len(infos), f"{info.name}: {entry['points']:,} points")
+        common_crs(list(infos.values()))
+    targets = {name: out / f"{info.name}.{fmt}" for name, info in infos.items()}
+    todo = [name for name in infos if overwrite or not targets[name].exists()]
+    for name in set(infos) - set(todo):
+        states[name].status, states[name].output = "skipped", str(targets[name])
+    keep = None if classes is None else tuple(classes)
+    done = []
+
+    def on_done(name, points, seconds):
+        states[name].points, states[name].output, states[name].seconds = points, str(targets[name]), round(seconds, 3)
+
+    def tick(message):
+        done.append(message)
+        report(progress, len(done) / len(todo), message)
+
+    # the engine's task loop, in this process: each tile read in chunks; a bad tile reported, a full disk stops
+    run_each(_write_named, [(n, infos[n], targets[n], keep, returns, fmt, chunk_size) for n in todo], None, states,
+             todo, on_done, tick, "written", out)
+    tiles = [asdict(st) for st in states.values()]
     return {
         "tool": "gistools points",
-        "crs": crs_label(infos[0][1].crs) if infos else None,
+        "crs": crs_label(next(iter(infos.values())).crs) if infos else None,
         "classes": None if classes is None else list(classes),
         "returns": returns,
         "tiles": tiles,

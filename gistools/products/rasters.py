@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 from affine import Affine
 
+from ..docstrings import shared_sections
 from ..errors import Cancelled, DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..grid import Grid, snapped_grid
@@ -534,15 +535,16 @@ def _write_tile_rasters(info, run: _Run, grid: Grid, arrays: dict) -> dict:
     return outputs
 
 
+@shared_sections
 def rasters_from_tiles(
     inputs,
     out,
     settings: RasterSettings | None = None,
     *,
     jobs: int | str = "auto",
+    scheduler: str | None = None,
     overwrite: bool = False,
     progress: ProgressCallback | None = None,
-    scheduler: str | None = None,
     pool=None,
     water=None,
 ) -> dict:
@@ -554,24 +556,12 @@ def rasters_from_tiles(
 
     Parameters
     ----------
-    inputs : str, path or list
-        LAS / LAZ files, folders (their tiles), glob patterns or a ``.vpc``.
-    out : str or path
-        Output folder, made when missing.
+    {tiles_in}
     settings : RasterSettings, optional
         The options (``cell_size``, ``dem_method``, ``dem_max_distance``, ...; lengths as text with their unit, e.g.
         ``"5ft"``, ``"1.5m"``, or a number in CRS units). None: the defaults (5 ft cells on data in feet, 1.5 m in
         metres).
-    jobs : int or "auto"
-        Tiles processed at once, each in a local process; "auto" (the default): in this process until the tiles'
-        points repay starting workers (``gistools.engine.batch.auto_workers``).
-    overwrite : bool
-        Remake tiles whose outputs exist.
-    progress : callable, optional
-        ``progress(fraction, message)``, called as the work goes; returning False cancels the run.
-    scheduler : str, optional
-        A dask.distributed scheduler address (``"tcp://host:8786"``), or ``"local"`` for a local cluster of ``jobs``
-        workers, to run the tiles on instead; the workers must see the tiles and ``out`` at the same paths.
+    {tiles_run}
     pool : gistools.engine.batch.ProcessPool, optional
         A worker pool to use instead of starting one (``gistools.engine.batch.make_pool``; the caller closes it).
     water : list of shapely geometries, optional
@@ -589,14 +579,9 @@ def rasters_from_tiles(
     InputError
         An option is not valid, ``inputs`` holds no tile, or ``out`` holds tiles made with other settings (without
         ``overwrite``).
-    CRSMismatchError
-        The tiles are not all in one CRS.
     OutputExistsError
         ``out`` holds another command's outputs.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise_rest}
 
     Examples
     --------
@@ -653,7 +638,8 @@ def _rasters_in(paths, override, out: Path, settings: RasterSettings, started, j
             run = _run_parameters(infos[0], crs, settings, out, scratch)
             infos = _griddable(infos, run, results, settings)
             scratch_peak = _passes_over_tiles(infos, results, run, jobs, overwrite, progress, scheduler, pool)
-            flattened = flatten_dem_tiles(results, run.water, run) if run.water else None
+            flattened = (flatten_dem_tiles(results, run.water, run, sub_progress(progress, 1.0, 1.0), out)
+                         if run.water else None)  # the bar stays full: its messages name the tiles flattened
         finally:
             shutil.rmtree(scratch, ignore_errors=True)
     summary = _summary(infos, run, settings, results, _mosaics(out, settings.products, results), scratch_peak, started)

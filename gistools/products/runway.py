@@ -13,16 +13,15 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-import pyproj
 import shapely
 from scipy.interpolate import LinearNDInterpolator
 
 from ..engine.record import write_folder_report
-from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
+from ..errors import InputError
+from ..engine.resume import rerun_kept, run_record
+from ..io.outdir import claim_output, output_folder
 from ..grid import evaluate_on_grid, snapped_grid
-from ..io.points import parse_crs_text
-from ..io.outdir import claim_output
+from ..io.points import chosen_crs
 from ..io.raster import atomic_path, write_raster
 from ..io.vector import write_layers
 from ..progress import ProgressCallback, report
@@ -298,7 +297,8 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     InputError
         An option or the survey is not valid, it has no CRS, or its CRS is not in metres.
     OutputExistsError
-        ``out`` holds a run and ``overwrite`` is False.
+        ``out`` holds another command's outputs, or a run whose record does not say its settings (and
+        ``overwrite`` is False); a run of other settings is refused naming the first that differs (InputError).
 
     Examples
     --------
@@ -311,18 +311,13 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
     st = settings or RunwaySettings()
     st.validate()
     out = output_folder(out)
-    if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("a runway run is already there", path=out,
-                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
     make_template(st.code, st.runway_type, st.template)  # refuse an unknown code before reading anything
+    now = {**{k: v for k, v in vars(st).items() if k != "checks"}, **vars(st.checks), "crs": crs, "fields": fields}
+    kept = rerun_kept(out, "gistools runway", now, source, overwrite, started)
+    if kept is not None:
+        return kept
     points, file_crs = read_survey(source, fields)
-    if crs is not None:
-        crs_obj = parse_crs_text(crs) if isinstance(crs, str) else pyproj.CRS.from_user_input(crs)
-    elif file_crs is not None:
-        crs_obj = pyproj.CRS.from_user_input(file_crs)
-    else:
-        raise InputError("the survey carries no CRS", path=source,
-                         hint=f"Give one with {option('crs')} (Orio al Serio: EPSG:3003)")
+    crs_obj = chosen_crs(crs, file_crs, "the survey", source, "Orio al Serio: EPSG:3003")
     unit = horizontal_unit(crs_obj)
     if abs(unit.metres - 1.0) > 1e-12:
         raise InputError(f"the CRS is in {unit.name}; the ICAO template is in metres", path=source,
@@ -335,12 +330,12 @@ def runway_earthworks(source, out, settings: RunwaySettings | None = None, *, cr
         raise InputError(str(err), path=source) from None  # the survey's degenerate content: name the file
     report(progress, 0.75, "writing")
     with claim_output(out, "gistools runway"):
-        rep = _write_runway(ew, points, crs_obj, out, st, started)
+        rep = _write_runway(ew, points, crs_obj, out, st, started, (now, source))
     report(progress, 1.0, "done")
     return rep
 
 
-def _write_runway(ew, points, crs_obj, out: Path, st, started) -> dict:
+def _write_runway(ew, points, crs_obj, out: Path, st, started, made: tuple) -> dict:
     import geopandas as gpd
 
     P = ew.points
@@ -400,6 +395,7 @@ def _write_runway(ew, points, crs_obj, out: Path, st, started) -> dict:
         "points": {"lights": int((ew.points["type"] == 1).sum()), "other": int((ew.points["type"] == 2).sum())},
         "outputs": files,
         "settings": dict(vars(st)),
+        "made": run_record(*made, files),
     }
     rep["seconds"] = round(time.time() - started, 3)
     rep = write_folder_report(out, rep)

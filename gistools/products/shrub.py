@@ -28,6 +28,7 @@ import rasterio
 import shapely
 from shapely.geometry import box
 
+from ..docstrings import shared_sections
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
 from ..io.points import parse_crs_text, read_tile_info
@@ -249,6 +250,7 @@ def _subset(vec, bounds, margin, trees=None):
 STAGES = ("rasters", "bands", "clip", "density", "classes")
 
 
+@shared_sections
 def shrub_from_tiles(
     inputs,
     out,
@@ -284,12 +286,7 @@ def shrub_from_tiles(
     settings : ShrubSettings, optional
         The options (``raster`` a RasterSettings, ``bands``, ``noise_floor``, ``radius``, ``class_breaks``, ...;
         lengths as text with their unit, e.g. ``"50ft"``, or a number in CRS units). None: the defaults.
-    roads : str, optional
-        Edge-of-pavement lines, a path or ``file.gpkg:LAYER``.
-    hydro : str, optional
-        Water lines (streams, canals), likewise.
-    waterbodies : str, optional
-        Water polygons, likewise.
+    {breaklines_in}
     wetlands : str, optional
         Wetland polygons, likewise: vegetation inside them is also written to ``wetveg/``.
     tile_index : str, optional
@@ -324,12 +321,7 @@ def shrub_from_tiles(
     ------
     InputError
         An option is not valid, a vector layer is in another CRS, ``from_stage`` is unknown or has no earlier run.
-    CRSMismatchError
-        The tiles are not all in one CRS.
-    TilesFailed
-        Every tile failed.
-    Cancelled
-        ``progress`` returned False.
+    {tiles_raise_rest}
 
     Examples
     --------

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..docstrings import shared_sections
 from ..io.blocks import BLOCK
 from ..parameters import check, option
 from ..progress import ProgressCallback
@@ -48,6 +49,7 @@ def _limits(breaks) -> tuple[float, ...]:
     return check_breaks(breaks, "slope_breaks", count=count, low=0.0, high=90.0, example="5,15,30")
 
 
+@shared_sections
 def slope_classes_from_dem(dem, out, *, breaks=(5.0, 15.0, 30.0), z_unit: str | None = "raster",
                            overwrite: bool = False, block: int = BLOCK,
                            progress: ProgressCallback | None = None) -> dict:
@@ -69,13 +71,7 @@ def slope_classes_from_dem(dem, out, *, breaks=(5.0, 15.0, 30.0), z_unit: str | 
     z_unit : str
         The elevations' unit, ``"m"``, ``"ft"`` or ``"ftUS"``; or ``"raster"``: the band's unit, else the CRS's
         vertical unit, else the horizontal unit (gdaldem ``-s``).
-    overwrite : bool
-        Replace existing outputs; without it an earlier run's output of the same settings is kept, one of other
-        settings refused.
-    block : int
-        Cells a side of the windows read at once (0: the whole raster).
-    progress : callable, optional
-        ``progress(fraction, message)``, told after each window; returning False cancels the run.
+    {dem_run}
 
     Returns
     -------
@@ -87,10 +83,7 @@ def slope_classes_from_dem(dem, out, *, breaks=(5.0, 15.0, 30.0), z_unit: str | 
     ------
     InputError
         A limit is not valid, the DEM is not found, has no CRS, is rotated or south-up.
-    OutputExistsError
-        The output is there from a run with other settings, and ``overwrite`` is False.
-    Cancelled
-        ``progress`` returned False.
+    {raster_raise_rest}
 
     Examples
     --------

@@ -22,6 +22,7 @@ import numpy as np
 import pyproj
 import shapely
 
+from ..docstrings import shared_sections
 from ..parameters import default_for
 from ..errors import InputError
 from ..io.atomic import atomic_path
@@ -113,6 +114,7 @@ def ndsm_from_rasters(dsm, dem, out, *, overwrite: bool = True, block: int = BLO
                           overwrite=overwrite, block=block)["ndsm"]
 
 
+@shared_sections
 def bands_from_ndsm(ndsm, out, *, top_class=None, preset: str = DEFAULTS.bands, breaks_m=None, thresholds=None,
                     noise_floor: str | float = DEFAULTS.noise_floor, z_unit: str | None = None, points_out=None, overwrite: bool = True,
                     block: int = BLOCK, progress: ProgressCallback | None = None) -> dict:
@@ -143,12 +145,7 @@ def bands_from_ndsm(ndsm, out, *, top_class=None, preset: str = DEFAULTS.bands, 
     points_out : str or path, optional
         Also write the cell-centre points of B0-B3 with their band and height (``grid_code``), a GeoPackage layer
         ``band_points``.
-    overwrite : bool
-        Replace outputs that exist.
-    block : int
-        Rows and columns computed at a time (bounds memory).
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels.
+    {raster_run}
 
     Returns
     -------
@@ -243,6 +240,7 @@ class _PointWriter:
         return self._ctx.__exit__(*exc)
 
 
+@shared_sections
 def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=None, tile_field: str = DEFAULTS.tile_field,
                        road_out=None, water_out=None, crs=None, reproject: bool = False, snap: str | float = DEFAULTS.snap,
                        max_road_width: str | float = DEFAULTS.max_road_width,
@@ -256,12 +254,7 @@ def breakline_polygons(*, roads=None, hydro=None, waterbodies=None, tile_index=N
 
     Parameters
     ----------
-    roads : str, optional
-        Edge-of-pavement lines, a path or ``file.gpkg:LAYER``.
-    hydro : str, optional
-        Water lines (streams, canals), likewise.
-    waterbodies : str, optional
-        Water polygons, likewise.
+    {breaklines_in}
     tile_index : str, optional
         Tile footprints, likewise.
     tile_field : str
@@ -412,6 +405,7 @@ def _band_stats_result(stats: dict) -> dict:
             "wetland_vegetation_area": stats["wetland_vegetation_area"]}
 
 
+@shared_sections
 def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=None, wetland_out=None,
                reproject: bool = False, overwrite: bool = True, block: int = BLOCK,
                progress: ProgressCallback | None = None) -> dict:
@@ -436,12 +430,7 @@ def clip_bands(bands, out, *, road_polygons=None, water_polygons=None, wetlands=
         The GeoTIFF of vegetation inside wetlands, written with ``wetlands``.
     reproject : bool
         Reproject layers in another CRS than the bands' (else they are refused).
-    overwrite : bool
-        Replace outputs that exist.
-    block : int
-        Rows and columns computed at a time (bounds memory).
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels.
+    {raster_run}
 
     Returns
     -------
@@ -517,6 +506,7 @@ def band_summary(bands, wetveg=None, *, block: int = BLOCK) -> dict:
     return _band_stats_result(stats)
 
 
+@shared_sections
 def density_from_vegetation(veg, out, *, density_out=None, radius: str | float = DEFAULTS.radius,
                             density_bands=DEFAULTS.density_bands,
                             like=None, overwrite: bool = True, block: int = BLOCK,
@@ -541,12 +531,7 @@ def density_from_vegetation(veg, out, *, density_out=None, radius: str | float =
     like : str or path, optional
         A raster on the same lattice (a tile) whose grid the outputs take, ``veg`` then being the mosaic holding its
         neighbours, so tile edges do not show either.
-    overwrite : bool
-        Replace outputs that exist.
-    block : int
-        Rows and columns computed at a time (bounds memory).
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels.
+    {raster_run}
 
     Returns
     -------
@@ -621,6 +606,7 @@ def _class_tally(codes, transform, cell_area: float, area: dict, polys: list | N
         polys.extend(class_polygons(codes, transform, mask=(codes >= 1) & (codes <= 5)).items())
 
 
+@shared_sections
 def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str = DEFAULTS.classify,
                        breaks=DEFAULTS.class_breaks,
                        keep_polygons: bool = False, overwrite: bool = True, block: int = BLOCK,
@@ -644,12 +630,7 @@ def classes_from_cover(cover, out, *, veg=None, polygons_out=None, method: str =
         Two cover fractions (0-1) between light / medium and medium / heavy, with ``"breaks"``.
     keep_polygons : bool
         Return the polygons as ``[(code, polygon)]`` instead of writing them.
-    overwrite : bool
-        Replace outputs that exist.
-    block : int
-        Rows and columns computed at a time (bounds memory).
-    progress : callable, optional
-        ``progress(fraction, message)``; returning False cancels.
+    {raster_run}
 
     Returns
     -------

@@ -13,9 +13,9 @@ import pandas as pd
 import shapely
 
 from ..engine.record import write_folder_report
-from ..errors import InputError, OutputExistsError
-from ..io.outdir import output_folder
-from ..io.outdir import claim_output
+from ..errors import InputError
+from ..engine.resume import rerun_kept, run_record
+from ..io.outdir import claim_output, output_folder
 from ..io.raster import atomic_path
 from ..parameters import check as check_parameter, option
 from ..validation import check_number
@@ -289,7 +289,8 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
     DataFileError
         The cloud cannot be read.
     OutputExistsError
-        ``out`` holds a structure and ``overwrite`` is False.
+        ``out`` holds another command's outputs, or a run whose record does not say its settings (and
+        ``overwrite`` is False); a run of other settings is refused naming the first that differs (InputError).
 
     Examples
     --------
@@ -301,16 +302,18 @@ def structure_model(source, out, *, h=None, d=None, t=None, columns="123", scale
     _check_options(h, d, t, scales, rotations, loop_mode)
     started = time.time()
     out = output_folder(out)
-    if (out / "report.json").exists() and not overwrite:
-        raise OutputExistsError("a structure is already there", path=out,
-                                hint=f"Pass {option('overwrite')}, or choose another {option('out')}")
+    now = {"h": h, "d": d, "t": t, "columns": columns, "scales": list(scales), "rotations": list(rotations),
+           "loop_mode": loop_mode}
+    kept = rerun_kept(out, "gistools structure", now, source, overwrite, started)
+    if kept is not None:
+        return kept
     pts = read_points(source, columns=columns, scales=scales, rotations=rotations)
     s = reconstruct(pts, h=h, d=d, t=t, progress=progress, source=source)
     stats = _mesh_stats(s.vertices, s.faces)
     with claim_output(out, "gistools structure"):
         rep = _write_structure(s, stats, out, loop_mode, started)
-        rep["settings"] = {"h": h, "d": d, "t": t, "columns": columns, "scales": list(scales),
-                           "rotations": list(rotations), "loop_mode": loop_mode}
+        rep["settings"] = now
+        rep["made"] = run_record(now, source, rep["outputs"])
         return write_folder_report(out, rep)
 
 

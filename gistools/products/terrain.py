@@ -13,18 +13,19 @@ scaled as gdaldem's ``-s`` (horizontal metres per unit / vertical metres per uni
 
 from __future__ import annotations
 
-import math
 import time
 from pathlib import Path
 
 import numpy as np
 
+from ..docstrings import shared_sections
 from ..errors import InputError
 from ..io.blocks import BLOCK, check_outputs_are_not_inputs, open_raster, raster_crs, read_window, run_blockwise
 from ..io.outdir import claim_output, output_folder
 from ..io.raster import NODATA
 from ..parameters import option
 from ..parameters.terrain import TERRAIN_PRODUCTS
+from ..terrain.derivatives import terrain_arrays
 from ..progress import ProgressCallback
 from ..units import LinearUnit, horizontal_unit, unit_from_word, vertical_unit
 
@@ -61,82 +62,6 @@ def elevation_units(src, path, z_unit: str | None = "raster") -> tuple[LinearUni
     return xy, xy, "horizontal"
 
 
-def _horn_sums(z):
-    """gdaldem's four weighted sums of a 3 x 3 window (cells a b c / d e f / g h i), in the DEM's own precision and
-    order of addition: left a+2d+g, right c+2f+i, top a+2b+c, bottom g+2h+i, for every inner cell of ``z``."""
-    a, b, c = z[:-2, :-2], z[:-2, 1:-1], z[:-2, 2:]
-    d, f = z[1:-1, :-2], z[1:-1, 2:]
-    g, h, i = z[2:, :-2], z[2:, 1:-1], z[2:, 2:]
-    return ((a + d) + d) + g, ((c + f) + f) + i, ((a + b) + b) + c, ((g + h) + h) + i
-
-
-def terrain_arrays(z: np.ndarray, ewres: float, nsres: float, *, scale: float = 1.0, products=tuple(TERRAIN_PRODUCTS),
-                   azimuth: float = 315.0, altitude: float = 45.0) -> dict:
-    """The terrain derivatives of the inner cells of ``z`` (a window with a one-cell halo; NaN = nodata).
-
-    ``ewres``, ``nsres``: the cell's width and height (positive, horizontal units); ``scale``: horizontal metres per
-    unit / vertical metres per unit (gdaldem ``-s``). Returns {product: float array of shape z.shape - 2}, NaN where
-    the 3 x 3 window has a nodata cell or (aspect) the cell is flat. Slope and aspect in degrees (aspect clockwise
-    from north), slope_percent in percent, hillshade 1-255 (gdaldem's), tri in z's unit (Riley et al. 1999: the
-    square root of the sum of the squared differences to the 8 neighbours).
-    """
-    z = np.asarray(z)
-    if z.dtype != np.float64:
-        z = z.astype(np.float32, copy=False)  # gdaldem sums a float raster's window in single precision
-    ft = z.dtype.type
-    left, right, top, bottom = _horn_sums(z)
-    we = np.subtract(left, right, out=left)  # west minus east (a NaN anywhere in the window stays NaN)
-    sn = np.subtract(bottom, top, out=bottom)  # south minus north
-    del right, top
-    centre_nodata = np.isnan(z[1:-1, 1:-1])  # the one cell of the window the sums leave out
-    out = {}
-    wanted = set(products)
-    if wanted & {"slope", "slope_percent", "hillshade"}:
-        gx = we * ft(1.0 / (8.0 * ewres * scale))
-        gy = sn * ft(1.0 / (8.0 * nsres * scale))
-        rise2 = gx * gx
-        rise2 += gy * gy
-        if wanted & {"slope", "slope_percent"}:
-            rise = np.sqrt(rise2)
-            if "slope_percent" in wanted:
-                out["slope_percent"] = rise * ft(100.0)
-            if "slope" in wanted:
-                out["slope"] = np.degrees(np.arctan(rise, out=rise), out=rise)
-        if "hillshade" in wanted:
-            # gdaldem: x = (west - east) / (8 ewres), y = (south - north) / (8 x the geotransform's negative nsres)
-            az, alt = math.radians(azimuth), math.radians(altitude)
-            cang = gx * ft(math.sin(az) * math.cos(alt))
-            cang += gy * ft(math.cos(az) * math.cos(alt))
-            cang += ft(math.sin(alt))
-            rise2 += ft(1.0)
-            cang /= np.sqrt(rise2, out=rise2)
-            cang *= ft(254.0)
-            cang += ft(1.0)
-            cang[cang <= 1.0] = 1.0
-            out["hillshade"] = cang
-    if "aspect" in wanted:
-        deg = np.degrees(np.arctan2(sn, we))  # atan2(dy, -dx), dx = east minus west
-        aspect = np.where(deg > 90.0, ft(450.0) - deg, ft(90.0) - deg)
-        aspect[aspect == 360.0] = 0.0
-        aspect[(we == 0) & (sn == 0)] = np.nan  # flat: gdaldem's nodata
-        out["aspect"] = aspect
-    if "tri" in wanted:
-        e = z[1:-1, 1:-1]
-        h, w = e.shape
-        acc = np.zeros(e.shape, z.dtype)
-        for r in range(3):
-            for c in range(3):
-                if r != 1 or c != 1:
-                    diff = z[r:r + h, c:c + w] - e
-                    diff *= diff
-                    acc += diff
-        out["tri"] = np.sqrt(acc, out=acc)
-    if centre_nodata.any():
-        for k in out:
-            out[k][centre_nodata] = np.nan
-    return out
-
-
 def _check(products, azimuth, altitude, z_unit) -> tuple:
     products = tuple(products)
     bad = [p for p in products if p not in TERRAIN_PRODUCTS]
@@ -152,6 +77,7 @@ def _check(products, azimuth, altitude, z_unit) -> tuple:
     return products
 
 
+@shared_sections
 def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: float = 315.0, altitude: float = 45.0,
                      z_unit: str | None = "raster", overwrite: bool = False, block: int = BLOCK,
                      progress: ProgressCallback | None = None) -> dict:
@@ -178,13 +104,7 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
     z_unit : str
         The elevations' unit, ``"m"``, ``"ft"`` or ``"ftUS"``; or ``"raster"``: the band's unit, else the CRS's
         vertical unit, else the horizontal unit. Elevations in another unit than x and y are scaled (gdaldem ``-s``).
-    overwrite : bool
-        Replace existing outputs. Without it, the outputs of an earlier run with the same settings on the same DEM
-        are kept (listed in ``kept``), and an output of other settings is refused.
-    block : int
-        Cells a side of the windows read at once (0: the whole raster).
-    progress : callable, optional
-        ``progress(fraction, message)``, told after each window; returning False cancels the run.
+    {dem_run}
 
     Returns
     -------
@@ -201,13 +121,7 @@ def terrain_from_dem(dem, out, *, products=tuple(TERRAIN_PRODUCTS), azimuth: flo
         or an output would overwrite it.
     DataFileError
         The DEM cannot be read.
-    OutputExistsError
-        An output is there from a run with other settings, and ``overwrite`` is False; or ``out`` holds another
-        command's outputs.
-    OutputError
-        ``out`` cannot be made, or another run is writing in it.
-    Cancelled
-        ``progress`` returned False.
+    {raster_raise_rest}
 
     Examples
     --------

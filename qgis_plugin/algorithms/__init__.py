@@ -15,27 +15,23 @@ terrain    terrain, viewshed (slope, aspect, hillshade, ruggedness; what observe
 declared   the algorithm of a command declared whole (gistools.parameters: its inputs, summary, page, group),
            made from the declaration: slope_classes
 
-A new algorithm goes in its group's module and into ALGORITHMS below; a command declared whole needs neither.
+A new algorithm is a class in its group's module (the provider finds it there); a command declared whole needs
+none. A new group is a module named in GROUPS below.
 """
 
-from .aquifer import AquiferModelAlgorithm, AquiferQueryAlgorithm
-from .deliver import MapBookAlgorithm, SceneAlgorithm, WebMapAlgorithm
-from .ground import GroundAlgorithm
-from .heights import ChmAlgorithm, FuelsAlgorithm, MetricsAlgorithm, NormalizeAlgorithm
-from .rasters import DemAlgorithm, DsmAlgorithm, RastersAlgorithm
-from .runway import RunwayAlgorithm
-from .shrub import ShrubChainAlgorithm
-from .steps import BandsAlgorithm, BreaklinesAlgorithm, ClassifyAlgorithm, ClipAlgorithm, DensityAlgorithm, NdsmAlgorithm
-from .structure import StructureAlgorithm
-from .terrain import TerrainAlgorithm, ViewshedAlgorithm
-from .tiles import InfoAlgorithm, PointsAlgorithm
-from .travel import TravelAlgorithm
+from . import aquifer, deliver, ground, heights, rasters, runway, shrub, steps, structure, terrain, tiles, travel
+from .base import GistoolsAlgorithm
 
-ALGORITHMS = (InfoAlgorithm, PointsAlgorithm, GroundAlgorithm, NormalizeAlgorithm, MetricsAlgorithm, ChmAlgorithm, FuelsAlgorithm, DsmAlgorithm, DemAlgorithm, NdsmAlgorithm, RastersAlgorithm, BandsAlgorithm,
-              BreaklinesAlgorithm, ClipAlgorithm, DensityAlgorithm, ClassifyAlgorithm, ShrubChainAlgorithm,
-              AquiferModelAlgorithm, AquiferQueryAlgorithm, RunwayAlgorithm, StructureAlgorithm, WebMapAlgorithm,
-              SceneAlgorithm, MapBookAlgorithm, TerrainAlgorithm, ViewshedAlgorithm,
-              TravelAlgorithm)
+GROUPS = (tiles, ground, heights, rasters, steps, shrub, aquifer, runway, structure, deliver, terrain, travel)
+
+
+def _algorithms_of(module) -> tuple:
+    """The algorithm classes a group's module defines (each names itself: ``_name``), in their order there."""
+    return tuple(c for c in vars(module).values() if isinstance(c, type) and issubclass(c, GistoolsAlgorithm)
+                 and c.__module__ == module.__name__ and "_name" in vars(c))
+
+
+ALGORITHMS = tuple(cls for module in GROUPS for cls in _algorithms_of(module))
 
 
 def _declared() -> tuple:

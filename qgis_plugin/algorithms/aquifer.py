@@ -5,14 +5,7 @@ from __future__ import annotations
 import inspect
 from pathlib import Path
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputString,
-    QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterFile,
-    QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterVectorLayer,
-)
+from qgis.core import QgsProcessingOutputString, QgsProcessingParameterFile, QgsProcessingParameterVectorLayer
 
 from gistools.products.aquifer import aquifer_query
 
@@ -30,9 +23,6 @@ CONTACT_FIELDS = {"ID_FIELD": ("Contact id field", "id"), "Z_FIELD": ("Height fi
 
 class AquiferModelAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "aquifer", "Aquifer model", GROUP_AQUIFER
-    _help = ("Borehole layer contacts (points with x, y, z and a layer field) to a 3D aquifer model (gistools aquifer "
-             "model): outliers flagged with their rule, one TIN per layer, boundaries, matched walls, a closed mesh "
-             "per unit, thickness rasters and exact volumes (report.json). Layers are named top to bottom.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Layer contacts (points with a layer name field)",
@@ -44,10 +34,9 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
                       "concave_ratio", "k", "c", "f_nn", "order_tol", "n_per_edge", "densify", "thickness_cell_size",
                       "matching", labels={"k": f"Neighbours of the outlier plane fit (at least 3; empty: {AQUIFER.k})"},
                       defaults={"layers": "LS,AU,AD,AQ"})  # the dissertation's Milan layers, as the dialog offered
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputVectorLayer("GPKG", "Aquifer GeoPackage"))
-        self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
-        self.addOutput(QgsProcessingOutputString("VOLUMES", "Volumes per unit (JSON)"))
+        self.add_outputs(
+            "Output folder", GPKG=("vector", "Aquifer GeoPackage"), REPORT=("file", "report.json"),
+            VOLUMES=("string", "Volumes per unit (JSON)"))
 
     def _model_settings(self, parameters, context, feedback):
         """(the layers top to bottom, the run's inputs, the AquiferSettings) of the dialog's values."""
@@ -86,8 +75,6 @@ class AquiferModelAlgorithm(GistoolsAlgorithm):
 
 class AquiferQueryAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "aquiferquery", "Aquifer at a point", GROUP_AQUIFER
-    _help = ("Height of every surface and thickness of every unit of a model (the output folder of 'Aquifer model') "
-             "at a point: TIN (default, nothing outside the boundary), k-nearest mean or IDW.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterFile("MODEL", "Aquifer model folder", behavior=FOLDER))

@@ -20,6 +20,7 @@ from qgis.PyQt.QtGui import QIcon
 
 from gistools.products.aquifer import AquiferSettings
 from ..compat import ADVANCED, FILE, FOLDER, POINT_CLOUD, reads_las, reads_vpc
+from .texts import HELP
 
 HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
 
@@ -70,7 +71,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     _name = ""
     _display = ""
     _group = GROUP_LIDAR
-    _help = ""
+    _help = ""  # where texts.HELP has no entry: a text made when the class is (the declared commands)
     _page = ""  # its documentation page; default: its group's (GROUP_PAGES)
     _tags = ()  # its own search words, beside its group's (GROUP_TAGS)
 
@@ -90,7 +91,7 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         """The algorithm's text, then each parameter with its help and each output, as QGIS's own algorithms list them."""
         from .spec import LENGTH_RULE
 
-        lines, lengths = [self._help, "", "<b>Parameters</b>"], False
+        lines, lengths = [HELP.get(self._name, self._help), "", "<b>Parameters</b>"], False
         for p in self.parameterDefinitions():
             if p.isDestination():
                 continue
@@ -132,6 +133,22 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             param.setHelp(help)
         self.addParameter(param)
         return param
+
+    def add_outputs(self, folder: str | None = "Output folder", **outputs):
+        """The output folder parameter OUTPUT_FOLDER (``folder``: its label; None: none) and the algorithm's
+        outputs, ``NAME=(kind, label[, layer type])``: kind raster, vector, number, file, string, folder or html."""
+        from qgis.core import (QgsProcessingOutputFile, QgsProcessingOutputFolder, QgsProcessingOutputHtml,
+                               QgsProcessingOutputNumber, QgsProcessingOutputRasterLayer, QgsProcessingOutputString,
+                               QgsProcessingOutputVectorLayer, QgsProcessingParameterFolderDestination)
+
+        kinds = {"raster": QgsProcessingOutputRasterLayer, "vector": QgsProcessingOutputVectorLayer,
+                 "number": QgsProcessingOutputNumber, "file": QgsProcessingOutputFile,
+                 "string": QgsProcessingOutputString, "folder": QgsProcessingOutputFolder,
+                 "html": QgsProcessingOutputHtml}
+        if folder:
+            self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", folder))
+        for name, (kind, label, *layer_type) in outputs.items():
+            self.addOutput(kinds[kind](name, label, *layer_type))
 
     def add_spec(self, *names, command: str | None = None, skip=(), defaults: dict | None = None,
                  labels: dict | None = None, orders: dict | None = None):

@@ -3,13 +3,6 @@ fuels."""
 
 from __future__ import annotations
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputFolder,
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputRasterLayer,
-    QgsProcessingParameterFolderDestination,
-)
 
 from gistools.parameters.lidar import COMMAND_DEFAULTS
 from gistools.products import chm as _chm
@@ -40,18 +33,12 @@ class NormalizeAlgorithm(GistoolsAlgorithm):
     _name, _display = "normalize", "Heights above ground (normalize)"
     _page = "commands/normalize"
     _tags = ("normalize", "height above ground", "hag", "canopy")
-    _help = ("Height above ground of every point (gistools normalize): z minus the TIN of the ground points (classes 2 "
-             "and 9) of the tile and its neighbours within the buffer, so tiles equal one TIN of all their ground "
-             "(PDAL filters.hag_delaunay, lidR normalize_height(tin())). Written as a HeightAboveGround dimension "
-             "(float32, in the tiles' vertical unit) or as z. Optionally sets vegetation classes 3 / 4 / 5 by the "
-             "height bands, and road surface (11) and water (9) inside the breaklines' polygons. Writes one file per "
-             "tile and normalized.vpc.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
         self.add_spec(command="normalize", defaults=COMMAND_DEFAULTS["normalize"])
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (tiles + normalized.vpc)"))
-        self.addOutput(QgsProcessingOutputFile("VPC", "Virtual point cloud of the normalized tiles"))
+        self.add_outputs(
+            "Output folder (tiles + normalized.vpc)", VPC=("file", "Virtual point cloud of the normalized tiles"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
@@ -84,8 +71,8 @@ class MetricsAlgorithm(GistoolsAlgorithm):
                       orders={"returns": ("all", "first", "last")})  # the numbers saved models use
         flag_parameters(self, OPTIONAL, "METRICS")  # unchecked: only the names typed in MORE_METRICS
         flag_parameters(self, ADVANCED, "CLASSES", "RETURNS")
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (a folder and a VRT per metric)"))
-        self.addOutput(QgsProcessingOutputFolder("METRICS_FOLDER", "Folder of the metric rasters"))
+        self.add_outputs(
+            "Output folder (a folder and a VRT per metric)", METRICS_FOLDER=("folder", "Folder of the metric rasters"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
@@ -106,19 +93,13 @@ class ChmAlgorithm(GistoolsAlgorithm):
     _name, _display = "chm", "Canopy height model (CHM)"
     _page = "commands/chm"
     _tags = ("chm", "canopy", "canopy height model", "trees", "forest", "pit-free")
-    _help = ("Canopy height model of LAS/LAZ tiles (gistools chm; lidR rasterize_canopy): the first returns' heights "
-             "above the TIN of the ground, gridded as the highest return per cell (p2r), a TIN of the returns, or "
-             "pit-free (Khosravipour et al. 2014: TINs of the returns above a series of height thresholds, long "
-             "triangles dropped, stacked by their maximum, so returns deep in a crown leave no pit). Neighbouring "
-             "tiles' points are read, so tiles equal one merged run. Writes chm/<tile>.tif and chm.vrt (loaded); "
-             "the log gives the pits left (cells more than 1 m below all 8 neighbours).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
         self.add_spec(command="chm", defaults=COMMAND_DEFAULTS["chm"])
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (chm/ and chm.vrt)"))
-        self.addOutput(QgsProcessingOutputRasterLayer("CHM", "Canopy height model"))
-        self.addOutput(QgsProcessingOutputNumber("PITS", "Pits left (cells more than 1 m below all 8 neighbours)"))
+        self.add_outputs(
+            "Output folder (chm/ and chm.vrt)", CHM=("raster", "Canopy height model"),
+            PITS=("number", "Pits left (cells more than 1 m below all 8 neighbours)"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)
@@ -141,23 +122,13 @@ class FuelsAlgorithm(GistoolsAlgorithm):
     _page = "commands/fuels"
     _tags = ("fuels", "fire", "canopy", "cbh", "cbd", "canopy base height", "canopy bulk density", "landfire", "flammap",
              "lcp", "landscape")
-    _help = ("Canopy fuels of LAS/LAZ tiles (gistools fuels) on LANDFIRE's 30 m lattice (100 ft on data in feet): "
-             "ground elevation, canopy cover (share of first returns above 2 m, percent), canopy height, canopy base "
-             "height and canopy bulk density from the leaf area density profile of the returns (1 m layers, columns "
-             "of 20 pulses, bias-corrected ratio estimator, bulk density = leaf area density x leaf mass per area, "
-             "3 m running mean; base height where it first exceeds 0.012 kg/m3, as FVS and LANDFIRE), and the "
-             "surface strata shares of the height bands. "
-             "Writes a VRT per layer, landscape.tif (eight int16 bands in LANDFIRE's order and encodings) and "
-             "landscape.lcp (FlamMap's landscape file, loaded). Neighbouring tiles' points are read, so tiles equal "
-             "one merged run.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
         self.add_spec(command="fuels", defaults=COMMAND_DEFAULTS["fuels"])
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder (a VRT per layer, landscape.tif "
-                                                                          "and landscape.lcp)"))
-        self.addOutput(QgsProcessingOutputRasterLayer("LANDSCAPE", "Landscape (8 bands, LANDFIRE encodings)"))
-        self.addOutput(QgsProcessingOutputFile("LCP", "FlamMap landscape file (.lcp)"))
+        self.add_outputs(
+            "Output folder (a VRT per layer, landscape.tif and landscape.lcp)",
+            LANDSCAPE=("raster", "Landscape (8 bands, LANDFIRE encodings)"), LCP=("file", "FlamMap landscape file (.lcp)"))
 
     def run_gistools(self, parameters, context, feedback):
         out = self.output_folder(parameters, context)

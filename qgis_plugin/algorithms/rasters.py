@@ -49,9 +49,6 @@ class _RastersBase(GistoolsAlgorithm):
 class DsmAlgorithm(_RastersBase):
     _name, _display = "dsm", "DSM (max of first returns)"
     _tags = ("dsm", "digital surface model", "canopy", "raster")
-    _help = ("Digital surface model: the highest first return in each cell, on a lattice snapped to multiples of the "
-             "cell size so tiles mosaic without seams. Also the class of that return (TOP_CLASS), which the height "
-             "bands use to keep bare ground out of the low shrub band.")
     products = ("dsm", "topclass")
     outputs = {"dsm": ("OUTPUT", "DSM"), "topclass": ("TOP_CLASS", "Class of the highest first return")}
 
@@ -59,15 +56,12 @@ class DsmAlgorithm(_RastersBase):
 class DemAlgorithm(_RastersBase):
     _name, _display = "dem", "DEM (ground TIN)"
     _tags = ("dem", "dtm", "digital elevation model", "tin", "bare earth", "raster")
-    _help = ("Digital elevation model from ground points (class 2): a Delaunay TIN evaluated at cell centres, reading "
-             "ground points of neighbouring tiles so tile edges do not show; water (class 9) cells stay empty.")
     products = ("dem",)
     outputs = {"dem": ("OUTPUT", "DEM")}
 
 
 class RastersAlgorithm(_RastersBase):
     _name, _display = "rasters", "DSM, DEM and nDSM"
-    _help = "DSM, DEM and nDSM (= DSM - DEM) of every tile, each tile decoded once (gistools rasters)."
     products = ("dsm", "dem", "ndsm", "topclass")
     outputs = {"dsm": ("DSM", "DSM"), "dem": ("DEM", "DEM"), "ndsm": ("NDSM", "nDSM"),
                "topclass": ("TOP_CLASS", "Class of the highest first return")}

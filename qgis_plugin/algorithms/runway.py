@@ -4,14 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputRasterLayer,
-    QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterVectorLayer,
-)
+from qgis.core import QgsProcessingParameterVectorLayer
 
 
 from .base import GistoolsAlgorithm
@@ -27,9 +20,6 @@ SURVEY_FIELDS = {"TYPE_FIELD": ("Point type field (1 centre-line light, 2 other)
 
 class RunwayAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "runway", "Runway earthworks", GROUP_RUNWAY
-    _help = ("A runway survey (points with a type field: 1 = centre-line light, 2 = other, and z) and the aerodrome "
-             "reference code to the centre line, an ICAO design model, cross sections, signed cut / fill areas, "
-             "the area diagram and the Brückner (mass-haul) curve with balance points (gistools runway).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterVectorLayer("INPUT", "Survey points (with a point type field)", [VECTOR_POINT]))
@@ -39,12 +29,9 @@ class RunwayAlgorithm(GistoolsAlgorithm):
         # the command line's settings (gistools.parameters.runway); the CRS where the layer has none (a CSV)
         self.add_spec("crs", "runway_type", "template", "spacing", "f_cut", "f_fill", "free_haul", "origin", "profile_window",
                       "area_method", "max_offset", "min_offset", "z_max")
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputRasterLayer("DESIGN", "Design surface"))
-        self.addOutput(QgsProcessingOutputVectorLayer("GPKG", "Runway GeoPackage"))
-        self.addOutput(QgsProcessingOutputNumber("CUT", "Cut (m3)"))
-        self.addOutput(QgsProcessingOutputNumber("FILL", "Fill (m3)"))
-        self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
+        self.add_outputs(
+            "Output folder", DESIGN=("raster", "Design surface"), GPKG=("vector", "Runway GeoPackage"),
+            CUT=("number", "Cut (m3)"), FILL=("number", "Fill (m3)"), REPORT=("file", "report.json"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.runway.survey import SurveyChecks

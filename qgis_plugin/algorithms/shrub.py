@@ -4,13 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputFolder,
-    QgsProcessingOutputRasterLayer,
-    QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterFolderDestination,
-)
 
 from .base import GistoolsAlgorithm, GROUP_SHRUB
 from .steps import add_tile_field, given
@@ -22,9 +15,6 @@ RUN = ("reproject_vectors", "make_map", "band_points", "jobs", "scheduler")  # s
 
 class ShrubChainAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "shrubchain", "Shrub map (whole chain)", GROUP_SHRUB
-    _help = ("The whole shrub chain on a tile folder (gistools shrub): DSM / DEM / nDSM, height bands, road and water "
-             "clipping, vegetation density, light / medium / heavy classes, class polygons, a printable map and "
-             "report.json, tile by tile (resumable, one bad tile is reported and the others go on).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
@@ -35,12 +25,10 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
                       "bands", "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks",
                       "max_road_width", "snap", "reproject_vectors", "make_map", "band_points", "crs", "jobs",
                       "scheduler", "chunk_size")
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputRasterLayer("CLASSES", "Shrub classes"))
-        self.addOutput(QgsProcessingOutputRasterLayer("COVER", "Vegetation cover"))
-        self.addOutput(QgsProcessingOutputVectorLayer("POLYGONS", "Shrub class polygons", VECTOR_POLYGON))
-        self.addOutput(QgsProcessingOutputFile("MAP_PNG", "Shrub map (PNG)"))
-        self.addOutput(QgsProcessingOutputFolder("FOLDER", "Output folder"))
+        self.add_outputs(
+            "Output folder", CLASSES=("raster", "Shrub classes"), COVER=("raster", "Vegetation cover"),
+            POLYGONS=("vector", "Shrub class polygons", VECTOR_POLYGON), MAP_PNG=("file", "Shrub map (PNG)"),
+            FOLDER=("folder", "Output folder"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.products.rasters import RasterSettings

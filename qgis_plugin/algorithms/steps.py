@@ -37,7 +37,6 @@ def given(values: dict) -> dict:
 
 class NdsmAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "ndsm", "nDSM (DSM - DEM)", GROUP_LIDAR
-    _help = "Normalised DSM: heights above ground = DSM - DEM, cell by cell, on the DSM's grid (the DEM must share it)."
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("DSM", "DSM"))
@@ -56,9 +55,6 @@ class NdsmAlgorithm(GistoolsAlgorithm):
 class BandsAlgorithm(GistoolsAlgorithm):
     _renamed = {"BREAKS": "BAND_BREAKS"}  # BREAKS is the class breaks, in the classify step and the chain
     _name, _display, _group = "bands", "Step 1: height bands", GROUP_SHRUB
-    _help = ("Height bands of an nDSM: 0 = B0 ground (h <= noise floor, or topped by a ground / water return), "
-             "1 = B1 0-1 m, 2 = B2 1-2 m, 3 = B3 2-6 m, 4 = above, 255 = nodata. Thresholds are in metres and converted "
-             "to the nDSM's vertical unit (6 m = 19.685 ftUS); 'text_literal' uses the dissertation's printed feet.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("NDSM", "nDSM"))
@@ -89,10 +85,6 @@ class BandsAlgorithm(GistoolsAlgorithm):
 
 class BreaklinesAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "breaklines", "Step 2: road and water polygons", GROUP_SHRUB
-    _help = ("The dissertation's Split (by the tile index) and Feature To Polygon: edge-of-pavement lines and "
-             "hydrographic breaklines are split by each tile footprint, noded with a snapping tolerance and "
-             "polygonised; faces wider than the maximum width are blocks between roads, not road. Water bodies "
-             "(islands stay holes) and buffered single-line hydro features join the water polygons.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_spec("roads", "hydro", "waterbodies", "tile_index")
@@ -115,9 +107,6 @@ class BreaklinesAlgorithm(GistoolsAlgorithm):
 
 class ClipAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "clip", "Step 3: clip roads and water", GROUP_SHRUB
-    _help = ("Vegetation = height band minus road minus water, by cell centre (the dissertation's Clip and Select By "
-             "Location on Raster To Point output). Codes: 0 none, 1-3 band of a vegetation cell, 4 road, 5 water, "
-             "255 nodata. Vegetation inside wetland polygons is a second output.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         poly = [VECTOR_POLYGON]
@@ -145,9 +134,6 @@ class ClipAlgorithm(GistoolsAlgorithm):
 
 class DensityAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "density", "Step 4: vegetation density", GROUP_SHRUB
-    _help = ("Point density of vegetation cells (each stands for one Raster To Point point) over a circle: cover = "
-             "share of the cell centres within the radius that are vegetation (0-1); density = points per CRS area "
-             "unit. Blocks read a halo of the radius, so block and tile edges do not show.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("VEGETATION", "Vegetation (from the clip step)"))
@@ -171,8 +157,6 @@ class DensityAlgorithm(GistoolsAlgorithm):
 
 class ClassifyAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "classify", "Step 5: shrub classes", GROUP_SHRUB
-    _help = ("Light / medium / heavy shrub classes from cover: 0 none, 1 light, 2 medium, 3 heavy, 4 road, 5 water, "
-             "255 nodata. 'breaks' uses the given cover breaks (default 0.3, 0.7), 'quantile' and 'jenks' compute them.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("COVER", "Cover (from the density step)"))

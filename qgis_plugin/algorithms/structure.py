@@ -4,33 +4,21 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from qgis.core import (
-    QgsProcessingOutputFile,
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputString,
-    QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterFile,
-    QgsProcessingParameterFolderDestination,
-)
+from qgis.core import QgsProcessingParameterFile
 
 from .base import GistoolsAlgorithm
 
 
 class StructureAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "structure", "Structure mesh (closed 3D)", ("Structure", "structure")
-    _help = ("A building's point cloud (ID X Y Z text, or LAS/LAZ) of floor outlines and floor plates to levels, "
-             "clusters, loops with holes, matched walls and a watertight, consistently wound mesh (PLY, OBJ), with the "
-             "loops as 3D lines (gistools structure). Parameters are estimated from the data unless given.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterFile("INPUT", "Point cloud (ID X Y Z text, or LAS/LAZ)"))
         # the command line's settings (gistools.parameters.structure); h, d, t: 0 is "estimated" (4 m for t)
         self.add_spec(command="structure", defaults={"h": 0.0, "d": 0.0, "t": 0.0})
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputFile("MESH", "Mesh (PLY)"))
-        self.addOutput(QgsProcessingOutputVectorLayer("LOOPS", "Loops (GeoPackage)"))
-        self.addOutput(QgsProcessingOutputNumber("VOLUME", "Volume (m3)"))
-        self.addOutput(QgsProcessingOutputString("WATERTIGHT", "Watertight"))
+        self.add_outputs(
+            "Output folder", MESH=("file", "Mesh (PLY)"), LOOPS=("vector", "Loops (GeoPackage)"),
+            VOLUME=("number", "Volume (m3)"), WATERTIGHT=("string", "Watertight"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.products.structure import structure_model

@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-from qgis.core import (
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputRasterLayer,
-    QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterRasterLayer,
-)
+from qgis.core import QgsProcessingParameterRasterLayer
 
 from .base import GistoolsAlgorithm
 
@@ -18,19 +13,11 @@ class TerrainAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "terrain", "Slope, aspect, hillshade (DEM)", GROUP_TERRAIN
     _page = "commands/terrain"
     _tags = ("slope", "aspect", "hillshade", "ruggedness", "tri", "gdaldem", "dem", "terrain")
-    _help = ("Slope (degrees and percent), aspect (degrees clockwise from north, flat cells nodata), hillshade and "
-             "Riley's terrain ruggedness index of a DEM, as gdaldem computes them (Horn's method). The DEM may be a "
-             "VRT mosaic of tiles (the dem.vrt of the rasters algorithm): it is read block by block with a one-cell "
-             "halo, so tiles join without seams. Cells on the raster's edge or beside nodata are nodata, as gdaldem "
-             "without -compute_edges. Elevations in another unit than x and y are scaled (gdaldem -s). Writes "
-             "slope.tif, slope_percent.tif, aspect.tif, hillshade.tif and tri.tif (loaded) and report.json.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("DEM", "DEM (GeoTIFF or VRT mosaic)"))
         self.add_spec(command="terrain", skip=("overwrite",))
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputRasterLayer("SLOPE", "Slope (degrees)"))
-        self.addOutput(QgsProcessingOutputRasterLayer("HILLSHADE", "Hillshade"))
+        self.add_outputs("Output folder", SLOPE=("raster", "Slope (degrees)"), HILLSHADE=("raster", "Hillshade"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.products.terrain import terrain_from_dem
@@ -54,18 +41,11 @@ class ViewshedAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "viewshed", "Viewshed (what observers see)", GROUP_TERRAIN
     _page = "commands/terrain"
     _tags = ("viewshed", "visibility", "line of sight", "observer", "search and rescue", "gdal_viewshed")
-    _help = ("Cells seen from one or several observers, as GDAL's gdal_viewshed (Wang et al. 2000), on a surface "
-             "raster: the DSM, where trees and buildings hide a person, or the DEM. Observers are X,Y positions "
-             "in the raster's CRS (several separated by ;) and / or a point layer. Writes viewshed.tif (1 seen by at "
-             "least one observer, 0 hidden, 255 nodata; loaded) and viewshed_count.tif (how many observers see each "
-             "cell). Earth curvature and refraction are optional, as gdal_viewshed -cc.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add(QgsProcessingParameterRasterLayer("SURFACE_RASTER", "Surface (DSM or DEM raster)"))
         self.add_spec(command="viewshed", skip=("overwrite", "hiding_surface"))
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputRasterLayer("VIEWSHED", "Viewshed"))
-        self.addOutput(QgsProcessingOutputNumber("CELLS_SEEN", "Cells seen"))
+        self.add_outputs("Output folder", VIEWSHED=("raster", "Viewshed"), CELLS_SEEN=("number", "Cells seen"))
 
     def checkParameterValues(self, parameters, context):  # noqa: N802
         if parameters.get("OBSERVER") in (None, "") and parameters.get("OBSERVERS") in (None, ""):

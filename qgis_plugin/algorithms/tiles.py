@@ -2,12 +2,7 @@
 
 from __future__ import annotations
 
-from qgis.core import (
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputString,
-    QgsProcessingParameterFileDestination,
-    QgsProcessingParameterFolderDestination,
-)
+from qgis.core import QgsProcessingParameterFileDestination
 
 from .base import GistoolsAlgorithm
 from ..compat import OPTIONAL
@@ -18,17 +13,13 @@ class InfoAlgorithm(GistoolsAlgorithm):
     _name, _display = "info", "Tile info"
     _page = "commands/points"
     _tags = ("header", "crs", "statistics", "lasinfo")
-    _help = ("Header, CRS, horizontal and vertical units and point counts by class and return of LAS/LAZ tiles "
-             "(gistools info). A tile that cannot be read is reported, the others are still listed.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_tiles()
         self.add_spec(command="info")
         self.add(QgsProcessingParameterFileDestination("OUTPUT", "Summary (JSON)", "JSON files (*.json)", optional=True,
                                                        createByDefault=False))
-        self.addOutput(QgsProcessingOutputNumber("POINTS", "Points"))
-        self.addOutput(QgsProcessingOutputNumber("TILES", "Tiles read"))
-        self.addOutput(QgsProcessingOutputString("CRS_NAME", "CRS"))
+        self.add_outputs(None, POINTS=("number", "Points"), TILES=("number", "Tiles read"), CRS_NAME=("string", "CRS"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.products.info import tiles_summary
@@ -52,9 +43,6 @@ class PointsAlgorithm(GistoolsAlgorithm):
     _name, _display = "points", "LAS to points (by class)"
     _page = "commands/points"
     _tags = ("multipoint", "geopackage", "geoparquet", "class", "export")
-    _help = ("The dissertation's LAS To Multipoint: per tile, a point layer (GeoPackage, or GeoParquet) with x, y, z, "
-             "class, return number and intensity of the chosen classes and returns, streamed in chunks. "
-             "Non-ground: classes 1,2 first returns; ground: class 2, every return.")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         from gistools.parameters.lidar import COMMAND_DEFAULTS
@@ -63,8 +51,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
         self.add_spec(command="points", defaults=COMMAND_DEFAULTS["points"],
                       labels={"classes": "ASPRS classes (comma-separated; empty = all)"})
         flag_parameters(self, OPTIONAL, "CLASSES")  # empty: every class
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Point layers folder"))
-        self.addOutput(QgsProcessingOutputNumber("POINTS", "Points written"))
+        self.add_outputs("Point layers folder", POINTS=("number", "Points written"))
 
     def run_gistools(self, parameters, context, feedback):
         from gistools.products.points import points_from_tiles

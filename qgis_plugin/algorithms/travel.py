@@ -4,15 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from qgis.core import (
-    QgsProcessingException,
-    QgsProcessingOutputFile,
-    QgsProcessingOutputNumber,
-    QgsProcessingOutputRasterLayer,
-    QgsProcessingOutputVectorLayer,
-    QgsProcessingParameterFolderDestination,
-    QgsProcessingParameterVectorLayer,
-)
+from qgis.core import QgsProcessingException, QgsProcessingParameterVectorLayer
 
 from .base import GROUP_SAR, GistoolsAlgorithm
 from ..compat import VECTOR_POINT
@@ -23,10 +15,6 @@ NO_POINT = "No point last seen: give 'Points last seen' (X,Y in the DEM's CRS) o
 class TravelAlgorithm(GistoolsAlgorithm):
     _name, _display, _group = "travel", "Travel time from last seen", GROUP_SAR
     _tags = ("isochrone", "tobler", "walking", "cost distance", "lost person")
-    _help = ("Minutes for a walker to reach every cell of a DEM from the nearest point last seen: Tobler's hiking "
-             "function on the slope along each step (uphill and downhill differ), times a factor per shrub class of "
-             "the shrub chain, roads clear, water impassable (or waded); isochrone polygons with their areas and "
-             "isochrone bands (gistools travel).")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         self.add_spec("dem", "last_seen")
@@ -35,12 +23,10 @@ class TravelAlgorithm(GistoolsAlgorithm):
         self.add_spec("shrub_classes", "roads", "hydro", "waterbodies", "road_speed", "wade_speed", "isochrones",
                       "tobler", "shrub_factors", "neighbours", "isotropic", "max_memory", "snap", "max_road_width",
                       "max_hydro_width", "single_line_width", "reproject_vectors")
-        self.add(QgsProcessingParameterFolderDestination("OUTPUT_FOLDER", "Output folder"))
-        self.addOutput(QgsProcessingOutputRasterLayer("MINUTES", "Travel time (minutes)"))
-        self.addOutput(QgsProcessingOutputRasterLayer("BANDS", "Isochrone bands"))
-        self.addOutput(QgsProcessingOutputVectorLayer("ISOCHRONES", "Isochrones"))
-        self.addOutput(QgsProcessingOutputNumber("MAX_MINUTES", "Farthest cell reached (minutes)"))
-        self.addOutput(QgsProcessingOutputFile("REPORT", "report.json"))
+        self.add_outputs(
+            "Output folder", MINUTES=("raster", "Travel time (minutes)"), BANDS=("raster", "Isochrone bands"),
+            ISOCHRONES=("vector", "Isochrones"), MAX_MINUTES=("number", "Farthest cell reached (minutes)"),
+            REPORT=("file", "report.json"))
 
     def checkParameterValues(self, parameters, context):  # noqa: N802
         if not parameters.get("LAST_SEEN") and not parameters.get("LAST_SEEN_LAYER"):

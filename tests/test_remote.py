@@ -1,0 +1,331 @@
+"""Point clouds read by area from a service: real EPT and COPC datasets (PDAL's test data, not gistools' own output:
+tests/data/pdal) served by nginx on loopback, which answers byte ranges as object storage does. The points read from
+the URL equal, as a set of (x, y, z, class, return), the dataset's own files read with laspy and cut to the area by
+numpy; only the nodes that meet the area are fetched (nginx's access log counts the bytes)."""
+
+from __future__ import annotations
+
+import shutil
+import socket
+import subprocess
+import time
+from pathlib import Path
+
+import laspy
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+DATA = ROOT / "tests" / "data" / "pdal"
+NGINX = shutil.which("nginx") or "/usr/sbin/nginx"
+BOX = (515375.0, 4918350.0, 515395.5, 4918371.3)  # across the octree's nodes (the cube is 515363-515407)
+TRIANGLE = ((515366.13, 4918341.77), (515404.31, 4918352.29), (515381.97, 4918380.61))
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    """nginx serving a copy of the datasets on loopback: (base URL, its access log)."""
+    import os
+
+    if not Path(NGINX).exists():
+        if os.environ.get("CI"):
+            pytest.fail("nginx is missing: the test command installs Debian's nginx-light")
+        pytest.skip("nginx is absent (apt-get install nginx-light)")
+    work = tmp_path_factory.mktemp("nginx")
+    root = work / "www"
+    shutil.copytree(DATA, root)
+    port = _free_port()
+    conf = work / "nginx.conf"
+    temp = "".join(f"  {kind}_temp_path {work}/{kind};\n" for kind in ("client_body", "proxy", "fastcgi", "uwsgi",
+                                                                          "scgi"))
+    user = "user root;\n" if hasattr(os, "geteuid") and os.geteuid() == 0 else ""  # the workers read pytest's tmp
+    conf.write_text(f"""daemon off;
+{user}worker_processes 1;
+pid {work}/nginx.pid;
+error_log {work}/error.log;
+events {{ worker_connections 64; }}
+http {{
+  log_format bytes '$request_uri $status $body_bytes_sent $http_range';
+  access_log {work}/access.log bytes;
+{temp}  types {{ application/json json; application/octet-stream laz; }}
+  server {{
+    listen 127.0.0.1:{port};
+    root {root};
+  }}
+}}
+""", encoding="utf-8")
+    proc = subprocess.Popen([NGINX, "-c", str(conf), "-p", str(work)], stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE)
+    for _ in range(100):
+        try:
+            socket.create_connection(("127.0.0.1", port), timeout=0.1).close()
+            break
+        except OSError:
+            time.sleep(0.05)
+    else:
+        proc.kill()
+        pytest.fail(f"nginx did not start: {proc.stderr.read().decode()[-2000:]}")
+    yield f"http://127.0.0.1:{port}", work / "access.log"
+    proc.terminate()
+    proc.wait(timeout=10)
+
+
+def _served_bytes(log: Path, since: int) -> int:
+    lines = log.read_text(encoding="utf-8").splitlines()[since:]
+    return sum(int(line.split()[2]) for line in lines)
+
+
+def _log_lines(log: Path) -> int:
+    return len(log.read_text(encoding="utf-8").splitlines()) if log.exists() else 0
+
+
+def _rows(points: dict) -> set:
+    return set(zip(np.round(points["x"], 5), np.round(points["y"], 5), np.round(points["z"], 5),
+                   points["classification"].tolist(), points["return_number"].tolist()))
+
+
+def _reference(files, inside) -> set:
+    """The points of the dataset's own files (laspy) that ``inside(x, y)`` keeps (numpy)."""
+    rows = set()
+    for f in files:
+        las = laspy.read(f)
+        x, y = np.asarray(las.x), np.asarray(las.y)
+        keep = inside(x, y)
+        rows |= _rows({"x": x[keep], "y": y[keep], "z": np.asarray(las.z)[keep],
+                       "classification": np.asarray(las.classification)[keep],
+                       "return_number": np.asarray(las.return_number)[keep]})
+    return rows
+
+
+def _in_box(x, y):
+    return (x >= BOX[0]) & (x <= BOX[2]) & (y >= BOX[1]) & (y <= BOX[3])
+
+
+def _in_triangle(x, y):
+    """Inside the triangle by the signs of three cross products (numpy; no point of the data lies on an edge)."""
+    (ax, ay), (bx, by), (cx, cy) = TRIANGLE
+    d1 = (x - bx) * (ay - by) - (ax - bx) * (y - by)
+    d2 = (x - cx) * (by - cy) - (bx - cx) * (y - cy)
+    d3 = (x - ax) * (cy - ay) - (cx - ax) * (y - ay)
+    return ~(((d1 < 0) | (d2 < 0) | (d3 < 0)) & ((d1 > 0) | (d2 > 0) | (d3 > 0)))
+
+
+EPT_FILES = sorted((DATA / "lone-star-laszip" / "ept-data").glob("*.laz"))
+COPC_FILE = DATA / "lone-star.copc.laz"
+
+
+@pytest.mark.parametrize("kind", ["ept", "copc"])
+@pytest.mark.parametrize("area", ["box", "polygon"])
+def test_the_points_of_an_area_read_from_a_url_are_the_datasets_own(server, kind, area):
+    import shapely
+
+    from gistools.io.area import open_source
+    from gistools.io.http import RangeClient
+
+    base, _log = server
+    url = f"{base}/lone-star-laszip/ept.json" if kind == "ept" else f"{base}/lone-star.copc.laz"
+    aoi = BOX if area == "box" else shapely.Polygon(TRIANGLE)
+    client = RangeClient()
+    points = open_source(url, client).read(aoi)
+    expected = _reference(EPT_FILES if kind == "ept" else [COPC_FILE], _in_box if area == "box" else _in_triangle)
+    assert len(points["x"]) == len(expected) > 10_000
+    assert _rows(points) == expected
+    local = open_source(DATA / "lone-star-laszip" if kind == "ept" else COPC_FILE).read(aoi)  # the same, from disk
+    assert _rows(local) == expected
+
+
+def test_only_the_nodes_that_meet_the_area_are_fetched(server):
+    """COPC: the bytes nginx sends for an area are at most 1.2 x the sum of the nodes that meet it (the hierarchy
+    says their sizes), well under the file; EPT: only the node files of the area are asked for."""
+    from gistools.io.area import open_source
+    from gistools.io.http import RangeClient
+
+    base, log = server
+    small = (515368.0, 4918341.0, 515370.0, 4918343.0)  # a corner: the root and one deep node
+    before = _log_lines(log)
+    source = open_source(f"{base}/lone-star.copc.laz", RangeClient())
+    plan = source.plan(small)
+    source.read(small)
+    sent = _served_bytes(log, before)
+    assert plan.bytes and sent <= 1.2 * plan.bytes + 200_000, (sent, plan)  # + the header and hierarchy pages
+    assert sent < 0.5 * COPC_FILE.stat().st_size
+    before = _log_lines(log)
+    ept = open_source(f"{base}/lone-star-laszip/ept.json", RangeClient())
+    wanted = {"-".join(map(str, key)) for key, _count in ept.nodes(small)}
+    ept.read(small)
+    asked = [line.split()[0] for line in log.read_text(encoding="utf-8").splitlines()[before:]]
+    data = {Path(uri).stem for uri in asked if "/ept-data/" in uri}
+    assert data == wanted and len(data) < len(EPT_FILES)
+
+
+def test_a_resolution_reads_the_coarse_depths_only(server):
+    from gistools.io.area import open_source
+
+    base, _log = server
+    ept = open_source(f"{base}/lone-star-laszip/ept.json")
+    spacing = (515407.0 - 515363.0) / 128  # the cube's width / span: the root's point spacing
+    assert {key[0] for key, _ in ept.nodes(BOX, resolution=spacing)} == {0}
+    assert {key[0] for key, _ in ept.nodes(BOX, resolution=spacing / 2)} == {0, 1}
+    full = len(ept.read(BOX)["x"])
+    assert 0 < len(ept.read(BOX, resolution=spacing)["x"]) < full
+
+
+def test_a_wrong_service_is_one_line_naming_the_url(server, tmp_path):
+    from gistools.errors import DataFileError
+    from gistools.io.area import open_source
+    from gistools.io.http import RangeClient
+
+    base, _log = server
+    client = RangeClient(retries=0)
+    with pytest.raises(DataFileError, match=r"ept.json: not found \(HTTP 404\)") as err:
+        open_source(f"{base}/no-such-dataset/ept.json", client)
+    assert "\n" not in str(err.value) and base in str(err.value)
+    with pytest.raises(DataFileError, match="is not a JSON object"):
+        open_source(f"{base}/lone-star-laszip/ept-sources/list.json", client)
+    with pytest.raises(DataFileError, match="not EPT metadata"):
+        open_source(f"{base}/lone-star-laszip/ept-build.json", client)
+    with pytest.raises(DataFileError, match="not a COPC file"):
+        open_source(f"{base}/lone-star-laszip/ept-data/0-0-0-0.laz", client)
+
+
+@pytest.fixture()
+def faulty(server):
+    """A proxy in front of nginx that spoils requests in turn: a 503, a body cut short, a connection reset without
+    an answer, a slow body, then one passed through, and again (20 % 503s, 20 % short bodies, 20 % resets)."""
+    import http.server
+    import itertools
+    import threading
+    import urllib.request
+
+    base, _log = server
+    turn = itertools.count()
+
+    class Proxy(http.server.BaseHTTPRequestHandler):
+        protocol_version = "HTTP/1.1"
+
+        def log_message(self, *args):
+            pass
+
+        def do_GET(self):  # noqa: N802 - http.server's name
+            fault = next(turn) % 5
+            if fault == 0:
+                self.send_response(503)
+                self.send_header("Content-Length", "0")
+                self.end_headers()
+                return
+            if fault == 2:  # a reset: the connection closed before any answer
+                self.close_connection = True
+                self.connection.close()
+                return
+            request = urllib.request.Request(base + self.path, headers={k: v for k, v in self.headers.items()
+                                                                        if k.lower() == "range"})
+            try:
+                with urllib.request.urlopen(request) as answer:
+                    status, headers, body = answer.status, answer.headers, answer.read()
+            except urllib.error.HTTPError as err:
+                status, headers, body = err.code, err.headers, err.read()
+            self.send_response(status)
+            for name in ("Content-Range", "Content-Type"):
+                if headers.get(name):
+                    self.send_header(name, headers[name])
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            if fault == 1 and len(body) > 10:  # cut short: half the body, then the connection closed
+                self.wfile.write(body[: len(body) // 2])
+                self.close_connection = True
+                return
+            if fault == 3:  # slow: the body in pieces
+                for k in range(0, len(body), max(1, len(body) // 4)):
+                    self.wfile.write(body[k:k + max(1, len(body) // 4)])
+                    time.sleep(0.01)
+                return
+            self.wfile.write(body)
+
+    proxy = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Proxy)
+    thread = threading.Thread(target=proxy.serve_forever, daemon=True)
+    thread.start()
+    yield f"http://127.0.0.1:{proxy.server_address[1]}"
+    proxy.shutdown()
+    proxy.server_close()
+
+
+@pytest.mark.parametrize("kind", ["ept", "copc"])
+def test_a_faulty_service_gives_the_same_points(faulty, kind):
+    """Through 503s, short bodies, resets and slow bodies the client retries (never taking a short body for data)
+    and reads the same points as from the dataset's own files."""
+    from gistools.io.area import open_source
+    from gistools.io.http import RangeClient
+
+    url = f"{faulty}/lone-star-laszip/ept.json" if kind == "ept" else f"{faulty}/lone-star.copc.laz"
+    client = RangeClient(backoff=0.01, timeout=5)
+    points = open_source(url, client).read(BOX)
+    assert _rows(points) == _reference(EPT_FILES if kind == "ept" else [COPC_FILE], _in_box)
+    assert client.retried > 0
+
+
+def test_a_service_that_keeps_failing_is_one_line(faulty):
+    from gistools.errors import DataFileError
+    from gistools.io.http import RangeClient
+
+    client = RangeClient(retries=0, backoff=0.01, timeout=5)
+    with pytest.raises(DataFileError, match=r"no complete answer after 1 tries \(HTTP 503\)") as err:
+        for _ in range(5):  # the proxy's first answer of five is a 503
+            client.get(f"{faulty}/lone-star-laszip/ept.json")
+    assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("kind", ["ept", "copc"])
+def test_an_area_fetched_into_tiles_once(server, tmp_path, kind):
+    """fetch_area: the area's points as LAZ tiles on a 10 m lattice, equal (as a set of points) to the dataset's own
+    files cut to the area; each node fetched once (COPC: at most 1.2 x the nodes' bytes, nginx's count); a rerun
+    fetches nothing and keeps every tile as it was; the same tiles from the local copy."""
+    from gistools.io.http import RangeClient
+    from gistools.products.fetch import fetch_area
+
+    base, log = server
+    url = f"{base}/lone-star-laszip/ept.json" if kind == "ept" else f"{base}/lone-star.copc.laz"
+    before = _log_lines(log)
+    report = fetch_area(url, tmp_path / "url", aoi=BOX, tile_size=10.0, client=RangeClient())
+    sent = _served_bytes(log, before)
+    rows = set()
+    for tile in report["outputs"]["tiles"]:
+        las = laspy.read(tile)
+        x0, y0 = (float(v) for v in Path(tile).stem.split("_"))
+        assert np.all((las.x >= x0) & (las.x < x0 + 10) & (las.y >= y0) & (las.y < y0 + 10))
+        rows |= _rows({"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z),
+                       "classification": np.asarray(las.classification),
+                       "return_number": np.asarray(las.return_number)})
+    assert rows == _reference(EPT_FILES if kind == "ept" else [COPC_FILE], _in_box)
+    cells = {(int(np.floor(x / 10)) * 10, int(np.floor(y / 10)) * 10) for x, y, *_ in rows}
+    assert report["points"] == len(rows)
+    assert sorted(Path(t).name for t in report["outputs"]["tiles"]) == sorted(f"{x}_{y}.laz" for x, y in cells)
+    if kind == "copc":
+        assert sent <= 1.2 * report["estimate"]["bytes"] + 200_000, (sent, report["estimate"])
+    stamps = {t: Path(t).stat().st_mtime_ns for t in report["outputs"]["tiles"]}
+    before = _log_lines(log)
+    again = fetch_area(url, tmp_path / "url", aoi=BOX, tile_size=10.0, client=RangeClient())
+    assert _log_lines(log) == before and again["kept"]  # nothing asked of the server
+    assert {t: Path(t).stat().st_mtime_ns for t in report["outputs"]["tiles"]} == stamps
+    local = fetch_area(DATA / "lone-star-laszip" if kind == "ept" else COPC_FILE, tmp_path / "local", aoi=BOX,
+                       tile_size=10.0)
+    assert sorted(Path(t).name for t in local["outputs"]["tiles"]) == sorted(Path(t).name for t in report["outputs"]["tiles"])
+    for name in (Path(t).name for t in local["outputs"]["tiles"]):
+        a, b = laspy.read(tmp_path / "local" / name), laspy.read(tmp_path / "url" / name)
+        assert np.array_equal(a.x, b.x) and np.array_equal(a.classification, b.classification)
+
+
+def test_an_area_larger_than_allowed_is_refused_before_any_point(server, tmp_path):
+    from gistools.errors import InputError
+    from gistools.products.fetch import fetch_area
+
+    base, _log = server
+    with pytest.raises(InputError, match=r"more than the 1\.0 MB allowed"):
+        fetch_area(f"{base}/lone-star.copc.laz", tmp_path / "big", aoi=BOX, tile_size=10.0, max_download=1e6)
+    assert not list((tmp_path / "big").glob("*.laz")) if (tmp_path / "big").exists() else True
