@@ -9,7 +9,6 @@ is always the US survey foot (1200/3937 m).
 from __future__ import annotations
 
 import math
-
 import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -177,3 +176,28 @@ def unit_from_word(word: str, *, name: str = "unit") -> LinearUnit:
     if abs(float(metres) - US_SURVEY_FOOT) < 1e-12:
         return LinearUnit("US survey foot", US_SURVEY_FOOT)
     return LinearUnit("metre", METRE)
+
+
+_SIZE = {"": 1, "b": 1, "kb": 1e3, "mb": 1e6, "gb": 1e9, "tb": 1e12, "kib": 2**10, "mib": 2**20, "gib": 2**30,
+         "tib": 2**40}
+
+
+def parse_size(text: str | float, *, name: str = "size") -> float:
+    """A number of bytes from "500MB", "2GB", "1.5GiB" or a bare number of bytes.
+
+    >>> parse_size("2GB")
+    2000000000.0
+    >>> parse_size("1KiB")
+    1024.0
+    """
+    if isinstance(text, (int, float)):
+        value, word = float(text), ""
+    else:
+        match = re.fullmatch(r"\s*([0-9.eE+-]+)\s*([A-Za-z]*)\s*", str(text))
+        try:
+            value, word = float(match.group(1)), match.group(2).lower()
+        except (AttributeError, ValueError):
+            value, word = math.nan, ""
+    if word not in _SIZE or not math.isfinite(value) or value <= 0:
+        raise InputError(f"{name} {text!r} is not a size", hint="Write a positive number with a unit, e.g. 500MB or 2GB")
+    return value * _SIZE[word]

@@ -1,6 +1,7 @@
 """Options shared by several commands, and the progress bar, defined once."""
 
 import contextlib
+import os
 import threading
 
 import click
@@ -106,8 +107,63 @@ def folder_command(name: str, *arguments, options=None, group=None):
 
 
 def tiles_command(name: str, options=None):
-    """``folder_command`` of a command of tiles: INPUTS are files, folders, globs or a .vpc."""
-    return folder_command(name, click.argument("inputs", nargs=-1, required=True), options=options)
+    """``folder_command`` of a command of tiles: INPUTS are files, folders, globs or a .vpc, or point cloud services
+    (URLs of EPT datasets and COPC files) and local copies of them; with ``--aoi`` the command runs on the area's
+    points (``gistools.Area``), fetched into ``--cache`` as tiles."""
+    import functools
+
+    def apply(fn):
+        @functools.wraps(fn)
+        def wrapper(*args, inputs, out, quiet, aoi=None, resolution=None, tile_size=None, cache=None,
+                    max_download=None, **keywords):
+            inputs = area_inputs(inputs, out, quiet, aoi=aoi, resolution=resolution, tile_size=tile_size,
+                                 cache=cache, max_download=max_download, margin=keywords.get("buffer"))
+            return fn(*args, inputs=inputs, out=out, quiet=quiet, **keywords)
+
+        return folder_command(name, click.argument("inputs", nargs=-1, required=True), options=options)(wrapper)
+
+    return apply
+
+
+def area_inputs(inputs, out, quiet, *, aoi, margin=None, **area):
+    """The command's INPUTS, or their area (``gistools.Area``, its cache OUT/fetched unless --cache says) where
+    --aoi is given; a service without --aoi, or an area's option without it, is refused."""
+    from ..io.area import is_area_source
+    from ..products.fetch import AREA_FOLDER, Area
+
+    if aoi is None:
+        given = [k for k, v in area.items() if v is not None]
+        if given:
+            raise click.UsageError(f"--{given[0].replace('_', '-')} reads an area: give --aoi too")
+        services = [i for i in inputs if is_area_source(i)]
+        if services:
+            raise click.UsageError(f"{services[0]} is a point cloud service read by area: give --aoi "
+                                   "minx,miny,maxx,maxy (or a polygon layer)")
+        return inputs
+    cache = area.pop("cache") or os.path.join(out, AREA_FOLDER)
+    area_ = Area(tuple(inputs), aoi, cache, margin=margin or "30m", progress=fetch_progress(quiet), **area)
+    area_.check()
+    return area_
+
+
+def fetch_progress(quiet: bool):
+    """A progress callback drawing its own bar while an area's points are fetched (points and MB in its text)."""
+    if quiet:
+        return None
+    bar = None
+
+    def progress(fraction, message=""):
+        nonlocal bar
+        if bar is None:
+            bar = tqdm(total=100, unit="%", desc="fetching", bar_format=BAR_FORMAT, leave=False, disable=None)
+        bar.n = round(100 * fraction, 1)
+        bar.set_postfix_str(message[-70:], refresh=False)
+        bar.refresh()
+        if fraction >= 1:
+            bar.close()
+        return True
+
+    return progress
 
 
 def run_batch(quiet: bool, function, *args, **keywords) -> dict:

@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import DataFileError, InputError
 from .http import RangeClient, RangeFile, is_url
 
-__all__ = ["PointSource", "open_source", "area_box", "FIELDS"]
+__all__ = ["PointSource", "open_source", "open_sources", "area_box", "area_in_crs", "is_area_source", "FIELDS"]
 
 # the fields read for every point (the tile engine's), as numpy arrays
 FIELDS = ("x", "y", "z", "classification", "return_number", "number_of_returns", "intensity")
@@ -94,6 +94,11 @@ class PointSource:
 
     location: str
     crs_wkt: str | None
+
+    @property
+    def remote(self) -> bool:
+        """Served over HTTP(S) (its nodes are kept in a cache once fetched), not read from the disk."""
+        return any(is_url(part) for part in self.location.split(";"))
 
     def octree_nodes(self, aoi, resolution: float | None = None) -> list[Node]:  # pragma: no cover - overridden
         raise NotImplementedError
@@ -336,3 +341,205 @@ class CopcSource(PointSource):
     def scales_offsets(self) -> tuple:
         """(scales, offsets) of x, y, z: the file's header."""
         return tuple(map(float, self.reader.header.scales)), tuple(map(float, self.reader.header.offsets))
+
+
+# --- local LAS / LAZ tiles, and several sources as one ------------------------------------------------------------
+
+
+class LasFileSource(PointSource):
+    """A local LAS/LAZ file that is not COPC: one node, its header's bounds (the whole file is read)."""
+
+    def __init__(self, path):
+        import laspy
+
+        self.location = str(Path(path).resolve())
+        try:
+            with laspy.open(self.location) as reader:
+                self.header = reader.header
+        except Exception as err:  # noqa: BLE001 - laspy raises several kinds for a file that is not LAS
+            raise DataFileError(f"not a LAS/LAZ file ({type(err).__name__}: {err})", path=self.location,
+                                hint="Give LAS/LAZ tiles, an EPT dataset or a COPC file") from None
+        try:
+            crs = self.header.parse_crs()
+            self.crs_wkt = crs.to_wkt() if crs is not None else None
+        except Exception:  # noqa: BLE001 - a CRS pyproj cannot parse: the tile engine says so per tile
+            self.crs_wkt = None
+
+    def octree_nodes(self, aoi, resolution: float | None = None) -> list[Node]:
+        w, s, e, n = area_box(aoi)
+        x0, y0, x1, y1 = (float(v) for v in (*self.header.mins[:2], *self.header.maxs[:2]))
+        if x0 > e or x1 < w or y0 > n or y1 < s or not self.header.point_count:
+            return []
+        return [Node(Path(self.location).stem, int(self.header.point_count), (x0, y0, x1, y1),
+                     Path(self.location).stat().st_size)]
+
+    def node_points(self, node: Node) -> dict:
+        import laspy
+
+        try:
+            return _fields(laspy.read(self.location).points)
+        except Exception as err:  # noqa: BLE001 - laspy / lazrs raise several kinds for a damaged file
+            raise DataFileError(f"does not decode ({type(err).__name__}: {err})", path=self.location,
+                                hint="Check the file is complete") from None
+
+    def scales_offsets(self) -> tuple:
+        return tuple(map(float, self.header.scales)), tuple(map(float, self.header.offsets))
+
+
+class SourceSet(PointSource):
+    """Several sources read as one (a folder of tiles, a VPC's items): their nodes named ``<source>~<node>``."""
+
+    def __init__(self, sources: list):
+        import pyproj
+
+        self.sources = sources
+        self.location = ";".join(s.location for s in sources)
+        known = [s for s in sources if s.crs_wkt]
+        self.crs_wkt = known[0].crs_wkt if known else None
+        for other in known[1:]:
+            if pyproj.CRS.from_user_input(other.crs_wkt) != pyproj.CRS.from_user_input(self.crs_wkt):
+                raise InputError(f"{other.location} and {known[0].location} are in different CRSs",
+                                 hint="Read one CRS at a time (reproject one of them first)")
+
+    def octree_nodes(self, aoi, resolution: float | None = None) -> list[Node]:
+        return [Node(f"{i}~{n.name}", n.points, n.bounds, n.bytes, n.offset)
+                for i, source in enumerate(self.sources) for n in source.octree_nodes(aoi, resolution)]
+
+    def node_points(self, node: Node) -> dict:
+        i, _, name = node.name.partition("~")
+        own = Node(name, node.points, node.bounds, node.bytes, node.offset)
+        return self.sources[int(i)].node_points(own)
+
+    def scales_offsets(self) -> tuple:
+        return self.sources[0].scales_offsets()
+
+
+def is_area_source(item) -> bool:
+    """An input read by area rather than as tiles: a URL, an EPT dataset (its ept.json or folder), a COPC file."""
+    text = str(item)
+    if is_url(text):
+        return True
+    path = Path(text)
+    return path.name.lower() == "ept.json" or (path.is_dir() and (path / "ept.json").is_file()) \
+        or text.lower().endswith(".copc.laz")
+
+
+def _vpc_sources(location: str, client: RangeClient) -> list:
+    """The sources of a VPC's items (STAC items of a FeatureCollection), local or served, relative hrefs resolved."""
+    from urllib.parse import urljoin
+
+    if is_url(location):
+        data = client.get(location)
+    else:
+        data = Path(location).read_bytes()
+    try:
+        items = json.loads(data)["features"]
+        hrefs = [next(iter(item["assets"].values()))["href"] for item in items]
+    except (ValueError, KeyError, TypeError, StopIteration):
+        raise DataFileError("not a virtual point cloud (a STAC FeatureCollection with an asset per item)",
+                            path=location, hint="Give a .vpc made by QGIS, PDAL or gistools") from None
+    base = location if is_url(location) else Path(location).resolve().parent.as_uri() + "/"
+    found = []
+    for href in hrefs:
+        target = urljoin(base, href)
+        if target.startswith("file://"):
+            from urllib.request import url2pathname
+
+            target = url2pathname(target[len("file://"):])
+        found.append(target)
+    return [_one_source(target, client) for target in found]
+
+
+def _one_source(text: str, client: RangeClient) -> PointSource:
+    lower = text.lower()
+    if lower.endswith(".vpc"):
+        return SourceSet(_vpc_sources(text, client))
+    if is_url(text) or is_area_source(text):
+        return open_source(text, client)
+    return LasFileSource(text)
+
+
+def open_sources(inputs, client: RangeClient | None = None) -> PointSource:
+    """Every input as one source read by area: URLs and local copies of EPT datasets and COPC files, VPCs (their
+    items local or served), and LAS/LAZ tiles (files, folders, globs). Mixed CRSs are refused.
+
+    Parameters
+    ----------
+    inputs : str, path or sequence of them
+    client : RangeClient, optional
+        The network client.
+
+    Returns
+    -------
+    PointSource
+
+    Examples
+    --------
+    >>> source = open_sources(["tests/data/pdal/lone-star.copc.laz"])  # doctest: +SKIP
+    """
+    from .tiles import find_tiles
+
+    client = client or RangeClient()
+    items = [inputs] if isinstance(inputs, (str, Path)) else list(inputs)
+    sources = []
+    for item in items:
+        text = str(item)
+        if is_url(text) or is_area_source(text) or text.lower().endswith(".vpc"):
+            sources.append(_one_source(text, client))
+        else:
+            sources += [_one_source(str(path), client) for path in find_tiles([item])]
+    return sources[0] if len(sources) == 1 else SourceSet(sources)
+
+
+def area_in_crs(aoi, crs_wkt):
+    """The area in the data's CRS: ``aoi`` is a box (four numbers, or text ``minx,miny,maxx,maxy`` with an optional
+    ``,EPSG:code`` or CRS after it), a shapely geometry in the data's CRS, or a polygon layer (``file.gpkg``,
+    ``file.gpkg|layername=NAME``), reprojected when its CRS is another. Returns a box tuple or a shapely polygon."""
+    import pyproj
+
+    if hasattr(aoi, "geom_type"):
+        return aoi
+    if not isinstance(aoi, (str, Path)):
+        return area_box(aoi)
+    text = str(aoi).strip()
+    parts = [p.strip() for p in text.split(",")]
+    try:
+        box = tuple(float(v) for v in parts[:4])
+        is_box = len(parts) in (4, 5) and len(box) == 4
+    except ValueError:
+        is_box = False
+    if not is_box:
+        return _layer_area(text, crs_wkt)
+    box = area_box(box)
+    if len(parts) == 4:
+        return box
+    given = _crs_of(parts[4], text)
+    if crs_wkt is None or given == pyproj.CRS.from_user_input(crs_wkt):
+        return box
+    t = pyproj.Transformer.from_crs(given, pyproj.CRS.from_user_input(crs_wkt), always_xy=True)
+    return area_box(t.transform_bounds(*box, densify_pts=21))
+
+
+def _crs_of(text: str, aoi: str):
+    import pyproj
+
+    try:
+        return pyproj.CRS.from_user_input(text)
+    except pyproj.exceptions.CRSError:
+        raise InputError(f"the area {aoi!r}: {text!r} is not a CRS", hint="Write the box's CRS as EPSG:code") from None
+
+
+def _layer_area(spec: str, crs_wkt):
+    """The union of a polygon layer's features, in the data's CRS."""
+    import pyproj
+    import shapely
+
+    from .vector import read_layer
+
+    gdf = read_layer(spec, ("polygon",), what="the area of interest")
+    if crs_wkt is not None and gdf.crs is not None:
+        gdf = gdf.to_crs(pyproj.CRS.from_user_input(crs_wkt))
+    area = shapely.union_all(gdf.geometry.values)
+    if area.is_empty:
+        raise InputError(f"{spec}: the area's layer holds no polygon", hint="Give a layer of polygons")
+    return area

@@ -36,8 +36,11 @@ def find_tiles(inputs) -> list[Path]:
     virtual point clouds (``.vpc``: the files it lists).
 
     Explicit files are kept whatever their suffix (so a bad file is reported, not
-    silently skipped). Raises InputError when nothing matches or two tiles share a name.
+    silently skipped). Raises InputError when nothing matches or two tiles share a name. An area of services or
+    of local data (``gistools.Area``) gives its tiles, fetched into its cache.
     """
+    if hasattr(inputs, "local_tiles"):
+        return [Path(p).resolve() for p in inputs.local_tiles()]
     if isinstance(inputs, (str, Path)):
         inputs = [inputs]
     found: list[Path] = []

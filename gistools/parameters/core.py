@@ -159,7 +159,7 @@ def command(name: str, *parameters: str, library: str = "", settings: str = "",
 
 
 KINDS = ("length", "int", "float", "text", "choice", "choices", "flag", "classes", "numbers", "layer", "raster", "file",
-         "folder", "crs", "fields")
+         "folder", "crs", "fields", "area")
 
 
 # --- naming a parameter in a message ------------------------------------------------------------------------------

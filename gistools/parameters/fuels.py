@@ -5,6 +5,7 @@ and the run's in ``common``, the height bands and their floor in ``lidar`` and t
 Every constant of the method is one of these parameters (docs/commands/fuels.md cites each one's source).
 """
 
+from .common import AREA
 from .core import COMMAND_DEFAULTS, ByUnits, Parameter, command, declare, option
 from . import common, lidar, rasters, shrub  # noqa: F401  (declared there)
 
@@ -61,8 +62,8 @@ declare(
 FUELS = command("fuels", "cell_size", "canopy_floor", "height_percentile", "layer", "extinction", "leaf_mass_area",
                 "running_mean", "cbh_threshold", "column", "column_pulses", "profile", "bands", "noise_floor",
                 "class_breaks", "fuel_raster", "fuel_codes", "latitude", "buffer", "crs", "jobs", "overwrite",
-                "scheduler",
-    library="products.fuels:fuels_from_tiles", settings="products.fuels:FuelsSettings", cli="fuels:fuels")
+                "scheduler", *AREA,
+    library="products.fuels:fuels_from_tiles", settings="products.fuels:FuelsSettings", cli="fuels:fuels", command_line=AREA)
 
 # LANDFIRE's 30 m lattice; 100 ft on data in feet (30.48 m) reads naturally there
 COMMAND_DEFAULTS.update({"fuels": {"cell_size": ByUnits("100ft", "30m", "LANDFIRE's 30 m cells"), "buffer": "30m"}})

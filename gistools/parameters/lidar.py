@@ -9,6 +9,7 @@ The library's choice constants are these: ``lidar.ground.GROUND_METHODS`` (raste
 
 import warnings
 
+from .common import AREA
 from .core import COMMAND_DEFAULTS, DEFAULT_TEXTS, PARAMETERS, Parameter, command, declare, option, render
 from .rasters import GROUND_METHODS
 
@@ -157,23 +158,23 @@ GROUND = command("ground", "ground_method", "noise", "cell", "slope", "window", 
                  "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution",
                  "csf_threshold", "csf_rigidness", "csf_iterations", "csf_time_step", "csf_slope_smooth", "ivf_res",
                  "ivf_n", "sor_k", "sor_multiplier", "low_noise_depth", "buffer", "keep_classes", "format", "crs", "jobs",
-                 "overwrite", "scheduler",
-    library="products.ground:ground_from_tiles", settings="products.ground:GroundSettings", cli="ground:ground")
+                 "overwrite", "scheduler", *AREA,
+    library="products.ground:ground_from_tiles", settings="products.ground:GroundSettings", cli="ground:ground", command_line=AREA)
 NORMALIZE = command("normalize", "replace_z", "classify_vegetation", "bands", "noise_floor", "roads", "hydro",
-                    "waterbodies", "reproject_vectors", "buffer", "format", "crs", "jobs", "overwrite", "scheduler",
+                    "waterbodies", "reproject_vectors", "buffer", "format", "crs", "jobs", "overwrite", "scheduler", *AREA,
     library="products.normalize:normalize_from_tiles", settings="products.normalize:NormalizeSettings",
-    cli="normalize:normalize")
+    cli="normalize:normalize", command_line=AREA)
 METRICS = command("metrics", "cell_size", "metrics", "more_metrics", "normalized", "classes", "returns", "buffer", "crs",
-                  "jobs", "overwrite", "scheduler",
-    library="products.metrics:metrics_from_tiles", settings="products.metrics:MetricsSettings", command_line=('more_metrics',),
+                  "jobs", "overwrite", "scheduler", *AREA,
+    library="products.metrics:metrics_from_tiles", settings="products.metrics:MetricsSettings", command_line=('more_metrics', *AREA),
     cli="metrics:metrics")
 CHM = command("chm", "chm_method", "cell_size", "thresholds", "threshold_step", "max_edge", "tin_max_edge", "buffer",
-              "crs", "jobs", "overwrite", "scheduler",
-    library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings", cli="chm:chm")
-POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite",
-    library="products.points:points_from_tiles", cli="points:points")
-INFO = command("info", "crs",
-    library="products.info:tiles_summary", cli="info:info")
+              "crs", "jobs", "overwrite", "scheduler", *AREA,
+    library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings", cli="chm:chm", command_line=AREA)
+POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite", *AREA,
+    library="products.points:points_from_tiles", cli="points:points", command_line=AREA)
+INFO = command("info", "crs", *AREA,
+    library="products.info:tiles_summary", cli="info:info", command_line=AREA)
 
 # the commands' own defaults of shared parameters (spec_options / add_spec ``defaults=``)
 BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer

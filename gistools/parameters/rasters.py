@@ -1,5 +1,6 @@
 """Parameters of the DSM, DEM and nDSM (gistools rasters, and the shrub chain's first stage)."""
 
+from .common import AREA
 from .core import ByUnits, Parameter, command, declare, option
 
 DEM_METHODS = {"tin": "TIN of the ground points (fills gaps)", "max": "Highest ground point of each cell (the dissertation's)",
@@ -56,5 +57,5 @@ declare(
 
 RASTERS = command("rasters", "cell_size", "dsm_classes", "dem_method", "dem_max_distance", "buffer", "products",
                   "classify_ground", "hydro_flatten", "dem_fill", "dsm_fill", "subcircle", "shore_width", "crs", "jobs",
-                  "chunk_size", "overwrite", "scheduler",
-    library="products.rasters:rasters_from_tiles", settings="products.rasters:RasterSettings", cli="rasters:rasters")
+                  "chunk_size", "overwrite", "scheduler", *AREA,
+    library="products.rasters:rasters_from_tiles", settings="products.rasters:RasterSettings", cli="rasters:rasters", command_line=AREA)

@@ -7,6 +7,7 @@ The Python names are the fields of ``gistools.products.settings.ShrubSettings`` 
 breaklines gistools normalize takes too in ``lidar``, the tile index and the web map's basemap in ``deliver``.
 """
 
+from .common import AREA
 from .core import ByUnits, Parameter, command, declare, option
 from . import common, deliver, lidar, rasters  # noqa: F401  (declared there, see below)
 
@@ -73,8 +74,8 @@ SHRUB = command("shrub", "roads", "hydro", "waterbodies", "wetlands", "tile_inde
                 "cell_size", "dsm_classes", "dem_method", "dem_max_distance", "dsm_fill", "classify_ground", "bands",
                 "band_breaks_m", "noise_floor", "radius", "density_bands", "classify", "class_breaks", "max_road_width",
                 "snap", "make_map", "web_map", "basemap", "band_points", "scheduler", "crs", "jobs", "chunk_size",
-                "overwrite",
-    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", command_line=('web_map', 'basemap'),
+                "overwrite", *AREA,
+    library="products.shrub:shrub_from_tiles", settings="products.shrub:ShrubSettings", command_line=('web_map', 'basemap', *AREA),
     cli="shrub:shrub")
 # the settings each step of a run records and a step rerun may change; the command that reruns each step
 STAGE_SETTINGS = {"bands": ("bands", "band_breaks_m", "noise_floor"),

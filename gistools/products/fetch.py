@@ -10,6 +10,7 @@ inside the area. A rerun keeps the nodes and the tiles it finds, so it fetches n
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from ..engine.record import write_folder_report
 from ..engine.resume import rerun_kept, run_record
 from ..errors import InputError
-from ..io.area import FIELDS, area_box, open_source
+from ..io.area import FIELDS, PointSource, area_box, open_source
 from ..io.atomic import atomic_path
 from ..io.http import RangeClient, is_url
 from ..io.outdir import claim_output, output_folder
@@ -46,7 +47,10 @@ def _write_points(path: Path, points: dict, crs_wkt, scales, offsets, origin) ->
 
 
 def _cached_node(source, node, folder: Path) -> dict:
-    """A node's points, from the cache when fetched before, else fetched and kept there."""
+    """A node's points, from the cache when fetched before, else fetched and kept there (a local file's are read
+    where they are)."""
+    if not getattr(source, "remote", True):
+        return source.node_points(node)
     path = folder / f"{node.name}.npz"
     if path.exists():
         with np.load(path) as cached:
@@ -59,15 +63,15 @@ def _cached_node(source, node, folder: Path) -> dict:
 
 
 def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: float = 500.0,
-               max_download: float | None = None, overwrite: bool = False, client: RangeClient | None = None,
-               progress: ProgressCallback | None = None) -> dict:
+               max_download: float | None = None, margin: float = 0.0, nodes=None, overwrite: bool = False,
+               client: RangeClient | None = None, progress: ProgressCallback | None = None) -> dict:
     """The points of an area of a point cloud service as LAZ tiles on an absolute lattice.
 
     Parameters
     ----------
-    source : str or path
+    source : str, path or PointSource
         An EPT dataset (``https://host/path/ept.json``) or a COPC file (``https://host/x.copc.laz``), or a local
-        copy of either.
+        copy of either (or the source ``gistools.io.area.open_sources`` makes of several inputs).
     out : str or path
         The tiles' folder, made when missing (the fetched nodes are kept in ``out/.nodes``).
     aoi : sequence of 4 floats or shapely geometry
@@ -79,6 +83,11 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     max_download : float, optional
         Refuse an area whose nodes hold more bytes (COPC: the hierarchy's sizes; EPT: 12 bytes a point, a LAZ
         point's usual size) before anything is fetched.
+    margin : float
+        The points within this distance outside the area (CRS units) are kept too, in the tiles that meet the
+        area (what a product's cells at the area's edge see beyond it); no tile is made of the margin alone.
+    nodes : str or path, optional
+        Where the fetched nodes are kept (default ``out/.nodes``); a folder shared by the areas of one source.
     overwrite : bool
         Fetch and write again; without it a rerun of the same source, area, resolution and tile size keeps the
         tiles (nothing is fetched), one of other settings is refused.
@@ -111,27 +120,28 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     if not tile_size or tile_size <= 0:
         raise InputError(f"tile_size={tile_size!r}: a tile's side is a positive length", hint="e.g. 500 (CRS units)")
     w, s, e, n = area_box(aoi)
-    now = {"source": str(source), "aoi": aoi.wkt if hasattr(aoi, "wkt") else [w, s, e, n],
-           "resolution": resolution, "tile_size": float(tile_size)}
-    local = [] if is_url(str(source)) else [source]
+    location = getattr(source, "location", str(source))
+    now = {"source": location, "aoi": aoi.wkt if hasattr(aoi, "wkt") else [w, s, e, n],
+           "resolution": resolution, "tile_size": float(tile_size), "margin": float(margin)}
+    local = [p for p in location.split(";") if not is_url(p)]
     out = output_folder(out)
     kept_run = rerun_kept(out, "gistools fetch", now, local, overwrite, started)
     if kept_run is not None:  # the same area fetched before, its tiles as they were written: nothing is fetched
         return kept_run
     client = client or RangeClient()
-    src = open_source(source, client)
-    nodes = src.octree_nodes(aoi, resolution)
-    plan = _checked_plan(src, aoi, resolution, max_download, source)
-    lattice = [(i * tile_size, j * tile_size)
-               for i in range(int(np.floor(w / tile_size)), int(np.floor(e / tile_size)) + 1)
-               for j in range(int(np.floor(s / tile_size)), int(np.floor(n / tile_size)) + 1)]
+    src = source if isinstance(source, PointSource) else open_source(source, client)
+    grown = _grown(aoi, margin)
+    found = src.octree_nodes(grown, resolution)
+    plan = _checked_plan(src, grown, resolution, max_download, location)
+    lattice = _lattice(aoi, tile_size)
     with claim_output(out, "gistools fetch"):
-        tiles, kept, count = _write_tiles(src, nodes, lattice, aoi, tile_size, out, overwrite, progress)
-        rep = {"tool": "gistools fetch", "source": str(source), "crs_wkt": src.crs_wkt, "settings": now,
+        cache = Path(nodes) if nodes is not None else out / NODES
+        tiles, kept, count = _write_tiles(src, found, lattice, grown, tile_size, out, cache, overwrite, progress)
+        rep = {"tool": "gistools fetch", "source": location, "crs_wkt": src.crs_wkt, "settings": now,
                "outputs": {"tiles": tiles}, "tiles": [{"name": Path(t).stem, "status": "skipped" if t in kept else "ok"}
                                                       for t in tiles],
                "counts": {"ok": len(tiles) - len(kept), "skipped": len(kept), "failed": 0}, "kept_tiles": kept,
-               "points": count, "nodes": len(nodes), "estimate": {"points": plan.points, "bytes": plan.bytes},
+               "points": count, "nodes": len(found), "estimate": {"points": plan.points, "bytes": plan.bytes},
                "fetched_bytes": client.bytes_fetched, "seconds": round(time.time() - started, 3),
                "made": run_record(now, local, {"tiles": tiles})}
         return write_folder_report(out, rep)
@@ -149,16 +159,43 @@ def _checked_plan(src, aoi, resolution, max_download, source):
     return type(plan)(plan.nodes, plan.points, estimate)
 
 
-def _write_tiles(src, nodes, lattice, aoi, tile_size, out: Path, overwrite, progress) -> tuple[list, list, int]:
-    """Every node fetched once into ``out/.nodes``, then the tiles of the lattice that hold points of the area
-    written (kept where they are there, unless ``overwrite``): (tiles, kept tiles, points written)."""
+def _grown(aoi, margin: float):
+    """The area grown by ``margin`` (a box stays a box; a polygon is buffered)."""
+    if not margin:
+        return aoi
+    if hasattr(aoi, "buffer"):
+        return aoi.buffer(margin)
+    w, s, e, n = area_box(aoi)
+    return (w - margin, s - margin, e + margin, n + margin)
+
+
+def _lattice(aoi, tile_size: float) -> list:
+    """The south-west corners of the lattice's tiles that meet the area."""
+    w, s, e, n = area_box(aoi)
+    corners = [(i * tile_size, j * tile_size)
+               for i in range(int(np.floor(w / tile_size)), int(np.floor(e / tile_size)) + 1)
+               for j in range(int(np.floor(s / tile_size)), int(np.floor(n / tile_size)) + 1)]
+    if not hasattr(aoi, "geom_type"):
+        return corners
+    import shapely
+
+    return [(x, y) for x, y in corners if aoi.intersects(shapely.box(x, y, x + tile_size, y + tile_size))]
+
+
+def _write_tiles(src, nodes, lattice, aoi, tile_size, out: Path, cache: Path, overwrite,
+                 progress) -> tuple[list, list, int]:
+    """Every node fetched once into ``cache``, then the tiles of the lattice that hold points of the area written
+    (kept where they are there, unless ``overwrite``): (tiles, kept tiles, points written)."""
     scales, offsets = src.scales_offsets()
     steps = len(nodes) + len(lattice)
-    cache = out / NODES
-    cache.mkdir(exist_ok=True)
+    cache.mkdir(parents=True, exist_ok=True)
+    client = getattr(src, "client", None)
+    points_read = 0
     for k, node in enumerate(nodes):
         _cached_node(src, node, cache)
-        report(progress, (k + 1) / steps, f"node {node.name}")
+        points_read += node.points
+        fetched = f", {client.bytes_fetched / 1e6:,.1f} MB fetched" if client is not None else ""
+        report(progress, (k + 1) / steps, f"{points_read:,} points{fetched}")
     tiles, kept, count = [], [], 0
     for k, (x0, y0) in enumerate(lattice):
         path = out / f"{x0:.0f}_{y0:.0f}.laz"
@@ -184,3 +221,148 @@ def _in_tile(parts: list, aoi, x0: float, y0: float, size: float) -> dict:
     joined = _cut(parts, aoi)
     keep = (joined["x"] >= x0) & (joined["x"] < x0 + size) & (joined["y"] >= y0) & (joined["y"] < y0 + size)
     return {name: values[keep] for name, values in joined.items()}
+
+
+AREA_FOLDER = "fetched"  # the cache's default place, inside the output folder
+
+
+@dataclass(frozen=True)
+class Area:
+    """The points of an area of point cloud services or local data, given where a command takes tiles.
+
+    A command given an Area fetches its points (once: the cache keeps them) into LAZ tiles on an absolute lattice
+    and runs on those as on files, with every option checked first.
+
+    Parameters
+    ----------
+    inputs : str, path or sequence of them
+        EPT datasets (``https://host/path/ept.json``), COPC files (``https://host/x.copc.laz``), VPCs (their items
+        local or served), local copies of either, or LAS/LAZ tiles (files, folders, globs).
+    aoi : str, sequence of 4 floats or shapely geometry
+        The area: ``minx,miny,maxx,maxy`` (the data's CRS, or ``minx,miny,maxx,maxy,EPSG:code``), a polygon layer
+        (``file.gpkg``, ``file.gpkg|layername=NAME``), a box of 4 numbers or a shapely polygon in the data's CRS.
+    cache : str or path
+        Where the fetched nodes and tiles are kept (a rerun, or another product of the same area, fetches nothing).
+    resolution : str or float, optional
+        Read only the octree depths whose point spacing is at least this fine (a length: "2m", "5ft"); None: every
+        point.
+    tile_size : str or float, optional
+        The tiles' side (a length); None: 500 m (1500 ft in feet).
+    margin : str or float
+        The points within this length outside the area are read too (what the cells at the area's edge see).
+    max_download : str or float, optional
+        Refuse an area larger than this ("2GB"; bytes) before any point is fetched.
+    progress : callable, optional
+        ``progress(fraction, message)`` while points are fetched.
+
+    Examples
+    --------
+    >>> import gistools  # doctest: +SKIP
+    >>> area = gistools.Area("https://host/ept.json", aoi="515380,4918350,515400,4918370", cache="cache")  # doctest: +SKIP
+    >>> gistools.rasters_from_tiles(area, "out")  # doctest: +SKIP
+    """
+
+    inputs: object
+    aoi: object
+    cache: object
+    resolution: object = None
+    tile_size: object = None
+    margin: object = "30m"
+    max_download: object = None
+    progress: object = field(default=None, compare=False)
+    client: object = field(default=None, compare=False)
+    _found: dict = field(default_factory=dict, compare=False, repr=False)
+
+    def __str__(self) -> str:
+        items = [self.inputs] if isinstance(self.inputs, (str, Path)) else list(self.inputs)
+        return f"{', '.join(map(str, items))} (area {self.aoi})"
+
+    def check(self) -> None:
+        """The area's options, checked before anything is read or written."""
+        from ..units import parse_length, parse_size
+
+        for name in ("resolution", "tile_size", "margin"):
+            value = getattr(self, name)
+            if value is not None and parse_length(value, name=name)[0] < (0 if name == "margin" else 1e-9):
+                raise InputError(f"{name} {value!r} must be {'0 or more' if name == 'margin' else 'positive'}",
+                                 hint=f"e.g. {name}='2m'")
+        if self.max_download is not None:
+            parse_size(self.max_download, name="max_download")
+        if self.aoi is None or (isinstance(self.aoi, str) and not self.aoi.strip()):
+            raise InputError("a service, or points by area, needs an area", hint="Give aoi='minx,miny,maxx,maxy'")
+
+    def _items(self) -> list[str]:
+        items = [self.inputs] if isinstance(self.inputs, (str, Path)) else list(self.inputs)
+        return [str(i) if is_url(str(i)) else str(Path(i).resolve()) for i in items]
+
+    def local_tiles(self) -> list[Path]:
+        """The area's tiles, fetched into the cache where they are not there yet (a served area fetched before is
+        taken from the cache without a request)."""
+        if "tiles" not in self._found:
+            self._found["tiles"] = self._served_before() or self._fetched()
+        return list(self._found["tiles"])
+
+    def _given(self) -> str:
+        """The area as given (its inputs, area and lengths), the cache's key of a served area."""
+        import hashlib
+        import json
+
+        aoi = self.aoi.wkt if hasattr(self.aoi, "wkt") else str(self.aoi) if isinstance(self.aoi, (str, Path)) \
+            else [float(v) for v in self.aoi]
+        given = json.dumps([self._items(), aoi, *(str(v) for v in (self.resolution, self.tile_size, self.margin))])
+        return hashlib.sha256(given.encode()).hexdigest()[:12]
+
+    def _served_before(self) -> list | None:
+        """The tiles of this same area of services fetched whole before (no local file can have changed)."""
+        import json
+
+        if not all(is_url(i) for i in self._items()):
+            return None
+        record = Path(self.cache) / f"given-{self._given()}.json"
+        try:
+            tiles = [Path(t) for t in json.loads(record.read_text(encoding="utf-8"))["tiles"]]
+        except (OSError, ValueError, KeyError, TypeError):
+            return None
+        return tiles if tiles and all(t.is_file() for t in tiles) else None
+
+    def _fetched(self) -> list[Path]:
+        import hashlib
+        import json
+
+        from ..io.area import area_in_crs, open_sources
+        from ..units import length_to_crs_units, parse_size
+
+        self.check()
+        client = self.client or RangeClient()
+        src = open_sources(self.inputs, client)
+        unit = _unit_of(src.crs_wkt)
+        aoi = area_in_crs(self.aoi, src.crs_wkt)
+        resolution = None if self.resolution is None else length_to_crs_units(self.resolution, unit, name="resolution")
+        tile = self.tile_size if self.tile_size is not None else ("1500ft" if unit.is_foot else "500m")
+        tile_size = length_to_crs_units(tile, unit, name="tile_size")
+        margin = length_to_crs_units(self.margin or 0, unit, name="margin")
+        key = json.dumps([src.location, aoi.wkt if hasattr(aoi, "wkt") else list(area_box(aoi)), resolution,
+                          tile_size, margin])
+        cache = Path(self.cache)
+        folder = cache / f"area-{hashlib.sha256(key.encode()).hexdigest()[:12]}"
+        nodes = cache / f"nodes-{hashlib.sha256(src.location.encode()).hexdigest()[:12]}"
+        report_ = fetch_area(src, folder, aoi=aoi, resolution=resolution, tile_size=tile_size, margin=margin,
+                             max_download=None if self.max_download is None else parse_size(self.max_download),
+                             nodes=nodes, client=client, progress=self.progress)
+        tiles = [Path(t) for t in report_["outputs"]["tiles"]]
+        if not tiles:
+            raise InputError(f"{self}: the area holds no points", hint="Check the area and its CRS")
+        with atomic_path(cache / f"given-{self._given()}.json", overwrite=True) as tmp:
+            tmp.write_text(json.dumps({"tiles": [str(t) for t in tiles]}), encoding="utf-8")
+        return tiles
+
+
+def _unit_of(crs_wkt):
+    """The data's horizontal unit (metres where it has no CRS)."""
+    import pyproj
+
+    from ..units import LinearUnit, horizontal_unit
+
+    if not crs_wkt:
+        return LinearUnit("metre", 1.0)
+    return horizontal_unit(pyproj.CRS.from_user_input(crs_wkt))

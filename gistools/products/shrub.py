@@ -828,5 +828,7 @@ def _write_polygons(path, polygons, crs, tile_field, area_m2):
 
 
 def _input_label(inputs) -> str:
+    if hasattr(inputs, "local_tiles"):  # an area (gistools.Area)
+        return str(inputs)
     items = [inputs] if isinstance(inputs, (str, Path)) else list(inputs)
     return ", ".join(Path(i).name for i in items[:3]) + (" ..." if len(items) > 3 else "")
