@@ -34,6 +34,7 @@ _FUNCTIONS = {
                        "density_from_vegetation", "classes_from_cover"),
     "products.structure": ("reconstruct",),
     "terrain.travel": ("travel_minutes",),
+    "products.fetch": ("Area", "fetch_area"),
     "datasets.examples": ("write_examples",),
 }
 

@@ -110,19 +110,25 @@ def tiles_command(name: str, options=None):
     """``folder_command`` of a command of tiles: INPUTS are files, folders, globs or a .vpc, or point cloud services
     (URLs of EPT datasets and COPC files) and local copies of them; with ``--aoi`` the command runs on the area's
     points (``gistools.Area``), fetched into ``--cache`` as tiles."""
-    import functools
 
     def apply(fn):
-        @functools.wraps(fn)
-        def wrapper(*args, inputs, out, quiet, aoi=None, resolution=None, tile_size=None, cache=None,
-                    max_download=None, **keywords):
-            inputs = area_inputs(inputs, out, quiet, aoi=aoi, resolution=resolution, tile_size=tile_size,
-                                 cache=cache, max_download=max_download, margin=keywords.get("buffer"))
-            return fn(*args, inputs=inputs, out=out, quiet=quiet, **keywords)
-
-        return folder_command(name, click.argument("inputs", nargs=-1, required=True), options=options)(wrapper)
+        return folder_command(name, click.argument("inputs", nargs=-1, required=True), options=options)(takes_area(fn))
 
     return apply
+
+
+def takes_area(fn):
+    """A command of tiles given the area of its INPUTS (``area_inputs``) where --aoi is given."""
+    import functools
+
+    @functools.wraps(fn)
+    def wrapper(*args, inputs, out, aoi=None, resolution=None, tile_size=None, cache=None, max_download=None,
+                **keywords):
+        inputs = area_inputs(inputs, out, keywords.get("quiet", False), aoi=aoi, resolution=resolution,
+                             tile_size=tile_size, cache=cache, max_download=max_download, margin=keywords.get("buffer"))
+        return fn(*args, inputs=inputs, out=out, **keywords)
+
+    return wrapper
 
 
 def area_inputs(inputs, out, quiet, *, aoi, margin=None, **area):

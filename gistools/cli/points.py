@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .options import out_opt, batch_report, finish_batch, overwrite_opt
+from .options import batch_report, finish_batch, out_opt, overwrite_opt, takes_area
 from .spec import spec_options
 
 
@@ -13,6 +13,7 @@ from .spec import spec_options
 @out_opt("Output folder (one layer per tile).")
 @spec_options("points", skip=("overwrite",))
 @overwrite_opt
+@takes_area
 def points(inputs, out, classes, returns, fmt, crs, chunk_size, overwrite):
     """LAS/LAZ tiles to point layers with x, y, z, class, return number and intensity
     (the dissertation's LAS To Multipoint).

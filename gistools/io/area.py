@@ -505,7 +505,7 @@ def area_in_crs(aoi, crs_wkt):
     parts = [p.strip() for p in text.split(",")]
     try:
         box = tuple(float(v) for v in parts[:4])
-        is_box = len(parts) in (4, 5) and len(box) == 4
+        is_box = len(box) == 4
     except ValueError:
         is_box = False
     if not is_box:
@@ -513,7 +513,7 @@ def area_in_crs(aoi, crs_wkt):
     box = area_box(box)
     if len(parts) == 4:
         return box
-    given = _crs_of(parts[4], text)
+    given = _crs_of(",".join(parts[4:]), text)  # EPSG:code, or a WKT (its commas kept)
     if crs_wkt is None or given == pyproj.CRS.from_user_input(crs_wkt):
         return box
     t = pyproj.Transformer.from_crs(given, pyproj.CRS.from_user_input(crs_wkt), always_xy=True)

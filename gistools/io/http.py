@@ -11,6 +11,7 @@ URL. A stop (Ctrl-C, QGIS's Cancel through ``progress``) acts between requests.
 from __future__ import annotations
 
 import io
+import os
 import threading
 import time
 
@@ -18,6 +19,9 @@ from ..errors import DataFileError
 from ..progress import check_interrupt
 
 RETRY_STATUS = (429, 500, 502, 503, 504)
+
+
+CA_VARIABLES = ("SSL_CERT_FILE", "REQUESTS_CA_BUNDLE", "CURL_CA_BUNDLE")  # as requests and curl read them
 
 
 def is_url(text) -> bool:
@@ -38,7 +42,8 @@ class RangeClient:
     backoff : float
         Seconds before the first retry, doubled after each (at most 30 s).
     ca_bundle : str, optional
-        A file of CA certificates for HTTPS; None: the system's.
+        A file of CA certificates for HTTPS; None: the one ``SSL_CERT_FILE``, ``REQUESTS_CA_BUNDLE`` or
+        ``CURL_CA_BUNDLE`` names, else the system's.
     connections : int
         Connections kept open to one host (and requests in flight at once).
 
@@ -55,6 +60,7 @@ class RangeClient:
 
         self._urllib3 = urllib3
         self.retries, self.backoff = int(retries), float(backoff)
+        ca_bundle = ca_bundle or next((os.environ[v] for v in CA_VARIABLES if os.environ.get(v)), None)
         options = {"ca_certs": ca_bundle} if ca_bundle else {}
         self._pool = urllib3.PoolManager(num_pools=8, maxsize=connections, block=True,
                                          timeout=urllib3.Timeout(connect=timeout, read=timeout), **options)

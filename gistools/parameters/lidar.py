@@ -173,8 +173,8 @@ CHM = command("chm", "chm_method", "cell_size", "thresholds", "threshold_step", 
     library="products.chm:chm_from_tiles", settings="products.chm:ChmSettings", cli="chm:chm", command_line=AREA)
 POINTS = command("points", "classes", "returns", "fmt", "crs", "chunk_size", "overwrite", *AREA,
     library="products.points:points_from_tiles", cli="points:points", command_line=AREA)
-INFO = command("info", "crs", *AREA,
-    library="products.info:tiles_summary", cli="info:info", command_line=AREA)
+INFO = command("info", "crs",
+    library="products.info:tiles_summary", cli="info:info")
 
 # the commands' own defaults of shared parameters (spec_options / add_spec ``defaults=``)
 BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer

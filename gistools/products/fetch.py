@@ -18,7 +18,7 @@ import numpy as np
 from ..engine.record import write_folder_report
 from ..engine.resume import rerun_kept, run_record
 from ..errors import InputError
-from ..io.area import FIELDS, PointSource, area_box, open_source
+from ..io.area import FIELDS, PointSource, area_box, open_sources
 from ..io.atomic import atomic_path
 from ..io.http import RangeClient, is_url
 from ..io.outdir import claim_output, output_folder
@@ -69,9 +69,9 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
 
     Parameters
     ----------
-    source : str, path or PointSource
-        An EPT dataset (``https://host/path/ept.json``) or a COPC file (``https://host/x.copc.laz``), or a local
-        copy of either (or the source ``gistools.io.area.open_sources`` makes of several inputs).
+    source : str, path, sequence of them, or PointSource
+        EPT datasets (``https://host/path/ept.json``), COPC files (``https://host/x.copc.laz``), VPCs, local copies
+        of either, or LAS/LAZ tiles (files, folders, globs).
     out : str or path
         The tiles' folder, made when missing (the fetched nodes are kept in ``out/.nodes``).
     aoi : sequence of 4 floats or shapely geometry
@@ -112,9 +112,9 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
 
     Examples
     --------
-    >>> report = fetch_area("https://host/ept.json", "tiles", aoi=(0, 0, 1000, 1000))  # doctest: +SKIP
-    >>> len(report["tiles"])  # doctest: +SKIP
-    4
+    >>> report = fetch_area("sample_tiles", "area_tiles", aoi=(430400, 1810400, 431600, 1811600))
+    >>> len(report["outputs"]["tiles"]), report["points"] > 0
+    (16, True)
     """
     started = time.time()
     if not tile_size or tile_size <= 0:
@@ -129,7 +129,7 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     if kept_run is not None:  # the same area fetched before, its tiles as they were written: nothing is fetched
         return kept_run
     client = client or RangeClient()
-    src = source if isinstance(source, PointSource) else open_source(source, client)
+    src = source if isinstance(source, PointSource) else open_sources(source, client)
     grown = _grown(aoi, margin)
     found = src.octree_nodes(grown, resolution)
     plan = _checked_plan(src, grown, resolution, max_download, location)
@@ -257,9 +257,10 @@ class Area:
 
     Examples
     --------
-    >>> import gistools  # doctest: +SKIP
-    >>> area = gistools.Area("https://host/ept.json", aoi="515380,4918350,515400,4918370", cache="cache")  # doctest: +SKIP
-    >>> gistools.rasters_from_tiles(area, "out")  # doctest: +SKIP
+    >>> import gistools
+    >>> area = gistools.Area("sample_tiles", aoi="430400,1810400,431600,1811600", cache="cache")
+    >>> gistools.rasters_from_tiles(area, "area_out", gistools.RasterSettings(products=("dsm",)))["counts"]
+    {'ok': 4, 'failed': 0, 'skipped': 0}
     """
 
     inputs: object

@@ -15,6 +15,7 @@ from qgis.core import (
     QgsProcessingParameterField,
     QgsProcessingParameterFile,
     QgsProcessingParameterMultipleLayers,
+    QgsProcessingUtils,
 )
 from qgis.PyQt.QtGui import QIcon
 
@@ -27,6 +28,7 @@ HERE = Path(__file__).resolve().parents[1]  # the plugin folder (icon.svg)
 TILE_FOLDER_LABEL = "Folder of LAS/LAZ tiles"
 TILE_FILES_LABEL = "Or LAS/LAZ files or point cloud layers"
 TILE_LIST_LABEL = "Or LAS/LAZ (or .vpc) files"  # where this QGIS cannot open LAS/LAZ as layers: a list of files
+SERVICE_LABEL = "Or a point cloud service (URL of an EPT dataset's ept.json or of a COPC file)"
 NO_TILES = "No tiles: choose a '{folder}', or files in '{files}' (the ... button, then Add File(s))"
 
 
@@ -160,7 +162,8 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         from .spec import qgis_help, qgis_parameter
 
         defaults, labels, orders = defaults or {}, labels or {}, orders or {}
-        names = [n for n in (COMMANDS[command] if command else ()) + names if n not in skip and n != "overwrite"]
+        names = [n for n in (COMMANDS[command] if command else ()) + names
+                 if n not in skip and n != "overwrite" and n not in self._spec]  # (the area's: add_tiles)
         for name in names:
             p = PARAMETERS[name]
             self._spec[name] = p
@@ -171,22 +174,32 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
         return names
 
     def spec_values(self, parameters, context, feedback, names=None) -> dict:
-        """{Python name: value} of the declared parameters this algorithm added (``names``: some of them)."""
+        """{Python name: value} of the declared parameters this algorithm added (``names``: some of them; the area's,
+        which ``tiles`` reads, only when named)."""
+        from gistools.parameters.common import AREA
+
         from .spec import read_value
 
         return {name: read_value(self, p, parameters, context, feedback, self._orders.get(name))
-                for name, p in self._spec.items() if names is None or name in names}
+                for name, p in self._spec.items() if (name not in AREA if names is None else name in names)}
 
-    def add_tiles(self):
-        """The tiles: a folder, and / or LAS/LAZ files (the layer list's file button) or point cloud layers. QGIS has
-        no "one of two is required": checkParameterValues refuses a run with neither, naming both by their labels."""
+    def add_tiles(self, area: bool = True):
+        """The tiles: a folder, and / or LAS/LAZ files (the layer list's file button) or point cloud layers (a
+        remote EPT / COPC layer among them), or a point cloud service's URL; and (``area``) the area to read of them. QGIS has
+        no "one of two is required": checkParameterValues refuses a run with none, naming them by their labels."""
+        from gistools.parameters.common import AREA
+
         self.add(QgsProcessingParameterFile("INPUT", TILE_FOLDER_LABEL, behavior=FOLDER, optional=True))
+        if area:
+            self.add(QgsProcessingParameterFile("SERVICE", SERVICE_LABEL, optional=True))
         if reads_las():
             self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_FILES_LABEL, layerType=POINT_CLOUD,
                                                           optional=True))
         else:  # no PDAL provider (Debian's QGIS 3.22): point cloud layers cannot be made, files can be listed
             self.add(QgsProcessingParameterMultipleLayers("POINT_CLOUDS", TILE_LIST_LABEL, layerType=FILE,
                                                           optional=True))
+        if area:
+            self.add_spec(*AREA)
 
     # parameters renamed when one name came to mean one thing in every algorithm: a saved model or script that
     # still gives the old name is refused with the new one (QGIS would otherwise ignore it and run the default)
@@ -198,25 +211,60 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
                 return False, (f"{old} is now {new} ('{self.parameterDefinition(new).description()}'): "
                                f"give {new} instead of {old}")
         if self.parameterDefinition("POINT_CLOUDS") is not None and not parameters.get("INPUT") \
-                and not parameters.get("POINT_CLOUDS"):
+                and not parameters.get("POINT_CLOUDS") and not parameters.get("SERVICE"):
             return False, self.no_tiles()
         return super().checkParameterValues(parameters, context)
 
-    def tiles(self, parameters, context):
-        """The tile folder and / or the files of the chosen point cloud layers, as gistools inputs."""
+    def tiles(self, parameters, context, feedback=None):
+        """The tile folder and / or the files of the chosen point cloud layers and the service, as gistools inputs;
+        with an area, the area of them (``gistools.Area``, fetched into the output folder's ``fetched/`` unless
+        the cache is given)."""
         inputs = []
         folder = self.text(parameters, "INPUT", context)
         if folder:
             inputs.append(folder)
         if parameters.get("POINT_CLOUDS"):
             inputs += self.point_cloud_files(parameters, context)
+        service = self.text(parameters, "SERVICE", context)
+        if service:
+            inputs.append(service)
         if not inputs:
             raise QgsProcessingException(self.no_tiles())
-        return inputs
+        return self.area_of(inputs, parameters, context, feedback)
+
+    def area_of(self, inputs, parameters, context, feedback):
+        """``inputs``, or their area where the algorithm's area is given (a service needs one)."""
+        from gistools.io.area import is_area_source
+        from gistools.parameters.common import AREA
+        from gistools.products.fetch import AREA_FOLDER, Area
+
+        if self.parameterDefinition("AOI") is None:
+            return inputs
+        area = self.spec_values(parameters, context, feedback, names=AREA)
+        if area.get("aoi") is None:
+            services = [i for i in inputs if is_area_source(i)]
+            if services:
+                raise QgsProcessingException(f"{services[0]} is a point cloud service read by area: give the "
+                                             f"'{self.parameterDefinition('AOI').description()}'")
+            return inputs
+        cache = area.pop("cache") or str(Path(self.output_folder(parameters, context) if self.parameterDefinition(
+            "OUTPUT_FOLDER") is not None else QgsProcessingUtils.tempFolder()) / AREA_FOLDER)
+        return Area(tuple(inputs), area.pop("aoi"), cache, progress=self.progress(feedback) if feedback else None,
+                    **area)
 
     def no_tiles(self) -> str:
         files = self.parameterDefinition("POINT_CLOUDS")
-        return NO_TILES.format(folder=TILE_FOLDER_LABEL, files=files.description() if files else TILE_FILES_LABEL)
+        text = NO_TILES.format(folder=TILE_FOLDER_LABEL, files=files.description() if files else TILE_FILES_LABEL)
+        return text + (f", or give '{SERVICE_LABEL}'" if self.parameterDefinition("SERVICE") is not None else "")
+
+    def extent_text(self, parameters, name, context):
+        """An extent parameter as gistools takes an area: minx,miny,maxx,maxy and its CRS (authority id or WKT)."""
+        rect = self.parameterAsExtent(parameters, name, context)
+        crs = self.parameterAsExtentCrs(parameters, name, context)
+        box = f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r},{rect.yMaximum()!r}"
+        if crs is None or not crs.isValid():
+            return box
+        return f"{box},{crs.authid() or crs.toWkt()}"
 
     def point_cloud_files(self, parameters, context) -> list[str]:
         """The files of POINT_CLOUDS: point cloud layers' sources, and files given by name (LAS/LAZ/COPC, or a .vpc,

@@ -31,7 +31,7 @@ class GroundAlgorithm(GistoolsAlgorithm):
         values["method"] = values.pop("ground_method")
         settings = GroundSettings(**{k: v for k, v in values.items() if v is not None})
         with method_labelled(self, "ground_method"):
-            result = ground_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+            result = ground_from_tiles(self.tiles(parameters, context, feedback), out, settings, overwrite=True,
                                        progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         changed = sum(t.get("changed") or 0 for t in result["tiles"])

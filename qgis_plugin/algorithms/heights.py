@@ -47,7 +47,7 @@ class NormalizeAlgorithm(GistoolsAlgorithm):
         layers = self.spec_values(parameters, context, feedback, names=BREAKLINES) if classify else {}
         run = {k: values.pop(k) for k in ("jobs", "scheduler", "reproject_vectors")}
         settings = _normalize.NormalizeSettings(**{k: v for k, v in values.items() if v is not None})
-        result = _normalize.normalize_from_tiles(self.tiles(parameters, context), out, settings, **layers, overwrite=True,
+        result = _normalize.normalize_from_tiles(self.tiles(parameters, context, feedback), out, settings, **layers, overwrite=True,
                                                  progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         feedback.pushInfo(f"virtual point cloud: {result['vpc']}")
@@ -81,7 +81,7 @@ class MetricsAlgorithm(GistoolsAlgorithm):
         values["metrics"] = tuple(dict.fromkeys(values["metrics"] + more))
         run = {k: values.pop(k) for k in ("jobs", "scheduler")}
         settings = _metrics.MetricsSettings(**{k: v for k, v in values.items() if v is not None})
-        result = _metrics.metrics_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+        result = _metrics.metrics_from_tiles(self.tiles(parameters, context, feedback), out, settings, overwrite=True,
                                              progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         for name, vrt in result["mosaics"].items():
@@ -109,7 +109,7 @@ class ChmAlgorithm(GistoolsAlgorithm):
         values["method"] = values.pop("chm_method")
         settings = _chm.ChmSettings(**{k: v for k, v in values.items() if v is not None})
         with method_labelled(self, "chm_method"):
-            result = _chm.chm_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+            result = _chm.chm_from_tiles(self.tiles(parameters, context, feedback), out, settings, overwrite=True,
                                          progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         feedback.pushInfo(f"{result['pits']:,} pits left")
@@ -135,7 +135,7 @@ class FuelsAlgorithm(GistoolsAlgorithm):
         values = self.spec_values(parameters, context, feedback)
         run = {k: values.pop(k) for k in ("jobs", "scheduler")}
         settings = _fuels.FuelsSettings(**{k: v for k, v in values.items() if v is not None})
-        result = _fuels.fuels_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+        result = _fuels.fuels_from_tiles(self.tiles(parameters, context, feedback), out, settings, overwrite=True,
                                          progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         land = result.get("landscape") or {}

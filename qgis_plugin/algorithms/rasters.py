@@ -34,7 +34,7 @@ class _RastersBase(GistoolsAlgorithm):
         values = self.spec_values(parameters, context, feedback)
         run = {k: values.pop(k) for k in ("jobs", "scheduler")}
         settings = RasterSettings(products=self.products, **{k: v for k, v in values.items() if v is not None})
-        result = rasters_from_tiles(self.tiles(parameters, context), out, settings, overwrite=True,
+        result = rasters_from_tiles(self.tiles(parameters, context, feedback), out, settings, overwrite=True,
                                     progress=self.progress(feedback), **run)
         self.report_tiles(result, feedback)
         outputs = {"OUTPUT_FOLDER": out}

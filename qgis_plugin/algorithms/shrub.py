@@ -40,7 +40,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
         run = {k: values.pop(k) for k in RUN if k in values}
         raster = {k: values.pop(k) for k in list(values) if k in RasterSettings.__dataclass_fields__}
         settings = ShrubSettings(raster=RasterSettings(**raster), **values)
-        result = shrub_from_tiles(self.tiles(parameters, context), out, settings, **layers, **run, overwrite=True,
+        result = shrub_from_tiles(self.tiles(parameters, context, feedback), out, settings, **layers, **run, overwrite=True,
                                   progress=self.progress(feedback))
         self.report_tiles(result, feedback)
         if "class_area" in result:

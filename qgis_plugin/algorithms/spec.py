@@ -15,6 +15,7 @@ from qgis.core import (
     QgsProcessingParameterBoolean,
     QgsProcessingParameterCrs,
     QgsProcessingParameterEnum,
+    QgsProcessingParameterExtent,
     QgsProcessingParameterFile,
     QgsProcessingParameterNumber,
     QgsProcessingParameterRasterLayer,
@@ -87,6 +88,7 @@ _BY_KIND = {
     "crs": lambda p, n, label, d, o: QgsProcessingParameterCrs(n, label, optional=True),
     "file": lambda p, n, label, d, o: QgsProcessingParameterFile(n, label, optional=o),
     "folder": lambda p, n, label, d, o: QgsProcessingParameterFile(n, label, behavior=FOLDER, optional=o),
+    "area": lambda p, n, label, d, o: QgsProcessingParameterExtent(n, label, optional=True),
 }
 
 
@@ -123,6 +125,7 @@ _READERS = {
     "layer": lambda alg, p, ps, ctx, fb, v: alg.layer_spec(ps, p.qgis_name, ctx, fb),
     "raster": lambda alg, p, ps, ctx, fb, v: alg.raster_path(ps, p.qgis_name, ctx),
     "crs": lambda alg, p, ps, ctx, fb, v: alg.crs_text(ps, ctx, p.qgis_name),
+    "area": lambda alg, p, ps, ctx, fb, v: alg.extent_text(ps, p.qgis_name, ctx),
 }
 
 

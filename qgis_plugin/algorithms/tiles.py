@@ -15,7 +15,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
     _tags = ("header", "crs", "statistics", "lasinfo")
 
     def initAlgorithm(self, config=None):  # noqa: N802
-        self.add_tiles()
+        self.add_tiles(area=False)
         self.add_spec(command="info")
         self.add(QgsProcessingParameterFileDestination("OUTPUT", "Summary (JSON)", "JSON files (*.json)", optional=True,
                                                        createByDefault=False))
@@ -25,7 +25,7 @@ class InfoAlgorithm(GistoolsAlgorithm):
         from gistools.products.info import tiles_summary
 
         path = self.parameterAsFileOutput(parameters, "OUTPUT", context) if parameters.get("OUTPUT") else None
-        result = tiles_summary(self.tiles(parameters, context), out=path, progress=self.progress(feedback),
+        result = tiles_summary(self.tiles(parameters, context, feedback), out=path, progress=self.progress(feedback),
                                **self.spec_values(parameters, context, feedback))
         for t in result["tiles"]:
             if t["status"] == "ok":
@@ -57,7 +57,7 @@ class PointsAlgorithm(GistoolsAlgorithm):
         from gistools.products.points import points_from_tiles
 
         out = self.output_folder(parameters, context)
-        result = points_from_tiles(self.tiles(parameters, context), out, overwrite=True, progress=self.progress(feedback),
+        result = points_from_tiles(self.tiles(parameters, context, feedback), out, overwrite=True, progress=self.progress(feedback),
                                    **self.spec_values(parameters, context, feedback))
         self.report_tiles(result, feedback)
         return {"OUTPUT_FOLDER": out, "POINTS": sum(t["points"] for t in result["tiles"])}
