@@ -329,3 +329,171 @@ def test_an_area_larger_than_allowed_is_refused_before_any_point(server, tmp_pat
     with pytest.raises(InputError, match=r"more than the 1\.0 MB allowed"):
         fetch_area(f"{base}/lone-star.copc.laz", tmp_path / "big", aoi=BOX, tile_size=10.0, max_download=1e6)
     assert not list((tmp_path / "big").glob("*.laz")) if (tmp_path / "big").exists() else True
+
+
+# --- commands on an area of a service, and on a local copy of it ----------------------------------------------------
+AOI = ",".join(f"{v:g}" for v in BOX)
+AREA_OPTIONS = ["--aoi", AOI, "--tile-size", "10m", "--classify-ground", "smrf", "--quiet"]
+
+
+def _gistools(*args, check=True):
+    """``gistools`` as a user runs it (the venv's console script beside this Python)."""
+    import sys
+
+    exe = Path(sys.executable).with_name("gistools")
+    done = subprocess.run([str(exe), *map(str, args)], capture_output=True, text=True, timeout=900)
+    if check:
+        assert done.returncode == 0, done.stderr[-3000:]
+    return done
+
+
+def _same_rasters(a: Path, b: Path, folders) -> int:
+    """Every GeoTIFF of ``folders`` in ``a`` equals its namesake in ``b``, cell for cell (grid, nodata, values);
+    the number compared."""
+    import rasterio
+
+    compared = 0
+    for folder in folders:
+        names = sorted(p.name for p in (a / folder).glob("*.tif"))
+        assert names and names == sorted(p.name for p in (b / folder).glob("*.tif")), folder
+        for name in names:
+            with rasterio.open(a / folder / name) as x, rasterio.open(b / folder / name) as y:
+                assert x.transform == y.transform and x.shape == y.shape and x.nodata == y.nodata, name
+                np.testing.assert_array_equal(x.read(), y.read(), err_msg=f"{folder}/{name}")
+            compared += 1
+    return compared
+
+
+@pytest.mark.parametrize("kind", ["ept", "copc"])
+def test_rasters_of_a_service_equal_those_of_its_local_copy(server, tmp_path, kind):
+    """gistools rasters URL --aoi ... equals gistools rasters LOCAL_COPY --aoi ... cell for cell, on 10 m tiles of
+    the area (ground classified first: the dataset has none); a rerun asks nothing of the server."""
+    base, log = server
+    url = f"{base}/lone-star-laszip/ept.json" if kind == "ept" else f"{base}/lone-star.copc.laz"
+    local = DATA / "lone-star-laszip" / "ept.json" if kind == "ept" else COPC_FILE
+    _gistools("rasters", url, *AREA_OPTIONS, "--cell-size", "1m", "--out", tmp_path / "a")
+    _gistools("rasters", local, *AREA_OPTIONS, "--cell-size", "1m", "--out", tmp_path / "b")
+    assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem", "ndsm")) >= 3 * 6
+    before = _log_lines(log)
+    again = _gistools("rasters", url, *AREA_OPTIONS, "--cell-size", "1m", "--out", tmp_path / "a")
+    assert _log_lines(log) == before, "a rerun fetched again"
+    assert "6 skipped" in again.stdout or "skipped (outputs exist)" in again.stdout
+
+
+def test_the_shrub_chain_of_a_service_equals_its_local_copy(server, tmp_path):
+    base, log = server
+    _gistools("shrub", f"{base}/lone-star.copc.laz", *AREA_OPTIONS, "--no-map", "--out", tmp_path / "a")
+    _gistools("shrub", COPC_FILE, *AREA_OPTIONS, "--no-map", "--out", tmp_path / "b")
+    assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dem", "ndsm", "bands", "density", "classes")) >= 5 * 6
+
+
+def test_a_service_needs_an_area_and_an_area_is_checked_first(server, tmp_path):
+    base, _log = server
+    done = _gistools("rasters", f"{base}/lone-star.copc.laz", "--out", tmp_path / "o", check=False)
+    assert done.returncode == 2 and "give --aoi" in done.stderr and "Traceback" not in done.stderr
+    done = _gistools("rasters", COPC_FILE, "--aoi", AOI, "--max-download", "lots", "--out", tmp_path / "o",
+                     check=False)
+    assert done.returncode != 0 and "is not a size" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "o").exists()
+    done = _gistools("rasters", COPC_FILE, "--aoi", AOI, "--cell-size", "-1", "--out", tmp_path / "o", check=False)
+    assert done.returncode != 0 and not (tmp_path / "o" / "fetched").exists()  # no point fetched for a bad option
+
+
+def test_an_area_given_in_another_crs_or_as_a_polygon_layer(server, tmp_path):
+    """A box in EPSG:4326 is reprojected to the data's CRS; a polygon layer (GeoPackage) reads its points only."""
+    import geopandas as gpd
+    import pyproj
+    import shapely
+
+    from gistools.products.fetch import Area
+
+    crs = pyproj.CRS.from_user_input(laspy.open(COPC_FILE).header.parse_crs())
+    polygon = shapely.Polygon(TRIANGLE)
+    gpd.GeoDataFrame(geometry=[polygon], crs=crs).to_file(tmp_path / "area.gpkg", layer="search")
+    tiles = Area(str(COPC_FILE), f"{tmp_path / 'area.gpkg'}|layername=search", tmp_path / "cache", tile_size=10.0,
+                 margin=0).local_tiles()
+    rows = set()
+    for tile in tiles:
+        las = laspy.read(tile)
+        rows |= _rows({"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z),
+                       "classification": np.asarray(las.classification), "return_number": np.asarray(las.return_number)})
+    assert rows == _reference([COPC_FILE], _in_triangle)
+    # a box in longitude / latitude over the sample block (its CRS is a state plane in feet): every point inside
+    # it (each point reprojected by pyproj) is read, and few more (the box reprojected is not a rectangle there)
+    sample = sorted((ROOT / "sample_tiles").glob("*.la?"))
+    tiles_crs = laspy.open(sample[0]).header.parse_crs()
+    box = (-82.7085, 29.3115, -82.7055, 29.3145)
+    geo = Area([str(p) for p in sample], ",".join(map(repr, box)) + ",EPSG:4326", tmp_path / "cache2", margin=0)
+    got = set()
+    for tile in geo.local_tiles():
+        las = laspy.read(tile)
+        got |= set(zip(np.round(las.x, 2), np.round(las.y, 2), np.round(las.z, 2)))
+    to_geo = pyproj.Transformer.from_crs(tiles_crs, "EPSG:4326", always_xy=True)
+    inside = set()
+    for f in sample:
+        las = laspy.read(f)
+        lon, lat = to_geo.transform(np.asarray(las.x), np.asarray(las.y))
+        keep = (lon >= box[0]) & (lon <= box[2]) & (lat >= box[1]) & (lat <= box[3])
+        inside |= set(zip(np.round(las.x[keep], 2), np.round(las.y[keep], 2), np.round(las.z[keep], 2)))
+    assert len(inside) > 1000 and inside <= got and len(got) <= 1.05 * len(inside)
+
+
+def test_a_server_stopped_mid_run_then_started_again(server, tmp_path):
+    """The service goes away after a few requests: the run stops with one line naming the URL, no tile of the area
+    is taken for complete; once the service is back, the rerun completes to the rasters of a clean run."""
+    import http.server
+    import threading
+    import urllib.request
+
+    from gistools.errors import DataFileError
+    from gistools.io.http import RangeClient
+    from gistools.products.fetch import Area
+    from gistools.products.rasters import RasterSettings, rasters_from_tiles
+
+    base, _log = server
+    served = {"left": 6}
+
+    class Proxy(http.server.BaseHTTPRequestHandler):
+        protocol_version = "HTTP/1.1"
+
+        def log_message(self, *args):
+            pass
+
+        def do_GET(self):  # noqa: N802 - http.server's name
+            if served["left"] <= 0:  # stopped: the connection closed without an answer
+                self.close_connection = True
+                self.connection.close()
+                return
+            served["left"] -= 1
+            request = urllib.request.Request(base + self.path, headers={k: v for k, v in self.headers.items()
+                                                                        if k.lower() == "range"})
+            with urllib.request.urlopen(request) as answer:
+                status, headers, body = answer.status, answer.headers, answer.read()
+            self.send_response(status)
+            for name in ("Content-Range", "Content-Type"):
+                if headers.get(name):
+                    self.send_header(name, headers[name])
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+    proxy = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Proxy)
+    threading.Thread(target=proxy.serve_forever, daemon=True).start()
+    url = f"http://127.0.0.1:{proxy.server_address[1]}/lone-star-laszip/ept.json"
+    settings = RasterSettings(cell_size="1m", classify_ground="smrf")
+    try:
+        area = Area(url, AOI, tmp_path / "cache", tile_size="10m", client=RangeClient(retries=1, backoff=0.01))
+        with pytest.raises(DataFileError) as err:
+            rasters_from_tiles(area, tmp_path / "a", settings)
+        assert url.rsplit("/", 1)[0] in str(err.value) and "\n" not in str(err.value)
+        assert not list((tmp_path / "cache").rglob("*.laz")), "a tile written from part of the area"
+        served["left"] = 10_000  # started again
+        area = Area(url, AOI, tmp_path / "cache", tile_size="10m", client=RangeClient(retries=1, backoff=0.01))
+        report = rasters_from_tiles(area, tmp_path / "a", settings)
+        assert report["counts"]["failed"] == 0
+    finally:
+        proxy.shutdown()
+        proxy.server_close()
+    clean = Area(DATA / "lone-star-laszip" / "ept.json", AOI, tmp_path / "cache3", tile_size="10m")
+    rasters_from_tiles(clean, tmp_path / "b", settings)
+    assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem", "ndsm")) >= 3 * 6
