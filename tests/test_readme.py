@@ -17,6 +17,7 @@ from pathlib import Path
 import pytest
 
 from conftest import ROOT, SAMPLE
+from test_remote import BOX, server  # noqa: F401 - the loopback service that docs/area.md's route reads
 
 # blocks not run here, by (page, first line): the reason. A reason starting with "repeats" names the page whose
 # block of the same text is run.
@@ -185,11 +186,15 @@ def _check_the_model_outputs(work):
     assert len(gpd.read_file(model / "shrub_classes.gpkg")) > 0
 
 
-def test_every_command_and_python_block_runs_as_printed(tmp_path):
+def test_every_command_and_python_block_runs_as_printed(tmp_path, server):
     """Each ```bash block of the README and the docs, in order, in one copy of this checkout to which `gistools
     examples .` added the example inputs; each ```python block as a script in the same folder, after the blocks
-    before it. A block that fails names its page, its number and its output."""
+    before it. A block that fails names its page, its number and its output. The route from an area to a map
+    (docs/area.md) reads a real COPC file (PDAL's test data) served by nginx on loopback."""
     work, env = _checkout(tmp_path)
+    base, _log = server
+    env.update(SERVICE=f"{base}/lone-star.copc.laz", AREA=",".join(f"{v:g}" for v in BOX),
+               LAST_SEEN="515385,4918360")
     blocks = _to_run(ROUTE)
     assert sum(b[2] == "bash" for b in blocks) >= 20 and sum(b[2] == "python" for b in blocks) >= 3
     readme_py = None
