@@ -1065,3 +1065,32 @@ def test_a_renamed_parameter_is_refused_naming_its_new_name(qgis, reference, tmp
         qgis.run("gistools:bands", {"NDSM": str(reference / "ndsm.vrt"), "BREAKS": "1,2,6",
                                     "OUTPUT": str(tmp_path / "b.tif")})
     assert not (tmp_path / "b.tif").exists()
+
+
+from test_remote import BOX, COPC_FILE, server  # noqa: E402,F401 - the loopback service (nginx) of the area tests
+
+
+def test_an_area_of_a_service_in_processing_equals_the_command_line(qgis, server, tmp_path):
+    """gistools:rasters given a service's URL and an extent (xmin,xmax,ymin,ymax as QGIS writes it) writes the
+    rasters `gistools rasters URL --aoi` writes, cell for cell; a service without an extent is refused in one line."""
+    from click.testing import CliRunner
+
+    from gistools.cli.main import cli
+
+    base, _log = server
+    url = f"{base}/lone-star.copc.laz"
+    w, s, e, n = BOX
+    res = qgis.run("gistools:rasters", {"SERVICE": url, "AOI": f"{w!r},{e!r},{s!r},{n!r}", "TILE_SIZE": "10m",
+                                        "CELL_SIZE": "1m", "CLASSIFY_GROUND": 0, "OUTPUT_FOLDER": str(tmp_path / "q")})
+    assert res["DSM"] and res["DEM"]
+    done = CliRunner().invoke(cli, ["rasters", url, "--aoi", f"{w!r},{s!r},{e!r},{n!r}", "--tile-size", "10m",
+                                    "--cell-size", "1m", "--classify-ground", "smrf", "-q", "--out",
+                                    str(tmp_path / "c")])
+    assert done.exit_code == 0, done.output
+    tiles = sorted(p.name for p in (tmp_path / "c" / "dem").glob("*.tif"))
+    assert len(tiles) >= 6 and tiles == sorted(p.name for p in (tmp_path / "q" / "dem").glob("*.tif"))
+    for product in ("dsm", "dem", "ndsm"):
+        for name in tiles:
+            same_cells(tmp_path / "c" / product / name, tmp_path / "q" / product / name)
+    with pytest.raises(QgsProcessingException, match="read by area"):
+        qgis.run("gistools:rasters", {"SERVICE": url, "OUTPUT_FOLDER": str(tmp_path / "none")})

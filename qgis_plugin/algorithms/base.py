@@ -260,8 +260,11 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
     def extent_text(self, parameters, name, context):
         """An extent parameter as gistools takes an area: minx,miny,maxx,maxy and its CRS (authority id or WKT)."""
         rect = self.parameterAsExtent(parameters, name, context)
-        crs = self.parameterAsExtentCrs(parameters, name, context)
         box = f"{rect.xMinimum()!r},{rect.yMinimum()!r},{rect.xMaximum()!r},{rect.yMaximum()!r}"
+        value = parameters.get(name)
+        if isinstance(value, str) and "[" not in value:  # "xmin,xmax,ymin,ymax" of no CRS: the data's
+            return box
+        crs = self.parameterAsExtentCrs(parameters, name, context)
         if crs is None or not crs.isValid():
             return box
         return f"{box},{crs.authid() or crs.toWkt()}"
