@@ -1001,7 +1001,7 @@ def test_a_dangling_tile_link_is_named_not_dropped(tiles, tmp_path):
                                                  "assets": {"data": {"href": "./a.las"}}}]}, "not a known EPSG code"),
     ({"type": "FeatureCollection", "features": [{"properties": {},
                                                  "assets": {"data": {"href": "https://example.com/a.laz"}}}]},
-     "gistools reads local files only"),
+     "read by area"),
     ("[" * 200_000 + "]" * 200_000, "nested too deep"),
 ])
 def test_a_vpc_that_is_not_one_is_one_line(tmp_path, doc, needle):

@@ -193,7 +193,7 @@ def test_every_command_and_python_block_runs_as_printed(tmp_path, server):
     (docs/area.md) reads a real COPC file (PDAL's test data) served by nginx on loopback."""
     work, env = _checkout(tmp_path)
     base, _log = server
-    env.update(SERVICE=f"{base}/lone-star.copc.laz", AREA=",".join(f"{v:g}" for v in BOX),
+    env.update(SERVICE=f"{base}/lone-star.copc.laz", AREA=",".join(repr(v) for v in BOX),
                LAST_SEEN="515385,4918360")
     blocks = _to_run(ROUTE)
     assert sum(b[2] == "bash" for b in blocks) >= 20 and sum(b[2] == "python" for b in blocks) >= 3

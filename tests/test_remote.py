@@ -332,7 +332,7 @@ def test_an_area_larger_than_allowed_is_refused_before_any_point(server, tmp_pat
 
 
 # --- commands on an area of a service, and on a local copy of it ----------------------------------------------------
-AOI = ",".join(f"{v:g}" for v in BOX)
+AOI = ",".join(repr(v) for v in BOX)
 AREA_OPTIONS = ["--aoi", AOI, "--tile-size", "10m", "--classify-ground", "smrf", "--quiet"]
 
 
@@ -497,3 +497,59 @@ def test_a_server_stopped_mid_run_then_started_again(server, tmp_path):
     clean = Area(DATA / "lone-star-laszip" / "ept.json", AOI, tmp_path / "cache3", tile_size="10m")
     rasters_from_tiles(clean, tmp_path / "b", settings)
     assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem", "ndsm")) >= 3 * 6
+
+
+def test_an_index_of_datasets_picks_those_that_meet_the_area(server, tmp_path):
+    """An index (GeoJSON of dataset boundaries and their URLs, as USGS publishes 3DEP's): only the datasets that
+    meet the area are opened (another's URL is never asked for), and their points are the dataset's own; two
+    datasets of different CRSs over one area are refused in one line."""
+    import geopandas as gpd
+    import shapely
+
+    from gistools.errors import InputError
+    from gistools.products.fetch import Area
+
+    from gistools.io.area import open_source
+
+    base, log = server
+    crs = open_source(DATA / "lone-star-laszip").crs_wkt  # NAD83 / UTM 12N (the COPC file's header says geocentric)
+    near = shapely.box(515363, 4918339, 515407, 4918383)
+    far = shapely.box(600000, 5000000, 600100, 5000100)
+    gpd.GeoDataFrame({"name": ["lone star", "elsewhere"], "url": [f"{base}/lone-star-laszip/ept.json",
+                                                                  f"{base}/elsewhere/ept.json"]},
+                     geometry=[near, far], crs=crs).to_file(tmp_path / "index.gpkg")
+    before = _log_lines(log)
+    tiles = Area(str(tmp_path / "index.gpkg"), AOI, tmp_path / "cache", tile_size=10.0, margin=0).local_tiles()
+    asked = log.read_text(encoding="utf-8").splitlines()[before:]
+    assert asked and not any("/elsewhere/" in line for line in asked)
+    rows = set()
+    for tile in tiles:
+        las = laspy.read(tile)
+        rows |= _rows({"x": np.asarray(las.x), "y": np.asarray(las.y), "z": np.asarray(las.z),
+                       "classification": np.asarray(las.classification), "return_number": np.asarray(las.return_number)})
+    expected = _reference(EPT_FILES, _in_box)
+    assert rows == expected, (len(rows), len(expected), sorted(rows - expected)[:5], sorted(expected - rows)[:5])
+    other = ROOT / "sample_tiles" / "35712.las"  # another CRS (Florida West, US feet), said to cover the same area
+    gpd.GeoDataFrame({"url": [f"{base}/lone-star-laszip/ept.json", str(other)]},
+                     geometry=[near, near], crs=crs).to_file(tmp_path / "two.gpkg")
+    with pytest.raises(InputError, match="in different CRSs") as err:
+        Area(str(tmp_path / "two.gpkg"), AOI, tmp_path / "cache2", tile_size=10.0).local_tiles()
+    assert "\n" not in str(err.value)
+
+
+def test_a_vpc_of_served_files_is_read_by_area(server, tmp_path):
+    """A virtual point cloud whose item is served (its href a URL): read by area, the rasters of the COPC file's
+    local copy; without an area it is refused in one line naming the area's option."""
+    import json
+
+    base, _log = server
+    vpc = tmp_path / "served.vpc"
+    vpc.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "stac_version": "1.0.0", "id": "lone-star", "properties": {},
+         "assets": {"data": {"href": f"{base}/lone-star.copc.laz"}}}]}), encoding="utf-8")
+    _gistools("rasters", vpc, *AREA_OPTIONS, "--cell-size", "1m", "--out", tmp_path / "a")
+    _gistools("rasters", COPC_FILE, *AREA_OPTIONS, "--cell-size", "1m", "--out", tmp_path / "b")
+    assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem")) >= 2 * 6
+    done = _gistools("rasters", vpc, "--out", tmp_path / "c", check=False)
+    assert done.returncode == 1 and "read by area" in done.stderr and "--aoi" in done.stderr
+    assert "Traceback" not in done.stderr

@@ -46,7 +46,8 @@ else
 chroot "$DIR" env DEBIAN_FRONTEND=noninteractive "${APT[@]}" install -y -qq --no-install-recommends \
   python3-qgis qgis-providers qgis python3-venv python3-pip python3-setuptools python3-dev gcc \
   python3-numpy python3-cffi python3-scipy python3-rasterio python3-pyogrio python3-geopandas python3-pyproj python3-shapely \
-  python3-laspy python3-matplotlib python3-click python3-tqdm python3-threadpoolctl python3-pytest proj-bin >/dev/null
+  python3-laspy python3-matplotlib python3-click python3-tqdm python3-threadpoolctl python3-pytest proj-bin \
+  nginx-light >/dev/null  # nginx: the area route of the docs reads a service on loopback
 fi
 # pip inside: the host's own CAs (a proxy's) added to the chroot's store, so that pip (and its truststore) trusts
 # what the host trusts; else the host's whole bundle in place of the chroot's

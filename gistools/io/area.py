@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import DataFileError, InputError
 from .http import RangeClient, RangeFile, is_url
 
-__all__ = ["PointSource", "open_source", "open_sources", "area_box", "area_in_crs", "is_area_source", "FIELDS"]
+__all__ = ["PointSource", "open_source", "open_sources", "area_box", "area_in_crs", "is_area_source", "is_index", "FIELDS"]
 
 # the fields read for every point (the tile engine's), as numpy arrays
 FIELDS = ("x", "y", "z", "classification", "return_number", "number_of_returns", "intensity")
@@ -421,7 +421,7 @@ def is_area_source(item) -> bool:
         return True
     path = Path(text)
     return path.name.lower() == "ept.json" or (path.is_dir() and (path / "ept.json").is_file()) \
-        or text.lower().endswith(".copc.laz")
+        or text.lower().endswith(".copc.laz") or is_index(text)
 
 
 def _vpc_sources(location: str, client: RangeClient) -> list:
@@ -450,6 +450,61 @@ def _vpc_sources(location: str, client: RangeClient) -> list:
     return [_one_source(target, client) for target in found]
 
 
+INDEX_SUFFIXES = (".geojson", ".gpkg", ".fgb")
+URL_FIELDS = ("url", "ept", "href", "location", "source", "path")  # the column of an index that holds the URLs
+
+
+def is_index(item) -> bool:
+    """An index of datasets: a GeoJSON (or GeoPackage, FlatGeobuf) of their boundaries with their URLs (as USGS
+    publishes for 3DEP)."""
+    return str(item).lower().endswith(INDEX_SUFFIXES)
+
+
+def _index_sources(location: str, aoi, client: RangeClient) -> PointSource:
+    """The datasets of an index whose boundaries meet the area, read together (they must share a CRS). A box of
+    no CRS is in the index's; the area, reprojected, is kept as the source's ``area`` (in the data's CRS)."""
+    import geopandas as gpd
+    import pyproj
+    import shapely
+    from urllib.parse import urljoin
+
+    if aoi is None:
+        raise InputError(f"{location}: an index of datasets is read by area", hint="Give the area (aoi)")
+    try:
+        gdf = gpd.read_file(io.BytesIO(client.get(location)) if is_url(location) else location)
+    except DataFileError:
+        raise
+    except Exception as err:  # noqa: BLE001 - pyogrio raises its own kinds for a file that is not a layer
+        raise DataFileError(f"not an index of datasets ({type(err).__name__}: {err})", path=location,
+                            hint="Give a GeoJSON of dataset boundaries with their URLs") from None
+    field = next((c for c in gdf.columns if c.lower() in URL_FIELDS), None)
+    if field is None:
+        raise DataFileError(f"the index has no column of URLs (one of {', '.join(URL_FIELDS)})", path=location,
+                            hint="Name the datasets' URL column url")
+    index_wkt = gdf.crs.to_wkt() if gdf.crs is not None else None
+    area = area_in_crs(aoi, index_wkt)
+    shape = area if hasattr(area, "geom_type") else shapely.box(*area)
+    picked = gdf[gdf.geometry.intersects(shape)]
+    if picked.empty:
+        raise InputError(f"{location}: no dataset of the index meets the area", hint="Check the area and its CRS")
+    base = location if is_url(location) else Path(location).resolve().parent.as_uri() + "/"
+    sources = []
+    for href in picked[field].astype(str):
+        target = urljoin(base, href)
+        if target.startswith("file://"):
+            from urllib.request import url2pathname
+
+            target = url2pathname(target[len("file://"):])
+        sources.append(_one_source(target, client))
+    found = sources[0] if len(sources) == 1 else SourceSet(sources)
+    if index_wkt and found.crs_wkt and pyproj.CRS.from_user_input(index_wkt) != pyproj.CRS.from_user_input(found.crs_wkt):
+        to_data = pyproj.Transformer.from_crs(gdf.crs, pyproj.CRS.from_user_input(found.crs_wkt), always_xy=True)
+        shape = shapely.transform(shapely.segmentize(shape, max(shape.length / 400, 1e-9)),
+                                  lambda xy: np.column_stack(to_data.transform(xy[:, 0], xy[:, 1])))
+    found.area = shape
+    return found
+
+
 def _one_source(text: str, client: RangeClient) -> PointSource:
     lower = text.lower()
     if lower.endswith(".vpc"):
@@ -459,15 +514,18 @@ def _one_source(text: str, client: RangeClient) -> PointSource:
     return LasFileSource(text)
 
 
-def open_sources(inputs, client: RangeClient | None = None) -> PointSource:
+def open_sources(inputs, client: RangeClient | None = None, aoi=None) -> PointSource:
     """Every input as one source read by area: URLs and local copies of EPT datasets and COPC files, VPCs (their
-    items local or served), and LAS/LAZ tiles (files, folders, globs). Mixed CRSs are refused.
+    items local or served), indexes of datasets (GeoJSON: the datasets whose boundaries meet ``aoi``) and LAS/LAZ
+    tiles (files, folders, globs). Mixed CRSs are refused; the datasets of one area are read together.
 
     Parameters
     ----------
     inputs : str, path or sequence of them
     client : RangeClient, optional
         The network client.
+    aoi : optional
+        The area (as ``area_in_crs`` takes it): an index's datasets are picked by it.
 
     Returns
     -------
@@ -484,7 +542,9 @@ def open_sources(inputs, client: RangeClient | None = None) -> PointSource:
     sources = []
     for item in items:
         text = str(item)
-        if is_url(text) or is_area_source(text) or text.lower().endswith(".vpc"):
+        if is_index(text):
+            sources.append(_index_sources(text, aoi, client))
+        elif is_url(text) or is_area_source(text) or text.lower().endswith(".vpc"):
             sources.append(_one_source(text, client))
         else:
             sources += [_one_source(str(path), client) for path in find_tiles([item])]

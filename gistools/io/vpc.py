@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pyproj
 
+from ..parameters import option
 from ..errors import DataFileError
 from .atomic import atomic_path
 
@@ -86,10 +87,10 @@ MAX_VPC_BYTES = 512 * 2**20  # a VPC lists files: half a gigabyte of JSON is not
 
 
 def _local_href(path: Path, href: str) -> str:
-    """An item's file as a local path; a remote one (https://, s3://) is refused: gistools reads local files."""
+    """An item's file as a local path; a served one (https://) is read by area (gistools.Area), not as a tile."""
     if "://" in href and not href.lower().startswith("file://"):
-        raise DataFileError(f"lists a remote file ({href}); gistools reads local files only", path=path,
-                            hint="Download the tiles and give their folder (or a VPC of the local copies)")
+        raise DataFileError(f"lists a served file ({href}): read by area", path=path,
+                            hint=f"Give the area of it to read ({option('aoi')})")
     return href[len("file://"):] if href.lower().startswith("file://") else href
 
 

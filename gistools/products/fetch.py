@@ -335,9 +335,9 @@ class Area:
 
         self.check()
         client = self.client or RangeClient()
-        src = open_sources(self.inputs, client)
+        src = open_sources(self.inputs, client, aoi=self.aoi)
         unit = _unit_of(src.crs_wkt)
-        aoi = area_in_crs(self.aoi, src.crs_wkt)
+        aoi = getattr(src, "area", None) or area_in_crs(self.aoi, src.crs_wkt)  # an index's: in its CRS
         resolution = None if self.resolution is None else length_to_crs_units(self.resolution, unit, name="resolution")
         tile = self.tile_size if self.tile_size is not None else ("1500ft" if unit.is_foot else "500m")
         tile_size = length_to_crs_units(tile, unit, name="tile_size")
