@@ -553,3 +553,18 @@ def test_a_vpc_of_served_files_is_read_by_area(server, tmp_path):
     done = _gistools("rasters", vpc, "--out", tmp_path / "c", check=False)
     assert done.returncode == 1 and "read by area" in done.stderr and "--aoi" in done.stderr
     assert "Traceback" not in done.stderr
+
+
+def test_rasters_through_a_faulty_service_equal_the_clean_runs(faulty, tmp_path):
+    """503s, cut and slow bodies and resets on the way: the rasters of the area equal those of the local copy."""
+    from gistools.io.http import RangeClient
+    from gistools.products.fetch import Area
+    from gistools.products.rasters import RasterSettings, rasters_from_tiles
+
+    settings = RasterSettings(cell_size="1m", classify_ground="smrf")
+    client = RangeClient(backoff=0.01, timeout=5)
+    rasters_from_tiles(Area(f"{faulty}/lone-star.copc.laz", AOI, tmp_path / "c1", tile_size="10m", client=client),
+                       tmp_path / "a", settings)
+    assert client.retried > 0
+    rasters_from_tiles(Area(COPC_FILE, AOI, tmp_path / "c2", tile_size="10m"), tmp_path / "b", settings)
+    assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem", "ndsm")) >= 3 * 6

@@ -133,6 +133,7 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     grown = _grown(aoi, margin)
     found = src.octree_nodes(grown, resolution)
     plan = _checked_plan(src, grown, resolution, max_download, location)
+    report(progress, 0.0, f"{plan.points:,} points in {plan.nodes} nodes, about {plan.bytes / 1e6:,.1f} MB")
     lattice = _lattice(aoi, tile_size)
     with claim_output(out, "gistools fetch"):
         cache = Path(nodes) if nodes is not None else out / NODES
