@@ -195,6 +195,27 @@ def test_a_wrong_service_is_one_line_naming_the_url(server, tmp_path):
         open_source(f"{base}/lone-star-laszip/ept-data/0-0-0-0.laz", client)
 
 
+def _forward(handler, base: str) -> bytes:
+    """A proxy's request passed to nginx (its Range kept), the answer's status and headers sent back: its body."""
+    import urllib.error
+    import urllib.request
+
+    request = urllib.request.Request(base + handler.path, headers={k: v for k, v in handler.headers.items()
+                                                                   if k.lower() == "range"})
+    try:
+        with urllib.request.urlopen(request) as answer:
+            status, headers, body = answer.status, answer.headers, answer.read()
+    except urllib.error.HTTPError as err:
+        status, headers, body = err.code, err.headers, err.read()
+    handler.send_response(status)
+    for name in ("Content-Range", "Content-Type"):
+        if headers.get(name):
+            handler.send_header(name, headers[name])
+    handler.send_header("Content-Length", str(len(body)))
+    handler.end_headers()
+    return body
+
+
 @pytest.fixture()
 def faulty(server):
     """A proxy in front of nginx that spoils requests in turn: a 503, a body cut short, a connection reset without
@@ -224,19 +245,7 @@ def faulty(server):
                 self.close_connection = True
                 self.connection.close()
                 return
-            request = urllib.request.Request(base + self.path, headers={k: v for k, v in self.headers.items()
-                                                                        if k.lower() == "range"})
-            try:
-                with urllib.request.urlopen(request) as answer:
-                    status, headers, body = answer.status, answer.headers, answer.read()
-            except urllib.error.HTTPError as err:
-                status, headers, body = err.code, err.headers, err.read()
-            self.send_response(status)
-            for name in ("Content-Range", "Content-Type"):
-                if headers.get(name):
-                    self.send_header(name, headers[name])
-            self.send_header("Content-Length", str(len(body)))
-            self.end_headers()
+            body = _forward(self, base)
             if fault == 1 and len(body) > 10:  # cut short: half the body, then the connection closed
                 self.wfile.write(body[: len(body) // 2])
                 self.close_connection = True
@@ -465,17 +474,7 @@ def test_a_server_stopped_mid_run_then_started_again(server, tmp_path):
                 self.connection.close()
                 return
             served["left"] -= 1
-            request = urllib.request.Request(base + self.path, headers={k: v for k, v in self.headers.items()
-                                                                        if k.lower() == "range"})
-            with urllib.request.urlopen(request) as answer:
-                status, headers, body = answer.status, answer.headers, answer.read()
-            self.send_response(status)
-            for name in ("Content-Range", "Content-Type"):
-                if headers.get(name):
-                    self.send_header(name, headers[name])
-            self.send_header("Content-Length", str(len(body)))
-            self.end_headers()
-            self.wfile.write(body)
+            self.wfile.write(_forward(self, base))
 
     proxy = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Proxy)
     threading.Thread(target=proxy.serve_forever, daemon=True).start()
