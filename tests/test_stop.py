@@ -179,7 +179,7 @@ def _big_tile(path: Path) -> Path:
     return path
 
 
-@pytest.mark.parametrize("method,window", [("smrf", "199m"), ("smrftin", "295m")])
+@pytest.mark.parametrize("method,window", [("smrf", "100m"), ("smrftin", "295m")])
 def test_a_run_inside_one_long_kernel_call_ends_within_seconds(tmp_path, method, window):
     """The progressive filter with its widest window on a large tile: one kernel call of minutes (a 10-minute run),
     stopped in it. The watchdog ends the run GRACE seconds after the signal: the one line, no lock, no partial file,
@@ -188,6 +188,8 @@ def test_a_run_inside_one_long_kernel_call_ends_within_seconds(tmp_path, method,
     out = tmp_path / "out"
     args = ["ground", str(tile), "--out", str(out), "--method", method, "--noise", "none", "--jobs", "1", "-q",
             "--window" if method == "smrf" else "--smrftin-window", window]
+    if method == "smrf":  # 0.5 m cells: a grid of 3,200 x 3,200 and radii to 200, a kernel call of half a minute
+        args += ["--cell", "0.5m"]
     for signum in (signal.SIGTERM, signal.SIGINT):
         code, stderr, took = _stop_at(args, 8.0, signum)
         assert code == 128 + signum and took < LIMIT, (code, took, stderr)
