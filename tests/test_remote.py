@@ -567,3 +567,33 @@ def test_rasters_through_a_faulty_service_equal_the_clean_runs(faulty, tmp_path)
     assert client.retried > 0
     rasters_from_tiles(Area(COPC_FILE, AOI, tmp_path / "c2", tile_size="10m"), tmp_path / "b", settings)
     assert _same_rasters(tmp_path / "a", tmp_path / "b", ("dsm", "dem", "ndsm")) >= 3 * 6
+
+
+def test_an_area_on_a_lattice_of_odd_size_keeps_each_point_once_and_its_margin(tmp_path):
+    """The sample block (US survey feet) cut on 500 m tiles (1640.416... ft) with a 30 m margin: every point of the
+    area grown by the margin is in exactly one tile (counted, not only as a set), the margin on every side; no tile
+    is made of the margin alone (each tile's cell meets the area)."""
+    from gistools.products.fetch import Area
+    from gistools.units import US_SURVEY_FOOT
+
+    sample = sorted((ROOT / "sample_tiles").glob("*.la?"))
+    w, s, e, n = 430210.0, 1810333.0, 431790.0, 1811650.0
+    margin = 30 / US_SURVEY_FOOT
+    size = 500 / US_SURVEY_FOOT
+    tiles = Area([str(p) for p in sample], f"{w},{s},{e},{n}", tmp_path / "cache", tile_size="500m",
+                 margin="30m").local_tiles()
+    got = []
+    for tile in tiles:
+        las = laspy.read(tile)
+        got += list(zip(np.round(las.x, 2), np.round(las.y, 2), np.round(las.z, 2)))
+        x0, y0 = (float(v) for v in Path(tile).stem.split("_"))
+        assert x0 < e and x0 + size > w and y0 < n and y0 + size > s, tile.name  # the cell meets the area
+    expected = []
+    for f in sample:
+        las = laspy.read(f)
+        x, y = np.asarray(las.x), np.asarray(las.y)
+        keep = (x >= w - margin) & (x <= e + margin) & (y >= s - margin) & (y <= n + margin)
+        expected += list(zip(np.round(x[keep], 2), np.round(y[keep], 2), np.round(np.asarray(las.z)[keep], 2)))
+    assert len(got) == len(set(got)) == len(expected) and set(got) == set(expected)
+    assert min(x for x, _, _ in got) < w and max(x for x, _, _ in got) > e  # the margin on the west and the east
+    assert min(y for _, y, _ in got) < s and max(y for _, y, _ in got) > n

@@ -11,7 +11,7 @@ set -euo pipefail
 BARE=
 if [ "${1:-}" = --bare ]; then BARE=1; shift; fi
 DIR=${1:-/var/tmp/gistools-qgis-forky${BARE:+-bare}}
-STAGE=7${BARE:+-bare}  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages; 7: mkdocstrings, their API page); a chroot of an earlier stage is completed, not rebuilt
+STAGE=8${BARE:+-bare}  # what a ready chroot holds (4: trimesh, for gistools:scene; 5: cffi, the kernel's binding; 6: mkdocs, the plugin's help pages; 7: mkdocstrings, their API page; 8: nginx, the service of the docs' area route); a chroot of an earlier stage is completed, not rebuilt
 ready() { [ -x "$DIR/usr/bin/python3" ] && [ "$(cat "$DIR/.gistools-qgis-ready" 2>/dev/null)" = "$STAGE" ]; }
 if ready; then echo "$DIR"; exit 0; fi
 [ "$(id -u)" = 0 ] || { echo "qgis_chroot: needs root (debootstrap, chroot)" >&2; exit 1; }

@@ -125,15 +125,17 @@ def takes_area(fn):
     def wrapper(*args, inputs, out, aoi=None, resolution=None, tile_size=None, cache=None, max_download=None,
                 **keywords):
         inputs = area_inputs(inputs, out, keywords.get("quiet", False), aoi=aoi, resolution=resolution,
-                             tile_size=tile_size, cache=cache, max_download=max_download, margin=keywords.get("buffer"))
+                             tile_size=tile_size, cache=cache, max_download=max_download,
+                             margin=keywords.get("buffer") or ("30m" if "buffer" in keywords else 0))
         return fn(*args, inputs=inputs, out=out, **keywords)
 
     return wrapper
 
 
-def area_inputs(inputs, out, quiet, *, aoi, margin=None, **area):
-    """The command's INPUTS, or their area (``gistools.Area``, its cache OUT/fetched unless --cache says) where
-    --aoi is given; a service without --aoi, or an area's option without it, is refused."""
+def area_inputs(inputs, out, quiet, *, aoi, margin=0, **area):
+    """The command's INPUTS, or their area (``gistools.Area``, its cache OUT/fetched unless --cache says; ``margin``:
+    what the command reads around a tile, its --buffer or 30 m) where --aoi is given; a service without --aoi, or an
+    area's option without it, is refused."""
     from ..io.area import is_area_source
     from ..products.fetch import AREA_FOLDER, Area
 
@@ -147,7 +149,7 @@ def area_inputs(inputs, out, quiet, *, aoi, margin=None, **area):
                                    "minx,miny,maxx,maxy (or a polygon layer)")
         return inputs
     cache = area.pop("cache") or os.path.join(out, AREA_FOLDER)
-    area_ = Area(tuple(inputs), aoi, cache, margin=margin or "30m", progress=fetch_progress(quiet), **area)
+    area_ = Area(tuple(inputs), aoi, cache, margin=margin, progress=fetch_progress(quiet), **area)
     area_.check()
     return area_
 

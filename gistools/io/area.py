@@ -177,7 +177,8 @@ class EptSource(PointSource):
                                 "reads laszip nodes and JSON hierarchies", path=location,
                                 hint="Ask for the dataset as laszip EPT or COPC (PDAL's writers.copc converts it)")
         srs = meta.get("srs") or {}
-        self.crs_wkt = srs.get("wkt") or (f"{srs['authority']}:{srs['horizontal']}" if srs.get("horizontal") else None)
+        self.crs_wkt = srs.get("wkt") or (f"{srs.get('authority', 'EPSG')}:{srs['horizontal']}"
+                                          if srs.get("horizontal") else None)
 
     def _read(self, relative_or_url: str) -> bytes:
         target = relative_or_url if is_url(relative_or_url) or Path(relative_or_url).is_absolute() else \
@@ -280,8 +281,12 @@ class CopcSource(PointSource):
         import laspy
 
         self.location, self.client = location, client
-        stream = io.BufferedReader(RangeFile(client, location), buffer_size=64 * 1024) if is_url(location) else \
-            open(location, "rb")  # noqa: SIM115 - the reader keeps it open
+        try:
+            stream = io.BufferedReader(RangeFile(client, location), buffer_size=64 * 1024) if is_url(location) \
+                else open(location, "rb")  # noqa: SIM115 - the reader keeps it open
+        except OSError as err:
+            raise DataFileError(f"cannot be read ({err.strerror or err})", path=location,
+                                hint="Check the path") from None
         try:
             self.reader = laspy.CopcReader(stream)
         except DataFileError:
@@ -396,8 +401,9 @@ class SourceSet(PointSource):
         self.location = ";".join(s.location for s in sources)
         known = [s for s in sources if s.crs_wkt]
         self.crs_wkt = known[0].crs_wkt if known else None
+        first = pyproj.CRS.from_user_input(self.crs_wkt) if known else None
         for other in known[1:]:
-            if pyproj.CRS.from_user_input(other.crs_wkt) != pyproj.CRS.from_user_input(self.crs_wkt):
+            if not pyproj.CRS.from_user_input(other.crs_wkt).equals(first, ignore_axis_order=True):
                 raise InputError(f"{other.location} and {known[0].location} are in different CRSs",
                                  hint="Read one CRS at a time (reproject one of them first)")
 
@@ -415,13 +421,13 @@ class SourceSet(PointSource):
 
 
 def is_area_source(item) -> bool:
-    """An input read by area rather than as tiles: a URL, an EPT dataset (its ept.json or folder), a COPC file."""
+    """An input that only an area can read: a URL, an EPT dataset (its ept.json or folder), an index of datasets
+    (a local COPC file is a tile too)."""
     text = str(item)
     if is_url(text):
         return True
     path = Path(text)
-    return path.name.lower() == "ept.json" or (path.is_dir() and (path / "ept.json").is_file()) \
-        or text.lower().endswith(".copc.laz") or is_index(text)
+    return path.name.lower() == "ept.json" or (path.is_dir() and (path / "ept.json").is_file()) or is_index(text)
 
 
 def _vpc_sources(location: str, client: RangeClient) -> list:
@@ -431,7 +437,11 @@ def _vpc_sources(location: str, client: RangeClient) -> list:
     if is_url(location):
         data = client.get(location)
     else:
-        data = Path(location).read_bytes()
+        try:
+            data = Path(location).read_bytes()
+        except OSError as err:
+            raise DataFileError(f"cannot be read ({err.strerror or err})", path=location,
+                                hint="Check the path") from None
     try:
         items = json.loads(data)["features"]
         hrefs = [next(iter(item["assets"].values()))["href"] for item in items]
@@ -509,7 +519,7 @@ def _one_source(text: str, client: RangeClient) -> PointSource:
     lower = text.lower()
     if lower.endswith(".vpc"):
         return SourceSet(_vpc_sources(text, client))
-    if is_url(text) or is_area_source(text):
+    if is_url(text) or is_area_source(text) or lower.endswith(".copc.laz"):
         return open_source(text, client)
     return LasFileSource(text)
 
@@ -544,7 +554,7 @@ def open_sources(inputs, client: RangeClient | None = None, aoi=None) -> PointSo
         text = str(item)
         if is_index(text):
             sources.append(_index_sources(text, aoi, client))
-        elif is_url(text) or is_area_source(text) or text.lower().endswith(".vpc"):
+        elif is_url(text) or is_area_source(text) or text.lower().endswith((".vpc", ".copc.laz")):
             sources.append(_one_source(text, client))
         else:
             sources += [_one_source(str(path), client) for path in find_tiles([item])]

@@ -9,6 +9,7 @@ inside the area. A rerun keeps the nodes and the tiles it finds, so it fetches n
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -101,7 +102,8 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     dict
         ``outputs`` (``tiles``: the paths written or kept), ``tiles`` (each tile's line), ``points``, ``nodes``,
         ``estimate`` (``points``, ``bytes``),
-        ``fetched_bytes`` and ``kept_tiles``; also written to ``out/report.json``.
+        ``fetched_bytes`` (``kept`` where a rerun of the same settings kept them); also written to
+        ``out/report.json``.
 
     Raises
     ------
@@ -112,7 +114,7 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
 
     Examples
     --------
-    >>> report = fetch_area("sample_tiles", "area_tiles", aoi=(430400, 1810400, 431600, 1811600))
+    >>> report = fetch_area("sample_tiles", "out/area_tiles", aoi=(430400, 1810400, 431600, 1811600))
     >>> len(report["outputs"]["tiles"]), report["points"] > 0
     (16, True)
     """
@@ -120,7 +122,13 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     if not tile_size or tile_size <= 0:
         raise InputError(f"tile_size={tile_size!r}: a tile's side is a positive length", hint="e.g. 500 (CRS units)")
     w, s, e, n = area_box(aoi)
-    location = getattr(source, "location", str(source))
+    client = client if client is not None else getattr(source, "client", None) or RangeClient()
+    items = [source] if isinstance(source, (str, Path)) else source
+    served = isinstance(source, PointSource) or all(is_url(str(i)) for i in items)
+    src = source if isinstance(source, PointSource) else None
+    if src is None and not served:  # local inputs: opened now (cheap), their files stamped for the rerun
+        src = open_sources(source, client, aoi=aoi)
+    location = src.location if src is not None else ";".join(map(str, items))
     now = {"source": location, "aoi": aoi.wkt if hasattr(aoi, "wkt") else [w, s, e, n],
            "resolution": resolution, "tile_size": float(tile_size), "margin": float(margin)}
     local = [p for p in location.split(";") if not is_url(p)]
@@ -128,20 +136,18 @@ def fetch_area(source, out, *, aoi, resolution: float | None = None, tile_size: 
     kept_run = rerun_kept(out, "gistools fetch", now, local, overwrite, started)
     if kept_run is not None:  # the same area fetched before, its tiles as they were written: nothing is fetched
         return kept_run
-    client = client or RangeClient()
-    src = source if isinstance(source, PointSource) else open_sources(source, client)
+    src = src if src is not None else open_sources(source, client, aoi=aoi)
     grown = _grown(aoi, margin)
     found = src.octree_nodes(grown, resolution)
     plan = _checked_plan(src, grown, resolution, max_download, location)
     report(progress, 0.0, f"{plan.points:,} points in {plan.nodes} nodes, about {plan.bytes / 1e6:,.1f} MB")
-    lattice = _lattice(aoi, tile_size)
-    with claim_output(out, "gistools fetch"):
+    cells = _lattice(aoi, tile_size)
+    with claim_output(out, "gistools fetch"):  # tiles not kept whole (above) are written again: inputs may differ
         cache = Path(nodes) if nodes is not None else out / NODES
-        tiles, kept, count = _write_tiles(src, found, lattice, grown, tile_size, out, cache, overwrite, progress)
+        tiles, count = _write_tiles(src, found, cells, grown, tile_size, out, cache, progress)
         rep = {"tool": "gistools fetch", "source": location, "crs_wkt": src.crs_wkt, "settings": now,
-               "outputs": {"tiles": tiles}, "tiles": [{"name": Path(t).stem, "status": "skipped" if t in kept else "ok"}
-                                                      for t in tiles],
-               "counts": {"ok": len(tiles) - len(kept), "skipped": len(kept), "failed": 0}, "kept_tiles": kept,
+               "outputs": {"tiles": tiles}, "tiles": [{"name": Path(t).stem, "status": "ok"} for t in tiles],
+               "counts": {"ok": len(tiles), "skipped": 0, "failed": 0},
                "points": count, "nodes": len(found), "estimate": {"points": plan.points, "bytes": plan.bytes},
                "fetched_bytes": client.bytes_fetched, "seconds": round(time.time() - started, 3),
                "made": run_record(now, local, {"tiles": tiles})}
@@ -170,25 +176,35 @@ def _grown(aoi, margin: float):
     return (w - margin, s - margin, e + margin, n + margin)
 
 
-def _lattice(aoi, tile_size: float) -> list:
-    """The south-west corners of the lattice's tiles that meet the area."""
+def _lattice(aoi, tile_size: float) -> tuple[list, tuple]:
+    """The lattice's cells (i, j) that meet the area, and the area's range of them (i0, i1, j0, j1): the cell
+    [i, i + 1) x [j, j + 1) times ``tile_size``; a point past the range (the margin, the area's east or north edge)
+    belongs to the range's edge cell, so no cell is made of the margin alone."""
     w, s, e, n = area_box(aoi)
-    corners = [(i * tile_size, j * tile_size)
-               for i in range(int(np.floor(w / tile_size)), int(np.floor(e / tile_size)) + 1)
-               for j in range(int(np.floor(s / tile_size)), int(np.floor(n / tile_size)) + 1)]
-    if not hasattr(aoi, "geom_type"):
-        return corners
-    import shapely
+    i0, j0 = math.floor(w / tile_size), math.floor(s / tile_size)
+    i1, j1 = max(i0, math.ceil(e / tile_size) - 1), max(j0, math.ceil(n / tile_size) - 1)
+    cells = [(i, j) for i in range(i0, i1 + 1) for j in range(j0, j1 + 1)]
+    if hasattr(aoi, "geom_type"):
+        import shapely
 
-    return [(x, y) for x, y in corners if aoi.intersects(shapely.box(x, y, x + tile_size, y + tile_size))]
+        cells = [(i, j) for i, j in cells if aoi.intersects(shapely.box(i * tile_size, j * tile_size,
+                                                                        (i + 1) * tile_size, (j + 1) * tile_size))]
+    return cells, (i0, i1, j0, j1)
 
 
-def _write_tiles(src, nodes, lattice, aoi, tile_size, out: Path, cache: Path, overwrite,
-                 progress) -> tuple[list, list, int]:
-    """Every node fetched once into ``cache``, then the tiles of the lattice that hold points of the area written
-    (kept where they are there, unless ``overwrite``): (tiles, kept tiles, points written)."""
+def _tile_name(i: int, j: int, size: float) -> str:
+    """A tile's name: its south-west corner (whole units where the lattice has them)."""
+    def corner(v):
+        return f"{v:.0f}" if float(size).is_integer() else f"{v:.3f}"
+    return f"{corner(i * size)}_{corner(j * size)}"
+
+
+def _write_tiles(src, nodes, cells, grown, tile_size, out: Path, cache: Path, progress) -> tuple[list, int]:
+    """Every node fetched once into ``cache``, then the tiles of the lattice's ``cells`` (their range's edge cells
+    taking the margin) that hold points of the grown area written: (tiles, points written)."""
+    cells, (i0, i1, j0, j1) = cells
     scales, offsets = src.scales_offsets()
-    steps = len(nodes) + len(lattice)
+    steps = len(nodes) + len(cells)
     cache.mkdir(parents=True, exist_ok=True)
     client = getattr(src, "client", None)
     points_read = 0
@@ -197,30 +213,32 @@ def _write_tiles(src, nodes, lattice, aoi, tile_size, out: Path, cache: Path, ov
         points_read += node.points
         fetched = f", {client.bytes_fetched / 1e6:,.1f} MB fetched" if client is not None else ""
         report(progress, (k + 1) / steps, f"{points_read:,} points{fetched}")
-    tiles, kept, count = [], [], 0
-    for k, (x0, y0) in enumerate(lattice):
-        path = out / f"{x0:.0f}_{y0:.0f}.laz"
-        if path.exists() and not overwrite:
-            tiles.append(str(path))
-            kept.append(str(path))
-            continue
-        parts = [_cached_node(src, nd, cache) for nd in nodes if nd.bounds[0] < x0 + tile_size
-                 and nd.bounds[2] >= x0 and nd.bounds[1] < y0 + tile_size and nd.bounds[3] >= y0]
-        points = _in_tile(parts, aoi, x0, y0, tile_size)
+    tiles, count = [], 0
+    for k, (i, j) in enumerate(cells):
+        path = out / f"{_tile_name(i, j, tile_size)}.laz"
+        x_lo, x_hi = (i * tile_size if i > i0 else -math.inf), ((i + 1) * tile_size if i < i1 else math.inf)
+        y_lo, y_hi = (j * tile_size if j > j0 else -math.inf), ((j + 1) * tile_size if j < j1 else math.inf)
+        parts = [_cached_node(src, nd, cache) for nd in nodes if nd.bounds[0] <= x_hi and nd.bounds[2] >= x_lo
+                 and nd.bounds[1] <= y_hi and nd.bounds[3] >= y_lo]
+        points = _in_tile(parts, grown, (i, j), (i0, i1, j0, j1), tile_size)
         if len(points["x"]):
-            _write_points(path, points, src.crs_wkt, scales, offsets, (x0, y0, 0.0))
+            _write_points(path, points, src.crs_wkt, scales, offsets, (i * tile_size, j * tile_size, 0.0))
             tiles.append(str(path))
             count += len(points["x"])
         report(progress, (len(nodes) + k + 1) / steps, path.name)
-    return tiles, kept, count
+    return tiles, count
 
 
-def _in_tile(parts: list, aoi, x0: float, y0: float, size: float) -> dict:
-    """The points of ``parts`` in the tile [x0, x0 + size) x [y0, y0 + size) and inside the area."""
+def _in_tile(parts: list, grown, cell: tuple, span: tuple, size: float) -> dict:
+    """The points of ``parts`` inside the grown area whose lattice cell (clamped to the area's ``span``) is
+    ``cell``: each point in exactly one tile, by the lattice's own formula."""
     from ..io.area import _cut
 
-    joined = _cut(parts, aoi)
-    keep = (joined["x"] >= x0) & (joined["x"] < x0 + size) & (joined["y"] >= y0) & (joined["y"] < y0 + size)
+    joined = _cut(parts, grown)
+    i0, i1, j0, j1 = span
+    ci = np.clip(np.floor(joined["x"] / size), i0, i1)
+    cj = np.clip(np.floor(joined["y"] / size), j0, j1)
+    keep = (ci == cell[0]) & (cj == cell[1])
     return {name: values[keep] for name, values in joined.items()}
 
 
@@ -259,8 +277,8 @@ class Area:
     Examples
     --------
     >>> import gistools
-    >>> area = gistools.Area("sample_tiles", aoi="430400,1810400,431600,1811600", cache="cache")
-    >>> gistools.rasters_from_tiles(area, "area_out", gistools.RasterSettings(products=("dsm",)))["counts"]
+    >>> area = gistools.Area("sample_tiles", aoi="430400,1810400,431600,1811600", cache="out/area_cache")
+    >>> gistools.rasters_from_tiles(area, "out/area_dsm", gistools.RasterSettings(products=("dsm",)))["counts"]
     {'ok': 4, 'failed': 0, 'skipped': 0}
     """
 
@@ -318,8 +336,8 @@ class Area:
         """The tiles of this same area of services fetched whole before (no local file can have changed)."""
         import json
 
-        if not all(is_url(i) for i in self._items()):
-            return None
+        if not all(is_url(i) for i in self._items()) or _is_file_area(self.aoi):
+            return None  # local files, or an area's layer, may have changed since: opened and stamped again
         record = Path(self.cache) / f"given-{self._given()}.json"
         try:
             tiles = [Path(t) for t in json.loads(record.read_text(encoding="utf-8"))["tiles"]]
@@ -357,6 +375,17 @@ class Area:
         with atomic_path(cache / f"given-{self._given()}.json", overwrite=True) as tmp:
             tmp.write_text(json.dumps({"tiles": [str(t) for t in tiles]}), encoding="utf-8")
         return tiles
+
+
+def _is_file_area(aoi) -> bool:
+    """An area given as a layer file (not numbers nor a geometry)."""
+    if not isinstance(aoi, (str, Path)):
+        return False
+    try:
+        [float(v) for v in str(aoi).split(",")[:4]]
+    except ValueError:
+        return True
+    return False
 
 
 def _unit_of(crs_wkt):

@@ -249,8 +249,12 @@ class GistoolsAlgorithm(QgsProcessingAlgorithm):
             return inputs
         cache = area.pop("cache") or str(Path(self.output_folder(parameters, context) if self.parameterDefinition(
             "OUTPUT_FOLDER") is not None else QgsProcessingUtils.tempFolder()) / AREA_FOLDER)
-        return Area(tuple(inputs), area.pop("aoi"), cache, progress=self.progress(feedback) if feedback else None,
-                    **area)
+        buffer = self.spec_values(parameters, context, feedback, names=("buffer",)).get("buffer")
+        margin = buffer or ("30m" if "buffer" in self._spec else 0)  # what the command reads around a tile
+        found = Area(tuple(inputs), area.pop("aoi"), cache, margin=margin,
+                     progress=self.progress(feedback) if feedback else None, **area)
+        found.check()  # before any output
+        return found
 
     def no_tiles(self) -> str:
         files = self.parameterDefinition("POINT_CLOUDS")
