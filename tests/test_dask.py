@@ -49,8 +49,17 @@ def dask_cluster():
     yield address
     for p in procs[::-1]:
         p.terminate()
+    _ended(procs)
+
+
+def _ended(procs) -> None:
+    """Wait for each process; one whose graceful close hangs (a worker without its nanny) is killed."""
     for p in procs:
-        p.wait(timeout=30)
+        try:
+            p.wait(timeout=30)
+        except subprocess.TimeoutExpired:
+            p.kill()
+            p.wait(timeout=30)
 
 
 def test_dask_scheduler_gives_the_same_rasters(sample_tiles, sample_run, tmp_path, dask_cluster):
@@ -133,5 +142,4 @@ def test_a_worker_lost_in_the_middle_of_a_run_the_run_completes_with_the_same_ra
         for p in procs[::-1]:
             if p.poll() is None:
                 p.terminate()
-        for p in procs:
-            p.wait(timeout=30)
+        _ended(procs)

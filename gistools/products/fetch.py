@@ -278,7 +278,8 @@ class Area:
     --------
     >>> import gistools
     >>> area = gistools.Area("sample_tiles", aoi="430400,1810400,431600,1811600", cache="out/area_cache")
-    >>> gistools.rasters_from_tiles(area, "out/area_dsm", gistools.RasterSettings(products=("dsm",)))["counts"]
+    >>> settings = gistools.RasterSettings(products=("dsm",))
+    >>> gistools.rasters_from_tiles(area, "out/area_dsm", settings, overwrite=True)["counts"]
     {'ok': 4, 'failed': 0, 'skipped': 0}
     """
 
