@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import InputError, OutOfMemoryError
 
-__all__ = ["travel_minutes", "tobler_speed", "neighbour_offsets", "plan_memory", "gradient_magnitude", "SHRUB_FACTORS",
+__all__ = ["travel_minutes", "walk_graph", "tobler_speed", "neighbour_offsets", "plan_memory", "gradient_magnitude", "SHRUB_FACTORS",
            "ISOCHRONES", "BYTES_PER_CELL", "CELL_BYTES", "NEIGHBOUR_BOUND"]
 
 TOBLER = (6.0, 3.5, 0.05)  # km/h, per unit of slope, slope of the fastest walk (downhill 5 %)
@@ -147,6 +147,21 @@ def _graph(dem, factor, fixed, grad, cell_m, z_metres, tob, offsets, progress=No
         data = np.concatenate([data, seed_minutes])
         indices = np.concatenate([indices, seeds.astype(indices.dtype)])
     return csr_matrix((data, indices, indptr), shape=(size, size))
+
+
+def walk_graph(dem: np.ndarray, cell_size: float, *, factor=None, fixed_speed=None, xy_metres: float = 1.0,
+               z_metres: float | None = None, neighbours: int = 16, isotropic: bool = False,
+               tobler: tuple = TOBLER, progress=None):
+    """The whole grid's directed graph of ``travel_minutes`` (CSR, minutes a step, node ``r * cols + c``): for
+    routes, ``scipy.sparse.csgraph.dijkstra(graph, indices=..., return_predecessors=True)`` gives the same
+    minutes as ``travel_minutes`` and the path of each. Takes ``BYTES_PER_CELL`` bytes a cell."""
+    dem = np.asarray(dem, dtype=np.float64)
+    z_metres = xy_metres if z_metres is None else z_metres
+    cell_m = cell_size * xy_metres
+    grad = gradient_magnitude(dem, cell_m, z_metres) if isotropic else None
+    return _graph(dem, None if factor is None else np.asarray(factor, dtype=np.float64),
+                  None if fixed_speed is None else np.asarray(fixed_speed, dtype=np.float64), grad, cell_m, z_metres,
+                  tuple(float(v) for v in tobler), neighbour_offsets(neighbours), progress=progress)
 
 
 def _seeded_times(dem, factor, fixed, grad, t0, cell_m, z_metres, tob, offsets) -> np.ndarray:
