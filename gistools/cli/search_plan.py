@@ -37,10 +37,10 @@ def _many(name: str):
 @_many("last_seen")
 @_many("staging")
 @_many("route_to")
-@spec_options("search-plan", skip=("overwrite", *_MANY))
+@spec_options("search-plan", skip=("overwrite", "list_categories", *_MANY))
 @overwrite_opt
-@click.option("--list-categories", is_flag=True, expose_value=False, is_eager=True, callback=_list_categories,
-              help="List the categories of the shipped table with their distances, and exit.")
+@click.option("--list-categories", is_flag=True, default=False, expose_value=False, is_eager=True, callback=_list_categories,
+              help=PARAMETERS["list_categories"].help_text("cli"))
 @click.option("--quiet", "-q", is_flag=True, help="No progress bar.")
 def search_plan(out, last_seen, staging, route_to, dem, category, categories, effort, shrub_classes, roads, trails,
                 hydro, waterbodies, overwrite, quiet, **settings):

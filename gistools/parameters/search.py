@@ -70,6 +70,8 @@ declare(
     Parameter("litter_width", "length", "The width of the litter team: a gap in heavy shrub, cliffs or water "
               "narrower than this is closed to it.", "Litter team width", default=ByUnits("8ft", "2.5m"),
               minimum=0.0, advanced=True, example="2.5m"),
+    Parameter("list_categories", "flag", "List the categories of the shipped table with their distances, and exit.",
+              "List the categories", default=False),
     Parameter("trails", "layer", "Trail lines (a path or file.gpkg:LAYER) in the DEM's CRS: handrails, walked as "
               "roads are.", "Trails (lines)", geometry="line", metavar="LAYER"),
 )
@@ -80,8 +82,9 @@ SEARCH_PLAN = command(
     "segment_size", "shrub_classes", "roads", "trails", "hydro",
     "waterbodies", "near_distance", "cliff_slope", "cliff_height", "thicket_area", "channel_area", "litter_speed",
     "litter_max_slope", "litter_width", "road_speed", "wade_speed", "tobler", "shrub_factors", "neighbours",
-    "max_memory", "reproject_vectors", "overwrite",
+    "max_memory", "reproject_vectors", "overwrite", "list_categories",
     library="products.search_plan:search_plan", settings="products.search_plan:SearchSettings",
+    command_line=("list_categories",),
     cli="search_plan:search_plan")
 """The search plan (``gistools search-plan``, ``gistools:search_plan``): the probability of area of a lost person
 category, barriers and handrails, segments with their probability of detection, routes from the staging points."""

@@ -946,11 +946,13 @@ def search_plan(dem, out, last_seen, category, settings: SearchSettings | None =
 
     Examples
     --------
-    >>> from gistools import search_plan
-    >>> rep = search_plan("out", "out/plan", "431000,1811000", "dementia", staging="431200,1810600",
-    ...                   overwrite=True)  # doctest: +SKIP
-    >>> rep["rings_m"], round(rep["rest_of_world"], 3)  # doctest: +SKIP
-    ([321.9, 804.7, 1931.2, 8207.7], 0.958)
+    >>> from gistools import search_plan, shrub_from_tiles
+    >>> B = "sample_tiles/breaklines.gpkg"
+    >>> chain = shrub_from_tiles("sample_tiles", "chain", roads=f"{B}:ROADBREAKLINE", waterbodies=f"{B}:WATERBODY",
+    ...                          make_map=False)  # doctest: +SKIP
+    >>> rep = search_plan("chain", "plan", "431000,1811000", "dementia", staging="431200,1810600")  # doctest: +SKIP
+    >>> [round(r) for r in rep["rings_m"]], rep["segments"], round(rep["rest_of_world"], 3)  # doctest: +SKIP
+    ([322, 805, 1931, 8208], 7, 0.757)
     """
     from ..engine.record import write_folder_report
     from ..engine.resume import rerun_kept, run_record
