@@ -38,7 +38,7 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "fuels", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel", "search_plan"}
 ALGORITHMS |= {c.replace("-", "_") for c in __import__("gistools.parameters").parameters.DECLARED}  # declared whole
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -708,6 +708,32 @@ def test_travel_algorithm_equals_the_library(qgis, reference, tmp_path):
         qgis.run("gistools:travel", {"DEM": str(reference / "dem.vrt"), "OUTPUT_FOLDER": str(tmp_path / "none")})
 
 
+def test_search_plan_algorithm_equals_the_library(qgis, reference, tmp_path):
+    """gistools:search_plan on the chain's DEM and classes, from a point last seen and a staging point, with an
+    effort table: the library's POA cells, segments and routes."""
+    import geopandas as gpd
+
+    from gistools.parameters import PARAMETERS
+    from gistools.products.search_plan import SearchSettings, search_plan
+
+    effort = tmp_path / "effort.csv"
+    effort.write_text("segment,hours\n1,4\n2,2\n", encoding="utf-8")
+    lib = search_plan(reference, tmp_path / "lib", "431000,1811000", "dementia", SearchSettings(search_speed=1.5),
+                      staging="431200,1810600", effort=effort)
+    result = qgis.run("gistools:search_plan", {
+        "DEM": str(reference / "dem.vrt"), "CLASSES": str(reference / "classes.vrt"), "LAST_SEEN": "431000,1811000",
+        "CATEGORY": list(PARAMETERS["category"].choices).index("dementia"), "STAGING": "431200,1810600",
+        "EFFORT": str(effort), "SEARCH_SPEED": 1.5,
+        "OUTPUT_FOLDER": str(tmp_path / "q")})
+    same_cells(result["POA"], tmp_path / "lib" / "poa.tif")
+    assert result["REST"] == pytest.approx(lib["rest_of_world"], rel=1e-12)
+    q = gpd.read_file(result["SEGMENTS"].split("|")[0], layer="segments")
+    ref = gpd.read_file(tmp_path / "lib" / "segments.gpkg", layer="segments")
+    assert q.drop(columns="geometry").equals(ref.drop(columns="geometry")) and q["hours"].sum() == 6
+    routes = gpd.read_file(result["ROUTES"].split("|")[0], layer="routes")
+    assert list(routes["minutes"]) == list(gpd.read_file(tmp_path / "lib" / "routes.gpkg", layer="routes")["minutes"])
+
+
 def test_structure_algorithm_equals_the_library(qgis, tmp_path):
     from gistools.structure.fixtures import building
     from gistools.products.structure import structure_model
@@ -948,7 +974,8 @@ COMMAND_OF = {"info": "info", "points": "points", "ground": "ground", "normalize
               "chm": "chm", "fuels": "fuels", "dsm": "rasters", "dem": "rasters", "rasters": "rasters", "ndsm": None, "bands": "bands",
               "breaklines": None, "clip": "clip", "density": "density", "classify": "classify", "shrubchain": "shrub",
               "aquifer": "aquifer model", "aquiferquery": "aquifer query", "runway": "runway", "structure": "structure",
-              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed", "travel": "travel"}
+              "webmap": "webmap", "scene": "scene", "mapbook": "mapbook", "terrain": "terrain", "viewshed": "viewshed", "travel": "travel",
+              "search_plan": "search-plan"}
 COMMAND_OF.update({c.replace("-", "_"): c for c in __import__("gistools.parameters").parameters.DECLARED})
 
 
@@ -1004,6 +1031,7 @@ LEFT_OUT = {
     # the clip step in QGIS is two algorithms: breaklines (the layers and their widths) and clip
     "clip": _STEP_RUN | {"roads", "hydro", "waterbodies", "tile_index", "tile_field", "max_road_width", "snap"},
     "rasters": {"products"},  # the algorithm writes every product
+    "search_plan": {"list_categories"},  # the command line's listing of the table (the dialog lists them)
     "dsm": {"products", "buffer", "classify_ground", "dem_fill", "dem_max_distance", "dem_method", "hydro_flatten",
             "shore_width"},  # the DSM alone: the DEM's options are gistools:dem's
     "dem": {"products", "dsm_classes", "dsm_fill", "subcircle"},  # the DEM alone

@@ -1,7 +1,19 @@
 """Parameters of the search plan (gistools search-plan, SearchSettings): the lost person's category and its
 distance rings, segments, detection, barriers and handrails, routes and the litter carry."""
 
+import csv
+from pathlib import Path
+
 from .core import ByUnits, Parameter, command, declare
+
+
+def _categories() -> dict:
+    """{category: label} of the shipped distance table (gistools/datasets/lost_person.csv), in its order."""
+    with open(Path(__file__).resolve().parent.parent / "datasets" / "lost_person.csv", encoding="utf-8",
+              newline="") as f:
+        names = [r["category"] for r in csv.DictReader(f)]
+    return {n: n.replace("_", " ") for n in dict.fromkeys(names)}
+
 
 DISTANCES = {"crow": "crow: as the crow flies (Koester's rings)",
              "walk": "walk: walked on the travel graph, as the distance on open flat ground in the same time"}
@@ -9,7 +21,8 @@ DISTANCES = {"crow": "crow: as the crow flies (Koester's rings)",
 declare(
     Parameter("category", "text", "The lost person's category, a row of the categories table (gistools "
               "search-plan --list-categories lists them): hiker, hunter, child_1_3, dementia, ...",
-              "Lost person category (e.g. hiker, dementia)", metavar="NAME", example="dementia"),
+              "Lost person category", metavar="NAME", example="dementia", choices=_categories(),
+              required=True),
     Parameter("ecoregion", "text", "The terrain of the table's rows to use, as Koester's tables divide them "
               "(e.g. temperate_mountainous, temperate_flat); the first row of the category when not given.",
               "Terrain of the distance table (e.g. temperate_mountainous)", metavar="TERRAIN",

@@ -8,7 +8,7 @@ heights    normalize, metrics, chm, fuels (heights above ground, cell metrics, c
 steps      ndsm, bands, breaklines, clip, density, classify (gistools.products.steps)
 shrub      the whole chain (shrubchain)   aquifer    aquifer, aquiferquery
 runway     runway                          structure  structure
-travel     travel (search and rescue: a walker's travel time)
+travel     travel, search_plan (search and rescue: a walker's travel time, the search plan)
 deliver    webmap, scene, mapbook (deliverables for field teams)
 terrain    terrain, viewshed (slope, aspect, hillshade, ruggedness; what observers see)
 
