@@ -12,7 +12,8 @@ from .algorithms import ALGORITHMS
 
 HERE = Path(__file__).resolve().parent
 # each shipped model's name in the toolbox and its group (its id stays gistools:<file's model name>)
-MODEL_NAMES = {"shrub_density": ("Shrub model (the steps wired)", "Shrub chain", "shrub")}
+MODEL_NAMES = {"shrub_density": ("Shrub model (the steps wired)", "Shrub chain", "shrub"),
+               "search_plan_model": ("Search plan from tiles (model)", "Search and rescue", "sar")}
 
 
 class ShippedModel(QgsProcessingModelAlgorithm):

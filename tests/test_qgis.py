@@ -38,7 +38,8 @@ B = SAMPLE / "breaklines.gpkg"
 LAYERS = {"ROADS": "ROADBREAKLINE", "HYDRO": "HYDROGRAPHICFEATURE", "WATERBODIES": "WATERBODY", "WETLANDS": "WETLAND",
           "TILE_INDEX": "FOOTPRINT"}
 ALGORITHMS = {"info", "points", "ground", "normalize", "metrics", "chm", "fuels", "dsm", "dem", "ndsm", "rasters", "bands", "breaklines", "clip", "density", "classify",
-              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel", "search_plan"}
+              "shrubchain", "shrub_density", "aquifer", "aquiferquery", "runway", "structure", "webmap", "scene", "mapbook", "terrain", "viewshed", "travel", "search_plan",
+              "search_plan_model"}
 ALGORITHMS |= {c.replace("-", "_") for c in __import__("gistools.parameters").parameters.DECLARED}  # declared whole
 QGIS_PROCESS = Path("/usr/bin/qgis_process.bin")
 
@@ -189,7 +190,7 @@ def test_the_toolbox_reads_as_an_analyst_expects(qgis):
     metadata = build_plugin.metadata()  # as the zip carries it (the declared commands' algorithms named too)
     about = next(line for line in metadata.splitlines() if line.startswith("about="))
     assert "example.org" not in metadata
-    tools = {n: a for n, a in algs.items() if n != "shrub_density"}  # the model's help is its own text
+    tools = {n: a for n, a in algs.items() if n not in ("shrub_density", "search_plan_model")}  # models: their own
     for a in tools.values():  # Help opens the algorithm's page of the shipped documentation, offline
         assert "<b>Parameters</b>" in a.shortHelpString() and "<b>Outputs</b>" in a.shortHelpString()
         assert len(a.shortHelpString().split("<br>")[0]) > 40, a.name()  # its own text first (algorithms/texts.py)
@@ -379,6 +380,29 @@ def test_model_gives_the_class_raster_of_gistools_shrub(qgis, reference, tmp_pat
     assert _palette(result["classify:Shrub classes"])[:6] == _CLASS_PALETTE  # a GeoTIFF's palette has 256 entries
     children = result["CHILD_RESULTS"]
     assert children["points_ground"]["POINTS"] > 0 and children["points_nonground"]["POINTS"] > 0
+
+
+def test_search_plan_model_runs_from_the_tiles_to_the_plan(qgis, reference, tmp_path):
+    """The shipped search plan model (shrub chain, then the search plan) from the sample's tiles, a point last seen
+    and a staging point: the POA of the library's plan on the chain's folder."""
+    from qgis.core import QgsApplication, QgsProcessingModelAlgorithm
+
+    from gistools.parameters import PARAMETERS
+    from gistools.products.search_plan import search_plan
+
+    model = QgsProcessingModelAlgorithm()
+    assert model.fromFile(str(ROOT / "qgis_plugin" / "models" / "search_plan_model.model3"))
+    ok, issues = model.validate()
+    assert ok and not issues, issues
+    assert QgsApplication.processingRegistry().algorithmById("gistools:search_plan_model").groupId() == "sar"
+    search_plan(reference, tmp_path / "lib", "431000,1811000", "dementia", staging="431200,1810600")
+    result = qgis.run("gistools:search_plan_model", {
+        "TILES": str(SAMPLE), "ROADS": layer("ROADBREAKLINE"), "HYDRO": layer("HYDROGRAPHICFEATURE"),
+        "WATERBODIES": layer("WATERBODY"), "LAST_SEEN": "431000,1811000",
+        "CATEGORY": list(PARAMETERS["category"].choices).index("dementia"), "STAGING": "431200,1810600",
+        "shrub:Shrub classes": "TEMPORARY_OUTPUT", "plan:Probability of area": "TEMPORARY_OUTPUT",
+        "plan:Segments": "TEMPORARY_OUTPUT", "plan:Routes": "TEMPORARY_OUTPUT"}, feedback=Feedback())
+    same_cells(result["plan:Probability of area"], tmp_path / "lib" / "poa.tif")
 
 
 def test_cancel_leaves_no_partial_output(qgis, reference, tmp_path):

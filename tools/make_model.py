@@ -1,4 +1,6 @@
-"""Write qgis_plugin/models/shrub_density.model3, the dissertation's ModelBuilder chain as a QGIS graphical model.
+"""Write qgis_plugin/models/shrub_density.model3, the dissertation's ModelBuilder chain as a QGIS graphical model,
+and qgis_plugin/models/search_plan_model.model3: the shrub chain then the search plan, from the tiles and a point last
+seen.
 
 Run with QGIS's Python and the plugin importable (the test command's venv does both):
 
@@ -16,6 +18,12 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 TARGET = ROOT / "qgis_plugin" / "models" / "shrub_density.model3"
+SEARCH_TARGET = ROOT / "qgis_plugin" / "models" / "search_plan_model.model3"
+SEARCH_HELP = (
+    "The search plan from the tiles: the whole shrub chain (gistools:shrubchain), then gistools:search_plan on its "
+    "DEM and shrub classes from the point last seen and the staging point: the probability of area of the lost "
+    "person's category, the segments with their probability of detection, the barriers and the routes."
+)
 
 HELP = (
     "The shrub density chain of the dissertation (ch. 9), one gistools algorithm per ModelBuilder step: LAS to "
@@ -138,11 +146,86 @@ def build():
     return model
 
 
+def build_search_plan():
+    """The search plan's model: tiles and breaklines -> gistools:shrubchain -> gistools:search_plan."""
+    from qgis.core import (
+        QgsApplication,
+        QgsProcessingModelAlgorithm,
+        QgsProcessingModelChildAlgorithm,
+        QgsProcessingModelChildParameterSource as Src,
+        QgsProcessingModelOutput,
+        QgsProcessingModelParameter,
+        QgsProcessingParameterEnum,
+        QgsProcessingParameterFile,
+        QgsProcessingParameterString,
+        QgsProcessingParameterVectorLayer,
+    )
+    from qgis.PyQt.QtCore import QPointF
+
+    from gistools_qgis.compat import FOLDER, OPTIONAL, VECTOR_LINE, VECTOR_POLYGON
+
+    from gistools.parameters import PARAMETERS
+
+    model = QgsProcessingModelAlgorithm("search_plan_model", "Models")
+    model.setHelpContent({"ALG_DESC": SEARCH_HELP, "ALG_CREATOR": "gistools", "ALG_VERSION": "1",
+                          "HELP_URL": help_url(SEARCH_HELP_PAGE)})
+    categories = list(PARAMETERS["category"].choices)
+    inputs = [
+        QgsProcessingParameterFile("TILES", "LAS/LAZ tile folder", behavior=FOLDER),
+        QgsProcessingParameterVectorLayer("ROADS", "Road breaklines", [VECTOR_LINE], optional=True),
+        QgsProcessingParameterVectorLayer("HYDRO", "Hydrographic breaklines", [VECTOR_LINE], optional=True),
+        QgsProcessingParameterVectorLayer("WATERBODIES", "Water body polygons", [VECTOR_POLYGON], optional=True),
+        QgsProcessingParameterString("LAST_SEEN", "Point last seen X,Y"),
+        QgsProcessingParameterEnum("CATEGORY", "Lost person category", options=categories,
+                                   defaultValue=categories.index("hiker")),
+        QgsProcessingParameterString("STAGING", "Staging point(s) X,Y", optional=True),
+    ]
+    for row, definition in enumerate(inputs):
+        component = QgsProcessingModelParameter(definition.name())
+        component.setPosition(QPointF(120, 60 + 70 * row))
+        model.addModelParameter(definition, component)
+    model.setParameterOrder([d.name() for d in inputs])
+    P, C, V = Src.fromModelParameter, Src.fromChildOutput, Src.fromStaticValue
+
+    def child(cid, alg, description, x, y, sources, outputs):
+        c = QgsProcessingModelChildAlgorithm(alg)
+        c.setChildId(cid)
+        c.setDescription(description)
+        c.setPosition(QPointF(x, y))
+        for d in QgsApplication.processingRegistry().algorithmById(alg).parameterDefinitions():
+            if not d.isDestination() and not d.flags() & OPTIONAL and d.name() not in sources:
+                sources[d.name()] = V(d.defaultValue())
+        for name, src in sources.items():
+            c.addParameterSources(name, [src])
+        mos = {}
+        for child_output, model_name in outputs.items():
+            mo = QgsProcessingModelOutput(model_name, model_name)
+            mo.setChildId(cid)
+            mo.setChildOutputName(child_output)
+            mo.setPosition(QPointF(x + 200, y + 40))
+            mos[model_name] = mo
+        c.setModelOutputs(mos)
+        model.addChildAlgorithm(c)
+
+    child("shrub", "gistools:shrubchain", "Shrub map (whole chain)", 420, 120,
+          {"INPUT": P("TILES"), "ROADS": P("ROADS"), "HYDRO": P("HYDRO"), "WATERBODIES": P("WATERBODIES"),
+           "MAKE_MAP": V(False), "JOBS": V(1)}, {"CLASSES": "Shrub classes"})
+    child("plan", "gistools:search_plan", "Search plan", 700, 220,
+          {"DEM": C("shrub", "DEM"), "CLASSES": C("shrub", "CLASSES"), "LAST_SEEN": P("LAST_SEEN"),
+           "CATEGORY": P("CATEGORY"), "STAGING": P("STAGING")},
+          {"POA": "Probability of area", "SEGMENTS": "Segments", "ROUTES": "Routes"})
+    model.updateDestinationParameters()
+    return model
+
+
+SEARCH_HELP_PAGE = "search_and_rescue.html#qgis-search_plan"
+
+
 # the model's section of the documentation: docs/qgis.md's "The shrub density model", as MkDocs publishes it
 HELP_PAGE = "qgis.html#the-shrub-density-model"
 
 
-def help_url() -> str:
+def help_url(page: str = "") -> str:
     """The model's section of the documentation site at the project's homepage (declared once, in
     qgis_plugin/metadata.txt): the same site the plugin ships in help/, online (a model file holds no path of the
     plugin's folder)."""
@@ -150,7 +233,7 @@ def help_url() -> str:
         sys.path.insert(0, str(ROOT / "tools"))
     from build_plugin import declared
 
-    return declared()["homepage"].rstrip("/") + "/" + HELP_PAGE
+    return declared()["homepage"].rstrip("/") + "/" + (page or HELP_PAGE)
 
 
 def load_plugin():
@@ -173,14 +256,14 @@ def main() -> int:
     app.initQgis()
     plugin = load_plugin()  # kept: its provider holds the algorithms the children resolve to
     plugin.initProcessing()  # the children's algorithms must resolve for the model outputs to become parameters
-    model = build()
-    TARGET.parent.mkdir(parents=True, exist_ok=True)
-    tmp = TARGET.with_name(TARGET.name + ".partial")
-    if not model.toFile(str(tmp)):
-        print("could not write the model", file=sys.stderr)
-        return 1
-    tmp.replace(TARGET)
-    print(TARGET)
+    for model, target in ((build(), TARGET), (build_search_plan(), SEARCH_TARGET)):
+        target.parent.mkdir(parents=True, exist_ok=True)
+        tmp = target.with_name(target.name + ".partial")
+        if not model.toFile(str(tmp)):
+            print(f"could not write {target.name}", file=sys.stderr)
+            return 1
+        tmp.replace(target)
+        print(target)
     return 0
 
 

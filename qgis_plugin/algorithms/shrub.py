@@ -27,6 +27,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
                       "scheduler", "chunk_size")
         self.add_outputs(
             "Output folder", CLASSES=("raster", "Shrub classes"), COVER=("raster", "Vegetation cover"),
+            DEM=("raster", "DEM"),
             POLYGONS=("vector", "Shrub class polygons", VECTOR_POLYGON), MAP_PNG=("file", "Shrub map (PNG)"),
             FOLDER=("folder", "Output folder"))
 
@@ -48,7 +49,7 @@ class ShrubChainAlgorithm(GistoolsAlgorithm):
                               + ", ".join(f"{k} {v:,.0f}" for k, v in result["class_area"].items()))
         mosaics = result.get("mosaics", {})
         outputs = {"OUTPUT_FOLDER": str(out), "FOLDER": str(out), "CLASSES": mosaics.get("classes"),
-                   "COVER": mosaics.get("cover"), "POLYGONS": str(out / "shrub_classes.gpkg"),
+                   "COVER": mosaics.get("cover"), "DEM": mosaics.get("dem"), "POLYGONS": str(out / "shrub_classes.gpkg"),
                    "MAP_PNG": str(out / "shrub_map.png") if (out / "shrub_map.png").exists() else None}
         self.load_on_completion(context, outputs["CLASSES"], "Shrub classes", "CLASSES")
         self.load_on_completion(context, outputs["POLYGONS"], "Shrub class polygons", "POLYGONS")

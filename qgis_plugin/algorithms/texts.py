@@ -131,4 +131,10 @@ HELP = {
         " on the slope along each step (uphill and downhill differ), times a factor per shrub class of the shrub "
         "chain, roads clear, water impassable (or waded); isochrone polygons with their areas and isochrone bands "
         "(gistools travel)."),
+    "search_plan": (
+        "The search plan of a lost person from the point last seen (gistools search-plan): the probability of area of"
+        " the category's distance rings (Koester's Lost Person Behavior) weighted near roads, trails, water, "
+        "drainages and ridges; cliffs, water and thickets as barriers; segments bounded by roads, trails, drainages, "
+        "ridges and thickets; the probability of detection of the searcher-hours given; the quickest routes from the"
+        " staging points and a litter carry out."),
 }

@@ -64,7 +64,7 @@ class TravelAlgorithm(GistoolsAlgorithm):
 
 
 class SearchPlanAlgorithm(GistoolsAlgorithm):
-    _name, _display, _group = "search_plan", "Search plan (POA, segments, POD, routes)", GROUP_SAR
+    _name, _display, _group = "search_plan", "Search plan (POA, POD, routes)", GROUP_SAR
     _tags = ("lost person", "probability of area", "POA", "POD", "segments", "sweep width", "litter", "koester")
 
     def initAlgorithm(self, config=None):  # noqa: N802
