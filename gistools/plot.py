@@ -255,12 +255,13 @@ def map_frame_inches(paper: str) -> tuple[float, float]:
 
 def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs, scale: float, locator: np.ndarray,
                  locator_bounds, pages: list, page_index: int, parameters: str, paper: str = "letter",
-                 travel=None, seen: np.ndarray | None = None):
+                 travel=None, seen: np.ndarray | None = None, segment=None):
     """One map book page (a matplotlib Figure): the classes of ``data`` (a class raster over ``bounds``) at 1:``scale``,
     a grid with coordinates, a locator map (``locator``: the whole area's classes, ``pages``: every page's bounds,
     this one outlined), legend, scale bar, north arrow and what made the map. ``travel``: (isochrone bands, points
     last seen), GeoDataFrames in the page's CRS (gistools.deliver.layers.travel_frames), drawn over the classes;
-    ``seen``: the cells seen of a viewshed on ``data``'s grid, a semi-transparent cyan."""
+    ``seen``: the cells seen of a viewshed on ``data``'s grid, a semi-transparent cyan; ``segment``: (a search
+    segment's outline, the route to it or None), shapely geometries in the page's CRS."""
     from matplotlib.patches import Rectangle
 
     fig = new_figure(PAPER_IN[paper])
@@ -277,6 +278,8 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
         handles.append(Patch(facecolor=np.array(VIEWSHED_RGBA) / 255, edgecolor="black", label="seen (viewshed)"))
     if travel is not None:
         handles += draw_travel(ax, *travel)
+    if segment is not None:
+        handles += draw_segment(ax, *segment)
     step = map_frame_ticks(ax, bounds)
     plt_y = ax.get_yticklabels()
     for label in plt_y:
@@ -308,6 +311,26 @@ def mapbook_page(data: np.ndarray, bounds, *, title: str, unit: LinearUnit, crs,
 
 VIEWSHED_RGBA = (0, 229, 255, 110)  # the cells seen: cyan, semi-transparent (as the web map's overlay)
 LAST_SEEN = "#ff00ff"  # the points last seen: magenta, a colour no class or isochrone band has
+
+
+SEGMENT_EDGE, ROUTE = "#08306b", "#e08214"  # a search segment's outline, the route to it (as the web map)
+
+
+def draw_segment(ax, outline, route) -> list:
+    """A search segment's outline (dark blue) and the route to it (orange) on ``ax``; their legend handles."""
+    from matplotlib.lines import Line2D
+
+    for part in getattr(outline, "geoms", [outline]):
+        for ring in [part.exterior, *part.interiors]:
+            x, y = ring.xy
+            ax.plot(x, y, color=SEGMENT_EDGE, linewidth=2.0)
+    handles = [Line2D([], [], color=SEGMENT_EDGE, linewidth=2.0, label="search segment")]
+    if route is not None and not route.is_empty:
+        for line in getattr(route, "geoms", [route]):
+            x, y = line.xy
+            ax.plot(x, y, color=ROUTE, linewidth=1.8)
+        handles.append(Line2D([], [], color=ROUTE, linewidth=1.8, label="route from staging"))
+    return handles
 
 
 def draw_travel(ax, bands, seen) -> list:

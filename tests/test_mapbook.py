@@ -227,3 +227,33 @@ def test_the_cells_seen_are_washed_in_cyan_on_the_pages(chain, layers, tmp_path)
                     assert np.abs(pages[i][py, px] - want[is_seen]).max() <= 8, (is_seen, pages[i][py, px])
                     checked[is_seen] += 1
     assert checked[True] >= 20 and checked[False] >= 20, checked
+
+
+def test_a_page_per_segment_assignment_with_its_outline_and_figures(chain, tmp_path):
+    """A search plan whose effort gives hours to two segments: two more pages, each fitted around its segment
+    (the segment's bounds inside the page's), its outline drawn in the map frame, its figures printed
+    (pdftotext)."""
+    import geopandas as gpd
+
+    from gistools.plot import SEGMENT_EDGE
+    from gistools.products.search_plan import search_plan
+
+    effort = tmp_path / "effort.csv"
+    effort.write_text("segment,hours\n2,3\n1,1.5\n", encoding="utf-8")
+    search_plan(chain, tmp_path / "plan", f"{START[0]},{START[1]}", "dementia", staging="431200,1810600",
+                effort=effort)
+    result = map_book(chain, tile_index=FOOTPRINT, plan=tmp_path / "plan")
+    assert result["pages"] == 6 == pages_of(result["pdf"])
+    seg = gpd.read_file(tmp_path / "plan" / "segments.gpkg", layer="segments").set_index("segment")
+    jobs = seg[seg["hours"] > 0].sort_values("rank")
+    assert result["labels"][4:] == [f"segment {k} (rank {r})" for k, r in zip(jobs.index, jobs["rank"])]
+    for (w, s, e, n), geom in zip(result["bounds"][4:], jobs.geometry):
+        gw, gs, ge, gn = geom.bounds
+        assert w < gw and s < gs and ge < e and gn < n
+    text = subprocess.run(["pdftotext", "-layout", result["pdf"], "-"], capture_output=True, text=True,
+                          check=True).stdout
+    for k, r in jobs.iterrows():
+        assert f"Segment {k}, rank {r['rank']}" in text and f"POD {100 * r['pod']:.1f} %" in text
+    pages = [in_frame(p) for p in rendered(result["pdf"], tmp_path / "plan_pages")]
+    assert all(near(p, SEGMENT_EDGE).sum() > 50 for p in pages[4:])
+    assert all(near(p, SEGMENT_EDGE).sum() < 5 for p in pages[:4])

@@ -445,3 +445,55 @@ def test_no_markup_of_the_points_last_seen_runs(chain, sar, tmp_path):
     ran, dom = ran_script(page, tmp_path)
     assert not ran
     assert "<b>Last seen</b><br>&lt;img src=x onerror=" in dom  # the last popup opened: shown as text
+
+
+@pytest.fixture(scope="module")
+def plan(chain, tmp_path_factory):
+    """The chain's search plan for a child of 1-3 years last seen at START, staged at the road bridge."""
+    from gistools.products.search_plan import SearchSettings, search_plan
+
+    out, _ = chain
+    root = tmp_path_factory.mktemp("plan") / "plan"
+    search_plan(out, root, f"{START[0]},{START[1]}", "child_1_3", SearchSettings(segment_size="10ac"),
+                staging="431200,1810600")
+    return root
+
+
+def test_the_search_segments_and_routes_are_on_the_page_with_their_figures(chain, plan, tmp_path):
+    """Every segment of segments.gpkg is on the page with its rank, POA and POD under the cursor (every tooltip
+    opened: #popups), the routes and the litter carry with their minutes."""
+    out, _ = chain
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    page = Path(web_map(copy, plan=plan)["html"])
+    seg = gpd.read_file(plan / "segments.gpkg", layer="segments")
+    routes = gpd.read_file(plan / "routes.gpkg", layer="routes")
+    litter = gpd.read_file(plan / "routes.gpkg", layer="litter")
+    dom = chromium("--dump-dom", page.resolve().as_uri() + "#popups", home=tmp_path).stdout
+    for _, r in seg.iterrows():
+        assert f"Segment {r['segment']} (rank {r['rank']})" in dom
+    top = seg.sort_values("rank").iloc[0]
+    assert f"POA {100 * top['poa']:.2f} %" in dom.replace("\u00a0", " ")
+    assert dom.count("Route to segment") == len(routes) and len(routes) > 0
+    assert f"Litter carry to {litter['target'].iloc[0]}" in dom
+    assert "Search segments" in dom and "Routes" in dom
+
+
+def test_no_markup_of_a_search_plan_runs(chain, plan, tmp_path):
+    out, _ = chain
+    hostile = tmp_path / "plan"
+    shutil.copytree(plan, hostile)
+    routes = gpd.read_file(hostile / "routes.gpkg", layer="routes")
+    litter = gpd.read_file(hostile / "routes.gpkg", layer="litter")
+    routes["target"] = PAYLOADS[0]
+    routes.to_file(hostile / "routes.gpkg", layer="routes", driver="GPKG")
+    litter.to_file(hostile / "routes.gpkg", layer="litter", driver="GPKG")
+    seg = gpd.read_file(hostile / "segments.gpkg", layer="segments")
+    seg["vegetation"] = PAYLOADS[1]
+    seg.to_file(hostile / "segments.gpkg", layer="segments", driver="GPKG")
+    copy = tmp_path / "copy"
+    shutil.copytree(out, copy)
+    page = Path(web_map(copy, plan=hostile)["html"])
+    ran, dom = ran_script(page, tmp_path)
+    assert not ran
+    assert "Route to segment &lt;img src=x onerror=" in dom  # shown as text

@@ -11,12 +11,13 @@ from .spec import spec_options
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
 @spec_options("webmap")
-def webmap(out, travel, viewshed, fuels, basemap, split_mb):
+def webmap(out, travel, viewshed, fuels, plan, basemap, split_mb):
     """Write OUT/shrub_map.html: the shrub classes of a gistools shrub folder as one self-contained offline web map
     (Leaflet and the polygons inlined; legend, scale bar, the parameters, a popup per polygon with its class, area
     and tile). Open it from a USB stick or a tablet with no network. With the output folders of gistools travel,
-    viewshed or fuels, their layers too: the isochrones and points last seen (and the travel time under the cursor),
-    the cells seen, the canopy base height classes.
+    viewshed, fuels or search-plan, their layers too: the isochrones and points last seen (and the travel time under
+    the cursor), the cells seen, the canopy base height classes, the search segments (POA and POD under the cursor)
+    and routes.
 
     \b
     Examples:
@@ -26,7 +27,8 @@ def webmap(out, travel, viewshed, fuels, basemap, split_mb):
     """
     from ..deliver.webmap import web_map
 
-    result = web_map(out, travel=travel, viewshed=viewshed, fuels=fuels, basemap=basemap, split_mb=split_mb)
+    result = web_map(out, travel=travel, viewshed=viewshed, fuels=fuels, plan=plan, basemap=basemap,
+                     split_mb=split_mb)
     parts = f" and {len(result['parts'])} parts" if result["parts"] else ""
     click.echo(f"wrote {result['html']}{parts} ({result['bytes'] / 1e6:.1f} MB, {result['features']:,} polygons)")
 
@@ -54,12 +56,12 @@ def scene(out, exaggeration, max_mb, surface):
 @click.command()
 @click.argument("out", type=click.Path(exists=True, file_okay=False))
 @spec_options("mapbook")
-def mapbook(out, tile_index, tile_field, travel, viewshed, fuels, scale, paper, max_pages):
+def mapbook(out, tile_index, tile_field, travel, viewshed, fuels, plan, scale, paper, max_pages):
     """Write OUT/map_book.pdf: a page per tile of --tile-index, each fitted to it (without it: per sheet of a grid
     at 1:SCALE) of a gistools shrub folder's classes, with the roads and water, a coordinate grid, a locator map,
     legend, scale bar, north arrow and the parameters: what a field team prints. With the output folder of gistools
     travel, the isochrones and points last seen on every page; of gistools viewshed, the cells seen; of gistools
-    fuels, a last page of the canopy base height classes.
+    fuels, a last page of the canopy base height classes; of gistools search-plan, a page per segment assignment.
 
     \b
     Examples:
@@ -70,5 +72,5 @@ def mapbook(out, tile_index, tile_field, travel, viewshed, fuels, scale, paper, 
     from ..deliver.mapbook import map_book
 
     r = map_book(out, tile_index=tile_index, tile_field=tile_field, travel=travel, viewshed=viewshed, fuels=fuels,
-                 scale=scale, paper=paper, max_pages=max_pages)
+                 plan=plan, scale=scale, paper=paper, max_pages=max_pages)
     click.echo(f"wrote {r['pdf']} ({r['pages']} pages, 1:{min(r['scales']):,.0f} to 1:{max(r['scales']):,.0f})")

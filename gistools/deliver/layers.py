@@ -19,15 +19,17 @@ from ..errors import DataFileError, InputError
 from ..parameters import option
 from ..plot import VIEWSHED_RGBA  # the cells seen: cyan, semi-transparent; hidden ones are left clear
 
-__all__ = ["check_folders", "travel_frames", "travel_web", "minutes_grid", "viewshed_png", "cbh_web", "cbh_classes_on",
+__all__ = ["check_folders", "plan_frames", "plan_web", "travel_frames", "travel_web", "minutes_grid", "viewshed_png", "cbh_web", "cbh_classes_on",
            "viewshed_on", "rounded", "cbh_class", "cbh_features", "CBH_CLASSES", "MAX_GRID_SIDE", "MAX_IMAGE_SIDE",
            "VIEWSHED_RGBA"]
 
 MAX_GRID_SIDE = 400  # the grid of minutes inlined for the cursor readout: at most 400 x 400 values (about 0.6 MB)
 COORD_DIGITS = 7  # decimal degrees: 1 cm
 MAX_IMAGE_SIDE = 1024  # the viewshed's image overlay: at most 1024 pixels a side
-NEEDS = {"travel": ("travel.gpkg", "travel_minutes.tif"), "viewshed": ("viewshed.tif",), "fuels": ("cbh.vrt",)}
-MAKER = {"travel": "gistools travel", "viewshed": "gistools viewshed", "fuels": "gistools fuels"}
+NEEDS = {"travel": ("travel.gpkg", "travel_minutes.tif"), "viewshed": ("viewshed.tif",), "fuels": ("cbh.vrt",),
+         "plan": ("segments.gpkg", "routes.gpkg")}
+MAKER = {"travel": "gistools travel", "viewshed": "gistools viewshed", "fuels": "gistools fuels",
+         "plan": "gistools search-plan"}
 
 
 def rounded(coords):
@@ -87,6 +89,8 @@ def check_folders(**folders) -> dict:
                              hint=f"Give the output folder of {MAKER[name]}")
         if name == "travel":
             _isochrones(path)  # its layers and columns, before anything is read or written
+        if name == "plan":
+            plan_frames(path)
         found[name] = path
     return found
 
@@ -296,3 +300,75 @@ def cbh_classes_on(folder: Path, crs, bounds, shape) -> np.ndarray:
 def viewshed_on(folder: Path, crs, bounds, shape) -> np.ndarray:
     """The cells seen (True) of a viewshed folder on a grid of ``shape`` over ``bounds`` in ``crs`` (nearest cell)."""
     return _on_grid(folder / "viewshed.tif", crs, bounds, shape) == 1
+
+
+# the layers of a search plan folder (gistools search-plan) and the columns the deliverables read
+PLAN_LAYERS = {("segments.gpkg", "segments"): ("segment", "rank", "area_ha", "poa", "pod", "hours", "sweep_width_m"),
+               ("routes.gpkg", "routes"): ("minutes", "length_m"), ("routes.gpkg", "litter"): ("minutes", "length_m")}
+PLAN_HINT = "Give the output folder of gistools search-plan as it wrote it (or run gistools search-plan again)"
+
+
+def plan_frames(folder: Path, crs=None) -> dict:
+    """{"segments", "routes", "litter"}: the GeoDataFrames of a search plan folder, checked (the layers there, with
+    a CRS, their number columns numbers), in ``crs`` when given."""
+    import geopandas as gpd
+    import pyogrio
+
+    frames = {}
+    for (name, layer), columns in PLAN_LAYERS.items():
+        path = Path(folder) / name
+        try:
+            names = [str(n) for n, _kind in pyogrio.list_layers(path)]
+            gdf = gpd.read_file(path, layer=layer) if layer in names else None
+        except Exception as err:  # noqa: BLE001 - not a GeoPackage, damaged: its reader's own words, on one line
+            raise DataFileError(f"cannot read layer {layer} ({' '.join(str(err).split())})", path=path,
+                                hint=PLAN_HINT) from None
+        if gdf is None or gdf.crs is None:
+            raise InputError(f"no layer {layer} with a CRS", path=path, hint=PLAN_HINT)
+        for column in columns:
+            if column not in gdf.columns:
+                raise InputError(f"layer {layer} has no {column} column", path=path, hint=PLAN_HINT)
+            gdf[column] = pd_numeric(gdf[column])
+        if crs is not None:
+            import pyproj
+
+            if not pyproj.CRS.from_user_input(crs).equals(gdf.crs):
+                gdf = gdf.to_crs(crs)
+        frames[layer] = gdf
+    return frames
+
+
+def pd_numeric(series):
+    import pandas as pd
+
+    return pd.to_numeric(series, errors="coerce").astype("float64")
+
+
+def _web_features(gdf, keys) -> list[dict]:
+    """GeoJSON features (WGS84, rounded) of ``gdf`` with the properties ``keys`` (NaN: None)."""
+    out = []
+    for row, geom in zip(gdf.drop(columns="geometry").to_dict("records"), gdf.to_crs(4326).geometry):
+        if geom is None or geom.is_empty:
+            continue
+        g = geom.__geo_interface__
+        props = {k: (None if isinstance(row.get(k), float) and not math.isfinite(row[k]) else row.get(k))
+                 for k in keys}
+        out.append({"type": "Feature", "geometry": {"type": g["type"], "coordinates": rounded(g["coordinates"])},
+                    "properties": {k: (str(v) if isinstance(v, str) else v) for k, v in props.items()}})
+    return out
+
+
+def plan_web(folder: Path) -> dict:
+    """The segments (with their POA, POD, rank, hours, area and minutes from staging) and routes of a search plan
+    folder, as GeoJSON in WGS84 for the page."""
+    frames = plan_frames(folder)
+    seg = frames["segments"].sort_values("segment")
+    top = float(seg["poa"].max()) if len(seg) else 0.0
+    seg = seg.assign(share=seg["poa"] / top if top > 0 else 0.0)
+    keys = ("segment", "rank", "area_ha", "poa", "pod", "hours", "minutes_from_staging", "vegetation", "share")
+    routes = frames["routes"].assign(litter=False)
+    litter = frames["litter"].assign(litter=True)
+    return {"segments": {"type": "FeatureCollection", "features": _web_features(seg, keys)},
+            "routes": {"type": "FeatureCollection",
+                       "features": _web_features(routes, ("kind", "target", "minutes", "length_m", "litter"))
+                       + _web_features(litter, ("kind", "target", "minutes", "length_m", "litter"))}}

@@ -125,7 +125,7 @@ def _pages(src, tile_index, tile_field, frame_w, frame_h, scale, unit_m, max_pag
 
 
 def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, viewshed=None, fuels=None,
-             scale: float = 10000, paper: str = "letter", max_pages: int = MAX_PAGES) -> dict:
+             plan=None, scale: float = 10000, paper: str = "letter", max_pages: int = MAX_PAGES) -> dict:
     """A PDF map book of a shrub chain's classes, what a field team prints: ``gistools mapbook``.
 
     Writes ``out/map_book.pdf``: a page per tile of ``tile_index`` (each fitted to its page), or per sheet of a grid at
@@ -145,6 +145,10 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
         The output folder of ``gistools viewshed``: the cells seen, semi-transparent cyan on every page.
     fuels : str or path, optional
         The output folder of ``gistools fuels``: a last page of its canopy base height classes over the whole area.
+    plan : str or path, optional
+        The output folder of ``gistools search-plan``: a page per segment assignment (the segments given hours in
+        its effort, by rank; every segment by rank when none is), fitted to the segment, with its outline, the route
+        to it and the assignment (area, POA, POD, hours, sweep width, minutes from staging).
     scale : float
         The n of 1:n, for the grid of sheets.
     paper : str
@@ -176,7 +180,7 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
 
     started = time.time()
     _check(scale, paper, max_pages)  # every option before the folder is touched
-    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels)
+    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels, plan=plan)
     out = output_folder(out)
     if not out.is_dir():
         raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
@@ -189,15 +193,64 @@ def map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", travel=None, 
     return result
 
 
+def _draw_pages(pdf, src, pages, labels, book: dict) -> list:
+    """Each map page into ``pdf`` (the tiles' or sheets', then the segment assignments'); the n of 1:n of each."""
+    from ..plot import mapbook_page
+    from .layers import viewshed_on
+
+    scales, unit, tiles = [], book["unit"], book["tiles"]
+    for i, (bounds, label) in enumerate(zip(pages, labels)):
+        page_scale = book["fixed"] or (bounds[2] - bounds[0]) * unit.metres / (book["frame_w"] * 0.0254)
+        scales.append(page_scale)
+        data = _read(src, bounds, 1500)
+        seen = None if book["viewshed"] is None else viewshed_on(book["viewshed"], src.crs, bounds, data.shape)
+        job = book["assignments"][i - tiles] if i >= tiles else None
+        fig = mapbook_page(data, bounds, title=f"{book['title']} - {label}", unit=unit, crs=src.crs, scale=page_scale,
+                           locator=book["locator"], locator_bounds=book["locator_bounds"], pages=pages, page_index=i,
+                           parameters=job["text"] if job else book["parameters"], paper=book["paper"],
+                           travel=book["travel"], seen=seen, segment=(job["outline"], job["route"]) if job else None)
+        pdf.savefig(fig)
+    return scales
+
+
+def _assignments(plan, crs, frame_w: float, frame_h: float, unit) -> list[dict]:
+    """A page per segment assignment of a search plan folder: the segments given hours, by rank (every segment by
+    rank when none is), each with its page's bounds (the segment and a tenth around it, fitted to the frame), its
+    outline, the route to it and the assignment's text."""
+    from .layers import plan_frames
+
+    frames = plan_frames(plan, crs)
+    seg = frames["segments"].sort_values("rank")
+    if (seg["hours"] > 0).any():
+        seg = seg[seg["hours"] > 0]
+    routes = frames["routes"]
+    jobs = []
+    for _, r in seg.iterrows():
+        w, s, e, n = r.geometry.bounds
+        pad = 0.1 * max(e - w, n - s) + 1e-9
+        bounds = _fitted((w - pad, s - pad, e + pad, n + pad), frame_w, frame_h)
+        to = routes[(routes["kind"] == "segment") & (routes["target"].astype(str) == str(int(r["segment"])))]
+        minutes = r.get("minutes_from_staging")
+        text = (f"Segment {int(r['segment'])}, rank {int(r['rank'])}\n{r['area_ha']:.2f} ha "
+                f"({r['area_ha'] * 1e4 / 4046.8564224:.2f} acres), {r['vegetation']}\n"
+                f"POA {100 * r['poa']:.2f} %, sweep width {r['sweep_width_m']:.1f} m\n"
+                f"{r['hours']:g} searcher-hours: POD {100 * r['pod']:.1f} %\n"
+                + (f"{minutes:.1f} min from staging" if minutes == minutes and minutes is not None else
+                   "not reached from staging"))
+        jobs.append({"bounds": bounds, "label": f"segment {int(r['segment'])} (rank {int(r['rank'])})",
+                     "outline": r.geometry, "route": to.geometry.iloc[0] if len(to) else None, "text": text})
+    return jobs
+
+
 def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float = 10000, paper: str = "letter",
-              max_pages: int = MAX_PAGES, travel=None, viewshed=None, fuels=None) -> dict:
+              max_pages: int = MAX_PAGES, travel=None, viewshed=None, fuels=None, plan=None) -> dict:
     """Write ``out/map_book.pdf`` from the chain's ``classes.vrt``: a page per tile of ``tile_index`` (fitted), or
     per sheet of a grid at 1:``scale`` (with a travel folder's isochrones and points last seen), and a fuels folder's
     canopy base height page; returns {"pdf", "pages", "scales"}."""
     from matplotlib.backends.backend_pdf import PdfPages
 
-    from ..plot import fuels_page, map_frame_inches, map_parameters, mapbook_page
-    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames, viewshed_on
+    from ..plot import fuels_page, map_frame_inches, map_parameters
+    from .layers import CBH_CLASSES, cbh_classes_on, travel_frames
 
     _check(scale, paper, max_pages)
     out = output_folder(out)
@@ -218,6 +271,10 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
         pages, labels = [pages[i] for i in keep], [labels[i] for i in keep]
         if not pages:
             raise InputError(f"{out}: no page has classes on it", hint="Check the tile index's CRS and extent")
+        assignments = [] if plan is None else _assignments(plan, src.crs.to_wkt(), frame_w, frame_h, unit)
+        tiles = len(pages)
+        pages += [a["bounds"] for a in assignments]
+        labels += [a["label"] for a in assignments]
         if len(pages) > max_pages:
             raise InputError(f"{len(pages):,} pages at 1:{scale:,.0f} is more than {option('max_pages', max_pages)}",
                              hint=f"Give a smaller scale (a larger n, e.g. {option('scale', '25000')}), or a higher "
@@ -225,19 +282,12 @@ def _map_book(out, *, tile_index=None, tile_field: str = "TILE_ID", scale: float
         locator_bounds = tuple(src.bounds)
         locator = _read(src, locator_bounds, 400)
         drawn = None if travel is None else travel_frames(travel, src.crs.to_wkt())
-        scales = []
+        book = {"title": title, "unit": unit, "locator": locator, "locator_bounds": locator_bounds, "paper": paper,
+                "parameters": parameters, "travel": drawn, "viewshed": viewshed, "fixed": fixed, "frame_w": frame_w,
+                "tiles": tiles, "assignments": assignments}
         with atomic_path(out / "map_book.pdf", overwrite=True) as tmp:
             with PdfPages(tmp, metadata={"Creator": CREATOR, "Title": title}) as pdf:
-                for i, (bounds, label) in enumerate(zip(pages, labels)):
-                    page_scale = fixed or (bounds[2] - bounds[0]) * unit.metres / (frame_w * 0.0254)
-                    scales.append(page_scale)
-                    data = _read(src, bounds, 1500)
-                    seen = None if viewshed is None else viewshed_on(viewshed, src.crs, bounds, data.shape)
-                    fig = mapbook_page(data, bounds, title=f"{title} - {label}", unit=unit,
-                                       crs=src.crs, scale=page_scale, locator=locator, locator_bounds=locator_bounds,
-                                       pages=pages, page_index=i, parameters=parameters, paper=paper, travel=drawn,
-                                       seen=seen)
-                    pdf.savefig(fig)
+                scales = _draw_pages(pdf, src, pages, labels, book)
                 if fuels is not None:
                     whole = _fitted(locator_bounds, frame_w, frame_h)
                     shape = (int(round(1500 * frame_h / frame_w)), 1500)

@@ -114,7 +114,7 @@ def _parts(features: list[dict], limit: int) -> list[list[dict]]:
 
 
 @shared_sections
-def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None = None,
+def web_map(out, *, travel=None, viewshed=None, fuels=None, plan=None, basemap: str | None = None,
             basemap_attribution: str | None = None, split_mb: float = 40.0) -> dict:
     """One HTML file of a shrub chain's outputs, for a tablet in the field: ``gistools webmap``.
 
@@ -132,6 +132,9 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
         The output folder of ``gistools viewshed``: the cells seen, a semi-transparent image overlay.
     fuels : str or path, optional
         The output folder of ``gistools fuels``: its canopy base height classes (below 4 m, 4-8 m, above 8 m).
+    plan : str or path, optional
+        The output folder of ``gistools search-plan``: its segments, shaded by their probability of area, with the
+        segment's rank, POA, POD, hours and area under the cursor, and the routes and the litter carry.
     basemap : str, optional
         An XYZ tile URL drawn under the polygons, for users who are online. None: no basemap, and the page makes no
         request to any network address.
@@ -159,7 +162,7 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
 
     started = time.time()
     check_options(basemap, split_mb)  # every option before the folder is touched
-    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels)
+    layers = check_folders(travel=travel, viewshed=viewshed, fuels=fuels, plan=plan)
     out = output_folder(out)
     if not out.is_dir():
         raise InputError(f"{out}: no such folder", hint="Run gistools shrub into it first")
@@ -171,7 +174,7 @@ def web_map(out, *, travel=None, viewshed=None, fuels=None, basemap: str | None 
     return result
 
 
-def _layers(travel=None, viewshed=None, fuels=None) -> dict:
+def _layers(travel=None, viewshed=None, fuels=None, plan=None) -> dict:
     """The page's extra layers from the folders given (see gistools.deliver.layers)."""
     from . import layers
 
@@ -183,11 +186,13 @@ def _layers(travel=None, viewshed=None, fuels=None) -> dict:
     if fuels is not None:
         cbh = layers.cbh_web(fuels)
         extra.update(cbh=cbh["cbh"], cbh_legend=cbh["legend"])
+    if plan is not None:
+        extra.update(layers.plan_web(plan))
     return extra
 
 
 def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None = None, split_mb: float = 40.0,
-             travel=None, viewshed=None, fuels=None) -> dict:
+             travel=None, viewshed=None, fuels=None, plan=None) -> dict:
     """Write ``out/shrub_map.html`` (and parts, for a county past ``split_mb`` megabytes) from the chain's outputs in
     ``out``; returns {"html", "bytes", "features", "parts"}. ``basemap``: an XYZ tile URL for users who are online
     (off by default: the page then makes no request to any network address)."""
@@ -206,8 +211,8 @@ def _web_map(out, *, basemap: str | None = None, basemap_attribution: str | None
     js, css = _leaflet()
     title = report.get("map_title") or f"Shrub density - {out.name}"
     params = _parameters(report, len(features))
-    extra = _layers(travel, viewshed, fuels)
-    warnings = _off_the_map(features, extra, {"travel": travel, "viewshed": viewshed, "fuels": fuels})
+    extra = _layers(travel, viewshed, fuels, plan)
+    warnings = _off_the_map(features, extra, {"travel": travel, "viewshed": viewshed, "fuels": fuels, "plan": plan})
     common = dict(classes=classes, leaflet_js=js, leaflet_css=css, basemap=basemap,
                   basemap_attribution=basemap_attribution, layers=extra)
     size = len(json.dumps({"type": "FeatureCollection", "features": features}))
@@ -263,6 +268,8 @@ def _layer_extents(extra: dict) -> dict:
         extents["viewshed"] = (west, south, east, north)
     if "cbh" in extra:
         extents["fuels"] = _extent([f["geometry"]["coordinates"] for f in extra["cbh"]["features"]])
+    if "segments" in extra:
+        extents["plan"] = _extent([f["geometry"]["coordinates"] for f in extra["segments"]["features"]])
     return extents
 
 

@@ -27,6 +27,11 @@ declare(
     Parameter("fuels", "folder", "The output folder of gistools fuels: its canopy base height classes as a layer of "
               "the web map, and a page of the map book.", "Fuels folder (gistools fuels; empty: none)", metavar="DIR",
               default_text="none", example="fuels"),
+    Parameter("plan", "folder", "The output folder of gistools search-plan: its segments (their POA and POD under "
+              "the cursor) and routes drawn on the web map; in the map book, a page per segment searchers are "
+              "assigned to (hours in its effort), else per segment by rank.",
+              "Search plan folder (gistools search-plan; empty: none)", metavar="DIR", default_text="none",
+              example="plan"),
     # 3D scene
     Parameter("exaggeration", "float", "Heights times this.", "Vertical exaggeration", default=1.0, minimum=0.01,
               example="2"),
@@ -50,9 +55,9 @@ declare(
               default=1000, minimum=1, advanced=True, example="1000"),
 )
 
-WEBMAP = command("webmap", "travel", "viewshed", "fuels", "basemap", "split_mb",
+WEBMAP = command("webmap", "travel", "viewshed", "fuels", "plan", "basemap", "split_mb",
     library="deliver.webmap:web_map", cli="deliver:webmap")
 SCENE = command("scene", "exaggeration", "max_mb", "surface",
     library="deliver.scene:scene_glb", cli="deliver:scene")
-MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "scale", "paper", "max_pages",
+MAPBOOK = command("mapbook", "tile_index", "tile_field", "travel", "viewshed", "fuels", "plan", "scale", "paper", "max_pages",
     library="deliver.mapbook:map_book", cli="deliver:mapbook")

@@ -97,6 +97,35 @@ _SCRIPT = """
       }
     }).addTo(map);
   }
+  if (extra.segments) {  // the search plan's segments: shaded by POA, their figures under the cursor
+    overlays["Search segments"] = L.geoJSON(extra.segments, {
+      style: function (f) {
+        return {color: "#08306b", weight: 1.2, fillColor: "#e31a1c",
+                fillOpacity: 0.05 + 0.5 * Math.max(0, Math.min(1, Number(f.properties.share) || 0))};
+      },
+      onEachFeature: function (f, l) {
+        var p = f.properties, div = el("div");
+        div.appendChild(el("b", "Segment " + p.segment + " (rank " + p.rank + ")"));
+        div.appendChild(el("br"));
+        div.appendChild(document.createTextNode("POA " + fmt(100 * p.poa, 2) + " %%, POD " + fmt(100 * p.pod, 1) +
+          " %% (" + fmt(p.hours, 1) + " searcher-hours), " + fmt(p.area_ha, 2) + " ha, " + p.vegetation +
+          (p.minutes_from_staging === null ? "" : ", " + fmt(p.minutes_from_staging, 1) + " min from staging")));
+        l.bindTooltip(div, {sticky: true});
+      }
+    }).addTo(map);
+  }
+  if (extra.routes) {
+    overlays["Routes"] = L.geoJSON(extra.routes, {
+      style: function (f) {
+        return f.properties.litter ? {color: "#b2182b", weight: 3, dashArray: "8 6"} : {color: "#e08214", weight: 2};
+      },
+      onEachFeature: function (f, l) {
+        var p = f.properties;
+        l.bindTooltip(el("span", (p.litter ? "Litter carry to " : "Route to " + p.kind + " ") + p.target + ": " +
+          fmt(p.minutes, 1) + " min, " + fmt(p.length_m, 0) + " m"), {sticky: true});  // text, never HTML
+      }
+    }).addTo(map);
+  }
   if (extra.last_seen) {
     var seen = L.layerGroup();
     extra.last_seen.forEach(function (p) {
@@ -216,7 +245,12 @@ _SCRIPT = """
   if (/[#&]popups(&|$)/.test(location.hash)) {  // #popups: open every polygon's popup (the injection test)
     layer.eachLayer(function (l) { l.openPopup(); });
     Object.keys(overlays).forEach(function (k) {  // then the overlays' (the points last seen last)
-      if (overlays[k].eachLayer) { overlays[k].eachLayer(function (l) { if (l.getPopup()) { l.openPopup(); } }); }
+      if (overlays[k].eachLayer) {
+        overlays[k].eachLayer(function (l) {
+          if (l.getPopup()) { l.openPopup(); }
+          if (l.getTooltip && l.getTooltip()) { l.openTooltip(); }  // the segments' and routes' figures
+        });
+      }
     });
   }
   var cursor = /[#&]cursor=([-0-9.]+),([-0-9.]+)/.exec(location.hash);  // #cursor=lon,lat: the mouse moved there
@@ -282,7 +316,7 @@ def web_map_html(*, title: str, geojson: dict, classes: list, parameters: dict, 
     map (shown in a panel); ``pages``: [(label, href)] of the other parts of a split map; ``basemap``: an XYZ tile
     URL template for users who are online (None: no request to any network address); ``layers``: the search-and-rescue
     and fire layers (gistools.deliver.layers: ``isochrones``, ``legend``, ``last_seen``, ``minutes``, ``viewshed``,
-    ``cbh``, ``cbh_legend``), drawn over the polygons with a layer switcher.
+    ``cbh``, ``cbh_legend``, ``segments``, ``routes``), drawn over the polygons with a layer switcher.
 
     Every value from the data (class names, tile names, parameters, the title) reaches the page as DOM text, never
     as markup, and a Content-Security-Policy lets only the page's own two scripts run."""
