@@ -296,3 +296,48 @@ def test_the_sample_plan_through_the_command_line(tmp_path):
     assert again.returncode == 0 and "kept" in again.stdout
     other = subprocess.run(cmd[:-3] + ["--search-speed", "2", "-q"], capture_output=True, text=True, check=False)
     assert other.returncode != 0 and "Traceback" not in other.stderr and "search" in other.stderr
+
+
+def test_a_thicket_is_its_own_segment_and_a_person_in_shrub_is_carried_out(tmp_path):
+    """A 1 ha thicket smaller than a quarter of the target is not joined to open ground; the person last seen in
+    heavy shrub beside it is carried out at the litter's own speed (minutes of the same order as the walk)."""
+    n, cell = 100, 4.0
+    classes = np.zeros((n, n), np.uint8)
+    classes[40:65, 40:65] = 3  # 100 m x 100 m of heavy shrub: 1 ha
+    dem, cls, _grid = _scene(tmp_path / "in", np.zeros((n, n)), classes, cell=cell)
+    seen = f"{X0 + 41 * cell + 2},{Y0 + (n - 41) * cell - 2}"  # a cell inside the thicket, by its corner
+    rep = search_plan(dem, tmp_path / "plan", seen, "test", SearchSettings(segment_size="10ha", **NO_FEATURES),
+                      classes=cls, staging=f"{X0 + 10},{Y0 + 10}",
+                      categories=_table(tmp_path / "t.csv", (0.1, 0.2, 0.3, 0.4)))
+    labels, _ = _read(tmp_path / "plan" / "segments.tif")
+    inside = np.unique(labels[42:63, 42:63])
+    assert len(inside) == 1 and not np.isin(inside, labels[classes == 0]).any()
+    assert rep["litter"] is not None and 1 < rep["litter"]["minutes"] < 60  # about 300 m at up to 1 km/h
+
+
+def test_a_scarp_beside_a_hole_keeps_its_slope():
+    from gistools.terrain.search import slope_degrees
+
+    z = np.array([[0.0, 10.0, np.nan], [0.0, 10.0, np.nan]])
+    s = slope_degrees(z, 5.0, 1.0)
+    assert s[0, 1] == pytest.approx(math.degrees(math.atan(2.0)))  # one-sided: 10 m up over 5 m
+    assert np.isnan(s[0, 2])
+
+
+def test_effort_and_table_mistakes_are_one_line(tmp_path):
+    from gistools.errors import DataFileError
+
+    dem, _, _ = _scene(tmp_path / "in", np.zeros((40, 40)))
+    effort = tmp_path / "e.csv"
+    for text, match in (("segment,hours\n1.7,2\n", "not a whole number"), ("segment,hours\ninf,2\n", "needed"),
+                        ("segment,hours\n1,-2\n", "at least 0")):
+        effort.write_text(text, encoding="utf-8")
+        with pytest.raises(DataFileError, match=match) as err:
+            search_plan(dem, tmp_path / "o", f"{X0 + 10},{Y0 + 10}", "hiker", effort=effort)
+        assert "cannot read" not in str(err.value)
+    table = tmp_path / "t.csv"
+    table.write_text("\ufeffcategory,ecoregion,p25_km,p50_km,p75_km,p95_km\nx,flat,0.1,0.2,0.3,0.4,extra\n",
+                     encoding="utf-8")
+    rep = search_plan(dem, tmp_path / "o2", f"{X0 + 10},{Y0 + 10}", "x", categories=table)
+    assert rep["rings_m"] == [100.0, 200.0, 300.0, 400.0]
+    assert not (tmp_path / "o" / "poa.tif").exists()

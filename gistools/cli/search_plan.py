@@ -77,4 +77,6 @@ def search_plan(out, last_seen, staging, route_to, dem, category, categories, ef
                   if rep["effort_hours"] else ""))
     if rep.get("litter"):
         click.echo(f"litter carry out: {rep['litter']['minutes']:.0f} min, {rep['litter']['length_m']:,.0f} m")
+    for warning in rep.get("warnings", []):
+        click.echo(f"warning: {warning}", err=True)
     click.echo(f"report: {out}/report.json")

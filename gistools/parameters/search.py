@@ -28,8 +28,8 @@ declare(
               "Terrain of the distance table (e.g. temperate_mountainous)", metavar="TERRAIN",
               example="temperate_mountainous", default_text="the category's first row"),
     Parameter("categories", "file", "A CSV of your own distance statistics with the columns of the shipped table "
-              "(category, ecoregion, p25_km, p50_km, p75_km, p95_km; optional near_linear_share, near_linear_m, "
-              "downhill_share, level_share, uphill_share, cover_weight, source).",
+              "(category, ecoregion, p25_km, p50_km, p75_km, p95_km; optional near_linear_share, downhill_share, "
+              "level_share, uphill_share, source).",
               "Own categories table (CSV)", metavar="CSV", default_text="the shipped table (Koester 2008)",
               advanced=True),
     Parameter("distance", "choice", "How the distance from the point last seen is measured for the rings.",

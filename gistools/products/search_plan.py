@@ -151,7 +151,11 @@ def lost_person_table(path=None) -> list[dict]:
     path = Path(path) if path is not None else TABLE
     try:
         with open(path, encoding="utf-8-sig", newline="") as f:
-            rows = [r for r in csv.DictReader(f) if any((v or "").strip() for v in r.values())]
+            rows = [{k: v for k, v in r.items() if isinstance(k, str) and isinstance(v, str)}
+                    for r in csv.DictReader(f)]  # extra fields of a row (under the key None) left out
+            rows = [r for r in rows if any(v.strip() for v in r.values())]
+    except DataFileError:
+        raise
     except OSError as err:
         raise DataFileError(f"cannot read the categories table ({err.strerror or err})", path=path) from None
     except (csv.Error, UnicodeDecodeError) as err:
@@ -231,10 +235,13 @@ def _effort(path, segments: int) -> dict[int, float]:
                 if not r.get("segment"):
                     continue
                 try:
-                    seg, h = int(float(r["segment"])), float(r["hours"] or 0)
-                except ValueError:
-                    raise DataFileError(f"line {line}: segment {r['segment']!r}, hours {r['hours']!r}: numbers "
-                                        "are needed", path=path) from None
+                    number, h = float(r["segment"]), float(r.get("hours") or 0)
+                    seg = int(number)
+                except (ValueError, OverflowError):
+                    raise DataFileError(f"line {line}: segment {r['segment']!r}, hours {r.get('hours')!r}: "
+                                        "a segment number and hours are needed", path=path) from None
+                if seg != number:
+                    raise DataFileError(f"line {line}: segment {r['segment']!r} is not a whole number", path=path)
                 if not 1 <= seg <= segments:
                     raise DataFileError(f"line {line}: there is no segment {seg} (the plan has 1-{segments})",
                                         path=path, hint=f"Number the effort by the segments of segments.gpkg")
@@ -244,6 +251,8 @@ def _effort(path, segments: int) -> dict[int, float]:
                 if seg in hours:
                     raise DataFileError(f"line {line}: segment {seg} is given twice", path=path)
                 hours[seg] = h
+    except DataFileError:
+        raise
     except OSError as err:
         raise DataFileError(f"cannot read {option('effort')} ({err.strerror or err})", path=path) from None
     except (csv.Error, UnicodeDecodeError) as err:
@@ -298,8 +307,8 @@ def _cells(points, grid, name: str, passable=None) -> list[tuple[int, int]]:
             raise InputError(f"{option(name, where)}: {x:.3f},{y:.3f} is outside the DEM ({w:.3f},{s:.3f} - "
                              f"{e:.3f},{n:.3f})", hint="Give the point in the DEM's CRS, within it")
         if passable is not None and not passable[r, c]:
-            raise InputError(f"{option(name, where)}: {x:.3f},{y:.3f} is on a cell no one walks (water, a cliff or "
-                             "no DEM)", hint="Move it onto land nearby")
+            raise InputError(f"{option(name, where)}: {x:.3f},{y:.3f} is on a cell no one walks (water, or no DEM)",
+                             hint="Move it onto land nearby")
         cells.append((r, c))
     return cells
 
@@ -364,7 +373,7 @@ def _barriers(scene: _Scene, s: SearchSettings) -> dict:
     cliff &= ~scene.road
     thicket = thicket_cells(scene.classes, cell_m ** 2, min_area=parse_area(s.thicket_area, scene.xy.metres,
                                                                             name="thicket_area"))
-    channel = parse_area(s.channel_area, scene.xy.metres, name="channel_area") / cell_m ** 2
+    channel = max(CHANNEL_CELLS, parse_area(s.channel_area, scene.xy.metres, name="channel_area") / cell_m ** 2)
     has = np.isfinite(scene.heights)
     down = flow_receivers(scene.heights)
     up = flow_receivers(np.where(has, -scene.heights, np.nan))
@@ -372,6 +381,9 @@ def _barriers(scene: _Scene, s: SearchSettings) -> dict:
     ridge = (contributing_cells(up) >= channel) & has & ~scene.water
     return {"cliff": cliff, "water": scene.water, "thicket": thicket, "drainage": drainage, "ridge": ridge,
             "receivers": (down, up)}
+
+
+CHANNEL_CELLS = 4  # a drainage or a ridge drains at least 4 cells, whatever --channel-area (else every cell is one)
 
 
 def _edge(mask: np.ndarray) -> np.ndarray:
@@ -450,15 +462,21 @@ def _features(scene: _Scene, barriers: dict) -> dict:
 
 def _weights(scene: _Scene, s: SearchSettings, barriers: dict, features: dict, near_m: float) -> np.ndarray:
     """Each cell's weight within its ring: 0 on water, cliffs and cells without a DEM; else the largest weight of the
-    linear features within ``near_m`` (1 away from all), times ``cover_weight`` in medium and heavy shrub."""
+    linear features within ``near_m`` above 1 times the least below 1 (1 away from all), times ``cover_weight`` in
+    medium and heavy shrub."""
     from ..terrain.search import near_cells
 
     has = np.isfinite(scene.heights)
-    weight = np.ones(scene.grid.shape)
+    up, down = np.ones(scene.grid.shape), np.ones(scene.grid.shape)  # the largest weight above 1, the least below
     for kind, w in zip(("road", "trail", "water", "drainage", "ridge"), s.feature_weights):
-        if float(w) != 1.0 and features[kind].any():
+        w = float(w)
+        if w != 1.0 and features[kind].any():
             near = near_cells(features[kind], scene.cell_m, near_m)
-            weight = np.where(near, np.maximum(weight, float(w)) if w > 1 else np.minimum(weight, float(w)), weight)
+            if w > 1:
+                up = np.where(near, np.maximum(up, w), up)
+            else:
+                down = np.where(near, np.minimum(down, w), down)
+    weight = up * down
     weight = np.where(np.isin(scene.classes, (2, 3)), weight * float(s.cover_weight), weight)
     return np.where(scene.water | barriers["cliff"] | ~has, 0.0, weight)
 
@@ -764,9 +782,10 @@ def _plan(req: _Request, progress) -> dict:
     near = near_cells(any_feature, scene.cell_m, near_m)
     walls = barriers["cliff"] | barriers["thicket"] | scene.water
     speeds = _speeds(scene, s)
-    seen_cells = _cells(req.seen, grid, "last_seen", passable=has & ~scene.water)
-    staging_cells = _cells(req.staging, grid, "staging", passable=(has | scene.road) & ~scene.water)
-    route_cells = _cells(req.route_to, grid, "route_to")
+    walkable = (has & (speeds[0] > 0)) | np.isfinite(speeds[1])  # the travel graph's own rule
+    seen_cells = _cells(req.seen, grid, "last_seen", passable=walkable)
+    staging_cells = _cells(req.staging, grid, "staging", passable=walkable)
+    route_cells = _cells(req.route_to, grid, "route_to", passable=walkable)
     report(progress, 0.35, "probability of area")
     distance = _rings_distance(scene, s, seen_cells, [(x, y) for x, y, _w in req.seen], speeds)
     r0, c0 = seen_cells[0]
@@ -823,8 +842,22 @@ def _litter(scene: _Scene, s: SearchSettings, barriers: dict, start: tuple, stag
     cols = scene.grid.width
     begin = r * cols + c
     targets = [v for v in staging_order if v != begin]
+    from ..terrain.travel import tobler_speed
+
     speeds = _speeds(scene, s, walls=barriers["cliff"] | barriers["thicket"], litter=True)
-    speeds[0][r, c] = max(speeds[0][r, c], 1e-9)  # the person is carried from where they are
+    # the person is carried from where they are, and to the staging point, whatever the shrub or slope there; out
+    # of the heavy shrub they are in (its cells open at the heavy shrub's factor), never into another
+    from scipy import ndimage
+
+    scale = s.litter_speed / float(tobler_speed(0.0, *s.travel().tobler))
+    heavy, _n = ndimage.label(scene.classes == 3, structure=np.ones((3, 3), bool))
+    for v in (begin, *targets):
+        cell = divmod(v, cols)
+        if heavy[cell] > 0:
+            way_out = (heavy == heavy[cell]) & np.isfinite(scene.heights) & (speeds[0] <= 0)
+            speeds[0][way_out] = scale * float(s.shrub_factors[2])
+        if np.isfinite(scene.heights[cell]) and speeds[0][cell] <= 0:
+            speeds[0][cell] = scale
     minutes, pred, _src = _solve(scene, s, speeds, [start])
     if not targets:
         return None
@@ -869,6 +902,9 @@ def _report(req: _Request, plan: dict, files: dict, started: float) -> dict:
         "barrier_cells": plan["cells"], "near_feature_share": plan["near_share"],
         "routes": plan["route_count"][0],
         "litter": ({k: litter[k] for k in ("minutes", "length_m", "target")} if litter else None),
+        "warnings": ([] if litter or plan["litter"] is None else
+                     ["no litter carry from the point last seen to a staging point: heavy shrub, cliffs, water or "
+                      f"slopes past {s.litter_max_slope:g} degrees close every way (or gaps narrower than the team)"]),
         "cell_size": plan["grid"].cell_size, "unit": req.meta.xy.short,
         "outputs": files, "kept": [],
         "settings": {k: (list(v) if isinstance(v, tuple) else v) for k, v in s.__dict__.items()},

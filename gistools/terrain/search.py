@@ -118,11 +118,35 @@ def probability_of_area(distance, rings, inside_fractions, *, weight=None, split
 
 # --- barriers and handrails ---------------------------------------------------------------------------------------
 
-def slope_degrees(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
-    """The steepest slope of each cell in degrees (central differences, one-sided at edges; 0 beside nodata)."""
-    from .travel import gradient_magnitude
+def _axis_gradient(z: np.ndarray, step: float, axis: int) -> np.ndarray:
+    """dz / step along ``axis``: central differences where both neighbours have a height, one-sided where one has
+    (the grid's edge, beside nodata), 0 where neither has; NaN on cells without a height."""
+    z = np.moveaxis(z, axis, 0)
+    n = z.shape[0]
+    out = np.zeros(z.shape)
+    if n > 1:
+        ahead = np.full(z.shape, np.nan)
+        behind = np.full(z.shape, np.nan)
+        ahead[:-1] = (z[1:] - z[:-1]) / step
+        behind[1:] = (z[1:] - z[:-1]) / step
+        both = np.isfinite(ahead) & np.isfinite(behind)
+        out = np.where(both, (ahead + behind) / 2, np.where(np.isfinite(ahead), ahead,
+                                                            np.where(np.isfinite(behind), behind, 0.0)))
+    out = np.where(np.isfinite(z), out, np.nan)
+    return np.moveaxis(out, 0, axis)
 
-    return np.degrees(np.arctan(gradient_magnitude(dem, cell_metres, z_metres)))
+
+def slope_degrees(dem: np.ndarray, cell_metres: float, z_metres: float) -> np.ndarray:
+    """The steepest slope of each cell in degrees: central differences, one-sided at the grid's edge and beside
+    cells without a height (so a scarp beside a hole keeps its slope); NaN where the cell has no height.
+
+    >>> z = np.array([[0.0, 1.0, np.nan, 0.0]])
+    >>> slope_degrees(z, 1.0, 1.0).round(1).tolist()
+    [[45.0, 45.0, nan, 0.0]]
+    """
+    z = np.asarray(dem, dtype=np.float64) * z_metres
+    gy, gx = _axis_gradient(z, cell_metres, 0), _axis_gradient(z, cell_metres, 1)
+    return np.degrees(np.arctan(np.hypot(gx, gy)))
 
 
 _EIGHT = np.ones((3, 3), dtype=bool)
@@ -134,7 +158,8 @@ def cliff_cells(dem: np.ndarray, cell_metres: float, z_metres: float, *, min_slo
     lowest height within them and the cells around them) is at least ``min_height`` metres."""
     from scipy import ndimage
 
-    steep = slope_degrees(dem, cell_metres, z_metres) >= min_slope
+    with np.errstate(invalid="ignore"):
+        steep = slope_degrees(dem, cell_metres, z_metres) >= min_slope
     labels, count = ndimage.label(steep, structure=_EIGHT)
     if not count:
         return steep
@@ -238,14 +263,17 @@ def _neighbour_pairs(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return unique, counts
 
 
-def _merge_small(labels: np.ndarray, region: np.ndarray, min_cells: int) -> np.ndarray:
+def _merge_small(labels: np.ndarray, region: np.ndarray, zones: np.ndarray, min_cells: int) -> np.ndarray:
     """Pieces of fewer than ``min_cells`` cells joined, smallest first, to the neighbour they share the longest
-    edge with (one of their own ``region`` when they have such a neighbour)."""
+    edge with: one of their own ``region`` when they have such a neighbour, else one of their zone (a thicket never
+    joins open ground); a piece with neither stays as it is."""
     count = int(labels.max())
     size = np.bincount(labels.ravel(), minlength=count + 1).astype(np.int64)
     size[0] = 0
     region_of = np.zeros(count + 1, dtype=np.int64)
     region_of[labels.ravel()] = region.ravel()
+    zone_of = np.zeros(count + 1, dtype=np.int64)
+    zone_of[labels.ravel()] = zones.ravel()
     pairs, shared = _neighbour_pairs(labels)
     edges: dict[int, dict[int, int]] = {}
     for (a, b), n in zip(pairs.tolist(), shared.tolist()):
@@ -262,7 +290,9 @@ def _merge_small(labels: np.ndarray, region: np.ndarray, min_cells: int) -> np.n
             continue
         around = edges[k]
         same = {j: n for j, n in around.items() if region_of[j] == region_of[k]}
-        pick = same or around
+        pick = same or {j: n for j, n in around.items() if zone_of[j] == zone_of[k]}
+        if not pick:
+            continue
         j = max(pick, key=lambda v: (pick[v], -v))
         parent[k] = j
         size[j] += size[k]
@@ -300,6 +330,8 @@ def segment_cells(searchable: np.ndarray, walls: np.ndarray, cell_metres: float,
     from scipy import ndimage
 
     inner = searchable & ~walls
+    if searchable.any() and not inner.any():  # walls everywhere (drainages from a threshold of a cell): the lattice
+        inner = searchable
     zones = np.zeros(searchable.shape, dtype=np.int64) if zones is None else np.asarray(zones, dtype=np.int64)
     region = np.zeros(searchable.shape, dtype=np.int64)
     count = 0
@@ -328,7 +360,7 @@ def segment_cells(searchable: np.ndarray, walls: np.ndarray, cell_metres: float,
         part, m = ndimage.label(pieces[sl] == k)
         split[sl][part > 0] = part[part > 0] + n
         n += m
-    merged = _merge_small(split, region, max(1, int(0.25 * target_m2 / cell_metres ** 2)))
+    merged = _merge_small(split, region, zones, max(1, int(0.25 * target_m2 / cell_metres ** 2)))
     if (searchable & walls).any():  # wall cells to the nearest segment
         _, (ir, ic) = ndimage.distance_transform_edt(merged == 0, return_indices=True)
         merged = np.where(searchable, merged[ir, ic], 0)
