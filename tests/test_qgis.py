@@ -756,6 +756,19 @@ def test_search_plan_algorithm_equals_the_library(qgis, reference, tmp_path):
     assert q.drop(columns="geometry").equals(ref.drop(columns="geometry")) and q["hours"].sum() == 6
     routes = gpd.read_file(result["ROUTES"].split("|")[0], layer="routes")
     assert list(routes["minutes"]) == list(gpd.read_file(tmp_path / "lib" / "routes.gpkg", layer="routes")["minutes"])
+    # QGIS opens each layer with its style (stored in the GeoPackage; poa.qml beside the raster)
+    from qgis.core import QgsRasterLayer, QgsVectorLayer
+
+    segments = QgsVectorLayer(result["SEGMENTS"], "segments", "ogr")
+    assert segments.renderer().type() == "graduatedSymbol" and segments.renderer().classAttribute() == "poa"
+    assert len(segments.renderer().ranges()) >= 2 and segments.labelsEnabled()
+    lines = QgsVectorLayer(result["ROUTES"], "routes", "ogr")
+    assert lines.renderer().symbol().color().name() == "#e08214"
+    barriers = QgsVectorLayer(result["BARRIERS"], "barriers", "ogr")
+    assert barriers.renderer().type() == "categorizedSymbol"
+    assert {c.value() for c in barriers.renderer().categories()} == {"cliff", "water", "thicket"}
+    poa = QgsRasterLayer(result["POA"], "poa")
+    assert poa.renderer().type() == "singlebandpseudocolor"
 
 
 def test_structure_algorithm_equals_the_library(qgis, tmp_path):

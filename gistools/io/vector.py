@@ -188,8 +188,10 @@ def write_layer(gdf: gpd.GeoDataFrame, path, layer: str, *, overwrite: bool = Tr
     return path
 
 
-def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_max: int = 100_000) -> Path:
-    """Write several layers ({name: GeoDataFrame}) into one GeoPackage, atomically (all or nothing).
+def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_max: int = 100_000,
+                 styles: dict | None = None) -> Path:
+    """Write several layers ({name: GeoDataFrame}) into one GeoPackage, atomically (all or nothing); ``styles``
+    ({layer: QML}): each layer's default QGIS style, stored in the file (``layer_styles``).
 
     Layers of more than ``spatial_index_max`` features get no R-tree index: building it row by row
     costs GDAL < 3.7 more than the write itself (QGIS can add it: Layer Properties > Create Spatial Index).
@@ -205,6 +207,10 @@ def write_layers(layers: dict, path, *, overwrite: bool = True, spatial_index_ma
             pyogrio.write_dataframe(gdf, tmp, layer=name, driver="GPKG", append=k > 0,
                                     layer_options={"SPATIAL_INDEX": index},
                                     dataset_options=None if k > 0 else GPKG_OPTIONS)
+        if styles:
+            from .styles import add_layer_styles
+
+            add_layer_styles(tmp, styles)
     return path
 
 

@@ -635,6 +635,7 @@ def _write(out: Path, plan: dict) -> dict:
     import shapely
 
     from ..io.raster import write_raster
+    from ..io.styles import categorized_qml, line_qml
     from ..io.vector import write_layers
 
     grid, crs = plan["grid"], plan["grid"].crs
@@ -655,7 +656,8 @@ def _write(out: Path, plan: dict) -> dict:
     points = _frame([{"kind": k, "where": w} for k, (_x, _y, w) in plan["points"]],
                     [shapely.Point(x, y) for _k, (x, y, _w) in plan["points"]], crs,
                     {"kind": "object", "where": "object"})
-    write_layers({"segments": segments, "rings": rings, "points": points}, files["segments"], overwrite=True)
+    write_layers({"segments": segments, "rings": rings, "points": points}, files["segments"], overwrite=True,
+                 styles=_segment_styles(segments))
     kinds = _polygons(plan["barrier_codes"], grid)
     barrier_rows, barrier_geoms = [], []
     for code, geom in kinds.items():
@@ -666,13 +668,52 @@ def _write(out: Path, plan: dict) -> dict:
     barriers = _frame(barrier_rows, barrier_geoms, crs, {"kind": "object", "area_ha": "float64"})
     handrails = _frame([{"kind": k, "length_m": g.length * plan["xy_metres"]} for k, g in plan["handrails"]],
                        [g for _k, g in plan["handrails"]], crs, {"kind": "object", "length_m": "float64"})
-    write_layers({"barriers": barriers, "handrails": handrails}, files["barriers"], overwrite=True)
+    write_layers({"barriers": barriers, "handrails": handrails}, files["barriers"], overwrite=True,
+                 styles={"barriers": categorized_qml("kind", {k: (k, c) for k, c in BARRIER_CODES.values()}),
+                         "handrails": categorized_qml("kind", HANDRAIL_STYLE, kind="line")})
     rows, lines, litter_rows, litter_lines = _route_rows(plan)
     write_layers({"routes": _frame(rows, lines, crs, _ROUTE_COLUMNS),
-                  "litter": _frame(litter_rows, litter_lines, crs, _ROUTE_COLUMNS)}, files["routes"], overwrite=True)
+                  "litter": _frame(litter_rows, litter_lines, crs, _ROUTE_COLUMNS)}, files["routes"], overwrite=True,
+                 styles={"routes": line_qml(ROUTE_COLOUR, 0.6), "litter": line_qml(LITTER_COLOUR, 0.9, dash=True)})
+    _poa_style(out, plan)
     plan["route_count"] = (len(rows), len(litter_rows))
     plan["litter_route"] = litter_rows[0] if litter_rows else None
     return {k: str(p) for k, p in files.items()}
+
+
+ROUTE_COLOUR, LITTER_COLOUR = "#e08214", "#b2182b"  # as the web map and the map book draw them
+HANDRAIL_STYLE = {"road": ("road", "#4d4d4d"), "trail": ("trail", "#8c510a"), "drainage": ("drainage", "#2171b5"),
+                  "ridge": ("ridge", "#7a0177"), "water_edge": ("water's edge", "#08519c"),
+                  "thicket_edge": ("thicket edge", "#1b5e20")}
+POA_RAMP = ("#fff5eb", "#fdd0a2", "#fd8d3c", "#d94801", "#7f2704")
+
+
+def _segment_styles(segments) -> dict:
+    """The segments filled by POA in five classes of equal count (labelled with their number), the rings as blue
+    outlines, the points as QGIS draws them."""
+    from ..io.styles import graduated_fill_qml, outline_qml
+
+    values = np.sort(segments["poa"].to_numpy(dtype=np.float64)) if len(segments) else np.zeros(1)
+    breaks = sorted({float(np.quantile(values, q)) for q in np.linspace(0, 1, 6)})
+    if len(breaks) < 2:
+        breaks = [breaks[0], breaks[0] + 1e-12]
+    return {"segments": graduated_fill_qml("poa", breaks, POA_RAMP, label_field="segment"),
+            "rings": outline_qml("#2166ac", 0.6)}
+
+
+def _poa_style(out: Path, plan: dict) -> None:
+    """poa.qml beside poa.tif: five classes of the cells' probability (a user's own style there is kept)."""
+    from ..io.atomic import atomic_path
+    from ..io.styles import pseudocolour_qml, style_is_ours
+
+    target = out / "poa.qml"
+    if not style_is_ours(target):
+        return
+    cells = plan["poa"][plan["poa"] > 0]
+    top = float(cells.max()) if cells.size else 1.0
+    breaks = sorted({float(v) for v in np.quantile(cells, (0.2, 0.4, 0.6, 0.8))}) if cells.size else [top]
+    with atomic_path(target, overwrite=True) as tmp:
+        tmp.write_text(pseudocolour_qml(breaks, top, POA_RAMP, ""), encoding="utf-8")
 
 
 def _handrails(scene: _Scene, barriers: dict, features: dict) -> list:
