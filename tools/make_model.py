@@ -35,13 +35,41 @@ HELP = (
 )
 
 
+def add_child(model, cid: str, alg: str, description: str, at: tuple, sources: dict, outputs: dict) -> None:
+    """A child algorithm of ``model`` at ``at`` (x, y), its parameters from ``sources`` (every other mandatory one at
+    its declared default, so the Model Designer validates the model) and ``outputs`` ({child output: model output
+    name}) made outputs of the model."""
+    from qgis.core import (QgsApplication, QgsProcessingModelChildAlgorithm, QgsProcessingModelOutput,
+                           QgsProcessingModelChildParameterSource as Src)
+    from qgis.PyQt.QtCore import QPointF
+
+    from gistools_qgis.compat import OPTIONAL
+
+    c = QgsProcessingModelChildAlgorithm(alg)
+    c.setChildId(cid)
+    c.setDescription(description)
+    c.setPosition(QPointF(*at))
+    for d in QgsApplication.processingRegistry().algorithmById(alg).parameterDefinitions():
+        if not d.isDestination() and not d.flags() & OPTIONAL and d.name() not in sources:
+            sources[d.name()] = Src.fromStaticValue(d.defaultValue())
+    for name, src in sources.items():
+        c.addParameterSources(name, [src])
+    if outputs:
+        mos = {}
+        for child_output, model_name in outputs.items():
+            mo = QgsProcessingModelOutput(model_name, model_name)
+            mo.setChildId(cid)
+            mo.setChildOutputName(child_output)
+            mo.setPosition(QPointF(at[0] + 200, at[1] + 40))
+            mos[model_name] = mo
+        c.setModelOutputs(mos)
+    model.addChildAlgorithm(c)
+
+
 def build():
     from qgis.core import (
-        QgsApplication,
         QgsProcessingModelAlgorithm,
-        QgsProcessingModelChildAlgorithm,
         QgsProcessingModelChildParameterSource as Src,
-        QgsProcessingModelOutput,
         QgsProcessingModelParameter,
         QgsProcessingParameterFile,
         QgsProcessingParameterString,
@@ -50,7 +78,7 @@ def build():
     from qgis.PyQt.QtCore import QPointF
 
     # the plugin as load_plugin() imported it; its enums by the names of the running QGIS (3.22 to 4)
-    from gistools_qgis.compat import FOLDER, OPTIONAL, VECTOR_LINE, VECTOR_POLYGON
+    from gistools_qgis.compat import FOLDER, VECTOR_LINE, VECTOR_POLYGON
 
     from gistools.lidar.bands import PRESETS
     from gistools.lidar.dsmfill import DSM_FILLS
@@ -87,27 +115,8 @@ def build():
     model.setParameterOrder([d.name() for d, _ in inputs])  # the form in the chain's order (else alphabetical)
 
     def child(cid, alg, description, x, y, sources, outputs=None):
-        c = QgsProcessingModelChildAlgorithm(alg)
-        c.setChildId(cid)
-        c.setDescription(description)
-        c.setPosition(QPointF(x, y))
-        for d in QgsApplication.processingRegistry().algorithmById(alg).parameterDefinitions():
-            # every other mandatory parameter at its declared default, so the Model Designer validates the model
-            if not d.isDestination() and not d.flags() & OPTIONAL and d.name() not in sources:
-                sources[d.name()] = V(d.defaultValue())
-        for name, src in sources.items():
-            c.addParameterSources(name, [src])
-        if outputs:
-            mos = {}
-            for child_output, (model_name, param) in outputs.items():
-                mo = QgsProcessingModelOutput(model_name, model_name)
-                mo.setChildId(cid)
-                mo.setChildOutputName(child_output)
-                mo.setPosition(QPointF(x + 200, y + 40))
-                mos[model_name] = mo
-            c.setModelOutputs(mos)
-        model.addChildAlgorithm(c)
-        return c
+        add_child(model, cid, alg, description, (x, y), sources,
+                  {k: name for k, (name, _param) in (outputs or {}).items()})
 
     P, C, V = Src.fromModelParameter, Src.fromChildOutput, Src.fromStaticValue
     child("points_ground", "gistools:points", "LAS to ground points (class 2)", 420, 40,
@@ -149,11 +158,8 @@ def build():
 def build_search_plan():
     """The search plan's model: tiles and breaklines -> gistools:shrubchain -> gistools:search_plan."""
     from qgis.core import (
-        QgsApplication,
         QgsProcessingModelAlgorithm,
-        QgsProcessingModelChildAlgorithm,
         QgsProcessingModelChildParameterSource as Src,
-        QgsProcessingModelOutput,
         QgsProcessingModelParameter,
         QgsProcessingParameterEnum,
         QgsProcessingParameterFile,
@@ -162,7 +168,7 @@ def build_search_plan():
     )
     from qgis.PyQt.QtCore import QPointF
 
-    from gistools_qgis.compat import FOLDER, OPTIONAL, VECTOR_LINE, VECTOR_POLYGON
+    from gistools_qgis.compat import FOLDER, VECTOR_LINE, VECTOR_POLYGON
 
     from gistools.parameters import PARAMETERS
 
@@ -188,24 +194,7 @@ def build_search_plan():
     P, C, V = Src.fromModelParameter, Src.fromChildOutput, Src.fromStaticValue
 
     def child(cid, alg, description, x, y, sources, outputs):
-        c = QgsProcessingModelChildAlgorithm(alg)
-        c.setChildId(cid)
-        c.setDescription(description)
-        c.setPosition(QPointF(x, y))
-        for d in QgsApplication.processingRegistry().algorithmById(alg).parameterDefinitions():
-            if not d.isDestination() and not d.flags() & OPTIONAL and d.name() not in sources:
-                sources[d.name()] = V(d.defaultValue())
-        for name, src in sources.items():
-            c.addParameterSources(name, [src])
-        mos = {}
-        for child_output, model_name in outputs.items():
-            mo = QgsProcessingModelOutput(model_name, model_name)
-            mo.setChildId(cid)
-            mo.setChildOutputName(child_output)
-            mo.setPosition(QPointF(x + 200, y + 40))
-            mos[model_name] = mo
-        c.setModelOutputs(mos)
-        model.addChildAlgorithm(c)
+        add_child(model, cid, alg, description, (x, y), sources, outputs)
 
     child("shrub", "gistools:shrubchain", "Shrub map (whole chain)", 420, 120,
           {"INPUT": P("TILES"), "ROADS": P("ROADS"), "HYDRO": P("HYDRO"), "WATERBODIES": P("WATERBODIES"),

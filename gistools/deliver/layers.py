@@ -101,8 +101,13 @@ TRAVEL_HINT = "Give the output folder of gistools travel as it wrote it (or run 
 
 
 def _travel_layer(path: Path, layer: str):
-    """A layer of a travel folder's GeoPackage, checked: there, with a CRS, its number columns numbers (as floats),
-    the isochrones not empty; else one line naming the file and the layer or column."""
+    """A layer of a travel folder's GeoPackage, checked (``checked_layer``), the isochrones not empty."""
+    return checked_layer(path, layer, TRAVEL_LAYERS[layer], TRAVEL_HINT, nonempty=layer == "isochrones")
+
+
+def checked_layer(path: Path, layer: str, columns, hint: str, nonempty: bool = False):
+    """A layer of a GeoPackage a gistools command wrote, checked: there, with a CRS, its number ``columns`` numbers
+    (as floats), features in it when ``nonempty``; else one line naming the file and the layer or column."""
     import geopandas as gpd
     import pyogrio
 
@@ -111,29 +116,30 @@ def _travel_layer(path: Path, layer: str):
         gdf = gpd.read_file(path, layer=layer) if layer in names else None
     except Exception as err:  # noqa: BLE001 - not a GeoPackage, damaged: its reader's own words, on one line
         raise DataFileError(f"cannot read layer {layer} ({' '.join(str(err).split())})", path=path,
-                            hint=TRAVEL_HINT) from None
+                            hint=hint) from None
     if gdf is None:
-        raise InputError(f"no layer {layer} (its layers: {', '.join(names) or 'none'})", path=path, hint=TRAVEL_HINT)
+        raise InputError(f"no layer {layer} (its layers: {', '.join(names) or 'none'})", path=path, hint=hint)
     if gdf.crs is None:
-        raise InputError(f"layer {layer} has no CRS", path=path, hint=TRAVEL_HINT)
-    if layer == "isochrones" and len(gdf) == 0:
-        raise InputError(f"layer {layer} has no features", path=path, hint=TRAVEL_HINT)
-    for column in TRAVEL_LAYERS[layer]:
-        gdf[column] = _number_column(gdf, column, path, layer)
+        raise InputError(f"layer {layer} has no CRS", path=path, hint=hint)
+    if nonempty and len(gdf) == 0:
+        raise InputError(f"layer {layer} has no features", path=path, hint=hint)
+    for column in columns:
+        gdf[column] = _number_column(gdf, column, path, layer, hint)
     return gdf
 
 
-def _number_column(gdf, column: str, path: Path, layer: str):
-    """The column ``column`` of ``gdf`` as finite floats; else one line naming the file, layer and column."""
+def _number_column(gdf, column: str, path: Path, layer: str, hint: str = TRAVEL_HINT, finite: bool = True):
+    """The column ``column`` of ``gdf`` as floats (``finite``: all finite); else one line naming the file, layer
+    and column."""
     import pandas as pd
 
     if column not in gdf.columns:
-        raise InputError(f"layer {layer} has no {column} column", path=path, hint=TRAVEL_HINT)
+        raise InputError(f"layer {layer} has no {column} column", path=path, hint=hint)
     values = pd.to_numeric(gdf[column], errors="coerce").astype("float64")
     bad = ~np.isfinite(values.to_numpy())
-    if bad.any():
+    if finite and bad.any():
         raise InputError(f"layer {layer}, column {column}: {gdf[column].iloc[int(np.argmax(bad))]!r} is not a "
-                         "finite number", path=path, hint=TRAVEL_HINT)
+                         "finite number", path=path, hint=hint)
     return values
 
 
@@ -311,24 +317,9 @@ PLAN_HINT = "Give the output folder of gistools search-plan as it wrote it (or r
 def plan_frames(folder: Path, crs=None) -> dict:
     """{"segments", "routes", "litter"}: the GeoDataFrames of a search plan folder, checked (the layers there, with
     a CRS, their number columns numbers), in ``crs`` when given."""
-    import geopandas as gpd
-    import pyogrio
-
     frames = {}
     for (name, layer), columns in PLAN_LAYERS.items():
-        path = Path(folder) / name
-        try:
-            names = [str(n) for n, _kind in pyogrio.list_layers(path)]
-            gdf = gpd.read_file(path, layer=layer) if layer in names else None
-        except Exception as err:  # noqa: BLE001 - not a GeoPackage, damaged: its reader's own words, on one line
-            raise DataFileError(f"cannot read layer {layer} ({' '.join(str(err).split())})", path=path,
-                                hint=PLAN_HINT) from None
-        if gdf is None or gdf.crs is None:
-            raise InputError(f"no layer {layer} with a CRS", path=path, hint=PLAN_HINT)
-        for column in columns:
-            if column not in gdf.columns:
-                raise InputError(f"layer {layer} has no {column} column", path=path, hint=PLAN_HINT)
-            gdf[column] = pd_numeric(gdf[column])
+        gdf = checked_layer(Path(folder) / name, layer, columns, PLAN_HINT)
         if crs is not None:
             import pyproj
 
@@ -336,12 +327,6 @@ def plan_frames(folder: Path, crs=None) -> dict:
                 gdf = gdf.to_crs(crs)
         frames[layer] = gdf
     return frames
-
-
-def pd_numeric(series):
-    import pandas as pd
-
-    return pd.to_numeric(series, errors="coerce").astype("float64")
 
 
 def _web_features(gdf, keys) -> list[dict]:
