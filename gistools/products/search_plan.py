@@ -231,23 +231,11 @@ def _effort(path, segments: int) -> dict[int, float]:
                 raise DataFileError("the effort table needs the columns segment,hours", path=path,
                                     hint="One line a segment: segment,hours (searcher-hours)")
             for line, r in enumerate(reader, start=2):
-                r = {k.strip().lower(): (v or "").strip() for k, v in r.items() if k}
+                r = {k.strip().lower(): (v or "").strip() for k, v in r.items() if isinstance(k, str)
+                     and isinstance(v, (str, type(None)))}
                 if not r.get("segment"):
                     continue
-                try:
-                    number, h = float(r["segment"]), float(r.get("hours") or 0)
-                    seg = int(number)
-                except (ValueError, OverflowError):
-                    raise DataFileError(f"line {line}: segment {r['segment']!r}, hours {r.get('hours')!r}: "
-                                        "a segment number and hours are needed", path=path) from None
-                if seg != number:
-                    raise DataFileError(f"line {line}: segment {r['segment']!r} is not a whole number", path=path)
-                if not 1 <= seg <= segments:
-                    raise DataFileError(f"line {line}: there is no segment {seg} (the plan has 1-{segments})",
-                                        path=path, hint=f"Number the effort by the segments of segments.gpkg")
-                if not math.isfinite(h) or h < 0:
-                    raise DataFileError(f"line {line}: hours {r['hours']!r} must be a finite number at least 0",
-                                        path=path)
+                seg, h = _effort_row(r, line, path, segments)
                 if seg in hours:
                     raise DataFileError(f"line {line}: segment {seg} is given twice", path=path)
                 hours[seg] = h
@@ -258,6 +246,25 @@ def _effort(path, segments: int) -> dict[int, float]:
     except (csv.Error, UnicodeDecodeError) as err:
         raise DataFileError(f"the effort table is not a UTF-8 CSV ({err})", path=path) from None
     return hours
+
+
+def _effort_row(r: dict, line: int, path, segments: int) -> tuple[int, float]:
+    """(segment, hours) of a line of the effort table, checked: a whole segment number of the plan, hours a finite
+    number at least 0."""
+    try:
+        number, h = float(r["segment"]), float(r.get("hours") or 0)
+        seg = int(number)
+    except (ValueError, OverflowError):
+        raise DataFileError(f"line {line}: segment {r['segment']!r}, hours {r.get('hours')!r}: a segment number "
+                            "and hours are needed", path=path) from None
+    if seg != number:
+        raise DataFileError(f"line {line}: segment {r['segment']!r} is not a whole number", path=path)
+    if not 1 <= seg <= segments:
+        raise DataFileError(f"line {line}: there is no segment {seg} (the plan has 1-{segments})", path=path,
+                            hint="Number the effort by the segments of segments.gpkg")
+    if not math.isfinite(h) or h < 0:
+        raise DataFileError(f"line {line}: hours {r['hours']!r} must be a finite number at least 0", path=path)
+    return seg, h
 
 
 def _points(values, crs, reproject: bool, name: str) -> list[tuple[float, float, str]]:
