@@ -341,3 +341,43 @@ def test_effort_and_table_mistakes_are_one_line(tmp_path):
     rep = search_plan(dem, tmp_path / "o2", f"{X0 + 10},{Y0 + 10}", "x", categories=table)
     assert rep["rings_m"] == [100.0, 200.0, 300.0, 400.0]
     assert not (tmp_path / "o" / "poa.tif").exists()
+
+
+def test_walked_rings_on_flat_ground_lie_within_the_grid_bound_and_a_river_pushes_them(tmp_path):
+    """--distance walk on flat open ground: the cells of each ring (one probability level each) lie between the
+    ring's distances as the crow flies, up to the 16 neighbours' 2.75 %; across a river without a bridge, cells
+    close as the crow flies fall to later rings."""
+    from gistools.products.travel import NEIGHBOUR_BOUND
+
+    dem, _, _ = _scene(tmp_path / "in", np.zeros((250, 250)))
+    cx, cy = X0 + 500.0 + 2.0, Y0 + 500.0 + 2.0
+    table = _table(tmp_path / "t.csv", (0.1, 0.2, 0.3, 0.4))
+    rep = search_plan(dem, tmp_path / "plan", f"{cx},{cy}", "test", SearchSettings(distance="walk", **NO_FEATURES),
+                      categories=table)
+    poa, transform = _read(tmp_path / "plan" / "poa.tif")
+    x, y = _centres(transform, poa.shape)
+    d = np.hypot(x - cx, y - cy)
+    levels = sorted({float(v) for v in poa[poa > 0]}, reverse=True)
+    assert len(levels) == 4 and rep["rest_of_world"] == pytest.approx(0.05, abs=1e-9)
+    bound = 1 + NEIGHBOUR_BOUND[16]
+    low = 0.0
+    rings = {}
+    for high in (100.0, 200.0, 300.0, 400.0):  # the ring of each cell by its level
+        rings[high] = (low, high)
+        low = high
+    for v in levels:
+        cells = poa == v
+        inner, outer = d[cells].min(), d[cells].max()
+        ring = next(r for r in rings.values() if r[0] / bound - 4 <= inner and outer < r[1] + 1e-9)
+        assert poa[cells].sum() == pytest.approx((0.25, 0.25, 0.25, 0.2)[list(rings.values()).index(ring)], abs=1e-9)
+    # a river (water) 44 m east of the point, ending 100 m south of it: a cell just across it is walked round its
+    # end (about 230 m: the third ring) while a cell as far on this side is in the first
+    classes = np.zeros((250, 250), np.uint8)
+    classes[:150, 136:139] = 5
+    dem2, cls, _ = _scene(tmp_path / "in2", np.zeros((250, 250)), classes)
+    search_plan(dem2, tmp_path / "plan2", f"{cx},{cy}", "test", SearchSettings(distance="walk", **NO_FEATURES),
+                classes=cls, categories=table)
+    poa2, _ = _read(tmp_path / "plan2" / "poa.tif")
+    west, east = poa2[125, 125 - 15], poa2[125, 125 + 15]  # 60 m either way, the east one across the river
+    levels2 = sorted({float(v) for v in poa2[poa2 > 0]}, reverse=True)
+    assert west == levels2[0] and east in levels2[2:]  # the first ring's level; the east cell's a later ring's
