@@ -268,6 +268,9 @@ def test_the_shipped_table_has_its_categories_in_increasing_rings():
     assert dementia["ecoregion"] == "temperate_mountainous"
     # Koester's dementia, temperate mountainous, in miles: 0.2, 0.5, 1.2, 5.1
     assert dementia["rings_m"] == pytest.approx([v * 1609.344 for v in (0.2, 0.5, 1.2, 5.1)], abs=0.1)
+    from gistools.products.search_plan import category_row
+
+    assert category_row(table, "Child 1-3", "Temperate")["category"] == "child_1_3"  # as a person writes it
 
 
 def test_the_sample_plan_through_the_command_line(tmp_path):
@@ -286,7 +289,7 @@ def test_the_sample_plan_through_the_command_line(tmp_path):
     rep = json.loads((tmp_path / "plan" / "report.json").read_text(encoding="utf-8"))
     assert rep["rings_m"] == pytest.approx([v * 1609.344 for v in (0.2, 0.5, 1.2, 5.1)], abs=0.1)
     poa, _ = _read(tmp_path / "plan" / "poa.tif")
-    assert np.nansum(poa) + rep["rest_of_world"] == pytest.approx(1.0, abs=1e-9)
+    assert poa.sum() + rep["rest_of_world"] == pytest.approx(1.0, abs=1e-9)  # no nodata: 0 off the data
     seg = gpd.read_file(tmp_path / "plan" / "segments.gpkg", layer="segments")
     assert {"segment", "area_ha", "poa", "sweep_width_m", "hours", "coverage", "pod"} <= set(seg.columns)
     assert seg["poa"].sum() == pytest.approx(np.nansum(poa), rel=1e-9)

@@ -183,7 +183,7 @@ def _table_row(r: dict, line: int, path: Path) -> dict:
     rings = [number(k) for k in _NEEDED[2:]]
     if any(v is None or v <= 0 for v in rings) or any(b <= a for a, b in zip(rings, rings[1:])):
         raise DataFileError(f"line {line}: p25_km < p50_km < p75_km < p95_km, all above 0, are needed", path=path)
-    row = {"category": r["category"].strip().lower(), "ecoregion": (r.get("ecoregion") or "").strip().lower(),
+    row = {"category": category_key(r["category"]), "ecoregion": category_key(r.get("ecoregion") or ""),
            "rings_m": [v * 1000.0 for v in rings], "source": (r.get("source") or "").strip(),
            "n": (r.get("n") or "").strip()}
     row.update({k: number(k) for k in _SHARES})
@@ -196,6 +196,13 @@ def _table_row(r: dict, line: int, path: Path) -> dict:
     return row
 
 
+def category_key(name) -> str:
+    """A category or terrain as the table keys it: lower case, words joined by "_" ("Child 1-3" -> "child_1_3")."""
+    import re
+
+    return re.sub(r"[^0-9a-z]+", "_", str(name).strip().lower()).strip("_")
+
+
 def category_row(table: list[dict], category: str, ecoregion: str | None) -> dict:
     """The row of ``category`` (and ``ecoregion``, else its first row); InputError naming the ones there."""
     from ..parameters import option
@@ -204,12 +211,12 @@ def category_row(table: list[dict], category: str, ecoregion: str | None) -> dic
         raise InputError(f"no lost person category: give {option('category')}",
                          hint=f"e.g. {option('category', 'dementia')}; the table's: "
                               + ", ".join(sorted({r['category'] for r in table})))
-    rows = [r for r in table if r["category"] == str(category).strip().lower()]
+    rows = [r for r in table if r["category"] == category_key(category)]
     if not rows:
         raise InputError(f"{option('category', category)} is not in the categories table",
                          hint="Give one of " + ", ".join(sorted({r['category'] for r in table})))
     if ecoregion:
-        pick = [r for r in rows if r["ecoregion"] == str(ecoregion).strip().lower()]
+        pick = [r for r in rows if r["ecoregion"] == category_key(ecoregion)]
         if not pick:
             raise InputError(f"{option('ecoregion', ecoregion)}: the table has no such row for {category}",
                              hint="Give one of " + ", ".join(r["ecoregion"] or "''" for r in rows))
@@ -404,7 +411,7 @@ def _speeds(scene: _Scene, s: SearchSettings, walls=None, litter: bool = False) 
     """(factor, fixed speed) of a walker (``travel``'s model, trails walked as roads), or of a litter carry: its
     speed on flat ground, no cell steeper than its limit, no gap narrower than its team, no heavy shrub, cliff or
     water."""
-    from ..terrain.search import corridor_open, slope_degrees
+    from ..terrain.search import corridor_open
     from ..terrain.travel import tobler_speed
     from ..units import length_to_crs_units
     from .travel import speed_model
@@ -416,11 +423,23 @@ def _speeds(scene: _Scene, s: SearchSettings, walls=None, litter: bool = False) 
         return factor, fixed
     blocked = walls | (classes == 3) | scene.water | ~np.isfinite(scene.heights)
     width = length_to_crs_units(s.litter_width, scene.xy, name="litter_width") * scene.xy.metres
-    steep = slope_degrees(scene.heights, scene.cell_m, scene.z.metres) > s.litter_max_slope
+    steep = _steeper(scene, s.litter_max_slope)
     ok = corridor_open(blocked, scene.cell_m, width) & ~steep & ~blocked
     scale = s.litter_speed / float(tobler_speed(0.0, *travel.tobler))
     factor = np.where(ok, np.where(np.isfinite(fixed), 1.0, factor) * scale, 0.0)
     return factor, np.full(factor.shape, np.nan)
+
+
+def _steeper(scene: _Scene, limit: float) -> np.ndarray:
+    """Cells steeper than ``limit`` degrees by the central differences of the walk's slope or by gdaldem's (Horn's
+    3 x 3 window, where the window has heights): a litter is kept off both."""
+    from ..terrain.derivatives import terrain_arrays
+    from ..terrain.search import slope_degrees
+
+    z = scene.heights * scene.z.metres
+    horn = terrain_arrays(np.pad(z, 1, constant_values=np.nan), scene.cell_m, scene.cell_m, products=("slope",))
+    with np.errstate(invalid="ignore"):
+        return (slope_degrees(scene.heights, scene.cell_m, scene.z.metres) > limit) | (horn["slope"] > limit)
 
 
 def _solve(scene: _Scene, s: SearchSettings, speeds, sources) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -648,7 +667,7 @@ def _write(out: Path, plan: dict) -> dict:
     grid, crs = plan["grid"], plan["grid"].crs
     files = {k: out / name for k, name in OUTPUTS.items()}
     has = plan["has"]
-    write_raster(files["poa"], np.where(has, plan["poa"], np.nan), grid, dtype="float64", overwrite=True,
+    write_raster(files["poa"], plan["poa"], grid, dtype="float64", overwrite=True,
                  tags={"GISTOOLS_PRODUCT": "poa"}, description="probability of area (per cell)")
     write_raster(files["segments_raster"], plan["labels"], grid, nodata=0, dtype="int32", overwrite=True,
                  tags={"GISTOOLS_PRODUCT": "segments"}, description="search segment")
@@ -965,8 +984,8 @@ def search_plan(dem, out, last_seen, category, settings: SearchSettings | None =
                 categories=None, overwrite: bool = False, progress=None) -> dict:
     """The search plan of a lost person from the point last seen: ``gistools search-plan``.
 
-    Writes under ``out``: ``poa.tif`` (float64 probability of each cell; the cells of the DEM sum to 1 less the
-    rest of the world), ``segments.tif`` (int32 segment numbers), ``barriers.tif`` (uint8: 1 cliff, 2 water,
+    Writes under ``out``: ``poa.tif`` (float64 probability of each cell, 0 off the rings and the DEM's data; the
+    cells sum to 1 less the rest of the world), ``segments.tif`` (int32 segment numbers), ``barriers.tif`` (uint8: 1 cliff, 2 water,
     3 thicket), ``segments.gpkg`` (layers ``segments``: ``segment``, ``rank``, ``area_ha``, ``acres``, ``poa``,
     ``density`` per ha, ``vegetation``, ``sweep_width_m``, ``minutes_from_staging``, ``hours``, ``coverage``,
     ``pod``, ``pos``, ``pos_per_hour``; ``rings``; ``points``), ``barriers.gpkg`` (``barriers`` polygons and
