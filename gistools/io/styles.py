@@ -181,7 +181,7 @@ def add_layer_styles(gpkg, styles: dict) -> None:
                     "f_table_catalog TEXT(256), f_table_schema TEXT(256), f_table_name TEXT(256), "
                     "f_geometry_column TEXT(256), styleName TEXT(30), styleQML TEXT, styleSLD TEXT, "
                     "useAsDefault BOOLEAN, description TEXT, owner TEXT(30), ui TEXT(30), "
-                    "update_time DATETIME DEFAULT CURRENT_TIMESTAMP)")
+                    "update_time DATETIME DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ', 'now')))")  # GeoPackage's form
         con.execute("INSERT OR IGNORE INTO gpkg_contents (table_name, data_type, identifier) "
                     "VALUES ('layer_styles', 'attributes', 'layer_styles')")
         for layer, qml in styles.items():
