@@ -91,7 +91,7 @@ def probability_of_area(distance, rings, inside_fractions, *, weight=None, split
     >>> import numpy as np
     >>> d = np.array([[0.0, 50.0, 150.0, 250.0, 350.0]])
     >>> p, held = probability_of_area(d, [100, 200, 300, 400], [1, 1, 1, 1])
-    >>> p.tolist(), round(1 - p.sum(), 2)
+    >>> p.tolist(), round(float(1 - p.sum()), 2)
     ([[0.125, 0.125, 0.25, 0.25, 0.2]], 0.05)
     """
     distance = np.asarray(distance, dtype=np.float64)
