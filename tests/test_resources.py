@@ -6,6 +6,7 @@ from __future__ import annotations
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -113,6 +114,41 @@ def test_memory_errors_are_the_runs_not_a_tiles():
             text = str(raised.value)
         assert "35712" in text and "--jobs" in text and "--cell-size" in text
         assert result.status == "ok"  # the tile is not blamed
+
+
+_KILLED_WHILE_FED = """
+import os, signal, threading
+from gistools.engine.batch import ProcessPool
+
+if __name__ == "__main__":
+    pool = ProcessPool(1, "spawn", warm=True)
+    pid = pool.submit(os.getpid).result(timeout=120)
+    os.kill(pid, signal.SIGSTOP)  # the worker stops reading: the task's 8 MB fill the pipe and the feeder waits
+    fut = pool.submit(len, bytes(8_000_000))
+    threading.Event().wait(0.5)
+    os.kill(pid, signal.SIGKILL)
+    try:
+        fut.result(timeout=60)
+    except Exception as err:
+        print(type(err).__name__)
+    closing = threading.Thread(target=pool.close, args=([fut],), daemon=True)
+    closing.start()
+    closing.join(60)
+    print("hung" if closing.is_alive() else "closed", flush=True)
+    os._exit(0)
+"""
+
+
+@pytest.mark.skipif(sys.platform == "win32", reason="stops a process with SIGSTOP (POSIX)")
+def test_a_worker_killed_while_its_task_is_written_to_it_does_not_hang_the_pool(tmp_path):
+    """A worker the system kills while a large task is still being written to it (a cloth helper given a tile's
+    points): the task fails with BrokenProcessPool and closing the pool returns. Python 3.11.2 (Debian 12) waits for
+    the blocked writer for ever unless the pool lets it go."""
+    script = tmp_path / "killed_while_fed.py"
+    script.write_text(_KILLED_WHILE_FED, encoding="utf-8")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300,
+                          cwd=Path(__file__).resolve().parents[1])
+    assert done.stdout.split() == ["BrokenProcessPool", "closed"], done.stdout + done.stderr[-2000:]
 
 
 @pytest.mark.skipif(sys.platform != "linux", reason="reads the process group with ps (Linux)")

@@ -345,7 +345,12 @@ class ProcessPool:
             for proc in self._processes:
                 if proc.is_alive():
                     proc.kill()
+            _unblock_feeder(self.pool)
         self.pool.shutdown(wait=bool(futures), cancel_futures=True)
+
+    def lost_worker(self) -> bool:
+        """True when one of the pool's processes has ended (the system killed it between two calls)."""
+        return any(proc.exitcode is not None for proc in (getattr(self.pool, "_processes", None) or {}).values())
 
     def join(self):
         """Close the pool if it is open, and wait until its workers and its manager thread have ended."""
@@ -354,6 +359,20 @@ class ProcessPool:
             proc.join()
         if self._manager is not None:
             self._manager.join()
+
+
+def _unblock_feeder(executor) -> None:
+    """Let the executor's queue feeder go when its readers are dead: a worker killed while a task's arguments were
+    being written to it leaves the feeder thread blocked on a full pipe, and Python before 3.11.5 then waits for it
+    for ever when the pool is shut down (cpython issue 94777). Closing this process's copy of the pipe's reading end
+    (and on Windows its writing end, cpython issue 107219) is what later Pythons do."""
+    queue = getattr(executor, "_call_queue", None)
+    ends = [getattr(queue, "_reader", None)] + ([getattr(queue, "_writer", None)] if sys.platform == "win32" else [])
+    for end in ends:
+        try:
+            end.close()
+        except (AttributeError, OSError):  # gone already, or a Python that keeps its queues otherwise
+            pass
 
 
 class ThreadPool:

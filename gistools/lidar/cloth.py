@@ -71,6 +71,8 @@ def _helper(method: str):
 
     with _LOCK:
         pool = _HELPER.get("pool")
+        if pool is not None and not pool.closed and pool.lost_worker():  # ended by the system since the last call
+            pool.close(futures=[None])
         if pool is None or pool.closed:
             # a process a core at most (61: Windows' limit), started as calls come (a ThreadPool's threads may call
             # at once); not tied to the thread that starts it (PDEATHSIG follows a thread): the helper's watchdog
