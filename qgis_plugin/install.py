@@ -11,11 +11,13 @@ changes under it), then ``python -m pip install --no-deps --prefix <profile>/pyt
 what QGIS's Python lacks, each at most once. The prefix's site-packages folder is added at the end of ``sys.path``
 (the plugin adds it at every start), then the GDAL / PROJ / GEOS check runs before the algorithms are enabled.
 
-rasterio, pyogrio, pyproj and shapely are linked to GDAL / PROJ / GEOS: pip's binary wheels bring their own copies,
-which fail or crash inside QGIS, so this function never installs them, and while one of them is missing it installs
-nothing (pip would fetch their wheels as dependencies of geopandas or gistools); it names the one command that
-installs QGIS's (or the system's) builds instead. When it cannot install (no pip, no network), its message holds the
-one command to run by hand.
+rasterio, pyogrio, pyproj and shapely are linked to GDAL / PROJ / GEOS. Where QGIS's Python lacks one, it is taken
+from QGIS's own installer where that can run unattended (OSGeo4W's setup), else, as a last resort, from pip's binary
+wheel, which brings its own copy of the library into QGIS's process: only after that wheel passed a trial in a QGIS
+process of its own (bound.py) and in the version tried. While one of them is still missing it installs nothing (pip
+would fetch their wheels as dependencies of geopandas or gistools) and names the one command that installs QGIS's
+(or the system's) builds. When it cannot install (no pip, no network), its message holds the one command to run by
+hand. The message says which route each package took.
 
 The checks of what QGIS's Python has (``missing_requirements``, ``library_mismatches``, ``bundled_before_import``)
 are this module's too: the plugin's start (plugin.py) imports them from here, and this module imports nothing of the
@@ -33,6 +35,8 @@ import sys
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from .bound import checked, osgeo4w_command, osgeo4w_setup, record, trial, version_beside
 
 __all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "install_dependencies", "add_to_path",
            "site_folders", "missing_requirements", "library_mismatches", "bundled_libraries", "bundled_before_import",
@@ -87,10 +91,12 @@ def _major_minor(version: str) -> tuple[int, ...]:
     return tuple(int(p) for p in version.split("-")[0].split(".")[:2])
 
 
-def library_mismatches() -> list[str]:
+def library_mismatches(target=None) -> list[str]:
     """Where shapely / pyproj / rasterio / pyogrio use another GEOS / PROJ / GDAL than QGIS links: their own copy
     from a binary wheel (its folder of libraries beside the package) or another version. Two copies of one
-    library in QGIS's process fail (GEOS: 'WKB output dimension must be 2 or 3') or crash QGIS on exit."""
+    library in QGIS's process may fail (GEOS: 'WKB output dimension must be 2 or 3') or crash QGIS on exit, so
+    only the wheels that passed the trial in a QGIS process of their own (bound.py; recorded in ``target``, the
+    profile's folder by default) are let through."""
     from qgis.core import Qgis, QgsProjUtils
 
     found = []
@@ -114,13 +120,16 @@ def library_mismatches() -> list[str]:
               ("pyproj", "PROJ", pyproj.proj_version_str, qgis_proj),
               ("rasterio", "GDAL", rasterio.__gdal_version__, qgis_gdal),
               ("pyogrio", "GDAL", pyogrio.__gdal_version_string__, qgis_gdal)]
+    passed = _passed(target)
     for package, lib, version, want in checks:
+        if _tried_and_passed(passed, package, _version_of_module(package)):
+            continue
         parts = 1 if lib == "PROJ" else 2
         if want is not None and _major_minor(version)[:parts] != tuple(want)[:parts]:
             found.append(f"{package} uses {lib} {version}, QGIS {'.'.join(map(str, want))}.x")
     for package in sorted(BOUND):
         folder = bundled_libraries(importlib.import_module(package))
-        if folder is not None:
+        if folder is not None and not _tried_and_passed(passed, package, _version_of_module(package)):
             found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
     return found
 
@@ -134,20 +143,40 @@ def bundled_libraries(module) -> Path | None:
     return _bundled_folder(Path(where).parent) if where else None
 
 
-def bundled_before_import() -> list[str]:
+def bundled_before_import(target=None) -> list[str]:
     """The GDAL / PROJ / GEOS bound packages that are binary wheels carrying their own libraries, found from their
     installed files before any of them is imported: importing one loads its copy of GEOS or GDAL into QGIS's process
-    beside QGIS's own, which crashes QGIS (at the latest when it exits), so such a set-up is refused first."""
+    beside QGIS's own, which may crash QGIS (at the latest when it exits), so such a set-up is refused first, but
+    for the wheels that passed the trial in a QGIS process of their own (bound.py; recorded in ``target``, the
+    profile's folder by default), in the version tried."""
     found = []
+    passed = _passed(target)
     for package in sorted(BOUND):
         try:
             spec = importlib.util.find_spec(package)
         except (ImportError, ValueError):
             continue
         folder = _bundled_folder(Path(spec.origin).parent) if spec is not None and spec.origin else None
-        if folder is not None:
+        if folder is not None and not _tried_and_passed(passed, package, version_beside(spec.origin)):
             found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
     return found
+
+
+def _passed(target) -> dict:
+    """{package: version} of the wheels that passed the trial in this QGIS (bound.checked), {} where none did."""
+    try:
+        return checked(default_target() if target is None else target)
+    except Exception:  # noqa: BLE001 - no QGIS settings yet: nothing passed
+        return {}
+
+
+def _tried_and_passed(passed: dict, package: str, version: str | None) -> bool:
+    return version is not None and passed.get(package) == version
+
+
+def _version_of_module(package: str) -> str | None:
+    module = sys.modules.get(package) or importlib.import_module(package)
+    return version_beside(module.__file__) if getattr(module, "__file__", None) else None
 
 
 def _bundled_folder(package: Path) -> Path | None:
@@ -323,16 +352,14 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     result = InstallResult(target=target)
     bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
     exe = Path(python) if python is not None else qgis_python()
-    failure, engine = None, ""
+    failure, engine, tried = None, "", {}
+    if bound:
+        bound, tried = _bound_builds(bound, exe, timeout, notes)
+        wanted += [f"{name}=={version}" for name, version in tried.items()]
     if "gistools" in wanted and not bound:
         _take_zip_wheel(wanted, exe, timeout, notes)
     if wanted and not bound:
-        cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
-               "--prefix", str(target), *wanted]
-        result.installed = wanted
-        failure = _run_pip(exe, cmd, target, timeout, result)
-        if failure:
-            notes.insert(0, f"{failure}. Run this once, then restart QGIS: {_quoted(cmd)}")
+        failure = _install(exe, wanted, target, timeout, result, tried, notes)
     add_to_path(target)
     if requirements is None:
         result.missing = missing_requirements()
@@ -341,11 +368,26 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     elif failure:
         result.missing = wanted
     if bound:
-        notes.append(f"{', '.join(bound)} must be QGIS's own builds (pip's wheels bring other GDAL / PROJ / GEOS "
-                     f"libraries, which crash QGIS); install them with: {_bound_command(bound)}; then run "
+        notes.append(f"{', '.join(bound)} should be QGIS's own builds (pip's wheels bring other GDAL / PROJ / GEOS "
+                     f"libraries into QGIS's process); install them with: {_bound_command(bound)}; then run "
                      "install_dependencies() again" + (f" (it installs {', '.join(wanted)})" if wanted else ""))
     result.message = _message(result, notes) + (f"; {engine}" if engine else "")
     return result
+
+
+def _install(exe, wanted: list, target: Path, timeout: float, result: InstallResult, tried: dict, notes: list
+             ) -> str | None:
+    """pip installs ``wanted`` into the prefix ``target`` (the bound wheels in ``tried`` among them, recorded as
+    passed once installed): why it failed (the command to run by hand in ``notes``), None when it worked."""
+    cmd = [str(exe or "python"), *PIP, "install", "--disable-pip-version-check", "--no-input",
+           "--prefix", str(target), *wanted]
+    result.installed = wanted
+    failure = _run_pip(exe, cmd, target, timeout, result, allow=set(tried))
+    if failure:
+        notes.insert(0, f"{failure}. Run this once, then restart QGIS: {_quoted(cmd)}")
+    elif tried:
+        record(target, {**_passed(target), **tried})
+    return failure
 
 
 def _plan(missing: list, gistools) -> tuple[list, list, list]:
@@ -364,6 +406,52 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
         notes.append("gistools itself is not on PyPI: give its wheel, install_dependencies("
                      "gistools='path/to/gistools-<version>-<python>-<platform>.whl')")
     return bound, wanted, notes
+
+
+def _bound_builds(bound: list, exe, timeout: float, notes: list) -> tuple[list, dict]:
+    """The GDAL / PROJ / GEOS bound packages QGIS's Python lacks, from QGIS's installer where it can add them
+    unattended (OSGeo4W's setup), else pip's binary wheels that pass the trial in a QGIS process (bound.trial):
+    (those still missing, {package: version} of the wheels to install); ``notes`` say which route each took."""
+    setup = osgeo4w_setup()
+    if setup is not None:
+        failure = _pip(osgeo4w_command(*setup, bound), timeout)  # runs any program the way it runs pip
+        importlib.invalidate_caches()
+        added = [name for name in bound if importlib.util.find_spec(name) is not None]
+        if added:
+            notes.append(f"installed OSGeo4W's {', '.join(added)} (QGIS's own builds) with its setup")
+        elif failure:
+            notes.append(f"OSGeo4W's setup did not add {', '.join(bound)} ({failure.replace('pip', 'setup')})")
+        bound = [name for name in bound if name not in added]
+    if not bound or exe is None:
+        return bound, {}
+    with tempfile.TemporaryDirectory(prefix="gistools-trial-") as folder:
+        site = Path(folder) / "site"
+        pins = Path(folder) / "constraints.txt"
+        pins.write_text(_constraints(_installed()), encoding="utf-8")
+        failure = _pip([str(exe), *PIP, "install", "--disable-pip-version-check", "--no-input", "--only-binary",
+                        ":all:", "--constraint", str(pins), "--target", str(site), *bound], timeout)
+        if failure:
+            notes.append(f"pip's binary wheels of {', '.join(bound)} could not be fetched ({failure})")
+            return bound, {}
+        passed, failed = _tried(exe, site, bound, timeout)
+        versions = {name: version_beside(site / name / "__init__.py") for name in passed}
+    for name, why in failed.items():
+        notes.append(f"pip's binary wheel of {name} failed the trial in a QGIS process of its own ({why}): not "
+                     "installed")
+    if passed:
+        notes.append(f"{', '.join(passed)}: pip's binary wheels (their own GDAL / PROJ / GEOS), installed after a "
+                     "QGIS process with them gave QGIS's answers and ended cleanly")
+    return [name for name in bound if name not in passed], versions
+
+
+def _tried(exe, site: Path, bound: list, timeout: float) -> tuple[list, dict]:
+    """(the packages whose wheels pass the trial alone and all together, {package: why not} of the others)."""
+    failed = {name: why for name in bound if (why := trial(exe, site, [name], timeout)) is not None}
+    passed = [name for name in bound if name not in failed]
+    if len(passed) > 1 and (why := trial(exe, site, passed, timeout)) is not None:
+        failed.update({name: f"together with {', '.join(n for n in passed if n != name)}: {why}" for name in passed})
+        passed = []
+    return passed, failed
 
 
 def _take_zip_wheel(wanted: list, exe, timeout: float, notes: list) -> None:
@@ -427,9 +515,10 @@ def _message(result: InstallResult, notes: list) -> str:
     return "gistools: nothing to install"
 
 
-def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult) -> str | None:
+def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult, allow=frozenset()) -> str | None:
     """Resolve ``cmd``'s requirements with pip against what this Python has (constraints pin it), then install what
-    is missing, without the bound packages, with ``--no-deps``: the reason it failed, None when it worked."""
+    is missing, without the bound packages but those in ``allow`` (wheels that passed the trial), with
+    ``--no-deps``: the reason it failed, None when it worked."""
     import json
 
     if exe is None or not Path(exe).is_file():
@@ -451,7 +540,7 @@ def _run_pip(exe, cmd: list, target: Path, timeout: float, result: InstallResult
         for item in json.loads(report.read_text(encoding="utf-8")).get("install", []):
             meta, url = item["metadata"], item.get("download_info", {}).get("url", "")
             name = _name(meta["name"])
-            if name in BOUND or name in have:
+            if (name in BOUND and name not in allow) or name in have:
                 continue  # QGIS's build, or what QGIS's Python has (its copy comes first on the path anyway)
             chosen.append(_local(url) if url.startswith("file:") else f"{meta['name']}=={meta['version']}")
     result.command = cmd[:head] + ["--no-deps"] + cmd[head:at + 2] + chosen

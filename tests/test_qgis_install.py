@@ -4,6 +4,8 @@ when it cannot install. (Installing the whole set into a fresh QGIS is the chroo
 
 from __future__ import annotations
 
+import os
+import subprocess
 import sys
 import zipfile
 from pathlib import Path
@@ -74,15 +76,18 @@ def test_pip_installs_into_the_profile_folder_which_goes_last_on_the_path(tmp_pa
     sys.modules.pop("gistools_probe", None)
 
 
-def test_gdal_bound_packages_are_never_pip_installed_and_nothing_is_while_one_is_missing(tmp_path, monkeypatch):
-    # pip would fetch rasterio's wheel (its own GDAL) as a dependency of gistools: nothing runs until QGIS's is there
+def test_a_gdal_bound_wheel_that_fails_its_trial_is_not_installed_and_nothing_is_while_one_is_missing(tmp_path,
+                                                                                                      monkeypatch):
+    # pip would fetch rasterio's wheel (its own GDAL) as a dependency of gistools: nothing is installed until QGIS's
+    # build is there or the wheel passed its trial (here it cannot: this Python's own rasterio comes first)
     for name in ("laspy", "rasterio"):  # as if QGIS's Python lacked them
         monkeypatch.setitem(sys.modules, name, None)
     target = tmp_path / install.DEPS_FOLDER
     result = install.install_dependencies(target, python=sys.executable)
     assert not result.ok and "laspy" in result.missing and "rasterio" in result.missing
     assert result.installed == [] and result.command == [] and not target.exists()
-    assert ("rasterio must be QGIS's own builds" in result.message
+    assert "pip's binary wheel of rasterio failed the trial" in result.message
+    assert ("rasterio should be QGIS's own builds" in result.message
             and "sudo apt-get install python3-rasterio; then run install_dependencies() again (it installs laspy)"
             in result.message), result.message
     assert "\n" not in result.message
@@ -148,6 +153,8 @@ def test_the_plugin_puts_the_profiles_folder_on_the_path_when_it_starts(tmp_path
     (deps / "gistools_probe").mkdir(parents=True)
     (deps / "gistools_probe" / "__init__.py").write_text("VALUE = 7\n")
     script = f"""
+import os
+import subprocess
 import sys
 sys.path.insert(0, {str(ROOT)!r})
 from qgis.core import QgsApplication
@@ -221,3 +228,109 @@ def test_the_zips_wheel_for_this_platform_is_taken_never_an_index_one(tmp_path, 
     pure = _wheel(wheels, "gistools", "0.1.0")
     chosen = install._zip_wheel(sys.executable, 120)
     assert chosen is not None and Path(chosen) == pure and Path(chosen) != other
+
+
+# Debian's QGIS runs in the system's Python (this venv's base); it has no shapely, pyogrio or rasterio of its own
+QGIS_PYTHON = Path(sys.base_prefix) / "bin" / f"python{sys.version_info.major}.{sys.version_info.minor}"
+_IMPORTED = """
+import os, sys, tempfile
+from qgis.core import QgsApplication, QgsGeometry, QgsVectorLayer
+app = QgsApplication([], False)
+app.initQgis()
+sys.path.append(sys.argv[1])
+module = __import__(sys.argv[2])
+print(module.__file__.startswith(sys.argv[1]), flush=True)
+ours = QgsGeometry.fromWkt("POINT (0 0)").buffer(1.0, 8)
+if sys.argv[2] == "shapely":  # a geometry from QGIS to the wheel
+    print(abs(module.from_wkb(bytes(ours.asWkb())).area - ours.area()) < 1e-12, flush=True)
+else:  # a GeoPackage from the wheel to QGIS, as a gistools run writes its outputs and QGIS loads them
+    import numpy as np
+    import pyogrio.raw
+    path = os.path.join(tempfile.mkdtemp(), "out.gpkg")
+    pyogrio.raw.write(path, geometry=np.array([bytes(ours.asWkb())], dtype=object), field_data=[], fields=[],
+                      layer="out", driver="GPKG", geometry_type="Polygon", crs="EPSG:26910")
+    layer = QgsVectorLayer(path + "|layername=out", "out", "ogr")  # loaded until QGIS ends, as an output is
+    print(layer.featureCount() == 1, flush=True)
+app.exitQgis()
+"""
+
+
+def _qgis_python_lacks(*packages) -> bool:
+    if not QGIS_PYTHON.is_file():
+        return False
+    probe = ("import importlib.util as u, qgis.core; print(all(u.find_spec(p) is None for p in %r))" % (packages,))
+    run = subprocess.run([str(QGIS_PYTHON), "-c", probe], capture_output=True, text=True, timeout=120)
+    return run.stdout.strip() == "True"
+
+
+@pytest.mark.skipif(not _qgis_python_lacks("shapely", "pyogrio"), reason="needs Debian's QGIS Python without them")
+def test_a_binary_wheel_is_tried_in_a_qgis_process_and_the_verdict_is_what_qgis_does_with_it(tmp_path):
+    """pip's binary wheels of shapely and pyogrio (their own GEOS / GDAL), tried by the installer's last resort in
+    a QGIS process of their own: each verdict agrees with what a separate QGIS process does with the same wheel
+    (it imports it, exchanges a polygon with QGIS, ends QGIS): shapely's passes, a wheel whose process crashes is
+    refused with the signal."""
+    from qgis_plugin import bound
+
+    site = tmp_path / "site"
+    pip = subprocess.run([sys.executable, "-m", "pip", "install", "--quiet", "--no-deps", "--only-binary", ":all:",
+                          "--target", str(site), "shapely==2.2.0", "pyogrio==0.13.0"], capture_output=True, text=True,
+                         timeout=600)
+    assert pip.returncode == 0, pip.stderr[-2000:]
+    env = {**os.environ, "QT_QPA_PLATFORM": "offscreen"}
+    for name in ("shapely", "pyogrio"):
+        verdict = bound.trial(QGIS_PYTHON, site, [name], path=[])
+        alone = subprocess.run([str(QGIS_PYTHON), "-c", _IMPORTED, str(site), name], capture_output=True, text=True,
+                               timeout=300, env=env, cwd=str(tmp_path))
+        assert alone.stdout.split()[:1] == ["True"], alone.stdout + alone.stderr[-2000:]  # the wheel's own copy
+        assert (verdict is None) == (alone.returncode == 0 and "False" not in alone.stdout), (name, verdict, alone)
+        if alone.returncode < 0:
+            assert f"crashed (signal {-alone.returncode})" in verdict
+    assert bound.trial(QGIS_PYTHON, site, ["shapely"], path=[]) is None
+
+
+@pytest.mark.skipif(not _qgis_python_lacks("shapely", "pyogrio"), reason="needs Debian's QGIS Python without them")
+def test_the_installer_installs_only_the_bound_wheels_that_pass_the_trial_and_says_which(tmp_path):
+    """install_dependencies' last resort for the GDAL / GEOS bound packages QGIS's Python lacks, run by that Python
+    inside QGIS (no OSGeo4W here): the newest wheels fetched, tried alone and together; each either passes (its
+    version returned for the install) or is named with the reason, never both."""
+    script = ("import json, sys; from pathlib import Path; sys.path.insert(0, sys.argv[1])\n"
+              "from qgis.core import QgsApplication\napp = QgsApplication([], False)\napp.initQgis()\n"
+              "from qgis_plugin import install\nnotes = []\n"
+              "left, versions = install._bound_builds(['pyogrio', 'shapely'], Path(sys.executable), 900, notes)\n"
+              "print(json.dumps([left, versions, notes]), flush=True)\napp.exitQgis()\n")
+    run = subprocess.run([str(QGIS_PYTHON), "-c", script, str(Path(__file__).resolve().parents[1])],
+                         capture_output=True, text=True, timeout=1800, cwd=str(tmp_path),
+                         env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    import json
+
+    left, versions, notes = json.loads(run.stdout.strip().splitlines()[-1])
+    assert sorted(left + list(versions)) == ["pyogrio", "shapely"] and not set(left) & set(versions), run.stdout
+    assert "shapely" in versions and versions["shapely"].split(".")[0] >= "2", notes
+    for name in left:
+        assert any(note.startswith(f"pip's binary wheel of {name} failed the trial") for note in notes), notes
+    assert any("installed after a QGIS process with them gave QGIS's answers" in note for note in notes), notes
+
+
+def test_a_wheel_that_passed_the_trial_is_let_through_in_the_version_tried_only(tmp_path, monkeypatch):
+    """The plugin's start refuses a GDAL / GEOS bound binary wheel before importing it, unless the profile's record
+    says that this version passed the trial in this QGIS and Python; another version is refused again."""
+    from qgis_plugin import bound, plugin
+
+    site = tmp_path / "site"
+    (site / "shapely").mkdir(parents=True)
+    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
+    (site / "shapely.libs").mkdir()
+    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
+    (site / "shapely-2.2.0.dist-info").mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    for name in list(sys.modules):
+        if name == "shapely" or name.startswith("shapely."):
+            monkeypatch.delitem(sys.modules, name)
+    profile = tmp_path / "profile"
+    refused = ["shapely carries its own libraries (shapely.libs, a binary wheel)"]
+    assert plugin.bundled_before_import(profile) == refused
+    bound.record(profile, {"shapely": "2.2.0"})
+    assert plugin.bundled_before_import(profile) == []
+    bound.record(profile, {"shapely": "2.1.0"})
+    assert plugin.bundled_before_import(profile) == refused
+    assert "shapely" not in sys.modules
