@@ -334,3 +334,41 @@ def test_a_wheel_that_passed_the_trial_is_let_through_in_the_version_tried_only(
     bound.record(profile, {"shapely": "2.1.0"})
     assert plugin.bundled_before_import(profile) == refused
     assert "shapely" not in sys.modules
+
+
+_SETUP = """#!{python}
+# OSGeo4W's setup, imitated: with the unattended flags it adds python3-<name> packages to --root's Python
+import sys
+from pathlib import Path
+args = sys.argv[1:]
+assert {{"--quiet-mode", "--autoaccept", "--advanced"}} <= set(args), args
+root = Path(args[args.index("--root") + 1])
+assert args[args.index("--site") + 1] == "https://download.osgeo.org/osgeo4w/v2/"
+for package in args[args.index("--packages") + 1].split(","):
+    name = package.removeprefix("python3-")
+    (root / "apps" / "Python311" / "Lib" / "site-packages" / name).mkdir(parents=True)
+    (root / "apps" / "Python311" / "Lib" / "site-packages" / name / "__init__.py").write_text("", encoding="utf-8")
+"""
+
+
+def test_where_qgis_came_from_osgeo4w_its_setup_adds_the_bound_packages_unattended(tmp_path, monkeypatch):
+    """QGIS installed with OSGeo4W (imitated: its root's etc/setup, its Python in apps/Python311, its setup program
+    in bin): the bound packages QGIS's Python lacks are added by that setup, unattended, as python3-<name>, and the
+    note says so; nothing is fetched from pip for them."""
+    import importlib.machinery
+
+    root = tmp_path / "OSGeo4W"
+    (root / "etc" / "setup").mkdir(parents=True)
+    site = root / "apps" / "Python311" / "Lib" / "site-packages"
+    site.mkdir(parents=True)
+    setup = root / "bin" / "osgeo4w-setup.exe"
+    setup.parent.mkdir()
+    setup.write_text(_SETUP.format(python=sys.executable), encoding="utf-8")
+    setup.chmod(0o755)
+    monkeypatch.setattr(sys, "prefix", str(root / "apps" / "Python311"))
+    monkeypatch.setattr(install.importlib.util, "find_spec",
+                        lambda name, *a: importlib.machinery.PathFinder.find_spec(name, [str(site)]))
+    notes = []
+    left, versions = install._bound_builds(["pyogrio", "rasterio"], Path(sys.executable), 300, notes)
+    assert left == [] and versions == {} and (site / "rasterio" / "__init__.py").is_file()
+    assert notes == ["installed OSGeo4W's pyogrio, rasterio (QGIS's own builds) with its setup"]
