@@ -18,6 +18,7 @@ __all__ = [
     "OutputBusyError",
     "Cancelled",
     "TilesFailed",
+    "ClusterLostError",
     "raise_if_every_tile_failed",
 ]
 
@@ -88,6 +89,11 @@ class OutputError(GistoolsError, OSError):
 
 class OutputBusyError(OutputError):
     """Another gistools run holds the output folder's lock."""
+
+
+class ClusterLostError(GistoolsError, ConnectionError):
+    """The Dask scheduler of a run went away in the middle of it: the run's problem, not a tile's; the tiles
+    finished are kept and a rerun resumes."""
 
 
 class Cancelled(GistoolsError):

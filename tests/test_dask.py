@@ -143,3 +143,75 @@ def test_a_worker_lost_in_the_middle_of_a_run_the_run_completes_with_the_same_ra
             if p.poll() is None:
                 p.terminate()
         _ended(procs)
+
+
+def test_a_scheduler_lost_in_the_middle_of_a_run_is_one_line_and_the_rerun_resumes(tmp_path):
+    """The scheduler of a run is killed (SIGKILL) once a few tiles are written: the command exits 1 with one line
+    that names --scheduler and says to rerun, no traceback; the same command rerun on a new cluster keeps the tiles
+    finished (their files untouched) and completes, equal to a run on this machine's processes."""
+    import signal
+
+    from conftest import repeated_block
+
+    tiles = repeated_block(tmp_path / "tiles")
+    rasters_from_tiles(tiles, tmp_path / "local", jobs=1)
+    out = tmp_path / "dask"
+    first = _cluster(tmp_path)
+    try:
+        run = subprocess.Popen([sys.executable, "-m", "gistools.cli.main", "rasters", str(tiles), "--out", str(out),
+                                "--scheduler", first.address, "-q"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                               text=True)
+        deadline = time.monotonic() + 300
+        while len(list((out / "dsm").glob("*.tif"))) < 6 and run.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert run.poll() is None, "the run ended before its scheduler could be lost: " + run.communicate()[1]
+        first.procs[0].send_signal(signal.SIGKILL)
+        _, stderr = run.communicate(timeout=300)
+    finally:
+        first.end()
+    lines = stderr.strip().splitlines()
+    assert run.returncode == 1 and len(lines) == 1, stderr
+    assert lines[0].startswith(f"gistools: error: --scheduler {first.address}: the Dask scheduler was lost") and \
+        "rerun the same command" in lines[0], stderr
+    finished = [p.stem for p in (out / "tile_reports").glob("*.json")]  # a tile's report: all its rasters written
+    kept = {f"{name}.tif": (out / "dsm" / f"{name}.tif").stat().st_mtime_ns for name in finished}
+    assert 0 < len(kept) < 64
+    second = _cluster(tmp_path)
+    try:
+        rerun = subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", str(tiles), "--out", str(out),
+                                "--scheduler", second.address, "-q"], capture_output=True, text=True, timeout=600)
+    finally:
+        second.end()
+    assert rerun.returncode == 0, rerun.stderr
+    assert len(list((out / "dsm").glob("*.tif"))) == 64
+    assert {name: (out / "dsm" / name).stat().st_mtime_ns for name in kept} == kept  # resumed, not remade
+    _same(out, tmp_path / "local")
+
+
+class _cluster:
+    """A scheduler and two single-thread workers as processes on loopback (workers without a nanny)."""
+
+    def __init__(self, tmp_path):
+        port = _free_port()
+        self.address = f"tcp://127.0.0.1:{port}"
+        bin_dir = __import__("pathlib").Path(sys.executable).parent
+        quiet = dict(stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.procs = [subprocess.Popen([str(bin_dir / "dask"), "scheduler", "--host", "127.0.0.1", "--port",
+                                        str(port), "--no-dashboard"], **quiet)]
+        try:
+            time.sleep(1.5)
+            self.procs += [subprocess.Popen([str(bin_dir / "dask"), "worker", self.address, "--nthreads", "1",
+                                             "--no-nanny", "--no-dashboard"], **quiet) for _ in range(2)]
+            from dask.distributed import Client
+
+            with Client(self.address, timeout=30) as client:
+                client.wait_for_workers(2, timeout=60)
+        except BaseException:
+            self.end()
+            raise
+
+    def end(self):
+        for p in self.procs[::-1]:
+            if p.poll() is None:
+                p.terminate()
+        _ended(self.procs)

@@ -19,7 +19,7 @@ import time
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, ThreadPoolExecutor, wait
 from pathlib import Path
 
-from ..errors import Cancelled, GistoolsError, InputError, OutOfMemoryError
+from ..errors import Cancelled, ClusterLostError, GistoolsError, InputError, OutOfMemoryError
 from ..io.atomic import raise_output_error
 from ..machine import address_space_limit, free_memory, usable_cpus
 from ..parameters import option
@@ -439,16 +439,50 @@ class DaskPool:
         return self.client.submit(fn, *args, pure=False)
 
     def wait_first(self, futures):
+        """The futures done first; a scheduler lost on the way is the run's error, in one line (ClusterLostError),
+        rather than each of its tiles' (dask cancels every future it held)."""
         from dask.distributed import wait as dask_wait
 
-        return dask_wait(list(futures), return_when="FIRST_COMPLETED").done
+        try:
+            done = dask_wait(list(futures), return_when="FIRST_COMPLETED").done
+        except Exception as err:  # FuturesCancelledError: "scheduler-connection-lost"
+            if self._lost(err):
+                raise self._lost_error() from None
+            raise
+        if any(fut.status == "cancelled" for fut in done) and self._lost():
+            raise self._lost_error()
+        return done
+
+    def _lost(self, err: Exception | None = None) -> bool:
+        return "scheduler-connection-lost" in str(err or "") or getattr(self.client, "status", "") != "running"
+
+    def _lost_error(self) -> ClusterLostError:
+        address = getattr(self.client.scheduler, "address", None) or "the cluster"
+        return ClusterLostError(f"{option('scheduler', address)}: the Dask scheduler was lost in the middle of the run; "
+                                "the tiles finished are kept",
+                                hint=f"Start the scheduler and its workers again (or run on this machine with "
+                                     f"{option('jobs')}) and rerun the same command: it resumes with the tiles not "
+                                     "finished")
 
     def close(self, futures=()):
+        import logging
+
         if self.client is None:
             return
-        if futures:
-            self.client.cancel(list(futures))
-        self.client.close()
+        lost = self._lost()
+        names = [n for n in logging.root.manager.loggerDict if n.split(".")[0] == "distributed"] if lost else []
+        quiet = {name: logging.getLogger(name).disabled for name in names}
+        for name in names:  # the client's attempts to reconnect end in tracebacks it logs: the run's line says it
+            logging.getLogger(name).disabled = True
+        try:
+            if futures and not lost:
+                self.client.cancel(list(futures))
+            self.client.close()
+        except Exception:  # noqa: BLE001 - a scheduler already gone: nothing is left to cancel there
+            pass
+        finally:
+            for name, disabled in quiet.items():
+                logging.getLogger(name).disabled = disabled
         if self.cluster is not None:
             self.cluster.close()
         self.client = self.cluster = None
