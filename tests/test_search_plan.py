@@ -384,3 +384,22 @@ def test_walked_rings_on_flat_ground_lie_within_the_grid_bound_and_a_river_pushe
     west, east = poa2[125, 125 - 15], poa2[125, 125 + 15]  # 60 m either way, the east one across the river
     levels2 = sorted({float(v) for v in poa2[poa2 > 0]}, reverse=True)
     assert west == levels2[0] and east in levels2[2:]  # the first ring's level; the east cell's a later ring's
+
+
+def test_no_segment_is_a_cell_walled_in_or_an_island_amid_cliffs():
+    """A searchable cell whose four sides are drainage cells, and one amid unsearchable cells (a ledge in a cliff),
+    are not segments of their own: the first joins the segment around it, the second the nearest segment; the
+    open ground around them stays one segment (1 m cells, a 400 m2 target)."""
+    from gistools.terrain.search import segment_cells
+
+    searchable = np.ones((20, 20), bool)
+    searchable[3:6, 3:6] = False
+    searchable[4, 4] = True  # a ledge amid cliffs
+    walls = np.zeros((20, 20), bool)
+    walls[13:16, 13:16] = True
+    walls[14, 14] = False  # a cell walled in by drainages
+    labels = segment_cells(searchable, walls, 1.0, 400.0)
+    sizes = np.bincount(labels[labels > 0])
+    assert labels[4, 4] > 0 and labels[14, 14] > 0
+    assert sizes[labels[4, 4]] > 1 and sizes[labels[14, 14]] > 1
+    assert sizes[1:].min() >= 400 // 4 // 16

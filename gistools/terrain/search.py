@@ -318,7 +318,9 @@ def segment_cells(searchable: np.ndarray, walls: np.ndarray, cell_metres: float,
     (roads, trails, drainages, ridges) and where ``zones`` changes (thickets and the rest), the parts larger than
     1.5 targets cut further by a square lattice of the target's area, pieces smaller than a quarter of the target
     joined to the neighbour they share the longest edge with (within their part when they can), the wall cells
-    given to the nearest segment; numbered by their first cell from north-west to south-east.
+    given to the nearest segment, then pieces under a sixteenth of that size (a cell walled in by drainages, the
+    corner of a thicket) joined to their longest-edge neighbour of any kind, or, where they have none (cells amid
+    cliffs or water), to the nearest segment; numbered by their first cell from north-west to south-east.
 
     Examples
     --------
@@ -360,11 +362,22 @@ def segment_cells(searchable: np.ndarray, walls: np.ndarray, cell_metres: float,
         part, m = ndimage.label(pieces[sl] == k)
         split[sl][part > 0] = part[part > 0] + n
         n += m
-    merged = _merge_small(split, region, zones, max(1, int(0.25 * target_m2 / cell_metres ** 2)))
+    min_cells = max(1, int(0.25 * target_m2 / cell_metres ** 2))
+    merged = _merge_small(split, region, zones, min_cells)
     if (searchable & walls).any():  # wall cells to the nearest segment
         _, (ir, ic) = ndimage.distance_transform_edt(merged == 0, return_indices=True)
         merged = np.where(searchable, merged[ir, ic], 0)
     merged[~searchable] = 0
+    # a piece too small to search on its own (under a sixteenth of the smallest segment kept: a cell walled in by
+    # drainages, a thicket's corner): to the neighbour it shares the longest edge with, whatever its kind
+    flat = np.zeros(searchable.shape, dtype=np.int64)
+    tiny = max(2, min_cells // 16)
+    merged = _merge_small(merged, flat, flat, tiny)
+    alone = (np.bincount(merged.ravel()) < tiny)[merged] & (merged > 0)  # islands of cells amid cliffs or water
+    if alone.any() and (merged[~alone] > 0).any():  # to the nearest segment (it gains a small part of its own)
+        kept = np.where(alone, 0, merged)
+        _, (ir, ic) = ndimage.distance_transform_edt(kept == 0, return_indices=True)
+        merged = np.where(alone, kept[ir, ic], merged)
     # numbered by their first cell, north-west to south-east
     flat = merged.ravel()
     present = flat > 0
