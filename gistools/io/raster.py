@@ -145,9 +145,11 @@ def write_raster(
     description: str | None = None,
     units: str | None = None,
     categories: dict | None = None,
+    predictor: int | None = None,
 ) -> Path:
     """Write one band as a tiled, DEFLATE-compressed GeoTIFF, atomically. NaN becomes ``nodata``.
-    ``categories`` {code: (name, "#rrggbb")}: a class raster's colour table and category names.
+    ``categories`` {code: (name, "#rrggbb")}: a class raster's colour table and category names. ``predictor``:
+    the TIFF predictor (1 none, 2 horizontal, 3 floating point), default predictor_for's.
 
     DEFLATE level 1, not GDAL's 6: 2.5x faster on a float DEM tile (32 ms, not 81) for files 2.5 % larger;
     compressed on compression_threads(). The predictor follows the ``GISTOOLS_PRODUCT`` tag (predictor_for).
@@ -173,7 +175,7 @@ def write_raster(
         nodata=nodata,
         compress="deflate",
         zlevel=DEFLATE_LEVEL,
-        predictor=predictor_for(dtype, (tags or {}).get("GISTOOLS_PRODUCT")),
+        predictor=predictor or predictor_for(dtype, (tags or {}).get("GISTOOLS_PRODUCT")),
         tiled=grid.width >= 256 and grid.height >= 256,
         blockxsize=256,
         blockysize=256,

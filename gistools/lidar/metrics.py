@@ -107,12 +107,50 @@ def cell_sorted(cell, values, ncells: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Sorted:
-    """An attribute's values sorted within each cell (for medians and percentiles), computed once."""
+    """An attribute's values grouped by cell and sorted within each (NaN last), computed once: percentiles, and
+    every other statistic from contiguous runs of memory (``reduceat``), which is about twice as fast as gathering
+    them point by point (``bincount`` weights, ``ufunc.at``) and shares the one sort with the percentiles."""
 
     def __init__(self, cell, values, count):
         self.values, start = cell_sorted(cell, values, len(count))
         self.start = start[:-1]
         self.count = count
+        self.ok = count > 0
+        self._sums = None
+
+    def _cells(self, per_cell: np.ndarray) -> np.ndarray:
+        out = np.full(len(self.count), np.nan)
+        out[self.ok] = per_cell
+        return out
+
+    def sums(self) -> tuple[np.ndarray, np.ndarray]:
+        """(sum, sum of squared deviations from the mean) of each cell with points."""
+        if self._sums is None:
+            first, k = self.start[self.ok], self.count[self.ok]
+            total = np.add.reduceat(self.values, first) if len(first) else np.zeros(0)
+            dev = self.values - np.repeat(total / np.maximum(k, 1), k)
+            self._sums = total, (np.add.reduceat(dev * dev, first) if len(first) else np.zeros(0))
+        return self._sums
+
+    def statistic(self, stat: str) -> np.ndarray:
+        """sum, mean, sd, cv, min, max or median per cell; NaN where a cell has no point (sd, cv: fewer than two),
+        and where a cell holds a NaN value (but median)."""
+        k = self.count[self.ok]
+        first = self.start[self.ok]
+        if stat in ("min", "max"):
+            last = self.values[first + k - 1]  # NaN sorts last: a cell with a NaN has it there
+            return self._cells(last if stat == "max" else np.where(np.isnan(last), np.nan, self.values[first]))
+        if stat == "median":
+            return self.percentile(50.0)
+        total, squares = self.sums()
+        if stat == "sum":
+            return self._cells(total)
+        mean = total / k
+        if stat == "mean":
+            return self._cells(mean)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            sd = np.where(k > 1, np.sqrt(squares / np.maximum(k - 1, 1)), np.nan)
+            return self._cells(sd if stat == "sd" else np.where((k > 1) & (mean != 0), sd / mean, np.nan))
 
     def percentile(self, p: float) -> np.ndarray:
         k = self.count
@@ -125,38 +163,6 @@ class _Sorted:
         out = np.full(len(k), np.nan)
         out[ok] = a + (b - a) * (rank - lo)
         return out
-
-
-def _statistic(stat: str, cell, v, count, n, sorted_) -> np.ndarray:
-    ok = count > 0
-    out = np.full(n, np.nan)
-    if stat == "count":
-        out[ok] = count[ok]
-    elif stat == "sum":
-        out[ok] = np.bincount(cell, weights=v, minlength=n)[ok]
-    elif stat in ("mean", "sd", "cv"):
-        mean = np.bincount(cell, weights=v, minlength=n)[ok] / count[ok]
-        if stat == "mean":
-            out[ok] = mean
-        else:
-            m = np.full(n, np.nan)
-            m[ok] = mean
-            ss = np.bincount(cell, weights=(v - m[cell]) ** 2, minlength=n)
-            two = count > 1
-            sd = np.full(n, np.nan)
-            sd[two] = np.sqrt(ss[two] / (count[two] - 1))
-            if stat == "sd":
-                out = sd
-            else:
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    out = np.where(two & (m != 0), sd / m, np.nan)
-    elif stat in ("min", "max"):
-        acc = np.full(n, np.inf if stat == "min" else -np.inf)
-        (np.minimum if stat == "min" else np.maximum).at(acc, cell, v)
-        out[ok] = acc[ok]
-    elif stat == "median":
-        out = sorted_().percentile(50.0)
-    return out
 
 
 def _share(cell, hit, base, n) -> np.ndarray:
@@ -217,8 +223,7 @@ def cell_metrics(cell, n: int, specs, *, z=None, intensity=None, hag=None, first
             elif spec.statistic == "percentile":
                 out[spec.name] = _sorted(cache, spec.attribute, cell, v, count).percentile(nums[0])
             else:
-                out[spec.name] = _statistic(spec.statistic, cell, v, count, n,
-                                            lambda a=spec.attribute, v=v: _sorted(cache, a, cell, v, count))
+                out[spec.name] = _sorted(cache, spec.attribute, cell, v, count).statistic(spec.statistic)
     return out
 
 

@@ -155,8 +155,10 @@ def _metrics_tile(path: str, sources: list, crs_text, run: _Run) -> dict:
     outputs = {}
     for spec in run.specs:
         target = Path(run.out) / spec.name / f"{info.name}.tif"
+        # no predictor: a cell's statistic is not a smooth surface, and without one the files are smaller (5-45 %
+        # on the Levy block and the lidR surveys) and written 10-40 % faster than with the floating-point predictor
         write_raster(target, arrays[spec.name], grid, overwrite=True, tags={"GISTOOLS_PRODUCT": spec.name,
-                     "GISTOOLS_Z_UNIT": run.z_unit}, description=_description(spec, run.z_unit))
+                     "GISTOOLS_Z_UNIT": run.z_unit}, description=_description(spec, run.z_unit), predictor=1)
         outputs[spec.name] = str(target)
     return {"outputs": outputs, "points": int(len(own["x"])), "neighbours": [nb for _k, nb, _s in sources], **counts}
 
