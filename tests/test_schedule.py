@@ -68,8 +68,14 @@ def blocks(seed):
     return bounds, rng.choice([0.0, 10.0, 700.0])
 
 
+@pytest.mark.parametrize("all_pairs", [0, 512], ids=["rtree", "numpy"])
 @pytest.mark.parametrize("seed", range(40))
-def test_neighbours_are_those_of_the_all_pairs_search(seed):
+def test_neighbours_are_those_of_the_all_pairs_search(seed, all_pairs, monkeypatch):
+    """Both searches (shapely's R-tree for many boxes, numpy's all pairs at once for few) find the pairs of a loop
+    over every pair."""
+    from gistools.engine import schedule
+
+    monkeypatch.setattr(schedule, "ALL_PAIRS", all_pairs)
     bounds, d = blocks(seed)
     assert neighbour_pairs(bounds, d) == pairs_by_brute_force(bounds, d)
 

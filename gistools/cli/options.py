@@ -137,7 +137,6 @@ def area_inputs(inputs, out, quiet, *, aoi, margin=0, **area):
     what the command reads around a tile, its --buffer or 30 m) where --aoi is given; a service without --aoi, or an
     area's option without it, is refused."""
     from ..io.area import is_area_source
-    from ..products.fetch import AREA_FOLDER, Area
 
     if aoi is None:
         given = [k for k, v in area.items() if v is not None]
@@ -148,6 +147,8 @@ def area_inputs(inputs, out, quiet, *, aoi, margin=0, **area):
             raise click.UsageError(f"{services[0]} is a point cloud service read by area: give --aoi "
                                    "minx,miny,maxx,maxy (or a polygon layer)")
         return inputs
+    from ..products.fetch import AREA_FOLDER, Area  # here: a run on files starts without the HTTP reader
+
     cache = area.pop("cache") or os.path.join(out, AREA_FOLDER)
     area_ = Area(tuple(inputs), aoi, cache, margin=margin, progress=fetch_progress(quiet), **area)
     area_.check()

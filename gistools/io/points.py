@@ -580,6 +580,8 @@ def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, 
                 parts.append({k: getattr(chunk, k)[keep] for k in fields})
     if not parts:
         return _empty_points(fields)
+    if len(parts) == 1:  # a tile in one chunk: its arrays as they are (a concatenation would copy each)
+        return parts[0]
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
 
 

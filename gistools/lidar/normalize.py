@@ -7,7 +7,6 @@ Pure functions over numpy arrays; heights stay in the points' vertical unit.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from .tin import tin_at_points, tin_engine
 
@@ -42,6 +41,8 @@ def ground_height_at(gx, gy, gz, x, y, *, vertex=None, k: int = 10, power: float
     rest = ~inside
     if rest.any():
         kk = min(k, len(gx))
+        from scipy.spatial import cKDTree  # here: scipy.spatial costs 0.05 s to import, and few tiles need it
+
         dist, idx = cKDTree(np.column_stack([gx, gy])).query(np.column_stack([x[rest], y[rest]]), k=kk)
         dist, idx = dist.reshape(-1, kk), idx.reshape(-1, kk)
         with np.errstate(divide="ignore"):
