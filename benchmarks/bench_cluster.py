@@ -5,10 +5,11 @@ round trip.
 
     python benchmarks/bench_cluster.py [--tiles 100] [--workers 10]
 
-The scheduling cost per tile is the CPU time a run on warm workers spends beside the tiles' own work (their seconds
-in the local run's report), shared over the tiles: (wall x the cores the workers share - the tiles' seconds) /
-tiles; the first run on the cluster also pays each worker's import of gistools. Every run's rasters are compared
-with the local run's (they must be equal).
+The scheduling cost per tile is the cores' time a run on warm workers spends beside the tiles' own work (their
+seconds in the local run's report) and the run's own costs (the local run's wall time beyond its tiles), shared
+over the tiles: ((wall - the run's own costs) x the cores the workers share - the tiles' seconds) / tiles; it
+counts a core left idle as spent. The first run on the cluster also pays each worker's import of gistools. Every
+run's rasters are compared with the local run's (they must be equal).
 """
 
 from __future__ import annotations
@@ -16,7 +17,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import socket
 import subprocess
 import sys
@@ -93,7 +93,7 @@ def run(tiles: Path, out: Path, *extra) -> tuple[float, float]:
     """(wall seconds, the sum of the tiles' own seconds from report.json) of one ``gistools rasters`` run."""
     started = time.perf_counter()
     subprocess.run([sys.executable, "-m", "gistools.cli.main", "rasters", str(tiles), "--out", str(out), "-q",
-                    "--cell-size", "3ft", *extra], check=True, capture_output=True)
+                    "--cell-size", "3ft", *extra], check=True, stdout=subprocess.DEVNULL)
     wall = time.perf_counter() - started
     report = json.loads((out / "report.json").read_text(encoding="utf-8"))
     return wall, sum(float(t.get("seconds") or 0.0) for t in report.get("tiles", []))
@@ -129,7 +129,9 @@ def main(argv=None) -> int:
     except ImportError:
         print("bench_cluster needs dask.distributed: pip install 'gistools[dask]'", file=sys.stderr)
         return 1
-    cores = min(args.workers, os.cpu_count() or 1)
+    from gistools.machine import usable_cpus
+
+    cores = min(args.workers, usable_cpus())
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         make_tiles(tmp / "tiles", args.tiles)
@@ -148,9 +150,11 @@ def main(argv=None) -> int:
           f"{local_wall / args.tiles:9.3f}")
     print(f"{'the cluster, first run (workers import gistools)':48s} {cold:8.2f} {cold / args.tiles:9.3f}")
     print(f"{'the cluster, next run':48s} {warm:8.2f} {warm / args.tiles:9.3f}")
-    print(f"scheduling cost per tile: {(warm * cores - local_work) / args.tiles * 1000:.0f} ms of CPU beside the "
-          f"tile's own work (Dask's empty task, round trip: {task * 1000:.1f} ms); the workers' start: "
-          f"{cold - warm:.1f} s; rasters equal to the local run's: {equal}")
+    fixed = local_wall - local_work  # a run's own costs (start, planning, mosaics, report), paid once either way
+    cost = ((warm - fixed) * cores - local_work) / args.tiles
+    print(f"scheduling cost per tile: {cost * 1000:.0f} ms of the cores' time beside the tile's own work "
+          f"(Dask's empty task, 1000 at once: {task * 1000:.1f} ms each); the workers' start: {cold - warm:.1f} s; "
+          f"rasters equal to the local run's: {equal}")
     return 0 if equal else 1
 
 

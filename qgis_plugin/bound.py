@@ -27,10 +27,13 @@ MARK = "GISTOOLS-TRIAL-OK"
 _TRIAL = r'''
 import json, os, sys, tempfile
 folder, path, packages = os.path.realpath(sys.argv[1]), json.loads(sys.argv[2]), sys.argv[3].split(",")
+prefix = sys.argv[4]
 own = [p for p in sys.path if p not in ("", ".")]  # -c puts the working folder first: not the plugin's order
 sys.path[:] = own + [p for p in path if p not in own and p != folder] + [folder]  # the profile's folder last
 from qgis.core import (QgsApplication, QgsCoordinateReferenceSystem, QgsCoordinateTransform, QgsGeometry,
                        QgsPointXY, QgsProject, QgsRasterLayer, QgsVectorLayer)
+if prefix:
+    QgsApplication.setPrefixPath(prefix, True)  # where QGIS_PREFIX_PATH is not in the environment (macOS, Windows)
 app = QgsApplication([], False)
 app.initQgis()
 tmp = tempfile.mkdtemp(prefix="gistools-trial-")
@@ -52,12 +55,13 @@ for package in packages:
         same("a buffer's area", ours.area(), shapely.buffer(shapely.Point(3, 4), 2.0, quad_segs=16).area, 1e-9)
     elif package == "pyproj":
         import pyproj
+        # a projection within one datum (NAD83): no choice of datum shift between two PROJ databases
         ours = QgsCoordinateTransform(QgsCoordinateReferenceSystem("EPSG:26910"),
-                                      QgsCoordinateReferenceSystem("EPSG:4326"), QgsProject.instance())
+                                      QgsCoordinateReferenceSystem("EPSG:4269"), QgsProject.instance())
         point = ours.transform(QgsPointXY(500000, 5000000))
-        lon, lat = pyproj.Transformer.from_crs(26910, 4326, always_xy=True).transform(500000, 5000000)
-        same("a longitude", point.x(), lon, 1e-7)
-        same("a latitude", point.y(), lat, 1e-7)
+        lon, lat = pyproj.Transformer.from_crs(26910, 4269, always_xy=True).transform(500000, 5000000)
+        same("a longitude", point.x(), lon, 1e-8)
+        same("a latitude", point.y(), lat, 1e-8)
     elif package == "rasterio":
         import rasterio
         from rasterio.transform import from_origin
@@ -82,6 +86,8 @@ for package in packages:
             raise SystemExit("QGIS cannot read the GeoPackage the wheel wrote")
         same("a feature count", pyogrio.read_info(path, layer="points")["features"], 1, 0)
 app.exitQgis()
+import shutil
+shutil.rmtree(tmp, ignore_errors=True)
 print("''' + MARK + r'''", flush=True)
 '''
 
@@ -97,8 +103,9 @@ def trial(python, folder, packages, timeout: float = 600, path=None) -> str | No
         env["QT_QPA_PLATFORM"] = "offscreen"
     path = [p for p in (sys.path if path is None else path) if p]
     try:
-        run = subprocess.run([str(python), "-c", _TRIAL, str(folder), json.dumps(path), ",".join(packages)],
-                             capture_output=True, text=True, timeout=timeout, env=env, cwd=str(folder))
+        run = subprocess.run([str(python), "-c", _TRIAL, str(folder), json.dumps(path), ",".join(packages),
+                              _prefix()], capture_output=True, text=True, timeout=timeout, env=env, cwd=str(folder),
+                             encoding="utf-8", errors="replace")
     except subprocess.TimeoutExpired:
         return f"QGIS's process with the wheels did not end within {timeout:.0f} s"
     except OSError as err:
@@ -110,6 +117,16 @@ def trial(python, folder, packages, timeout: float = 600, path=None) -> str | No
                 "do not live with QGIS's in one process")
     lines = [line for line in (run.stderr or run.stdout).splitlines() if line.strip()]
     return lines[-1] if lines else f"QGIS's process with the wheels ended with status {run.returncode}"
+
+
+def _prefix() -> str:
+    """The running QGIS's prefix path ("" outside QGIS)."""
+    try:
+        from qgis.core import QgsApplication
+
+        return QgsApplication.prefixPath() or ""
+    except Exception:  # noqa: BLE001 - no QGIS here
+        return ""
 
 
 def record(target, versions: dict) -> None:
@@ -141,21 +158,36 @@ def checked(target) -> dict:
 
 def version_beside(origin) -> str | None:
     """The version of the distribution whose package folder holds ``origin`` (its ``*.dist-info`` beside the package
-    folder), read from the files: nothing is imported."""
+    folder), read from the files: nothing is imported. Of several (an older copy left in the folder), the one
+    whose RECORD lists the package; None where none tells."""
     package = Path(origin).parent
-    for info in sorted(package.parent.glob(f"{package.name}-*.dist-info")):
-        return info.name[len(package.name) + 1:-len(".dist-info")]
-    return None
+    head = package.name.lower() + "-"
+    try:
+        infos = sorted(p for p in package.parent.iterdir() if p.name.lower().startswith(head)
+                       and p.name.endswith(".dist-info") and p.is_dir())
+    except OSError:
+        return None
+    if len(infos) > 1:
+        infos = [p for p in infos if _lists(p / "RECORD", package.name)] or infos[-1:]
+    return infos[0].name[len(head):-len(".dist-info")] if len(infos) == 1 else None
+
+
+def _lists(record_file: Path, package: str) -> bool:
+    try:
+        text = record_file.read_text(encoding="utf-8")
+    except OSError:
+        return False
+    return f"{package}/__init__.py" in text.replace("\\", "/")
 
 
 def osgeo4w_setup() -> tuple[Path, Path] | None:
-    """(OSGeo4W's setup program, OSGeo4W's root) where QGIS came from OSGeo4W (its root holds ``etc/setup``) and the
-    setup program is at hand (the root, its ``bin``, or the user's Downloads folder); None elsewhere (the standalone
+    """(OSGeo4W's setup program, OSGeo4W's root) where QGIS came from OSGeo4W (its root holds ``etc/setup``) and
+    OSGeo4W's own copy of its setup program is there (the root or its ``bin``); None elsewhere (the standalone
     installer, macOS, Linux)."""
     root = Path(sys.prefix).parent.parent  # <root>/apps/Python3x
     if not (root / "etc" / "setup").is_dir():
         return None
-    folders = [root, root / "bin", Path.home() / "Downloads"]
+    folders = [root, root / "bin"]  # OSGeo4W's own copy only: never a program found elsewhere
     for folder in folders:
         found = sorted(folder.glob("osgeo4w-setup*.exe")) if folder.is_dir() else []
         if found:

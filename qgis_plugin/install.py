@@ -40,7 +40,7 @@ from .bound import checked, osgeo4w_command, osgeo4w_setup, record, trial, versi
 
 __all__ = ["DEPS_FOLDER", "InstallResult", "default_target", "qgis_python", "install_dependencies", "add_to_path",
            "site_folders", "missing_requirements", "library_mismatches", "bundled_libraries", "bundled_before_import",
-           "mismatch_message"]
+           "untried_wheels", "mismatch_message"]
 
 DEPS_FOLDER = "gistools_deps"
 # pip run by an isolated interpreter (-I: neither the current folder, nor PYTHONPATH / PYTHONHOME, nor the user's
@@ -64,8 +64,9 @@ REQUIREMENTS = (
 )
 
 
-def missing_requirements() -> list[str]:
-    """The pip names of the packages QGIS's Python cannot import (empty when all are there).
+def missing_requirements(skip=()) -> list[str]:
+    """The pip names of the packages QGIS's Python cannot import (empty when all are there); the modules in
+    ``skip`` are taken as there without being imported (wheels not to load before their trial).
 
     gistools itself is named only when its dependencies are all there (else it fails because of them).
     """
@@ -73,6 +74,8 @@ def missing_requirements() -> list[str]:
     for module, pip_name in REQUIREMENTS + (("gistools", "gistools"),):
         if module == "gistools" and missing:
             break
+        if module in skip:
+            continue
         try:
             importlib.import_module(module)
         except Exception:  # ImportError, or a broken binary wheel raising something else
@@ -143,13 +146,11 @@ def bundled_libraries(module) -> Path | None:
     return _bundled_folder(Path(where).parent) if where else None
 
 
-def bundled_before_import(target=None) -> list[str]:
-    """The GDAL / PROJ / GEOS bound packages that are binary wheels carrying their own libraries, found from their
-    installed files before any of them is imported: importing one loads its copy of GEOS or GDAL into QGIS's process
-    beside QGIS's own, which may crash QGIS (at the latest when it exits), so such a set-up is refused first, but
-    for the wheels that passed the trial in a QGIS process of their own (bound.py; recorded in ``target``, the
-    profile's folder by default), in the version tried."""
-    found = []
+def untried_wheels(target=None) -> dict:
+    """{package: installed version} of the GDAL / PROJ / GEOS bound packages that are binary wheels carrying their
+    own libraries and did not pass the trial in this QGIS in that version (bound.py), found from their installed
+    files: nothing is imported."""
+    found = {}
     passed = _passed(target)
     for package in sorted(BOUND):
         try:
@@ -157,8 +158,22 @@ def bundled_before_import(target=None) -> list[str]:
         except (ImportError, ValueError):
             continue
         folder = _bundled_folder(Path(spec.origin).parent) if spec is not None and spec.origin else None
-        if folder is not None and not _tried_and_passed(passed, package, version_beside(spec.origin)):
-            found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
+        version = version_beside(spec.origin) if folder is not None else None
+        if folder is not None and not _tried_and_passed(passed, package, version):
+            found[package] = version
+    return found
+
+
+def bundled_before_import(target=None) -> list[str]:
+    """The GDAL / PROJ / GEOS bound packages that are binary wheels carrying their own libraries, found from their
+    installed files before any of them is imported: importing one loads its copy of GEOS or GDAL into QGIS's process
+    beside QGIS's own, which may crash QGIS (at the latest when it exits), so such a set-up is refused first, but
+    for the wheels that passed the trial in a QGIS process of their own (bound.py; recorded in ``target``, the
+    profile's folder by default), in the version tried."""
+    found = []
+    for package in untried_wheels(target):
+        folder = _bundled_folder(Path(importlib.util.find_spec(package).origin).parent)
+        found.append(f"{package} carries its own libraries ({folder.name}, a binary wheel)")
     return found
 
 
@@ -195,7 +210,9 @@ def mismatch_message(found: list[str]) -> str:
             "`PIP_NO_BINARY=rasterio,pyogrio,shapely,pyproj pip install --user --break-system-packages "
             "--force-reinstall --no-deps rasterio pyogrio "
             "shapely pyproj`, after the build packages it lists), or use Debian's python3-rasterio / python3-pyproj / "
-            "python3-shapely / python3-pyogrio. Then restart QGIS.")
+            "python3-shapely / python3-pyogrio; or, from the QGIS Python console, install_dependencies() from "
+            "gistools_qgis.install tries pip's wheels in a QGIS process of their own and keeps those that pass. Then "
+            "restart QGIS.")
 
 
 @dataclass
@@ -350,20 +367,22 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
     """
     target = Path(target).expanduser().absolute() if target is not None else default_target()
     result = InstallResult(target=target)
-    bound, wanted, notes = _plan(missing_requirements(), gistools) if requirements is None else ([], list(requirements), [])
+    untried, bound, wanted, notes = _what_to_install(target, gistools, requirements)
     exe = Path(python) if python is not None else qgis_python()
     failure, engine, tried = None, "", {}
     if bound:
-        bound, tried = _bound_builds(bound, exe, timeout, notes)
+        bound, tried = _bound_builds(bound, exe, timeout, notes, pins=untried)
         wanted += [f"{name}=={version}" for name, version in tried.items()]
     if "gistools" in wanted and not bound:
         _take_zip_wheel(wanted, exe, timeout, notes)
     if wanted and not bound:
         failure = _install(exe, wanted, target, timeout, result, tried, notes)
+    elif tried and not bound:  # wheels installed already, tried now in their version
+        _record(target, tried, notes)
     add_to_path(target)
     if requirements is None:
         result.missing = missing_requirements()
-        result.mismatches = [] if result.missing else library_mismatches()
+        result.mismatches = [] if result.missing else library_mismatches(target)
         engine = _engine_note() if not failure and _takes_gistools(wanted) and not result.missing else ""
     elif failure:
         result.missing = wanted
@@ -373,6 +392,17 @@ def install_dependencies(target=None, *, gistools=None, python=None, requirement
                      "install_dependencies() again" + (f" (it installs {', '.join(wanted)})" if wanted else ""))
     result.message = _message(result, notes) + (f"; {engine}" if engine else "")
     return result
+
+
+def _what_to_install(target: Path, gistools, requirements) -> tuple[dict, list, list, list]:
+    """(the bound wheels installed but never tried {package: version}, the bound packages to bring, what pip
+    installs, notes): ``requirements`` when given, else what QGIS's Python lacks; an untried wheel is never
+    imported here (missing_requirements skips it) and is tried again."""
+    if requirements is not None:
+        return {}, [], list(requirements), []
+    untried = untried_wheels(target)
+    bound, wanted, notes = _plan(missing_requirements(skip=untried), gistools)
+    return untried, sorted(set(bound) | set(untried)), wanted, notes
 
 
 def _install(exe, wanted: list, target: Path, timeout: float, result: InstallResult, tried: dict, notes: list
@@ -386,8 +416,17 @@ def _install(exe, wanted: list, target: Path, timeout: float, result: InstallRes
     if failure:
         notes.insert(0, f"{failure}. Run this once, then restart QGIS: {_quoted(cmd)}")
     elif tried:
-        record(target, {**_passed(target), **tried})
+        _record(target, tried, notes)
     return failure
+
+
+def _record(target: Path, tried: dict, notes: list) -> None:
+    """The wheels that passed the trial, recorded in ``target``; a note where the record cannot be written (the
+    plugin will refuse them at its next start)."""
+    try:
+        record(target, {**_passed(target), **tried})
+    except Exception as err:  # noqa: BLE001 - an unwritable profile: said, not raised
+        notes.append(f"the record of the wheels tried could not be written ({err}): the plugin will refuse them")
 
 
 def _plan(missing: list, gistools) -> tuple[list, list, list]:
@@ -408,33 +447,53 @@ def _plan(missing: list, gistools) -> tuple[list, list, list]:
     return bound, wanted, notes
 
 
-def _bound_builds(bound: list, exe, timeout: float, notes: list) -> tuple[list, dict]:
+def _bound_builds(bound: list, exe, timeout: float, notes: list, pins=None) -> tuple[list, dict]:
     """The GDAL / PROJ / GEOS bound packages QGIS's Python lacks, from QGIS's installer where it can add them
     unattended (OSGeo4W's setup), else pip's binary wheels that pass the trial in a QGIS process (bound.trial):
-    (those still missing, {package: version} of the wheels to install); ``notes`` say which route each took."""
-    setup = osgeo4w_setup()
-    if setup is not None:
-        failure = _pip(osgeo4w_command(*setup, bound), timeout)  # runs any program the way it runs pip
-        importlib.invalidate_caches()
-        added = [name for name in bound if importlib.util.find_spec(name) is not None]
-        if added:
-            notes.append(f"installed OSGeo4W's {', '.join(added)} (QGIS's own builds) with its setup")
-        elif failure:
-            notes.append(f"OSGeo4W's setup did not add {', '.join(bound)} ({failure.replace('pip', 'setup')})")
-        bound = [name for name in bound if name not in added]
+    (those still missing, {package: version} of the wheels to install); ``notes`` say which route each took.
+    ``pins`` {package: version}: wheels installed already but not tried, tried in that version."""
+    pins = pins or {}
+    if not set(bound) <= set(pins):  # packages missing (not only installed wheels to try): QGIS's installer first
+        bound = _from_osgeo4w(bound, timeout, notes)
     if not bound or exe is None:
         return bound, {}
+    return _wheel_trials(bound, exe, timeout, notes, pins)
+
+
+def _from_osgeo4w(bound: list, timeout: float, notes: list) -> list:
+    """The bound packages OSGeo4W's setup could not add (all of them where QGIS is not an OSGeo4W install)."""
+    setup = osgeo4w_setup()
+    if setup is None:
+        return bound
+    failure = _pip(osgeo4w_command(*setup, bound), timeout)  # runs any program the way it runs pip
+    importlib.invalidate_caches()
+    added = [name for name in bound if importlib.util.find_spec(name) is not None]
+    if added:
+        notes.append(f"installed OSGeo4W's {', '.join(added)} (QGIS's own builds) with its setup")
+    elif failure:
+        notes.append(f"OSGeo4W's setup did not add {', '.join(bound)} ({failure.replace('pip', 'setup')})")
+    return [name for name in bound if name not in added]
+
+
+def _wheel_trials(bound: list, exe, timeout: float, notes: list, pins: dict) -> tuple[list, dict]:
+    """pip's binary wheels of ``bound`` (in the versions of ``pins``) tried in QGIS processes of their own: (those
+    that failed, {package: version} of those that passed)."""
     with tempfile.TemporaryDirectory(prefix="gistools-trial-") as folder:
         site = Path(folder) / "site"
-        pins = Path(folder) / "constraints.txt"
-        pins.write_text(_constraints(_installed()), encoding="utf-8")
+        constraints = Path(folder) / "constraints.txt"
+        constraints.write_text(_constraints(_installed()), encoding="utf-8")
         failure = _pip([str(exe), *PIP, "install", "--disable-pip-version-check", "--no-input", "--only-binary",
-                        ":all:", "--constraint", str(pins), "--target", str(site), *bound], timeout)
+                        ":all:", "--constraint", str(constraints), "--target", str(site),
+                        *[f"{name}=={pins[name]}" if pins.get(name) else name for name in bound]], timeout)
         if failure:
             notes.append(f"pip's binary wheels of {', '.join(bound)} could not be fetched ({failure})")
             return bound, {}
         passed, failed = _tried(exe, site, bound, timeout)
         versions = {name: version_beside(site / name / "__init__.py") for name in passed}
+        for name in [n for n, v in versions.items() if not v]:  # no readable version: it could not be recorded
+            failed[name] = "its version could not be read from the wheel"
+            passed.remove(name)
+            del versions[name]
     for name, why in failed.items():
         notes.append(f"pip's binary wheel of {name} failed the trial in a QGIS process of its own ({why}): not "
                      "installed")
@@ -555,7 +614,8 @@ def _pip(command: list, timeout: float) -> str | None:
     folder (with -I it is not on the path either)."""
     try:
         with tempfile.TemporaryDirectory(prefix="gistools-pip-") as cwd:
-            run = subprocess.run(command, capture_output=True, text=True, timeout=timeout, cwd=cwd)
+            run = subprocess.run(command, capture_output=True, text=True, timeout=timeout, cwd=cwd, encoding="utf-8",
+                                 errors="replace")
     except (OSError, subprocess.SubprocessError) as err:
         return f"pip could not run ({err})"
     if run.returncode != 0:

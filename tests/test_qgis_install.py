@@ -372,3 +372,28 @@ def test_where_qgis_came_from_osgeo4w_its_setup_adds_the_bound_packages_unattend
     left, versions = install._bound_builds(["pyogrio", "rasterio"], Path(sys.executable), 300, notes)
     assert left == [] and versions == {} and (site / "rasterio" / "__init__.py").is_file()
     assert notes == ["installed OSGeo4W's pyogrio, rasterio (QGIS's own builds) with its setup"]
+
+
+def test_a_wheel_installed_but_not_tried_in_this_qgis_is_tried_again_never_imported(tmp_path, monkeypatch):
+    """After a QGIS update the record no longer covers an installed binary wheel: install_dependencies() takes it
+    for a trial in its installed version, and finding what is missing does not import it."""
+    import json
+
+    site = tmp_path / "site"
+    (site / "shapely").mkdir(parents=True)
+    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
+    (site / "shapely.libs").mkdir()
+    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
+    (site / "shapely-2.2.0.dist-info").mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    for name in list(sys.modules):
+        if name == "shapely" or name.startswith("shapely."):
+            monkeypatch.delitem(sys.modules, name)
+    profile = tmp_path / "profile"
+    profile.mkdir()
+    (profile / "gistools_checked.json").write_text(json.dumps({"qgis": "3.0.0-Girona", "python": "%d.%d" %
+                                                              sys.version_info[:2], "packages": {"shapely": "2.2.0"}}),
+                                                  encoding="utf-8")
+    untried, bound, _wanted, _notes = install._what_to_install(profile, None, None)
+    assert untried == {"shapely": "2.2.0"} and "shapely" in bound
+    assert "shapely" not in sys.modules

@@ -80,6 +80,15 @@ def test_neighbours_are_those_of_the_all_pairs_search(seed, all_pairs, monkeypat
     assert neighbour_pairs(bounds, d) == pairs_by_brute_force(bounds, d)
 
 
+@pytest.mark.parametrize("all_pairs", [0, 512], ids=["rtree", "numpy"])
+def test_an_inverted_box_is_taken_as_its_envelope_by_both_searches(all_pairs, monkeypatch):
+    """A header whose minimum lies past its maximum (an empty tile's) is its envelope for both searches."""
+    from gistools.engine import schedule
+
+    monkeypatch.setattr(schedule, "ALL_PAIRS", all_pairs)
+    assert neighbour_pairs([(0, 0, 10, 10), (20, 10, 10, 0), (50, 50, 60, 60)], 1.0) == [[1], [0], []]
+
+
 def _drive(schedule, failed, rng, in_flight):
     """Run a schedule as the engine does, finishing the running tasks in a random order; the log of events."""
     log, running = [], []

@@ -403,3 +403,14 @@ def test_no_segment_is_a_cell_walled_in_or_an_island_amid_cliffs():
     assert labels[4, 4] > 0 and labels[14, 14] > 0
     assert sizes[labels[4, 4]] > 1 and sizes[labels[14, 14]] > 1
     assert sizes[1:].min() >= 400 // 4 // 16
+
+
+def test_a_target_of_a_cell_or_two_keeps_every_cell_a_segment():
+    """A target of one or two cells (a 100 m2 target on 10 m cells) cuts the area into single cells: none is
+    joined to another, however small."""
+    from gistools.terrain.search import segment_cells
+
+    walls = np.zeros((12, 12), bool)
+    for cell, target in ((1.0, 1.0), (1.0, 2.0), (10.0, 100.0)):
+        labels = segment_cells(np.ones((12, 12), bool), walls, cell, target)
+        assert labels.max() == 144 and np.bincount(labels.ravel())[1:].max() == 1, (cell, target)

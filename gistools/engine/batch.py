@@ -345,6 +345,7 @@ class ProcessPool:
             for proc in self._processes:
                 if proc.is_alive():
                     proc.kill()
+        if futures or self.lost_worker():  # a worker dead, whoever waits: its pipe may hold a blocked writer
             _unblock_feeder(self.pool)
         self.pool.shutdown(wait=bool(futures), cancel_futures=True)
 
@@ -361,11 +362,24 @@ class ProcessPool:
             self._manager.join()
 
 
+def _stdlib_unblocks() -> bool:
+    """True where Python's process pool closes the dead workers' pipe itself (cpython issue 94777 fixed)."""
+    import inspect
+    from concurrent.futures import process
+
+    try:
+        return "_reader.close" in inspect.getsource(process._ExecutorManagerThread.terminate_broken)
+    except (OSError, TypeError, AttributeError):  # no source at hand (a frozen build)
+        return sys.version_info >= (3, 12)
+
+
 def _unblock_feeder(executor) -> None:
     """Let the executor's queue feeder go when its readers are dead: a worker killed while a task's arguments were
     being written to it leaves the feeder thread blocked on a full pipe, and Python before 3.11.5 then waits for it
     for ever when the pool is shut down (cpython issue 94777). Closing this process's copy of the pipe's reading end
     (and on Windows its writing end, cpython issue 107219) is what later Pythons do."""
+    if _stdlib_unblocks():
+        return  # the pool closes it itself, once its futures have failed: closing it here too would race with it
     queue = getattr(executor, "_call_queue", None)
     ends = [getattr(queue, "_reader", None)] + ([getattr(queue, "_writer", None)] if sys.platform == "win32" else [])
     for end in ends:
@@ -470,7 +484,7 @@ class DaskPool:
         if self.client is None:
             return
         lost = self._lost()
-        names = [n for n in logging.root.manager.loggerDict if n.split(".")[0] == "distributed"] if lost else []
+        names = [n for n in list(logging.root.manager.loggerDict) if n.split(".")[0] == "distributed"] if lost else []
         quiet = {name: logging.getLogger(name).disabled for name in names}
         for name in names:  # the client's attempts to reconnect end in tracebacks it logs: the run's line says it
             logging.getLogger(name).disabled = True
@@ -484,7 +498,10 @@ class DaskPool:
             for name, disabled in quiet.items():
                 logging.getLogger(name).disabled = disabled
         if self.cluster is not None:
-            self.cluster.close()
+            try:
+                self.cluster.close()
+            except Exception:  # noqa: BLE001 - a local cluster whose scheduler died: its processes end with ours
+                pass
         self.client = self.cluster = None
 
 

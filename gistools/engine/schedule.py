@@ -28,7 +28,8 @@ def neighbour_pairs(bounds, distance: float, reach=None) -> list[list[int]]:
     b = np.asarray(bounds, dtype=float).reshape(-1, 4)
     if len(b) == 0:
         return []
-    r = np.asarray(reach, dtype=float).reshape(-1, 4) if reach is not None else None
+    b = _envelopes(b)  # an inverted box (an empty tile's header) is its envelope, then grown
+    r = _envelopes(np.asarray(reach, dtype=float).reshape(-1, 4)) if reach is not None else None
     g = r if r is not None else b + np.array([-distance, -distance, distance, distance])
     if len(b) <= ALL_PAIRS:
         meet = ((g[:, None, 0] <= b[None, :, 2]) & (b[None, :, 0] <= g[:, None, 2])
@@ -45,6 +46,14 @@ def neighbour_pairs(bounds, distance: float, reach=None) -> list[list[int]]:
         if i != j:
             out[i].append(j)
     return [sorted(o) for o in out]
+
+
+def _envelopes(boxes):
+    """Boxes (w, s, e, n) as envelopes, west <= east and south <= north, as shapely takes an inverted box."""
+    import numpy as np
+
+    return np.column_stack([np.minimum(boxes[:, 0], boxes[:, 2]), np.minimum(boxes[:, 1], boxes[:, 3]),
+                            np.maximum(boxes[:, 0], boxes[:, 2]), np.maximum(boxes[:, 1], boxes[:, 3])])
 
 
 def _users(scan_order, todo, deps) -> dict[str, set[str]]:

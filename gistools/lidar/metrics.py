@@ -142,6 +142,8 @@ class _Sorted:
             return self._cells(last if stat == "max" else np.where(np.isnan(last), np.nan, self.values[first]))
         if stat == "median":
             return self.percentile(50.0)
+        if stat not in ("sum", "mean", "sd", "cv"):
+            raise ValueError(f"not a statistic of an attribute's values: {stat!r}")
         total, squares = self.sums()
         if stat == "sum":
             return self._cells(total)

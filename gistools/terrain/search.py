@@ -371,7 +371,7 @@ def segment_cells(searchable: np.ndarray, walls: np.ndarray, cell_metres: float,
     # a piece too small to search on its own (under a sixteenth of the smallest segment kept: a cell walled in by
     # drainages, a thicket's corner): to the neighbour it shares the longest edge with, whatever its kind
     flat = np.zeros(searchable.shape, dtype=np.int64)
-    tiny = max(2, min_cells // 16)
+    tiny = min(max(2, min_cells // 16), min_cells)  # never past the smallest piece kept: a tiny target keeps its cells
     merged = _merge_small(merged, flat, flat, tiny)
     alone = (np.bincount(merged.ravel()) < tiny)[merged] & (merged > 0)  # islands of cells amid cliffs or water
     if alone.any() and (merged[~alone] > 0).any():  # to the nearest segment (it gains a small part of its own)
