@@ -230,6 +230,20 @@ def test_the_zips_wheel_for_this_platform_is_taken_never_an_index_one(tmp_path, 
     assert chosen is not None and Path(chosen) == pure and Path(chosen) != other
 
 
+def _shapely_wheel_on_path(tmp_path, monkeypatch) -> None:
+    """A shapely 2.2.0 binary wheel's files first on the path (its own GEOS in shapely.libs); importing it raises."""
+    site = tmp_path / "site"
+    (site / "shapely").mkdir(parents=True)
+    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
+    (site / "shapely.libs").mkdir()
+    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
+    (site / "shapely-2.2.0.dist-info").mkdir()
+    monkeypatch.syspath_prepend(str(site))
+    for name in list(sys.modules):
+        if name == "shapely" or name.startswith("shapely."):
+            monkeypatch.delitem(sys.modules, name)
+
+
 # Debian's QGIS runs in the system's Python (this venv's base); it has no shapely, pyogrio or rasterio of its own
 QGIS_PYTHON = Path(sys.base_prefix) / "bin" / f"python{sys.version_info.major}.{sys.version_info.minor}"
 _IMPORTED = """
@@ -316,16 +330,7 @@ def test_a_wheel_that_passed_the_trial_is_let_through_in_the_version_tried_only(
     says that this version passed the trial in this QGIS and Python; another version is refused again."""
     from qgis_plugin import bound, plugin
 
-    site = tmp_path / "site"
-    (site / "shapely").mkdir(parents=True)
-    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
-    (site / "shapely.libs").mkdir()
-    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
-    (site / "shapely-2.2.0.dist-info").mkdir()
-    monkeypatch.syspath_prepend(str(site))
-    for name in list(sys.modules):
-        if name == "shapely" or name.startswith("shapely."):
-            monkeypatch.delitem(sys.modules, name)
+    _shapely_wheel_on_path(tmp_path, monkeypatch)
     profile = tmp_path / "profile"
     refused = ["shapely carries its own libraries (shapely.libs, a binary wheel)"]
     assert plugin.bundled_before_import(profile) == refused
@@ -379,16 +384,7 @@ def test_a_wheel_installed_but_not_tried_in_this_qgis_is_tried_again_never_impor
     for a trial in its installed version, and finding what is missing does not import it."""
     import json
 
-    site = tmp_path / "site"
-    (site / "shapely").mkdir(parents=True)
-    (site / "shapely" / "__init__.py").write_text("raise RuntimeError('imported')\n", encoding="utf-8")
-    (site / "shapely.libs").mkdir()
-    (site / "shapely.libs" / "libgeos-0123abcd.so.3.14.1").write_bytes(b"\x7fELF")
-    (site / "shapely-2.2.0.dist-info").mkdir()
-    monkeypatch.syspath_prepend(str(site))
-    for name in list(sys.modules):
-        if name == "shapely" or name.startswith("shapely."):
-            monkeypatch.delitem(sys.modules, name)
+    _shapely_wheel_on_path(tmp_path, monkeypatch)
     profile = tmp_path / "profile"
     profile.mkdir()
     (profile / "gistools_checked.json").write_text(json.dumps({"qgis": "3.0.0-Girona", "python": "%d.%d" %
