@@ -1055,7 +1055,7 @@ def search_plan(dem, out, last_seen, category, settings: SearchSettings | None =
     ...                          make_map=False)  # doctest: +SKIP
     >>> rep = search_plan("chain", "plan", "431000,1811000", "dementia", staging="431200,1810600")  # doctest: +SKIP
     >>> [round(r) for r in rep["rings_m"]], rep["segments"], round(rep["rest_of_world"], 3)  # doctest: +SKIP
-    ([322, 805, 1931, 8208], 11, 0.757)
+    ([322, 805, 1931, 8208], 7, 0.757)
     """
     from ..engine.record import write_folder_report
     from ..engine.resume import rerun_kept, run_record
