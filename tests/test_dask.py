@@ -215,3 +215,21 @@ class _cluster:
             if p.poll() is None:
                 p.terminate()
         _ended(self.procs)
+
+
+@pytest.mark.parametrize("verbose", [0, 1])
+def test_the_command_line_prints_dask_messages_at_its_own_level(verbose):
+    """distributed sets its loggers to INFO when imported: the command line prints their information only with -v,
+    as it does its own, and their warnings always (a record logged directly, not a race of a lost scheduler)."""
+    code = ("import logging\n"
+            "from gistools.cli.main import cli\n"
+            f"cli.callback(verbose={verbose})\n"
+            "log = logging.getLogger('distributed.batched')\n"
+            "log.setLevel(logging.INFO)\n"
+            "log.info('Batched Comm Closed')\n"
+            "log.warning('a worker is slow')\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.strip().splitlines()
+    expected = ["INFO distributed.batched: Batched Comm Closed"] if verbose else []
+    assert lines == expected + ["WARNING distributed.batched: a worker is slow"], run.stderr

@@ -203,8 +203,13 @@ def _print_version(ctx, _param, value) -> None:
 def cli(verbose):
     """Open tools for LiDAR (ground and noise classes, DSM / DEM / nDSM, the shrub density chain), aquifer models,
     runway earthworks and structure reconstruction."""
-    logging.basicConfig(level=[logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)],
-                        format="%(levelname)s %(name)s: %(message)s")
+    level = [logging.WARNING, logging.INFO, logging.DEBUG][min(verbose, 2)]
+    # the handler itself has the level asked for: a library that sets its own loggers' level (distributed sets
+    # INFO when imported) prints at -v, as gistools' own messages do, not on every run
+    handler = logging.StreamHandler()
+    handler.setLevel(level)
+    handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    logging.basicConfig(level=level, handlers=[handler])
     if verbose < 2:  # laspy logs a broken file's decoding error before raising it; gistools reports it, once
         logging.getLogger("laspy").setLevel(logging.CRITICAL)
 
