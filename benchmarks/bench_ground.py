@@ -50,7 +50,9 @@ from _smoke import announce, smoke, workdir  # noqa: E402
 
 SHARED = ROOT.parent / "shared" / "data" / "lidar"
 FILES = {"autzen (suburban, ft)": SHARED / "autzen" / "autzen_trim.las",
-         "Megaplot (boreal forest, m)": SHARED / "megaplot" / "Megaplot.laz"}
+         "Megaplot (boreal forest, m)": SHARED / "megaplot" / "Megaplot.laz",
+         "Topography (steep forested slope, m)": SHARED / "lidr" / "Topography.laz",
+         "MixedConifer (conifer stand, m)": SHARED / "lidr" / "MixedConifer.laz"}
 
 ISPRS = ROOT.parent / "shared" / "data" / "isprs"
 ISPRS_SAMPLES = ("samp11", "samp12", "samp21", "samp22", "samp23", "samp24", "samp31", "samp41", "samp42", "samp51",
@@ -93,7 +95,8 @@ def isprs_classify(path: Path, method: str) -> tuple[np.ndarray, np.ndarray, flo
     t = time.perf_counter()
     with _quiet_stdout():  # the CSF library prints its steps on the C stdout
         cls = classify_ground_and_noise(x, y, z, rn, nr, np.ones(len(x), np.uint8), method=p.method, smrf=p.smrf,
-                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, z_metres=p.z_metres)
+                                        smrftin=p.smrftin, adaptive=p.smrftin, csf=p.csf, noise=p.noise,
+                                        z_metres=p.z_metres)
     return truth, cls == 2, time.perf_counter() - t
 
 
@@ -206,15 +209,21 @@ def quality(path: Path, rng, only=None) -> list[dict]:
     m = 1 / info.unit.metres
     grid = snapped_grid((x.min(), y.min(), x.max(), y.max()), 1 * m)
     ref = dem_from_ground_points(x[truth], y[truth], z[truth], grid, max_distance=10 * m)
-    ours = _params(GroundSettings(), info)
-    pdal = _params(GroundSettings(slope=0.15, threshold="0.5m", scalar="1.25m"), info)
+    ours = _params(GroundSettings(method="smrf"), info)
+    pdal = _params(GroundSettings(method="smrf", slope=0.15, threshold="0.5m", scalar="1.25m"), info)
     tin = _params(GroundSettings(method="smrftin"), info)
+    auto = _params(GroundSettings(), info)  # the default: adaptive
     methods = {
-        "gistools smrf (defaults)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=ours.smrf, noise=ours.noise),
-        "gistools smrftin (defaults)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="smrftin",
+        "gistools adaptive (the default)": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="adaptive",
+                                                                             adaptive=auto.smrftin, noise=auto.noise,
+                                                                             z_metres=auto.z_metres),
+        "gistools smrf": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="smrf", smrf=ours.smrf,
+                                                           noise=ours.noise),
+        "gistools smrftin": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="smrftin",
                                                                          smrftin=tin.smrftin, noise=tin.noise,
                                                                          z_metres=tin.z_metres),
-        "smrf, PDAL's parameters": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, smrf=pdal.smrf, noise=pdal.noise),
+        "smrf, PDAL's parameters": lambda: classify_ground_and_noise(X, Y, Z, RN, NR, ones, method="smrf",
+                                                                     smrf=pdal.smrf, noise=pdal.noise),
         "CSF, lidR's defaults (library)": lambda: np.where(
             csf_ground(X, Y, Z, np.ones(len(X), bool), CsfParams(resolution=0.5 * m, threshold=0.5 / zm)), 2, 1),
     }
@@ -321,8 +330,8 @@ def main(argv=None) -> int:
                     "names as the table prints them or a part of them (smrf, smrftin, CSF).")
     args = ap.parse_args(argv)
     announce("bench_ground")
-    if smoke():  # SMRF alone (CSF takes minutes), a block of 200,000 points made in seconds
-        args.methods = args.methods or "smrf"
+    if smoke():  # the default alone (CSF takes minutes), a block of 200,000 points made in seconds
+        args.methods = args.methods or "adaptive"
         args.points, args.simple_block, args.workdir = 2e5, True, workdir(args.workdir)
     if args.isprs:
         from gistools.lidar.ground import GROUND_METHODS
@@ -346,7 +355,7 @@ def main(argv=None) -> int:
         print()
         print("| gistools ground on the block | points | seconds | M points/s | per job | CPU seconds | M points per CPU second |")
         print("|---|---:|---:|---:|---:|---:|---:|")
-        methods = [m for m in (only or ("smrf", "smrftin")) if m in ("smrf", "smrftin")] or ["smrf"]
+        methods = [m for m in (only or ("smrf", "adaptive")) if m in ("smrf", "smrftin", "adaptive")] or ["adaptive"]
         for method, jobs, seconds, n, cpu in speed(Path(args.workdir), args.points, methods, args.simple_block):
             print(f"| --method {method} --jobs {jobs} | {n:,} | {seconds:.1f} | {n / seconds / 1e6:.2f} | "
                   f"{n / seconds / 1e6 / jobs:.2f} | {cpu:.1f} | {n / cpu / 1e6:.2f} |")

@@ -44,10 +44,10 @@ def _header_span() -> tuple[float, float]:
 
 @pytest.mark.parametrize("args,needles", [
     (["--method", "smrftin", "--smrftin-window", "1e6m"], ["--smrftin-window 1e6m", "666,667 cells", "at most 200"]),
-    (["--window", "300m"], ["--window 300m", "radius of 300 cells", "at most 200"]),
+    (["--method", "smrf", "--window", "300m"], ["--window 300m", "radius of 300 cells", "at most 200"]),
     (["--method", "csf", "--csf-resolution", "1e-6m"], ["CSF cloth", "--csf-resolution"]),
     (["--method", "smrftin", "--smrftin-cell", "1e-6m"], ["--smrftin-cell"]),
-    (["--cell", "1e-5m"], ["--cell"]),
+    (["--method", "smrf", "--cell", "1e-5m"], ["--cell"]),
     (["--csf-time-step", "0"], ["--csf-time-step", "above 0"]),
 ])
 def test_ground_refuses_settings_whose_work_explodes_before_any_tile(tmp_path, args, needles):

@@ -32,7 +32,9 @@ from .. import kernel
 from ..parameters import choices, default_for
 from ..units import METRE, LinearUnit, length_to_crs_units
 
-__all__ = ["SmrfParams", "smrftin_params", "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
+__all__ = ["SmrfParams", "smrftin_params", "adaptive_params", "for_data", "TIN_METHODS",
+           "canopy_cell", "survey_returns", "survey_density",
+           "CsfParams", "NoiseParams", "smrf_ground", "csf_ground", "classify_ground_and_noise", "fill_gaps",
            "progressive_filter", "min_surface", "raised_patches", "GROUND_METHODS", "ground_candidates", "plane_residuals",
            "noise_histogram", "noise_from_histogram", "for_noise", "survey_noise_histogram", "noise_stride",
            "NoiseBlocks", "too_few_in_blocks"]
@@ -65,6 +67,10 @@ class SmrfParams:
     noise_band: tuple = ()  # smrftin: (precise, noisy) ground noise (vertical units) of the threshold scale; (): fixed
     tight: tuple = ()  # smrftin: (threshold, scalar, slope) for ground noise at or below noise_band[0]
     noise: float | None = None  # smrftin: the ground noise measured on the run's points (None: measure it here)
+    canopy: tuple = ()  # adaptive under a canopy, data's units: cell, threshold, scalar, slope, the last returns per
+    # square CRS unit at which the cell stays, the smallest cell (canopy_set); (): none
+    multi: float | None = None  # adaptive: the survey's share of multi-return points (None: measure it on the points)
+    density: float | None = None  # adaptive: the survey's last returns per square CRS unit (None: measure it)
 
 
 def smrftin_params(**lengths) -> SmrfParams:
@@ -78,8 +84,20 @@ def smrftin_params(**lengths) -> SmrfParams:
     return SmrfParams(**base)
 
 
+def adaptive_params(**lengths) -> SmrfParams:
+    """The adaptive method's parameters: smrftin's (``smrftin_params``, ``lengths`` override them) and the set it
+    takes under a canopy (CANOPY_M, CANOPY_DENSITY_M2, CANOPY_MIN_CELL_M; in the data's units through ``canopy``)."""
+    lengths.setdefault("canopy", (*CANOPY_M, CANOPY_DENSITY_M2, CANOPY_MIN_CELL_M))
+    return smrftin_params(**lengths)
+
+
 NOISE_BAND_M = (0.025, 0.045)  # smrftin: ground noise (m) below which its thresholds are the tight set, above: its own
 TIGHT_M = (0.05, 0.2, 0.1)  # smrftin on a precise survey: threshold (m), scalar (m), slope (smrf's)
+CANOPY_M = (1.75, 0.05, 0.2, 0.1)  # adaptive under a canopy: cell (m), threshold (m), scalar (m), slope
+CANOPY_SHARE = 0.10  # a survey records a canopy when at least this share of its points are of multi-return pulses
+CANOPY_DENSITY_M2 = 3.2  # last returns per m2 up to which the canopy set keeps its 1.75 m cells (about 10 a cell) ...
+CANOPY_MIN_CELL_M = 0.5  # ... beyond, cells as wide as hold as many, down to this
+DENSITY_CELL_M = 25.0  # the survey's area for its density: the cells of this side (m) that hold a point
 NOISE_SIGMAS = 4.0  # smrftin's threshold is at least this many times the ground noise
 NOISE_BIN_M = 0.001  # the ground noise is measured in steps of 1 mm ...
 NOISE_BINS = 1000  # ... up to 1 m (larger residuals count in one last bin)
@@ -509,6 +527,47 @@ def for_noise(p: SmrfParams, noise: float | None) -> SmrfParams:
                    slope=t_slope + f * (p.slope - t_slope), noise_band=(), noise=noise)
 
 
+def canopy_cell(canopy: tuple, density: float | None) -> float:
+    """The canopy set's cell (CRS units) for a survey of ``density`` last returns per square CRS unit: its own up
+    to the density of ``canopy`` (about 10 last returns a cell), then as wide as holds as many, down to its smallest.
+    The lowest of more returns a cell lies lower in their noise (by about 2.4 sigma among 16), and a 5 cm threshold
+    around it would keep only the lowest ground returns of a dense survey."""
+    cell, _threshold, _scalar, _slope, reference, smallest = canopy
+    if not density or density <= reference:
+        return cell
+    return max(smallest, cell * math.sqrt(reference / density))
+
+
+def for_data(p: SmrfParams, noise: float | None, multi: float | None, density: float | None = None) -> SmrfParams:
+    """smrftin's or adaptive's parameters for this survey. Under a canopy (``p.canopy`` given, a ``multi`` share
+    of points of multi-return pulses at least CANOPY_SHARE): the canopy set, its cell from the survey's
+    ``density`` (canopy_cell). Residuals among the ground found there measure the understory and the forest
+    floor's roughness as much as the scanner, and thresholds loosened by them take low vegetation for ground.
+    Otherwise: ``for_noise``, thresholds from the measured ground noise."""
+    if p.canopy and multi is not None and multi >= CANOPY_SHARE:
+        _cell, threshold, scalar, slope, _reference, _smallest = p.canopy
+        return replace(p, cell=canopy_cell(p.canopy, density), threshold=threshold, scalar=scalar, slope=slope,
+                       noise_band=(), noise=noise, canopy=(), multi=multi, density=density)
+    return replace(for_noise(p, noise), canopy=(), multi=multi, density=density)
+
+
+def survey_returns(x, y, return_number, number_of_returns, cell: float) -> tuple[int, int, int, np.ndarray]:
+    """(points, points of multi-return pulses, last returns, the sorted keys of the ``cell`` cells that hold a
+    point) of these points: adaptive's measures of a survey, added up over its tiles (the cells as a union). The
+    share of multi-return points tells a canopy: ISPRS-era scans record one return a pulse (0 %); autzen
+    (suburban) 18 %, lidR's forests 31-58 %."""
+    rn, nr = np.asarray(return_number), np.asarray(number_of_returns)
+    ix = np.floor(np.asarray(x, np.float64) / cell).astype(np.int64)
+    iy = np.floor(np.asarray(y, np.float64) / cell).astype(np.int64)
+    return (len(rn), int(np.count_nonzero(nr >= 2)), int(np.count_nonzero(rn >= nr)),
+            np.unique(ix * 4_294_967_296 + iy))
+
+
+def survey_density(last: int, cells: int, cell: float) -> float | None:
+    """Last returns per square CRS unit over the ``cells`` cells of side ``cell`` that hold a point."""
+    return last / (cells * cell * cell) if cells else None
+
+
 NOISE_BLOCK_M = 100.0  # smrftin measures a large survey's ground noise in blocks of 100 m (the absolute lattice) ...
 NOISE_POINTS = 250_000  # ... every stride-th block east and north, the stride leaving about this many points in them
 
@@ -625,6 +684,7 @@ def _noise_counts(x, y, z, fields, own, inside, tight: SmrfParams, noise: NoiseP
 GROUND_CLASS, LOW_NOISE, HIGH_NOISE, UNCLASSIFIED = 2, 7, 18, 1
 RECLASSIFIED = (0, 1, 2, 7, 18)  # never classified, unclassified, ground, noise: the classes a run decides anew
 GROUND_METHODS = choices("ground_method")  # declared in gistools.parameters (rasters' GROUND_METHODS)
+TIN_METHODS = ("smrftin", "adaptive")  # SMRF then a TIN of its ground, thresholds from the survey
 
 
 @dataclass(frozen=True)
@@ -699,9 +759,10 @@ def ground_candidates(x, y, z, return_number, number_of_returns, classification,
     return is_noise, open_, candidates
 
 
-def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *, method: str = "smrf",
+def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classification, *,
+                              method: str = default_for("ground_method"),
                               smrf: SmrfParams | None = None, csf: CsfParams | None = None,
-                              smrftin: SmrfParams | None = None,
+                              smrftin: SmrfParams | None = None, adaptive: SmrfParams | None = None,
                               noise: NoiseParams = NoiseParams(), keep_classes: bool = False,
                               z_metres: float = 1.0) -> np.ndarray:
     """New ASPRS classes of the points: noise first (IVF or SOR: 7 low noise below the ground surface, 18 high
@@ -709,20 +770,26 @@ def classify_ground_and_noise(x, y, z, return_number, number_of_returns, classif
     and only returns that are not noise; points more than ``noise.low_depth`` below the SMRF surface are low
     noise even in clusters (multipath). Only points of RECLASSIFIED classes change: water (9), buildings (6),
     vegetation (3-5) and any other class a provider gave stay as they are (and out of the ground surface).
-    Points that were ground or noise and are not now become 1, unless ``keep_classes``. smrftin measures the
-    ground's noise on these points first unless ``smrftin.noise`` is given (``z_metres``: metres per vertical unit)."""
+    Points that were ground or noise and are not now become 1, unless ``keep_classes``. smrftin and adaptive measure
+    the ground's noise on these points first unless their ``noise`` is given (``z_metres``: metres per vertical
+    unit); adaptive measures the share of multi-return points and the density of last returns too unless its
+    ``multi`` and ``density`` are given (``for_data``)."""
     x, y, z = (np.asarray(a, np.float64) for a in (x, y, z))
     old = np.asarray(classification)
     is_noise, open_, candidates = ground_candidates(x, y, z, return_number, number_of_returns, old, noise)
     if method == "csf":
         ground = csf_ground(x, y, z, candidates, csf or CsfParams())
         surface = None
-    elif method == "smrftin":
-        p = smrftin or smrftin_params()
+    elif method in TIN_METHODS:
+        p = (adaptive or adaptive_params()) if method == "adaptive" else (smrftin or smrftin_params())
         if p.noise_band:  # thresholds from the ground's noise: given by the run, or measured on these points
             ground_noise = p.noise if p.noise is not None else noise_from_histogram(
                 _survey_noise(x, y, z, return_number, number_of_returns, old, p, noise, z_metres, candidates), z_metres)
-            p = for_noise(p, ground_noise)
+            if p.multi is None or p.density is None:  # measured on these points
+                dc = DENSITY_CELL_M / (p.z_per_xy * z_metres)
+                n, multi, last, cells = survey_returns(x, y, return_number, number_of_returns, dc)
+                p = replace(p, multi=multi / n if n else None, density=survey_density(last, len(cells), dc))
+            p = for_data(p, ground_noise, p.multi, p.density)
         ground, surface = smrf_ground(x, y, z, candidates, p)
     else:
         ground, surface = smrf_ground(x, y, z, candidates, smrf or SmrfParams())

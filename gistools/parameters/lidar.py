@@ -30,10 +30,15 @@ DEFAULT_METRICS = ("count", "density", "z_min", "z_max", "z_mean", "z_sd", "z_p9
 
 # --- gistools ground: noise, then SMRF (Pingel et al. 2013; PDAL's names) or CSF (lidR csf()) -------------------
 declare(
-    Parameter("ground_method", "choice", "smrf: Simple Morphological Filter (Pingel et al. 2013); csf: Cloth Simulation "
-              "Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m lattice, one step of TIN "
-              "densification, raised patches (roofs, decks) removed, thresholds from the survey's measured ground "
-              "noise: best on the ISPRS filter test and on the real surveys, a quarter of smrf's speed.", "Ground filter", default="smrf", choices=GROUND_METHODS,
+    Parameter("ground_method", "choice", "adaptive: smrftin whose thresholds follow what the survey is: where "
+              "pulses record one return (open ground, ISPRS-era scans), from its measured ground noise; where at "
+              "least 10 % of the points come from pulses that returned more than once (a canopy), a tight set on "
+              "1.75 m cells (smaller on dense surveys) that keeps low vegetation out; the best on the ISPRS filter "
+              "test and on the real forest surveys. smrf: Simple Morphological Filter (Pingel et al. 2013), the "
+              "fastest; csf: Cloth Simulation Filter (needs cloth-simulation-filter); smrftin: SMRF on a 1.5 m "
+              "lattice, one step of TIN densification, raised patches (roofs, decks) removed, thresholds from the "
+              "survey's measured ground noise.", "Ground filter", default="adaptive",
+              choices=GROUND_METHODS,
               flag="--method", qgis="METHOD", keyword="method"),
     Parameter("noise", "choice", "Noise first: ivf (isolated points in voxels, lasR classify_with_ivf), sor "
               "(statistical outliers) or none.", "Noise filter", default="ivf", choices=NOISE_METHODS),
@@ -148,8 +153,9 @@ declare(
               "Pit-free: a threshold every (0: only those given)", default="2m", minimum=0.0, advanced=True,
               example="2m"),
     Parameter("max_edge", "text", "pitfree: the longest triangle edge of the first layer, then of the upper layers "
-              "(0: no limit).", "Pit-free longest triangle edge: first layer, upper layers (0: no limit)",
-              default="0,1.5m", advanced=True, example="0,1m"),
+              "(0: no limit; auto: 4 times the nominal spacing of the tiles' first returns).",
+              "Pit-free longest triangle edge: first layer, upper layers (0: no limit; auto: from the returns' "
+              "spacing)", default="0,auto", advanced=True, example="0,1m"),
     Parameter("tin_max_edge", "length", "tin: the longest triangle edge (0: no limit).",
               "TIN longest triangle edge (0: no limit)", default="0", minimum=0.0, advanced=True, example="0"),
 )
@@ -181,8 +187,9 @@ BUFFER_30M = {"buffer": "30m"}  # normalize, metrics, chm: lidR's chunk buffer
 COMMAND_DEFAULTS.update({"ground": {}, "normalize": BUFFER_30M, "metrics": {"cell_size": "5m", **BUFFER_30M},
                          "chm": {"cell_size": "0.5m", **BUFFER_30M}, "points": {"classes": (1, 2)}, "info": {}})
 # what the shared parameters' help says of their default, where a command's own default is computed
-DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells (smrftin: 2 x {option('smrftin_window')} "
-                                            f"+ 2 x {option('smrftin_patch')} + 13 cells)"}})
+DEFAULT_TEXTS.update({"ground": {"buffer": f"2 x {option('window')} + 10 cells (smrftin and adaptive: 2 x "
+                                            f"{option('smrftin_window')} + 2 x {option('smrftin_patch')} + 13 cells, "
+                                            "of adaptive's larger cell under a canopy)"}})
 
 
 def current_word(name: str, value):

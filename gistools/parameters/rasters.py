@@ -12,7 +12,8 @@ DSM_FILLS = {"none": "Leave them empty", "nearest": "The nearest return's height
              "subcircle": "Each return on a circle (lidR p2r(subcircle))"}
 PRODUCTS = {"dsm": "DSM", "dem": "DEM", "ndsm": "nDSM", "topclass": "Class of the highest first return"}
 GROUND_METHODS = {"smrf": "SMRF (Simple Morphological Filter)", "csf": "CSF (Cloth Simulation Filter)",
-                  "smrftin": "SMRF, then a TIN of its ground (densification)"}
+                  "smrftin": "SMRF, then a TIN of its ground (densification)",
+                  "adaptive": "smrftin, its thresholds from what the survey is (noise, canopy)"}
 
 declare(
     Parameter("cell_size", "length", "Side of the raster cells, with its unit (5ft, 1.5m; a bare number is in CRS "
@@ -44,10 +45,10 @@ declare(
               "buildings): a TIN across them, inverse distance of the 8 nearest ground points, or left empty; water "
               "cells stay empty.", "DEM voids (far from ground, not water)", default="none", choices=DEM_FILLS,
               advanced=True),
-    Parameter("dsm_fill", "choice", "DSM cells without a first return: a TIN of the cells' highest returns across holes "
-              "up to 3 cells (never above them), the nearest return's height (up to 3 cells), each return also on a "
-              f"circle of {option('subcircle')} (lidR's p2r(subcircle)), or left empty.", "DSM cells without a first return",
-              default="none", choices=DSM_FILLS, advanced=True),
+    Parameter("dsm_fill", "choice", "DSM cells without a first return: a TIN of the cells' highest returns over every "
+              "hole inside their hull, water too (never above them), the nearest return's height (up to 3 cells), each "
+              f"return also on a circle of {option('subcircle')} (lidR's p2r(subcircle)), or left empty.",
+              "DSM cells without a first return", default="none", choices=DSM_FILLS, advanced=True),
     Parameter("subcircle", "length", "The circle's radius of the subcircle DSM fill.", "DSM subcircle radius",
               default_text="half a cell", advanced=True, example="0.2m"),
     Parameter("shore_width", "length", "Hydro-flattening: how far outside a water polygon its shore's ground points are "

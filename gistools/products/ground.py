@@ -14,7 +14,7 @@ import os
 import sys
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,9 +27,11 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import (NOISE_BAND_M, NOISE_BINS, RECLASSIFIED, TIGHT_M, CsfParams, NoiseBlocks, NoiseParams,
-                            SmrfParams, classify_ground_and_noise, for_noise, noise_from_histogram, noise_stride,
-                            smrftin_params, survey_noise_histogram, too_few_in_blocks)
+from ..lidar.ground import (CANOPY_DENSITY_M2, CANOPY_M, CANOPY_MIN_CELL_M, DENSITY_CELL_M, NOISE_BAND_M,
+                            NOISE_BINS, RECLASSIFIED, TIGHT_M, TIN_METHODS, CsfParams, NoiseBlocks, NoiseParams,
+                            SmrfParams, classify_ground_and_noise, for_data, for_noise, noise_from_histogram,
+                            noise_stride, smrftin_params, survey_density, survey_noise_histogram, survey_returns,
+                            too_few_in_blocks)
 from ..parameters import check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -115,12 +117,35 @@ class GroundSettings:
         if float(self.csf_time_step) <= 0:
             raise InputError(f"{option('csf_time_step', self.csf_time_step)}: the cloth would not move; give a step "
                              "above 0", hint=f"e.g. {option('csf_time_step', default_for('csf_time_step'))} (CSF's own)")
+        self._check_options_of_the_method()
         if self.method == "csf":
             import importlib.util
 
             if importlib.util.find_spec("CSF") is None:  # cloth-simulation-filter, the optional extra
                 raise InputError(f"{option('method', 'csf')} needs cloth-simulation-filter, which is not installed",
                                  hint=f"pip install 'gistools[ground]', or use {option('method', 'smrf')}")
+
+
+    # the options that only one filter reads: given to another, they would change nothing
+    OWN = {"smrf": ("cell", "slope", "window", "threshold", "scalar"),
+           "smrftin": ("smrftin_cell", "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar",
+                       "smrftin_step", "smrftin_patch"),
+           "csf": ("csf_resolution", "csf_threshold", "csf_rigidness", "csf_time_step", "csf_iterations",
+                   "csf_slope_smooth")}
+
+    def _check_options_of_the_method(self) -> None:
+        """An option of another filter than the run's (changed from its default) is refused, naming the filter
+        that reads it; adaptive reads smrftin's (under a canopy its own set takes their place)."""
+        reads = "smrftin" if self.method == "adaptive" else self.method
+        for method, names in self.OWN.items():
+            if method == reads:
+                continue
+            for name in names:
+                value = getattr(self, name)
+                if value is not None and value != default_for(name):
+                    raise InputError(f"{option(name, value)} is read by {option('method', method)}, and this run's "
+                                     f"filter is {self.method}: it would change nothing",
+                                     hint=f"Add {option('method', method)}, or leave {option(name)} out")
 
 
 @dataclass(frozen=True)
@@ -160,10 +185,16 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
                     slope_smooth=bool(s.csf_slope_smooth))
     noise = NoiseParams(method=s.noise, res=h(s.ivf_res, "IVF resolution"), n=int(s.ivf_n), k=int(s.sor_k),
                         multiplier=float(s.sor_multiplier), low_depth=v(s.low_noise_depth, "low noise depth"))
-    used = smrftin if s.method == "smrftin" else smrf
-    buffer = 2 * used.window + 10 * used.cell
-    if s.method == "smrftin":  # raised patches are judged whole: up to a patch's width, and its neighbours'
-        buffer += 2 * smrftin.patch + 3 * smrftin.cell
+    if s.method == "adaptive":  # smrftin's set and the one it takes under a canopy (the data's units)
+        c, m = CANOPY_M, xy.metres
+        smrftin = replace(smrftin, canopy=(h(f"{c[0]}m", "canopy cell"), v(f"{c[1]}m", "canopy threshold"),
+                                           v(f"{c[2]}m", "canopy scalar"), c[3], CANOPY_DENSITY_M2 * m * m,
+                                           h(f"{CANOPY_MIN_CELL_M}m", "canopy smallest cell")))
+    used = smrftin if s.method in TIN_METHODS else smrf
+    cell = max(used.cell, used.canopy[0]) if used.canopy else used.cell  # the coarser of its lattices
+    buffer = 2 * used.window + 10 * cell
+    if s.method in TIN_METHODS:  # raised patches are judged whole: up to a patch's width, and its neighbours'
+        buffer += 2 * smrftin.patch + 3 * cell
     buffer = h(s.buffer, "buffer") if s.buffer is not None else buffer
     return _Params(s.method, smrf, smrftin, csf, noise, bool(s.keep_classes), buffer, z.metres)
 
@@ -184,7 +215,7 @@ def check_ground_work(p: _Params, infos: dict, settings: GroundSettings) -> None
 
     if not infos:
         return
-    smrftin = p.method == "smrftin"
+    smrftin = p.method in TIN_METHODS
     used = p.smrftin if smrftin else p.smrf
     cell_name, window_name = ("smrftin_cell", "smrftin_window") if smrftin else ("cell", "window")
     unit = next(iter(infos.values())).unit.short
@@ -266,7 +297,9 @@ def _noise_tile(path: str, sources: list, crs_text, p: _Params, stride: int, wat
     own[:n_own] = True
     counts = survey_noise_histogram(allp["x"], allp["y"], allp["z"], allp["return_number"], allp["number_of_returns"],
                                     allp["classification"], own, p.smrftin, p.noise, p.z_metres, stride)
-    return {"histogram": counts.tolist(), "neighbours": [nb for _kind, nb, _source in sources]}
+    returns = survey_returns(allp["x"][:n_own], allp["y"][:n_own], allp["return_number"][:n_own],
+                             allp["number_of_returns"][:n_own], _density_cell(p))  # adaptive's measures
+    return {"histogram": counts.tolist(), "returns": returns, "neighbours": [nb for _kind, nb, _source in sources]}
 
 
 def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str, water_wkb=()) -> dict:
@@ -276,8 +309,8 @@ def _ground_tile(path: str, neighbours: list, crs_text, p: _Params, target: str,
     with _quiet_stdout(p.method == "csf"):  # the CSF library prints its progress to the C stdout
         new = classify_ground_and_noise(allp["x"], allp["y"], allp["z"], allp["return_number"],
                                         allp["number_of_returns"], allp["classification"], method=p.method, smrf=p.smrf,
-                                        smrftin=p.smrftin, csf=p.csf, noise=p.noise, keep_classes=p.keep_classes,
-                                        z_metres=p.z_metres)
+                                        smrftin=p.smrftin, adaptive=p.smrftin, csf=p.csf, noise=p.noise,
+                                        keep_classes=p.keep_classes, z_metres=p.z_metres)
     before = np.asarray(las.classification, np.uint8).copy()
     after = before.copy()
     after[~withheld] = new[:n_own]
@@ -390,7 +423,7 @@ def _ground_in(paths, out: Path, settings: GroundSettings, override, jobs, sched
             states[name].status, states[name].output = "skipped", str(target)
         else:
             todo.append(name)
-    if todo and p.method == "smrftin" and p.smrftin.noise_band and p.smrftin.noise is None:
+    if todo and p.method in TIN_METHODS and p.smrftin.noise_band and p.smrftin.noise is None:
         p = _measured_noise(infos, states, p, settings.crs, out, jobs, scheduler, progress, water)
         todo = [n for n in todo if states[n].status != "failed"]
     _classify_tiles(todo, infos, targets, states, p, settings.crs, out, jobs, scheduler, progress, water)
@@ -411,23 +444,35 @@ def _near(water, bounds, margin: float) -> list:
 
 def _measured_noise(infos, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> _Params:
     """smrftin's first pass over every tile (kept ones too, so that a rerun measures what a whole run measures):
-    the survey's ground noise from the tiles' histograms added up, in ``p.smrftin.noise``."""
-    from dataclasses import replace
-
+    the survey's ground noise from the tiles' histograms added up, in ``p.smrftin.noise``, and its share of points of
+    multi-return pulses (the tiles' own points; in the blocks of a large survey), in ``p.smrftin.multi``."""
     names = [n for n in infos if states[n].status != "failed"]
     stride = noise_stride(sum(infos[n].point_count for n in names))  # a large survey: measured in blocks
-    total = _noise_pass(names, infos, states, p, stride, crs_text, out, jobs, scheduler, progress, water)
+    total, returns = _noise_pass(names, infos, states, p, stride, crs_text, out, jobs, scheduler, progress, water)
     if too_few_in_blocks(stride, total):  # the blocks missed the survey's ground: every point
-        total = _noise_pass(names, infos, states, p, 1, crs_text, out, jobs, scheduler, progress, water)
+        total, returns = _noise_pass(names, infos, states, p, 1, crs_text, out, jobs, scheduler, progress, water)
     noise = noise_from_histogram(total, p.z_metres) if total.size else None
+    (points, multi, last), cells = returns
+    share = multi / points if points else None
+    density = survey_density(int(last), len(cells), _density_cell(p))
     # an unknown noise (too few ground points) is the run's answer too: the tiles do not measure it again
-    return replace(p, smrftin=replace(p.smrftin, noise=noise) if noise is not None else for_noise(p.smrftin, None))
+    return replace(p, smrftin=replace(p.smrftin, noise=noise, multi=share, density=density) if noise is not None
+                   else for_data(p.smrftin, None, share, density))
+
+
+def _density_cell(p: _Params) -> float:
+    """DENSITY_CELL_M in the run's CRS units."""
+    return DENSITY_CELL_M / (p.smrftin.z_per_xy * p.z_metres)
 
 
 def _noise_pass(names, infos, states, p: _Params, stride: int, crs_text, out, jobs, scheduler, progress,
-                water=None) -> np.ndarray:
-    """The tiles' noise histograms added up (``_noise_tile`` over ``names``; in NoiseBlocks when ``stride`` > 1)."""
+                water=None) -> tuple[np.ndarray, tuple]:
+    """(the tiles' noise histograms added up, ([their points, those of multi-return pulses, last returns], the
+    keys of the density cells that hold one)) (``_noise_tile`` over ``names``; in NoiseBlocks when ``stride`` >
+    1)."""
     total = np.zeros(NOISE_BINS + 1, np.int64)
+    counts = np.zeros(3, np.int64)  # points, points of multi-return pulses, last returns
+    cells = []
     blocks = NoiseBlocks.of(p.smrftin, p.z_metres, stride) if stride > 1 else None
     buffer = blocks.reach if blocks else p.buffer
 
@@ -436,6 +481,8 @@ def _noise_pass(names, infos, states, p: _Params, stride: int, crs_text, out, jo
 
     def on_done(name, value, seconds):
         total[:] += np.asarray(value["histogram"], np.int64)
+        counts[:] += np.asarray(value["returns"][:3], np.int64)
+        cells.append(np.asarray(value["returns"][3], np.int64))
 
     kept = {n: states[n].status for n in names}
     buffered_passes(names, infos, states, buffer=buffer, crs_text=crs_text, out=out, jobs=jobs, scheduler=scheduler,
@@ -444,7 +491,7 @@ def _noise_pass(names, infos, states, p: _Params, stride: int, crs_text, out, jo
     for n, status in kept.items():  # a kept tile stays "skipped"; a failure of the first pass stays a failure
         if states[n].status != "failed":
             states[n].status = status
-    return total
+    return total, (counts, np.unique(np.concatenate(cells)) if cells else np.zeros(0, np.int64))
 
 
 def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, jobs, scheduler, progress, water=None) -> None:
@@ -466,14 +513,33 @@ def _classify_tiles(todo, infos, targets, states, p: _Params, crs_text, out, job
                     tag="ground")
 
 
+def _kept_units(out, units: dict) -> dict:
+    """The units of the folder's report (the run that made its tiles), where every tile was kept and nothing was
+    measured; else these, the set's figures unknown (None)."""
+    from ..engine.record import read_folder_report
+
+    before = (read_folder_report(out) or {}).get("units")
+    if isinstance(before, dict) and set(units) <= set(before):
+        return {k: before[k] for k in units}
+    return {**units, **{k: None for k in ("cell", "threshold", "scalar", "slope", "ground_noise",
+                                           "multi_return_share", "last_returns_per_square_metre")}}
+
+
 def _ground_report(out, settings: GroundSettings, p: _Params | None, infos: dict, states: dict, crs, vpc,
                    started) -> dict:
     first = next(iter(infos.values()), None)
-    used = None if p is None else (for_noise(p.smrftin, p.smrftin.noise) if p.method == "smrftin" else p.smrf)
+    tin = p is not None and p.method in TIN_METHODS
+    used = None if p is None else (for_data(p.smrftin, p.smrftin.noise, p.smrftin.multi, p.smrftin.density) if tin
+                                   else p.smrf)
     units = None if p is None else {"cell": used.cell, "window": used.window, "threshold": used.threshold,
                                     "scalar": used.scalar, "slope": used.slope, "buffer": p.buffer,
                                     "horizontal_unit": first.unit.name, "vertical_unit": first.z_unit.name}
-    if p is not None and p.method == "smrftin":
+    if tin:
         units["ground_noise"] = used.noise  # measured by smrftin's first pass (vertical unit); None: too few points
+        units["multi_return_share"] = used.multi  # points of multi-return pulses (adaptive's measure of a canopy)
+        metres = first.unit.metres
+        units["last_returns_per_square_metre"] = None if used.density is None else used.density / (metres * metres)
+        if p.smrftin.noise_band and p.smrftin.noise is None and p.smrftin.multi is None:  # every tile kept: nothing
+            units = _kept_units(out, units)  # measured; the run that made them said what it took
     return write_batch_report(out, "gistools ground", crs_label(crs) if crs is not None else None, settings, states,
                               started, units=units, vpc=str(vpc) if vpc else None)

@@ -9,7 +9,7 @@ from .spec import method_labelled, own_default_text
 class GroundAlgorithm(GistoolsAlgorithm):
     _name, _display = "ground", "Classify ground and noise"
     _page = "commands/ground"
-    _tags = ("classification", "ground", "noise", "smrf", "smrftin", "tin", "csf", "copc", "dtm")
+    _tags = ("classification", "ground", "noise", "smrf", "smrftin", "adaptive", "tin", "csf", "copc", "dtm")
 
     def initAlgorithm(self, config=None):  # noqa: N802
         from gistools.parameters.lidar import COMMAND_DEFAULTS, DEFAULT_TEXTS

@@ -35,8 +35,10 @@ HELP = {
         "from the Results Viewer."),
     "ground": (
         "Ground (2) and noise (7 low, 18 high) classes of LAS/LAZ tiles (gistools ground): noise first (isolated "
-        "voxels or a statistical rule, and points far below the ground surface), then ground by the Simple "
-        "Morphological Filter (SMRF) or the Cloth Simulation Filter (CSF). Only the classification changes; every "
+        "voxels or a statistical rule, and points far below the ground surface), then ground: by default adaptive "
+        "(SMRF and a TIN of its ground, its thresholds from the survey's measured noise, or a tight set under a "
+        "canopy), or the Simple Morphological Filter (SMRF), SMRF+TIN or the Cloth Simulation Filter (CSF). "
+        "Only the classification changes; every "
         "point, its order and every other attribute stay. Points of other classes (water, buildings) keep theirs. "
         "Neighbouring tiles' points are read within a buffer, so tiles equal one merged run. Writes one file per tile"
         " and a virtual point cloud (ground.vpc) indexing them; lengths take a unit (m, ft, ftUS)."),
