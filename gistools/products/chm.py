@@ -22,7 +22,7 @@ from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label
 from ..io.raster import write_raster, write_vrt
 from ..lidar.accumulate import NOISE_CLASSES
-from ..lidar.chm import CHM_METHODS, chm_p2r, chm_pitfree, chm_tin, pits
+from ..lidar.chm import CHM_METHODS, auto_edge, chm_p2r, chm_pitfree, chm_tin, nominal_spacing, pits
 from ..lidar.normalize import height_above_ground
 from ..parameters import check_all, default_for, option
 from ..parameters.lidar import COMMAND_DEFAULTS, check_method
@@ -32,10 +32,11 @@ from ..validation import check_length
 from ..engine.buffered import (STRIP_FIELDS, TileState, batch_inputs, buffered_passes, gridded_tile, marked_todo, read_headers,
                                write_batch_report)
 
-__all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH"]
+__all__ = ["ChmSettings", "chm_from_tiles", "CHM_METHODS", "PIT_DEPTH", "survey_spacing"]
 
 GROUND_CLASSES = (2, 9)
 PIT_DEPTH = "1m"  # a pit: a cell more than this below all 8 neighbours (counted in report.json)
+AUTO = "auto"  # a max_edge from the first returns' spacing (lidar.chm.auto_edge)
 
 
 def _lengths(name: str) -> tuple:
@@ -47,11 +48,12 @@ class ChmSettings:
     """Parameters of ``gistools chm`` (declared in gistools.parameters.lidar: names, defaults, help). ``method``:
     p2r, pitfree or tin. ``thresholds``, ``threshold_step`` and ``max_edge``: pitfree's height thresholds (those
     given, then one every step up to the highest return; step "0": only those given) and its triangle edge limits
-    (the first layer's, then the upper layers'; "0" = no limit). The defaults (0, 2, 4, ... m; 0, 1.5 m) remove all
-    but 1 % of the pits on the synthetic conifer stand of tests/test_chm.py, where lidR's (0, 2, 5, 10, 15 m; 0, 1 m:
-    ``--thresholds 0m,2m,5m,10m,15m --threshold-step 0 --max-edge 0,1m``) leave 36 %. ``tin_max_edge``: the tin
-    method's limit. ``buffer``: how far the neighbours' points are read. Lengths take a unit or are in the tiles' CRS
-    units."""
+    (the first layer's, then the upper layers'; "0" = no limit; "auto": 4 nominal spacings of the tiles' first
+    returns, from their headers, ``survey_spacing``). The defaults (0, 2, 4, ... m; 0, auto) leave no pit on the
+    synthetic conifer stand of tests/test_chm.py, where lidR's (0, 2, 5, 10, 15 m; 0, 1 m:
+    ``--thresholds 0m,2m,5m,10m,15m --threshold-step 0 --max-edge 0,1m``) leave some; docs/commands/chm.md gives
+    the figures on real stands. ``tin_max_edge``: the tin method's limit. ``buffer``: how far the neighbours' points
+    are read. Lengths take a unit or are in the tiles' CRS units."""
 
     cell_size: str | float = COMMAND_DEFAULTS["chm"]["cell_size"]
     method: str = default_for("chm_method")
@@ -75,7 +77,8 @@ class ChmSettings:
             raise InputError(f"{option('max_edge', tuple(self.max_edge))}: give two lengths (the first layer's, "
                              "the upper layers')", hint=f"e.g. {option('max_edge', ('0', '1m'))}")
         for e in self.max_edge:
-            check_length(e, "max_edge", allow_equal=True, example="0,1m")
+            if str(e).strip().lower() != AUTO:
+                check_length(e, "max_edge", allow_equal=True, example="0,1m")
 
 
 @dataclass(frozen=True)
@@ -93,10 +96,21 @@ class _Run:
     z_unit: str
 
 
-def _run(s: ChmSettings, info, crs, out: Path) -> _Run:
+def survey_spacing(infos) -> float:
+    """The nominal spacing of the tiles' first returns, in their CRS units, from their headers: the area of their
+    boxes over their first returns (all their points where a header does not count them by return)."""
+    area = sum(max(i.bounds[2] - i.bounds[0], 0.0) * max(i.bounds[3] - i.bounds[1], 0.0) for i in infos)
+    first = sum(int(i.points_by_return[0]) if i.points_by_return and i.points_by_return[0] else int(i.point_count)
+                for i in infos)
+    return nominal_spacing(first, area)
+
+
+def _run(s: ChmSettings, info, crs, out: Path, spacing: float) -> _Run:
     xy, z = info.unit, info.z_unit
 
     def edge(v, name):
+        if str(v).strip().lower() == AUTO:
+            return auto_edge(spacing) if math.isfinite(spacing) else None
         e = length_to_crs_units(v, xy, name=name)
         return None if e == 0 else e
 
@@ -204,9 +218,10 @@ def check_layers(run: _Run, infos: dict, settings: ChmSettings) -> None:
 def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, overwrite, progress) -> dict:
     started = time.time()
     states, infos = read_headers(paths, override, _TileState)
-    run = None
-    if infos:
-        run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out)
+    run, spacing = None, math.nan
+    if infos:  # the spacing is the report's; the run (what a resumed tile must match) holds the edges it gives
+        spacing = survey_spacing(infos.values())
+        run = _run(settings, next(iter(infos.values())), common_crs(list(infos.values())), out, spacing)
         check_layers(run, infos, settings)
         todo, on_done = marked_todo(infos, states, run, out, "gistools chm",
                                     lambda name: {"chm": out / "chm" / f"{name}.tif"}, ("pits", "cells", "neighbours"),
@@ -219,6 +234,7 @@ def _chm_in(paths, out: Path, settings: ChmSettings, override, jobs, scheduler, 
     first = next(iter(infos.values()), None)
     units = None if run is None else {"cell_size": run.cell_size, "thresholds": list(run.thresholds),
                                       "threshold_step": run.step, "max_edges": list(run.max_edges),
+                                      "first_return_spacing": spacing if math.isfinite(spacing) else None,
                                       "pit_depth": run.pit_depth, "vertical_unit": run.z_unit}
     return write_batch_report(out, "gistools chm", crs_label(first.crs) if first else None, settings, states, started,
                               units=units, mosaic=str(write_vrt(out / "chm.vrt", tifs)) if tifs else None,

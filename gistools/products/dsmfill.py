@@ -1,23 +1,27 @@
 """The rasters' DSM pinholes filled (``gistools rasters --dsm-fill tin|subcircle``; on by default in the shrub chain).
 
 Pass 1 keeps what the fill needs in each tile's partial grids: the position of every cell's highest first return
-(``tin``), or the DSM of the returns spread on their subcircles over the tile's grid grown by the radius
-(``subcircle``). Pass 2 takes them from the tile and its neighbours, so a cell near a tile edge is filled as in one
-merged run: the TIN sees the neighbours' returns within a ring of cells, the subcircles cross the edges.
+(``tin``, ``nearest``) and the returns at the corners of the tile's convex hull (``tin``), or the DSM of the returns
+spread on their subcircles over the tile's grid grown by the radius (``subcircle``). Pass 2 takes them from the
+tile and its neighbours, so a cell near a tile edge is filled as in one merged run: the TIN sees the neighbours'
+returns within the buffer and the corners of the hull of the tile's and its neighbours' returns (a hole wider than
+the buffer is filled from the returns within it), the nearest fill a ring of cells, the subcircles cross the edges.
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from affine import Affine
 
 from ..grid import Grid, snapped_grid
 from ..io.scratch import grids_folder, load_grid
-from ..lidar.dsmfill import fill_from_nearest, fill_from_tin, max_with_position, subcircle_into
+from ..lidar.dsmfill import fill_from_nearest, fill_from_tin, hull_points, max_with_position, subcircle_into
 
-__all__ = ["DsmFillScan", "fill_tile_dsm", "TIN_EDGE_CELLS"]
+__all__ = ["DsmFillScan", "fill_tile_dsm", "NEAREST_CELLS"]
 
-TIN_EDGE_CELLS = 3  # tin: the longest triangle edge, in cells (holes up to about two cells wide are filled)
+NEAREST_CELLS = 3  # nearest: the farthest return an empty cell takes, in cells
 
 
 def _sub_grid(bounds, run) -> Grid:
@@ -36,6 +40,7 @@ class DsmFillScan:
         if self.method in ("tin", "nearest"):
             self.z = np.full(n, -np.inf)
             self.x, self.y = np.full(n, np.nan), np.full(n, np.nan)
+            self.hull = np.empty((0, 3))  # tin: the returns at the corners of the hull, x, y, z
         else:
             self.grid = _sub_grid(info.bounds, run)
             self.z = np.full(self.grid.width * self.grid.height, -np.inf)
@@ -44,13 +49,16 @@ class DsmFillScan:
         """The surface returns of a chunk (x, y, z; ``cell``: their cells on the tile's grid)."""
         if self.method in ("tin", "nearest"):
             max_with_position(self.z, self.x, self.y, cell, z, x, y)
+            if self.method == "tin" and len(x):
+                points = np.concatenate([self.hull, np.column_stack([x, y, z])])
+                self.hull = points[hull_points(points[:, 0], points[:, 1])]
         else:
             subcircle_into(self.z, self.grid, x, y, z, self.run.subcircle)
 
     def grids(self) -> dict:
         z = np.where(np.isinf(self.z), np.nan, self.z)
         if self.method in ("tin", "nearest"):
-            return {"fill_x": self.x.reshape(self.shape), "fill_y": self.y.reshape(self.shape)}
+            return {"fill_x": self.x.reshape(self.shape), "fill_y": self.y.reshape(self.shape), "fill_hull": self.hull}
         return {"fill_z": z.reshape(self.grid.shape)}
 
 
@@ -69,7 +77,9 @@ def fill_tile_dsm(info, neighbours, run, grid: Grid, dsm: np.ndarray, tile_grid)
                 part = load_grid(grids_folder(run.scratch, other.name), "fill_z", mmap=True)[ro, co]
                 out[rs, cs_] = np.fmax(out[rs, cs_], part)
         return out, int(np.count_nonzero(np.isnan(dsm) & np.isfinite(out)))
-    k = 2 * TIN_EDGE_CELLS
+    k = 2 * NEAREST_CELLS  # nearest: a ring the farthest return's cells fit in; tin: the buffer
+    if run.dsm_fill == "tin":
+        k = max(k, math.ceil(run.buffer / run.cell_size))
     ring = Grid(grid.transform * Affine.translation(-k, -k), grid.width + 2 * k, grid.height + 2 * k, grid.crs)
     z, x, y = (np.full(ring.shape, np.nan) for _ in range(3))
     for other, g in sources:
@@ -86,6 +96,18 @@ def fill_tile_dsm(info, neighbours, run, grid: Grid, dsm: np.ndarray, tile_grid)
             view[higher] = values[higher]
     out = dsm.copy()
     if run.dsm_fill == "nearest":
-        return out, fill_from_nearest(out, grid, x.ravel(), y.ravel(), z.ravel(), max_distance=TIN_EDGE_CELLS * run.cell_size)
-    filled = fill_from_tin(out, grid, x.ravel(), y.ravel(), z.ravel(), max_edge=TIN_EDGE_CELLS * run.cell_size)
-    return out, filled
+        return out, fill_from_nearest(out, grid, x.ravel(), y.ravel(), z.ravel(),
+                                      max_distance=NEAREST_CELLS * run.cell_size)
+    px, py, pz = _with_hull(x.ravel(), y.ravel(), z.ravel(), [grids_folder(run.scratch, o.name) for o, _g in sources])
+    return out, fill_from_tin(out, grid, px, py, pz, max_edge=None)
+
+
+def _with_hull(px, py, pz, folders) -> tuple:
+    """The cells' highest returns (px, py, pz; NaN where none) and the corners of the hull of the returns of the
+    tiles of ``folders`` (their pass-1 corners), those not already among them."""
+    corners = np.concatenate([load_grid(f, "fill_hull") for f in folders])
+    corners = corners[hull_points(corners[:, 0], corners[:, 1])]
+    ok = np.isfinite(pz)
+    new = ~np.isin(corners[:, 0] + 1j * corners[:, 1], px[ok] + 1j * py[ok])
+    return (np.concatenate([px[ok], corners[new, 0]]), np.concatenate([py[ok], corners[new, 1]]),
+            np.concatenate([pz[ok], corners[new, 2]]))

@@ -80,8 +80,9 @@ class RasterSettings:
     outside its edge (default 2 cells), filled where they had none (products.hydro). dem_fill: none, tin or idw: the
     DEM's voids (cells farther than dem_max_distance from ground, under big buildings) filled from the buffered
     ground points, water cells left (lidar.gridding.fill_voids); counted per tile. dsm_fill: none, tin (the DSM's
-    empty cells from a TIN of the cells' highest returns, edges up to 3 cells) or subcircle (every first return also
-    at 8 points of a circle of radius subcircle, default half a cell: lidR's p2r(subcircle)); counted per tile.
+    empty cells inside the hull of the returns from a TIN of the cells' highest returns), nearest (the nearest
+    cell's highest return within 3 cells) or subcircle (every first return also at 8 points of a circle of radius
+    subcircle, default half a cell: lidR's p2r(subcircle)); counted per tile.
     """
 
     cell_size: str | float | None = setting_default("cell_size")  # None: 5ft on data in feet, 1.5m in metres
