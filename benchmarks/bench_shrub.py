@@ -5,9 +5,10 @@ Generates (once, cached in --workdir) a 4 x 4 block of 5000 ft tiles (the Levy t
 --points points in all (synthetic scene: rolling ground, roads, a river, a pond, wetland, shrub
 crowns in three bands and three covers, trees, buildings; LAS 1.2, EPSG:2882) and its breakline
 GeoPackage. Then runs, each in a fresh process: ``gistools rasters`` (DSM + TIN DEM + nDSM) and
-``gistools shrub`` with --jobs 1 and --jobs 2, and prints points per second, the chain / rasters
-ratio (target >= 0.5) and the projected time of a 733-tile county of the same density (target < 20 min; at the
-Levy density, < 10 min), with the seconds by stage from the reports' own timers.
+``gistools shrub`` with --jobs 1 and --jobs 2, and prints points per second, the peak memory of each run (its
+process and workers), the chain / rasters ratio (target >= 0.5) and the projected time of a 733-tile county of the
+same density (target < 20 min; at the Levy density, < 10 min), with the seconds by stage from the reports' own
+timers.
 
     python benchmarks/bench_shrub.py [--points 40e6] [--workdir /tmp/gistools-bench-shrub]
     python benchmarks/bench_shrub.py --levy [--repeat 3]    # 16 tiles at the Levy delivery's 4 ft pulse spacing
@@ -81,9 +82,28 @@ def generate(work: Path, points: float) -> dict:
     return info
 
 
+PEAK = """
+def peak_mb():
+    \"\"\"The largest resident memory of this process and of every process it started (the workers), in MB:
+    VmHWM where /proc has it, else ru_maxrss; None without the resource module (Windows).\"\"\"
+    try:
+        import resource
+    except ImportError:
+        return None
+    scale = 1 / 2**20 if sys.platform == "darwin" else 1 / 1024  # bytes on macOS, KiB elsewhere
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss * scale
+    try:
+        with open("/proc/self/status") as fh:  # ru_maxrss of this process may carry its parent's across exec
+            own = next(int(line.split()[1]) for line in fh if line.startswith("VmHWM")) / 1024
+    except OSError:
+        own = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * scale
+    return max(own, kids)
+"""
+
+
 def run_child(code: str) -> dict:
-    full = "import json, sys, time\nsys.path.insert(0, %r)\nif __name__ == '__main__':\n" % str(CODE) + \
-        textwrap.indent(textwrap.dedent(code), "    ")
+    full = ("import json, sys, time\nsys.path.insert(0, %r)\n" % str(CODE) + PEAK + "\nif __name__ == '__main__':\n"
+            + textwrap.indent(textwrap.dedent(code), "    "))
     out = subprocess.run([PY, "-c", full], capture_output=True, text=True)
     if out.returncode != 0:
         raise RuntimeError(out.stderr[-3000:])
@@ -101,7 +121,11 @@ def chain_run(kind: str, inputs: list, out: Path, jobs: int, vectors: dict) -> d
         t = time.perf_counter()
         s = run({[str(i) for i in inputs]!r}, {str(out)!r}, jobs={jobs}, overwrite=True, **kw)
         assert s["counts"]["failed"] == 0
-        print(json.dumps({{"seconds": time.perf_counter() - t, "stages": s.get("stage_seconds", {{}})}}))
+        seconds = time.perf_counter() - t
+        import multiprocessing
+        for child in multiprocessing.active_children():  # reaped, so that RUSAGE_CHILDREN counts them
+            child.join()
+        print(json.dumps({{"seconds": seconds, "stages": s.get("stage_seconds", {{}}), "peak_mb": peak_mb()}}))
     """)
 
 
@@ -142,8 +166,9 @@ def main(argv=None):
             r = rows[f"{kind} --jobs {jobs}"] = chain_run(kind, [work / "tiles"], work / f"out_{kind}{jobs}", jobs, vectors)
             sec = r["seconds"]
             stages = ", ".join(f"{k} {v:.1f}" for k, v in r["stages"].items())
-            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  733 tiles at "
-                  f"{TILES}-tile "
+            peak = f"{r['peak_mb']:6.0f} MB" if r.get("peak_mb") else "     - MB"
+            print(f"{kind + ' --jobs ' + str(jobs):<20} {sec:8.1f} s  {n / sec / 1e6:6.2f} M pts/s  peak {peak}  733 "
+                  f"tiles at {TILES}-tile "
                   f"throughput: {sec / TILES * COUNTY_TILES / 60:6.1f} min   [s by stage, summed: {stages}]", flush=True)
     print()
     for jobs in (1, 2):

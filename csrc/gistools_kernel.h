@@ -42,6 +42,8 @@ void gt_cell_mean(int64_t n, const int64_t *flat, const double *z, const uint8_t
                   int64_t *count, double *out);
 void gt_cell_sort(int64_t n, const int64_t *cell, const double *v, int64_t ncells, int64_t *start, int64_t *pos,
                   double *out);
+void gt_cell_moments(int64_t ncells, const int64_t *start, const double *v, double *sum, double *ssd, double *sq);
+void gt_cell_percentile(int64_t ncells, const int64_t *start, const double *v, double p, double *out);
 void gt_max_with_class(int64_t n, const int64_t *cell, const double *z, const uint8_t *cls, const uint8_t *bare,
                        int64_t ncells, double *dsm, uint8_t *top, double *cm, uint8_t *tc);
 

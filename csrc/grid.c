@@ -110,3 +110,71 @@ void gt_cell_sort(int64_t n, const int64_t *cell, const double *v, int64_t ncell
     }
     free(tmp);
 }
+
+
+/* numpy's pairwise sum of a[0..n) (numpy/_core/src/umath/loops_utils.h, PW_BLOCKSIZE 128): below 8 values one
+ * running sum from -0.0, up to 128 eight running sums added as ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+ * and then the rest, above that the two halves (the first a multiple of 8) summed apart. */
+static double pairwise_sum(const double *a, int64_t n) {
+    if (n < 8) {
+        double res = -0.0;
+        for (int64_t i = 0; i < n; i++) res += a[i];
+        return res;
+    }
+    if (n <= 128) {
+        double r[8];
+        int64_t i;
+        for (int j = 0; j < 8; j++) r[j] = a[j];
+        for (i = 8; i < n - (n % 8); i += 8)
+            for (int j = 0; j < 8; j++) r[j] += a[i + j];
+        double res = ((r[0] + r[1]) + (r[2] + r[3])) + ((r[4] + r[5]) + (r[6] + r[7]));
+        for (; i < n; i++) res += a[i];
+        return res;
+    }
+    int64_t n2 = n / 2;
+    n2 -= n2 % 8;
+    return pairwise_sum(a, n2) + pairwise_sum(a + n2, n - n2);
+}
+
+/* The sum of a run of values as numpy.add.reduceat gives it: the first value plus the pairwise sum of the others. */
+static inline double run_sum(const double *a, int64_t m) { return a[0] + pairwise_sum(a + 1, m - 1); }
+
+/* Per cell of values grouped by cell (gt_cell_sort's out and start, start[ncells] = n): the sum of its values and
+ * the sum of their squared deviations from the cell's mean (sum / count), numpy.add.reduceat's sums bit for bit
+ * (metrics' sd and mean; a NaN among them gives NaN, of one bit pattern); 0 where a cell has no value. sq: scratch
+ * of at least the longest cell's length. */
+void gt_cell_moments(int64_t ncells, const int64_t *start, const double *v, double *sum, double *ssd, double *sq) {
+    for (int64_t c = 0; c < ncells; c++) {
+        int64_t s = start[c], m = start[c + 1] - s;
+        if (m <= 0) {
+            sum[c] = ssd[c] = 0.0;
+            continue;
+        }
+        double total = run_sum(v + s, m), mean = total / (double)m;
+        for (int64_t i = 0; i < m; i++) {
+            double d = v[s + i] - mean;
+            sq[i] = d * d;
+        }
+        double squares = run_sum(sq, m);
+        sum[c] = isnan(total) ? NAN : total; /* one NaN: which operand's bits a sum keeps is the compiler's choice */
+        ssd[c] = isnan(squares) ? NAN : squares;
+    }
+}
+
+/* The p-th percentile (0..100) of each cell's ascending values (gt_cell_sort's out and start), linear between the
+ * two nearest ranks as numpy.percentile's default: rank p / 100 (count - 1); NaN where a cell has no value (one bit
+ * pattern, as every NaN result). */
+void gt_cell_percentile(int64_t ncells, const int64_t *start, const double *v, double p, double *out) {
+    const double q = p / 100.0;
+    for (int64_t c = 0; c < ncells; c++) {
+        int64_t s = start[c], m = start[c + 1] - s;
+        if (m <= 0) {
+            out[c] = NAN;
+            continue;
+        }
+        double rank = q * (double)(m - 1), lo = floor(rank), hi = ceil(rank);
+        double a = v[s + (int64_t)lo], b = v[s + (int64_t)hi];
+        double r = a + (b - a) * (rank - lo);
+        out[c] = isnan(r) ? NAN : r;
+    }
+}

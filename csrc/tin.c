@@ -32,6 +32,13 @@ static int incircle(int64_t ax, int64_t ay, int64_t bx, int64_t by, int64_t cx, 
     double ap = Dx * Dx + Dy * Dy, bp = Ex * Ex + Ey * Ey, cp = Fx * Fx + Fy * Fy;
     double t1 = Ey * cp - bp * Fy, t2 = Ex * cp - bp * Fx, t3 = Ex * Fy - Ey * Fx;
     double det = Dx * t1 - Dy * t2 + ap * t3;
+    /* each of the permanent's six products below is at most m^2 (m the largest squared length): a determinant
+     * beyond 6e-13 m^2 is conclusive without it */
+    double m = ap > bp ? ap : bp;
+    m = m > cp ? m : cp;
+    double quick = 6e-13 * m * m;
+    if (det > quick) return 1;
+    if (det < -quick) return -1;
     double perm = fabs(Dx) * (fabs(Ey * cp) + fabs(bp * Fy)) + fabs(Dy) * (fabs(Ex * cp) + fabs(bp * Fx)) +
                   ap * (fabs(Ex * Fy) + fabs(Ey * Fx));
     double bound = 1e-13 * perm;
@@ -672,12 +679,18 @@ int64_t gt_tin_at(int64_t ntri, const int32_t *tri, const double *vx, const doub
     int64_t *fill = malloc((size_t)(nb + 1) * sizeof(int64_t));
     int64_t *qorder = malloc((size_t)nq * sizeof(int64_t));
     if (!start || !qstart || !fill || !qorder) goto oom;
+    /* the queries' buckets first (those outside the extent in a last bucket, left NaN): only buckets that hold a
+     * query take triangles (a few queries in a large TIN: the lists stay small; each bucket's triangles and their
+     * order are the same, so are the values) */
+    for (int64_t i = 0; i < nq; i++) qstart[query_bucket(qx[i], qy[i], x0, y0, x1, y1, b, nbx, nby) + 1]++;
+    for (int64_t k = 0; k <= nb; k++) qstart[k + 1] += qstart[k];
     /* the triangles' buckets (by bounding box): count, then fill with vertex triplets */
     for (int64_t t = 0; t < ntri; t++) {
         int64_t c0, c1, r0, r1;
         tri_buckets(tri + 3 * t, vx, vy, x0, y0, b, nbx, nby, &c0, &c1, &r0, &r1);
         for (int64_t r = r0; r <= r1; r++)
-            for (int64_t c = c0; c <= c1; c++) start[r * nbx + c + 1]++;
+            for (int64_t c = c0; c <= c1; c++)
+                if (qstart[r * nbx + c + 1] > qstart[r * nbx + c]) start[r * nbx + c + 1]++;
     }
     for (int64_t k = 0; k < nb; k++) start[k + 1] += start[k];
     int32_t *list = malloc((size_t)(start[nb] > 0 ? start[nb] : 1) * 3 * sizeof(int32_t));
@@ -687,11 +700,11 @@ int64_t gt_tin_at(int64_t ntri, const int32_t *tri, const double *vx, const doub
         int64_t c0, c1, r0, r1;
         tri_buckets(tri + 3 * t, vx, vy, x0, y0, b, nbx, nby, &c0, &c1, &r0, &r1);
         for (int64_t r = r0; r <= r1; r++)
-            for (int64_t c = c0; c <= c1; c++) memcpy(list + 3 * fill[r * nbx + c]++, tri + 3 * t, 3 * sizeof(int32_t));
+            for (int64_t c = c0; c <= c1; c++)
+                if (qstart[r * nbx + c + 1] > qstart[r * nbx + c])
+                    memcpy(list + 3 * fill[r * nbx + c]++, tri + 3 * t, 3 * sizeof(int32_t));
     }
-    /* the queries by bucket (those outside the extent in a last bucket, left NaN) */
-    for (int64_t i = 0; i < nq; i++) qstart[query_bucket(qx[i], qy[i], x0, y0, x1, y1, b, nbx, nby) + 1]++;
-    for (int64_t k = 0; k <= nb; k++) qstart[k + 1] += qstart[k];
+    /* the queries by bucket */
     memcpy(fill, qstart, (size_t)(nb + 1) * sizeof(int64_t));
     for (int64_t i = 0; i < nq; i++) qorder[fill[query_bucket(qx[i], qy[i], x0, y0, x1, y1, b, nbx, nby)]++] = i;
     for (int64_t k = 0; k < nb; k++) {

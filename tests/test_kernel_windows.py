@@ -398,6 +398,30 @@ def _(d):
                    start=_pattern(ncells + 1, np.int64), pos=_pattern(ncells, np.int64), out=_pattern(len(v), np.float64))
 
 
+def _cell_runs(d):
+    """(ncells, start, values): values grouped by cell and sorted in each, as gt_cell_sort leaves them."""
+    from gistools.lidar.metrics import cell_sorted
+
+    for cell, v, ncells in _cell_sort_inputs(d):
+        out, start = cell_sorted(cell, v, ncells)
+        yield ncells, start, out
+
+
+@case("gt_cell_moments")
+def _(d):
+    for ncells, start, v in _cell_runs(d):
+        longest = int(np.diff(start).max(initial=1))
+        yield dict(ncells=ncells, start=start, v=v, sum=_pattern(ncells, np.float64), ssd=_pattern(ncells, np.float64),
+                   sq=_pattern(max(longest, 1), np.float64))
+
+
+@case("gt_cell_percentile")
+def _(d):
+    for ncells, start, v in _cell_runs(d):
+        for p in (0.0, 37.5, 95.0, 100.0):
+            yield dict(ncells=ncells, start=start, v=v, p=p, out=_pattern(ncells, np.float64))
+
+
 def _bare():
     from gistools.lidar.accumulate import is_groundish
 

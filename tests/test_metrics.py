@@ -11,7 +11,7 @@ import pytest
 import rasterio
 from click.testing import CliRunner
 
-from conftest import SAMPLE, need_shared, reference_tin_heights
+from conftest import SAMPLE, need_kernel, need_shared, reference_tin_heights
 from gistools.cli.main import cli
 from gistools.errors import InputError
 from gistools.products.metrics import MetricsSettings, metrics_from_tiles
@@ -187,6 +187,40 @@ def test_values_sorted_by_cell_equal_numpys_lexsort(engine, monkeypatch):
         out, start = metrics.cell_sorted(cell, v, ncells)
         np.testing.assert_array_equal(out, v[np.lexsort((v, cell))])
         np.testing.assert_array_equal(start, np.concatenate([[0], np.cumsum(np.bincount(cell, minlength=ncells))]))
+
+
+@pytest.mark.parametrize("engine", ["kernel", "numpy"])
+def test_cell_statistics_equal_pandas_group_statistics(engine, monkeypatch):
+    """Sum, mean, sd, min, max, median and percentiles per cell (the kernel's one pass over each cell's sorted run,
+    or numpy's reduceat and gathers) against pandas' group statistics, on cells of 1 to thousands of points; a cell
+    holding a NaN gives NaN (but its median and percentiles, which rank the NaN last), on both engines alike."""
+    from gistools.lidar import metrics
+
+    if engine == "kernel":
+        need_kernel()
+    else:
+        monkeypatch.setattr(metrics, "_CELL_SORT", None)
+        monkeypatch.setattr(metrics, "_CELL_MOMENTS", None)
+        monkeypatch.setattr(metrics, "_CELL_PERCENTILE", None)
+    names = ["count", "z_sum", "z_mean", "z_sd", "z_cv", "z_min", "z_max", "z_median", "z_p5", "z_p95", "z_p100"]
+    specs = [metrics.parse_metric(n) for n in names]
+    rng = np.random.default_rng(11)
+    for n, ncells in ((1, 3), (57, 3), (20_000, 900), (60_000, 7)):
+        cell = rng.integers(0, ncells, n)
+        v = rng.normal(30, 12, n).round(2)
+        got = metrics.cell_metrics(cell, ncells, specs, z=v)
+        g = pd.Series(v).groupby(cell)
+        ref = pd.DataFrame({"count": g.size().astype(float), "z_sum": g.sum(), "z_mean": g.mean(), "z_sd": g.std(),
+                            "z_min": g.min(), "z_max": g.max(), "z_median": g.median(), "z_p5": g.quantile(0.05),
+                            "z_p95": g.quantile(0.95), "z_p100": g.quantile(1.0)}).reindex(range(ncells))
+        ref["z_cv"] = ref.z_sd / ref.z_mean
+        for name in names:
+            np.testing.assert_allclose(got[name], ref[name].to_numpy(float), rtol=1e-12, atol=1e-9, err_msg=name)
+        v[::29] = np.nan  # a NaN in a cell
+        got = metrics.cell_metrics(cell, ncells, specs, z=v)
+        holds = np.bincount(cell[np.isnan(v)], minlength=ncells) > 0
+        for name in ("z_sum", "z_mean", "z_sd", "z_max"):
+            assert np.isnan(got[name][holds]).all(), name
 
 
 @pytest.mark.parametrize("cell", ["5ft", "7ft"])

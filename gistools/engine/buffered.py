@@ -20,9 +20,10 @@ from pathlib import Path
 import numpy as np
 
 from ..io.outdir import SCRATCH_PREFIX
-from ..io.points import parse_crs_text, points_in_box, read_tile_info
+from ..io import decoded
+from ..io.points import parse_crs_text, points_in_box, read_all_points, read_tile_info
 from ..progress import report
-from .batch import make_pool
+from .batch import ThreadPool, make_pool
 from .passes import Passes, run_two_passes, scan_order
 from .passes import TileState as EngineTileState
 from .schedule import neighbour_pairs
@@ -97,13 +98,19 @@ def neighbour_table(infos: dict, buffer: float, reach: dict | None = None) -> di
 STRIP_BINS = 16  # a strip's points are kept in the order of a 16 x 16 grid of its tile: a neighbour reads its side only
 
 
-def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str, rule=None) -> dict:
+def _strip_tile(name: str, path: str, crs_text, buffer: float, scratch: str, rule=None, keep: bool = False) -> dict:
     """Pass 1: the points of a tile within ``buffer`` of its edges (or those ``rule(x, y)`` keeps), saved in the
     scratch folder (so each tile is decoded twice in a run, not once per neighbour), ordered by the cells of a
     STRIP_BINS x STRIP_BINS grid of the tile (file order within a cell) so that ``_strip_in_box`` reads only the
-    cells that reach a box."""
+    cells that reach a box. ``keep``: pass 2 runs in this process; a compressed tile is kept decoded for it
+    (io.decoded), where it fits."""
     info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    if keep and decoded.worth_keeping(info):
+        las = read_all_points(path)
+        pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS, decoded=las)
+        decoded.keep(path, las)
+    else:
+        pts = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
     w, s, e, n = info.bounds
     if rule is None:
         inner = (w + buffer, s + buffer, e - buffer, n - buffer)
@@ -186,7 +193,7 @@ def gridded_tile(path: str, sources: list, crs_text, cell_size: float, crs_wkt: 
 
     info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
     grid = snapped_grid(info.bounds, cell_size, crs_from_wkt(crs_wkt))
-    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS)
+    own = points_in_box(info, EVERYWHERE, fields=STRIP_FIELDS, decoded=decoded.take(path))
     w, s, e, n = grid.bounds
     try:
         return info, grid, own, compute(own, points_around(sources, (w - buffer, s - buffer, e + buffer,
@@ -376,9 +383,12 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
 
     scratch = Path(tempfile.mkdtemp(prefix=f"{SCRATCH_PREFIX}{tag}-", dir=out))
     pool = make_pool(jobs, scheduler, len(todo), points=sum(int(infos[n].point_count) for n in todo))
+    # both passes of a tile in this process (inline or on its threads): pass 1 keeps a compressed tile decoded for
+    # pass 2, which then reads no file (a tile with its strip_rule reads none either way)
+    keep = strip_rule is None and (pool is None or isinstance(pool, ThreadPool))
     passes = Passes(read=lambda name, inline: ((_strip_tile, (name, str(infos[name].path), crs_text, buffer,
-                                                              str(scratch), strip_rule)) if name in wanted else
-                                               (_no_strip, (infos[name].bounds,))),
+                                                              str(scratch), strip_rule, keep and name in todo))
+                                               if name in wanted else (_no_strip, (infos[name].bounds,))),
                     make=make, on_read=read_done, on_made=on_done, results=states, read_results=strips, release=release,
                     tick=tick,
                     verbs=("read", verb))
@@ -387,6 +397,7 @@ def buffered_passes(todo: list, infos: dict, states: dict, *, buffer: float, crs
                        owned=True, out=out)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+        decoded.discard(str(infos[n].path) for n in need)
 
 
 def _named(name, fn, *args):

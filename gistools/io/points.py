@@ -565,16 +565,20 @@ def _empty_points(fields) -> dict:
     return {k: np.zeros(0, np.uint16 if k == "intensity" else np.float64) for k in fields}
 
 
-def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, fields=POINT_FIELDS) -> dict:
+def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, fields=POINT_FIELDS,
+                  decoded=None) -> dict:
     """``fields`` (x, y, z, return_number, number_of_returns, classification; "intensity" too when asked) of a tile's
     points inside ``box`` (west, south, east, north; CRS units), withheld ones left out: a neighbour's buffer strip.
-    COPC files are queried by bounds (only the nodes that reach the box are decoded); others are streamed in chunks."""
+    COPC files are queried by bounds (only the nodes that reach the box are decoded); others are streamed in chunks.
+    ``decoded``: the tile already decoded (a laspy LasData of all its points), read instead of the file."""
     w, s, e, n = box
     parts = []
-    if _is_copc(info.path):
+    if decoded is None and _is_copc(info.path):
         parts = [_copc_box(info.path, box, fields)]
     else:
-        for chunk in iter_chunks(info, chunk_size, intensity="intensity" in fields, only_fields=True):
+        chunks = (iter_chunks(info, chunk_size, intensity="intensity" in fields, only_fields=True) if decoded is None
+                  else [_chunk_from(decoded.points, "intensity" in fields)])
+        for chunk in chunks:
             keep = (chunk.x >= w) & (chunk.x <= e) & (chunk.y >= s) & (chunk.y <= n) & ~chunk.withheld
             if keep.any():
                 parts.append({k: getattr(chunk, k)[keep] for k in fields})

@@ -32,6 +32,8 @@ LAYER_HEIGHT_M = 1.0  # fhd / vci layers (metres)
 _NUMBER = r"(\d+(?:\.\d+)?)"
 _LENGTH = r"(\d+(?:\.\d+)?)([a-zA-Z]*)"
 _CELL_SORT = kernel.function("gt_cell_sort")
+_CELL_MOMENTS = kernel.function("gt_cell_moments")
+_CELL_PERCENTILE = kernel.function("gt_cell_percentile")
 
 
 @dataclass(frozen=True)
@@ -112,8 +114,8 @@ class _Sorted:
     them point by point (``bincount`` weights, ``ufunc.at``) and shares the one sort with the percentiles."""
 
     def __init__(self, cell, values, count):
-        self.values, start = cell_sorted(cell, values, len(count))
-        self.start = start[:-1]
+        self.values, self.bounds = cell_sorted(cell, values, len(count))
+        self.start = self.bounds[:-1]
         self.count = count
         self.ok = count > 0
         self._sums = None
@@ -124,20 +126,28 @@ class _Sorted:
         return out
 
     def sums(self) -> tuple[np.ndarray, np.ndarray]:
-        """(sum, sum of squared deviations from the mean) of each cell with points."""
+        """(sum, sum of squared deviations from the mean) of each cell, 0 where a cell has no point."""
         if self._sums is None:
-            first, k = self.start[self.ok], self.count[self.ok]
-            total = np.add.reduceat(self.values, first) if len(first) else np.zeros(0)
-            dev = self.values - np.repeat(total / np.maximum(k, 1), k)
-            self._sums = total, (np.add.reduceat(dev * dev, first) if len(first) else np.zeros(0))
+            n = len(self.count)
+            if _CELL_MOMENTS is not None:  # one pass over each cell's run, numpy's sums bit for bit
+                total, squares = np.empty(n), np.empty(n)
+                _CELL_MOMENTS(n, self.bounds, self.values, total, squares, np.empty(max(int(self.count.max()), 1)))
+            else:
+                first, k = self.start[self.ok], self.count[self.ok]
+                total, squares = np.zeros(n), np.zeros(n)
+                if len(first):
+                    total[self.ok] = np.add.reduceat(self.values, first)
+                    dev = self.values - np.repeat(total[self.ok] / k, k)
+                    squares[self.ok] = np.add.reduceat(dev * dev, first)
+            self._sums = total, squares
         return self._sums
 
     def statistic(self, stat: str) -> np.ndarray:
         """sum, mean, sd, cv, min, max or median per cell; NaN where a cell has no point (sd, cv: fewer than two),
         and where a cell holds a NaN value (but median)."""
-        k = self.count[self.ok]
-        first = self.start[self.ok]
         if stat in ("min", "max"):
+            k = self.count[self.ok]
+            first = self.start[self.ok]
             last = self.values[first + k - 1]  # NaN sorts last: a cell with a NaN has it there
             return self._cells(last if stat == "max" else np.where(np.isnan(last), np.nan, self.values[first]))
         if stat == "median":
@@ -146,15 +156,22 @@ class _Sorted:
             raise ValueError(f"not a statistic of an attribute's values: {stat!r}")
         total, squares = self.sums()
         if stat == "sum":
-            return self._cells(total)
-        mean = total / k
+            return np.where(self.ok, total, np.nan)
+        k = self.count
+        mean = np.divide(total, k, out=np.full(len(k), np.nan), where=self.ok)
         if stat == "mean":
-            return self._cells(mean)
+            return mean
         with np.errstate(divide="ignore", invalid="ignore"):
-            sd = np.where(k > 1, np.sqrt(squares / np.maximum(k - 1, 1)), np.nan)
-            return self._cells(sd if stat == "sd" else np.where((k > 1) & (mean != 0), sd / mean, np.nan))
+            sd = np.sqrt(np.divide(squares, k - 1, out=np.full(len(k), np.nan), where=k > 1))
+            return sd if stat == "sd" else np.where(mean != 0, sd / mean, np.nan)
 
     def percentile(self, p: float) -> np.ndarray:
+        """The p-th percentile (0..100) of each cell's values, linear between ranks (numpy's default); NaN where a
+        cell has no point."""
+        if _CELL_PERCENTILE is not None:
+            out = np.empty(len(self.count))
+            _CELL_PERCENTILE(len(self.count), self.bounds, self.values, float(p), out)
+            return out
         k = self.count
         ok = k > 0
         rank = p / 100.0 * (k[ok] - 1)

@@ -21,6 +21,7 @@ import shapely
 from ..docstrings import shared_sections
 from ..errors import DataFileError, GistoolsError, InputError, raise_if_every_tile_failed
 from ..io.outdir import output_folder
+from ..io import decoded
 from ..io.outdir import claim_output
 from ..io.points import common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info, write_all_points
 from ..io.vpc import write_vpc
@@ -98,7 +99,7 @@ def _hag_dimension(las, unit: str) -> None:
 def _normalize_tile(path: str, sources: list, crs_text, p: _Params, target: str, road_wkb=None, water_wkb=None) -> dict:
     """One tile: heights above ground from the TIN of its and its neighbours' ground, written with the points."""
     info = read_tile_info(path, parse_crs_text(crs_text) if crs_text else None)
-    las = read_all_points(path)
+    las = decoded.take(path) or read_all_points(path)  # kept by pass 1 in this process, or decoded now
     x, y, z = (np.asarray(getattr(las, k), np.float64) for k in "xyz")
     cls = np.asarray(las.classification, np.uint8)
     withheld = np.asarray(las.withheld, bool) if "withheld" in las.point_format.dimension_names else np.zeros(len(x), bool)
