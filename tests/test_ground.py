@@ -216,6 +216,7 @@ def test_a_copc_file_is_read_by_bounds():
 
     src = LASR / "example.copc.laz"
     info = read_tile_info(src, "EPSG:26917")
+    assert info.copc and not read_tile_info(sorted(SAMPLE.glob("*.las"))[0], None).copc  # its "copc" record
     las = laspy.read(src)
     x, y = np.asarray(las.x), np.asarray(las.y)
     box = (float(np.median(x)), float(y.min()), float(x.max()) + 10, float(np.median(y)))

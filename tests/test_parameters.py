@@ -240,3 +240,43 @@ def test_an_exported_function_still_pickles_by_name():
         assert pickle.loads(pickle.dumps(original)) is original
     settings = gistools.ChmSettings(cell_size="1m")
     assert pickle.loads(pickle.dumps(settings)) == settings
+
+
+def test_every_read_by_names_a_method_of_its_command():
+    """An option read by one method only (the ground filters' own) names a value of that command's --method."""
+    owned = {name: PARAMETERS[name].read_by for name in PARAMETERS if PARAMETERS[name].read_by}
+    assert len(owned) == 18
+    for name, method in owned.items():
+        commands = [c for c, names in COMMANDS.items() if name in names]
+        assert commands == ["ground"], name
+        assert method in PARAMETERS["ground_method"].choices, (name, method)
+
+
+@pytest.mark.parametrize("args,refused", [
+    (["--method", "smrf", "--csf-rigidness", "2"], "--csf-rigidness 2"),
+    (["--csf-rigidness", "2"], "--csf-rigidness 2"),  # the default, adaptive, reads smrftin's
+    (["--method", "csf", "--smrftin-patch", "30m"], "--smrftin-patch 30m"),
+    (["--method", "smrftin", "--threshold", "0.3m"], "--threshold 0.3m"),
+])
+def test_an_option_of_another_ground_filter_is_refused_before_anything_is_written(tmp_path, args, refused):
+    from click.testing import CliRunner
+
+    from conftest import SAMPLE
+
+    out = tmp_path / "g"
+    result = CliRunner().invoke(cli, ["ground", str(SAMPLE), "--out", str(out), "-q", *args])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert result.exit_code == 1 and len(lines) == 1, result.output
+    assert lines[0].startswith(f"gistools: error: {refused} is read by --method ") and "Traceback" not in lines[0]
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("settings", [
+    dict(method="adaptive", smrftin_patch="30m"),  # adaptive reads smrftin's options
+    dict(method="smrf", threshold="0.3m"),
+    dict(method="csf", csf_rigidness=2, smrftin_cell="1.5m"),  # another filter's, at its default
+])
+def test_a_ground_filters_own_options_are_taken(settings):
+    from gistools.products.ground import GroundSettings
+
+    GroundSettings(**settings).validate()

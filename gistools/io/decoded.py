@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import threading
-from collections import OrderedDict
 from pathlib import Path
 
 from ..machine import address_space_left, free_memory
@@ -21,7 +20,7 @@ from ..machine import address_space_left, free_memory
 MOST_BYTES = 2 * 2**30
 
 _lock = threading.Lock()
-_kept: OrderedDict = OrderedDict()  # path -> (stamp, LasData, bytes)
+_kept: dict = {}  # path -> (stamp, LasData, bytes)
 
 
 def _stamp(path) -> tuple[int, int]:
@@ -42,9 +41,9 @@ def worth_keeping(info) -> bool:
     """True for a compressed tile (not COPC: its reader queries nodes) of at most one chunk of points (decoded in
     one call, as the chunked reading does: a stop waits no longer) whose decoded points fit beside the tiles kept
     now."""
-    from .points import DEFAULT_CHUNK_SIZE, _is_copc
+    from .points import DEFAULT_CHUNK_SIZE
 
-    if not info.compressed or int(info.point_count) > DEFAULT_CHUNK_SIZE or _is_copc(info.path):
+    if not info.compressed or int(info.point_count) > DEFAULT_CHUNK_SIZE or info.copc:
         return False
     need = int(info.point_count) * _record_bytes(info)
     with _lock:

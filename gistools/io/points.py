@@ -57,6 +57,7 @@ class TileInfo:
     points_by_return: tuple[int, ...] = field(default=())
     geokey_z_unit: LinearUnit | None = None  # from the GeoTIFF vertical keys, when the CRS is not compound
     crs_note: str | None = None  # what was wrong with the file's CRS record, and what was used instead
+    copc: bool = False  # a COPC file (its "copc" VLR): a box of it is read by a query of the nodes that reach it
 
     @property
     def name(self) -> str:
@@ -340,6 +341,7 @@ def read_tile_info(path, crs: pyproj.CRS | str | None = None, *, require_crs: bo
         points_by_return=tuple(int(n) for n in header.number_of_points_by_return),
         geokey_z_unit=geokey_z,
         crs_note=None if crs is not None else crs_note,
+        copc=any(getattr(v, "user_id", "") == "copc" for v in header.vlrs),
     )
 
 
@@ -573,7 +575,7 @@ def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, 
     ``decoded``: the tile already decoded (a laspy LasData of all its points), read instead of the file."""
     w, s, e, n = box
     parts = []
-    if decoded is None and _is_copc(info.path):
+    if decoded is None and info.copc:
         parts = [_copc_box(info.path, box, fields)]
     else:
         chunks = (iter_chunks(info, chunk_size, intensity="intensity" in fields, only_fields=True) if decoded is None
@@ -587,14 +589,6 @@ def points_in_box(info: TileInfo, box, chunk_size: int = DEFAULT_CHUNK_SIZE, *, 
     if len(parts) == 1:  # a tile in one chunk: its arrays as they are (a concatenation would copy each)
         return parts[0]
     return {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-
-
-def _is_copc(path) -> bool:
-    try:
-        with laspy.open(path) as reader:
-            return any(getattr(v, "user_id", "") == "copc" for v in reader.header.vlrs)
-    except Exception:
-        return False
 
 
 def _copc_box(path, box, fields=POINT_FIELDS) -> dict:

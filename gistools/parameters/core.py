@@ -80,6 +80,9 @@ class Parameter:
     # ground filter's ``method`` is ``ground_method`` here); a dotted path reaches a settings' own settings
     # (``checks.z_max``). A Python caller's message names this keyword.
     keyword: str = ""
+    # the value of the command's method that reads this option, when only one does (the ground filters' own
+    # options: "smrf", "smrftin", "csf"); given to a run of another method it is refused, as it would change nothing
+    read_by: str = ""
 
     @property
     def python_name(self) -> str:

@@ -32,7 +32,7 @@ from ..lidar.ground import (CANOPY_DENSITY_M2, CANOPY_M, CANOPY_MIN_CELL_M, DENS
                             SmrfParams, classify_ground_and_noise, for_data, for_noise, noise_from_histogram,
                             noise_stride, smrftin_params, survey_density, survey_noise_histogram, survey_returns,
                             too_few_in_blocks)
-from ..parameters import check, check_all, choices, default_for, option
+from ..parameters import COMMANDS, PARAMETERS, check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
 from ..units import length_to_crs_units
@@ -126,21 +126,13 @@ class GroundSettings:
                                  hint=f"pip install 'gistools[ground]', or use {option('method', 'smrf')}")
 
 
-    # the options that only one filter reads: given to another, they would change nothing
-    OWN = {"smrf": ("cell", "slope", "window", "threshold", "scalar"),
-           "smrftin": ("smrftin_cell", "smrftin_slope", "smrftin_window", "smrftin_threshold", "smrftin_scalar",
-                       "smrftin_step", "smrftin_patch"),
-           "csf": ("csf_resolution", "csf_threshold", "csf_rigidness", "csf_time_step", "csf_iterations",
-                   "csf_slope_smooth")}
-
     def _check_options_of_the_method(self) -> None:
         """An option of another filter than the run's (changed from its default) is refused, naming the filter
         that reads it; adaptive reads smrftin's (under a canopy its own set takes their place)."""
         reads = "smrftin" if self.method == "adaptive" else self.method
-        for method, names in self.OWN.items():
-            if method == reads:
-                continue
-            for name in names:
+        for name in COMMANDS["ground"]:
+            method = PARAMETERS[name].read_by
+            if method and method != reads:
                 value = getattr(self, name)
                 if value is not None and value != default_for(name):
                     raise InputError(f"{option(name, value)} is read by {option('method', method)}, and this run's "
