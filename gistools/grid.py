@@ -24,6 +24,14 @@ from .parameters import option
 
 __all__ = ["Grid", "snapped_grid", "cell_index", "cell_centres", "evaluate_on_grid"]
 
+_MATMUL = hasattr(Affine, "__matmul__")  # affine 3; affine 2 (Debian 12's QGIS venvs) has only ``*``
+
+
+def affine_apply(transform: Affine, other):
+    """``transform`` applied to ``other``: another Affine (their product) or coordinates (x, y), numbers or arrays.
+    ``transform @ other`` with affine 3, which deprecates ``*`` for both; ``*`` with affine 2, which has no ``@``."""
+    return transform @ other if _MATMUL else transform * other
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -59,6 +67,15 @@ class Grid:
     def row_top(self) -> int:
         """Global lattice index of the north edge (north / cell size)."""
         return int(round(self.transform.f / self.cell_size))
+
+    def part(self, col: int, row: int, width: int, height: int) -> "Grid":
+        """The grid of ``width`` x ``height`` cells whose first cell is this grid's (``col``, ``row``); negative
+        offsets and sizes past the edges grow it (on the same lattice)."""
+        return Grid(affine_apply(self.transform, Affine.translation(col, row)), width, height, self.crs)
+
+    def grown(self, k: int) -> "Grid":
+        """This grid with ``k`` cells more on every side."""
+        return self.part(-k, -k, self.width + 2 * k, self.height + 2 * k)
 
     def window_in(self, other: "Grid") -> tuple[slice, slice, slice, slice] | None:
         """Overlap of this grid and ``other`` (same lattice) as slices.
@@ -118,7 +135,8 @@ def snapped_grid(bounds, cell_size: float, crs: pyproj.CRS | None = None) -> Gri
     c1 = int(np.floor(east / cell_size)) + 1
     r0 = int(np.floor(south / cell_size))
     r1 = int(np.floor(north / cell_size)) + 1
-    transform = Affine.translation(c0 * cell_size, r1 * cell_size) * Affine.scale(cell_size, -cell_size)  # north-up
+    transform = affine_apply(Affine.translation(c0 * cell_size, r1 * cell_size),  # north-up
+                             Affine.scale(cell_size, -cell_size))
     return Grid(transform, c1 - c0, r1 - r0, crs)
 
 

@@ -15,6 +15,7 @@ from scipy.spatial import ConvexHull
 from conftest import SHARED_DATA, need_shared
 from gistools.aquifer.outliers import find_outliers
 from gistools.aquifer.surface import build_surface, densify, height_at, unique_edges
+from gistools.grid import affine_apply
 from gistools.aquifer.synthetic import E0, N0, surfaces_uv, synthetic_aquifer
 from gistools.aquifer.volume import overlay_volume
 from gistools.aquifer.walls import unit_mesh
@@ -434,7 +435,7 @@ def test_a_unit_that_pinches_out_has_no_negative_thickness_and_its_analytic_volu
     assert raw.units["AU/AD"]["thickness_min"] < -5 and raw.units["AU/AD"]["volume"]["volume_negative"] < 0
     grid_t, grid = raw.units["AU/AD"]["thickness"]
     r, c = np.unravel_index(np.nanargmin(grid_t), grid_t.shape)  # where the raw TINs cross the most
-    x, y = grid.transform * (c + 0.5, r + 0.5)
+    x, y = affine_apply(grid.transform, (c + 0.5, r + 0.5))
     assert query_model(raw, x, y)["thickness"]["AU/AD"] < -5
     ordered = query_model(model, x, y)
     assert ordered["thickness"]["AU/AD"] == 0 and ordered["heights"]["AD"]["z_raw"] > ordered["heights"]["AD"]["z"]

@@ -16,6 +16,7 @@ from scipy import interpolate, ndimage
 
 from conftest import MEGAPLOT, SHARED_DATA, need_shared
 from gistools.errors import InputError
+from gistools.grid import affine_apply
 from gistools.io.points import write_tile
 from gistools.lidar.chm import pits
 from gistools.products.chm import ChmSettings, chm_from_tiles
@@ -94,7 +95,7 @@ def test_pitfree_removes_the_pits_of_p2r_and_keeps_the_tree_tops(conifers, tmp_p
     # tree tops: near each apex the CHM reaches the highest first return there (within a cell's slope of the cone),
     # and never rises above it
     rows, cols = np.indices(free.shape)
-    cx, cy = transform * (cols + 0.5, rows + 0.5)
+    cx, cy = affine_apply(transform, (cols + 0.5, rows + 0.5))
     first = pts["return_number"] == 1
     kept = 0
     for tx, ty, _h in trees:

@@ -16,6 +16,7 @@ import shapely
 
 from conftest import AUTZEN, MEGAPLOT, SHARED_DATA, need_shared
 from gistools.errors import InputError
+from gistools.grid import affine_apply
 from gistools.io.points import write_tile
 from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
@@ -126,7 +127,7 @@ def real_file(path):
 
 def centres(transform, shape):
     rows, cols = np.indices(shape)
-    return transform * (cols + 0.5, rows + 0.5)
+    return affine_apply(transform, (cols + 0.5, rows + 0.5))
 
 
 def dsm_hull(path):

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 from affine import Affine
 
-from gistools.grid import Grid, cell_centres, cell_index, snapped_grid
+from gistools.grid import Grid, affine_apply, cell_centres, cell_index, snapped_grid
 
 
 def test_snapped_grid_edges_are_multiples_of_the_cell_size():
@@ -106,7 +106,7 @@ def test_read_window_equals_a_boundless_read(tmp_path, dtype, nodata):
                 for win in (Window(0, 0, 40, 30), Window(-10, -10, 60, 50), Window(180, 120, 40, 30), Window(190, 5, 30, 20)):
                     for halo, fill in ((0, None), (5, 0)):
                         ours = read_window(src, base, win, halo=halo, fill=fill)
-                        west, north = base.transform * (win.col_off - halo, win.row_off - halo)
+                        west, north = affine_apply(base.transform, (win.col_off - halo, win.row_off - halo))
                         east, south = west + (win.width + 2 * halo) * 2.0, north - (win.height + 2 * halo) * 2.0
                         w = from_bounds(west, south, east, north, src.transform).round_offsets().round_lengths()
                         ref = src.read(1, window=w, boundless=True, fill_value=nodata if fill is None else fill, masked=False)

@@ -13,6 +13,7 @@ import shapely
 
 from conftest import SAMPLE
 from gistools.errors import InputError
+from gistools.grid import affine_apply
 from gistools.products.rasters import RasterSettings, rasters_from_tiles
 
 WATER = f"{SAMPLE / 'breaklines.gpkg'}:WATERBODY"
@@ -22,7 +23,7 @@ def centres_inside(path, poly):
     with rasterio.open(path) as src:
         a = src.read(1, masked=True).filled(np.nan).astype(float)
         rows, cols = np.indices(a.shape)
-        x, y = src.transform * (cols + 0.5, rows + 0.5)
+        x, y = affine_apply(src.transform, (cols + 0.5, rows + 0.5))
     return a, shapely.contains_xy(poly, x, y)
 
 
@@ -139,7 +140,7 @@ def test_dem_voids_are_filled_by_a_tin_across_or_left(tmp_path, sample_tiles):
     assert void.sum() > 50 and runs["none"]["tiles"][0]["dem_filled_cells"] == 0
     with rasterio.open(tmp_path / "tin" / "dem" / "roof.tif") as r:
         rows, cols = np.nonzero(void)
-        qx, qy = r.transform * (cols + 0.5, rows + 0.5)
+        qx, qy = affine_apply(r.transform, (cols + 0.5, rows + 0.5))
     g = pts["classification"] == 2
     want = LinearNDInterpolator(np.column_stack([pts["x"][g] - cx, pts["y"][g] - cy]), pts["z"][g])(qx - cx, qy - cy)
     got = dems["tin"][void]

@@ -12,6 +12,7 @@ import rasterio
 
 from conftest import SAMPLE
 from gistools.errors import InputError
+from gistools.grid import affine_apply
 from gistools.lidar.shrub import CLASS_STYLE
 from gistools.deliver.mapbook import map_book
 
@@ -67,7 +68,7 @@ def test_a_grid_of_sheets_at_a_scale_covers_every_class_cell(chain):
     with rasterio.open(chain / "classes.vrt") as src:
         classes = src.read(1)
         rows, cols = np.nonzero(classes != 255)
-        xs, ys = src.transform * (cols + 0.5, rows + 0.5)
+        xs, ys = affine_apply(src.transform, (cols + 0.5, rows + 0.5))
     covered = np.zeros(len(xs), bool)
     for w, s, e, n in result["bounds"]:
         covered |= (xs >= w) & (xs <= e) & (ys >= s) & (ys <= n)

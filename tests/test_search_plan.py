@@ -19,7 +19,7 @@ import shapely
 
 from conftest import SAMPLE
 from gistools.errors import InputError
-from gistools.grid import Grid
+from gistools.grid import Grid, affine_apply
 from gistools.io.raster import write_raster
 from gistools.products.search_plan import SearchSettings, lost_person_table, search_plan
 from gistools.products.travel import TravelSettings, travel_from_dem
@@ -57,7 +57,7 @@ def _read(path):
 
 def _centres(transform, shape):
     rows, cols = np.indices(shape)
-    return transform * (cols + 0.5, rows + 0.5)
+    return affine_apply(transform, (cols + 0.5, rows + 0.5))
 
 
 NO_FEATURES = dict(feature_weights=(1, 1, 1, 1, 1))
@@ -176,7 +176,7 @@ def test_routes_on_a_maze_follow_the_travel_graph_and_end_at_the_travel_raster_m
     routes = gpd.read_file(tmp_path / "plan" / "routes.gpkg", layer="routes")
     route = routes[routes["kind"] == "point"].iloc[0]
     coords = np.asarray(route.geometry.coords)
-    col, row = ~transform * (coords[:, 0], coords[:, 1])
+    col, row = affine_apply(~transform, (coords[:, 0], coords[:, 1]))
     r, c = np.floor(row).astype(int), np.floor(col).astype(int)
     assert (r[-1], c[-1]) == (57, 2) and (r[0], c[0]) == (2, 2)
     assert route["minutes"] == pytest.approx(minutes[r[-1], c[-1]], rel=1e-6)  # float32 raster
@@ -210,7 +210,7 @@ def test_a_litter_route_never_crosses_a_cell_steeper_than_its_limit(tmp_path):
     litter = gpd.read_file(tmp_path / "plan" / "routes.gpkg", layer="litter").iloc[0]
     coords = np.asarray(litter.geometry.coords)
     with rasterio.open(path) as src:
-        col, row = ~src.transform * (coords[:, 0], coords[:, 1])
+        col, row = affine_apply(~src.transform, (coords[:, 0], coords[:, 1]))
     r, c = np.floor(row).astype(int), np.floor(col).astype(int)
     gy, gx = np.gradient(dem, cell)
     slope = np.degrees(np.arctan(np.hypot(gx, gy)))

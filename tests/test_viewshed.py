@@ -13,6 +13,7 @@ from rasterio.transform import from_origin
 
 from conftest import AUTZEN, need_shared
 from gistools.errors import InputError
+from gistools.grid import affine_apply
 from gistools.products.viewshed import viewshed_from_surface
 
 GDAL_VIEWSHED = shutil.which("gdal_viewshed")
@@ -159,7 +160,7 @@ def test_max_distance_equals_gdal_viewshed_md(sample_run, tmp_path):
             theirs, ours = a.read(1), b.read(1)
             valid = ours != 255
             assert np.array_equal(theirs[valid], ours[valid]) and (theirs[valid] == 1).sum() > 100
-            c0, r0 = ~transform * (b.transform.c, b.transform.f)
+            c0, r0 = affine_apply(~transform, (b.transform.c, b.transform.f))
             ours_total[round(r0):round(r0) + ours.shape[0], round(c0):round(c0) + ours.shape[1]] += ours == 1
     data = count != 65535
     assert np.array_equal(count[data], ours_total[data]) and rep["extent"]["width"] < 400

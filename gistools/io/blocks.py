@@ -20,6 +20,7 @@ from rasterio.features import rasterize
 from rasterio.windows import Window, from_bounds
 
 from ..errors import CRSMismatchError, DataFileError, InputError
+from ..grid import affine_apply
 from ..progress import report
 from .raster import (DEFLATE_LEVEL, atomic_path, crs_from_wkt, predictor_for, set_colour_table, verify_raster,
                      write_category_names)
@@ -61,7 +62,7 @@ def read_window(src, base, win: Window, *, halo: int = 0, fill=None) -> np.ndarr
 
     Cells outside ``src`` are ``fill`` (default: its nodata, NaN for floats).
     """
-    west, north = base.transform * (win.col_off - halo, win.row_off - halo)
+    west, north = affine_apply(base.transform, (win.col_off - halo, win.row_off - halo))
     cs = base.transform.a
     east, south = west + (win.width + 2 * halo) * cs, north - (win.height + 2 * halo) * cs
     w = from_bounds(west, south, east, north, src.transform).round_offsets().round_lengths()
@@ -92,8 +93,8 @@ def windows(width: int, height: int, block: int = BLOCK):
 
 
 def window_bounds(base, win: Window) -> tuple[float, float, float, float]:
-    west, north = base.transform * (win.col_off, win.row_off)
-    east, south = base.transform * (win.col_off + win.width, win.row_off + win.height)
+    west, north = affine_apply(base.transform, (win.col_off, win.row_off))
+    east, south = affine_apply(base.transform, (win.col_off + win.width, win.row_off + win.height))
     return west, south, east, north
 
 

@@ -7,7 +7,6 @@ stay in the CRS's vertical unit; empty cells are NaN.
 from __future__ import annotations
 
 import numpy as np
-from affine import Affine
 
 from ..errors import InputError
 from ..grid import Grid, cell_centres, cell_index
@@ -100,9 +99,7 @@ def within_distance(grid: Grid, x, y, max_distance: float) -> np.ndarray:
 
     cs = grid.cell_size
     reach = int(np.ceil(max_distance / cs)) + 1
-    padded = Grid(
-        grid.transform * Affine.translation(-reach, -reach), grid.width + 2 * reach, grid.height + 2 * reach, grid.crs
-    )
+    padded = grid.grown(reach)
     flat = cell_index(padded, x, y)
     occupied = np.zeros(padded.width * padded.height, bool)
     occupied[flat[flat >= 0]] = True
@@ -308,8 +305,7 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
     # windows around the cells left, and the points within the halo of a window (read again when a halo grows past it)
     windows = _windows(todo)
     reach = int(np.ceil(halo / cs)) + 1
-    padded = Grid(grid.transform * Affine.translation(-reach, -reach), grid.width + 2 * reach, grid.height + 2 * reach,
-                  grid.crs)
+    padded = grid.grown(reach)
     near = np.zeros(padded.shape, bool)
     for rows, cols in windows:
         near[rows.start:rows.stop + 2 * reach, cols.start:cols.stop + 2 * reach] = True
@@ -317,8 +313,7 @@ def tin_dem_with_halo(x, y, z, grid: Grid, *, halo: float, max_distance: float, 
     cand = np.flatnonzero((flat >= 0) & near.reshape(-1)[np.maximum(flat, 0)])
     cx, cy, cz = x[cand], y[cand], z[cand]
     for rows, cols in windows:
-        sub = Grid(grid.transform * Affine.translation(cols.start, rows.start), cols.stop - cols.start,
-                   rows.stop - rows.start, grid.crs)
+        sub = grid.part(cols.start, rows.start, cols.stop - cols.start, rows.stop - rows.start)
         sw, ss, se, sn = sub.bounds
         left = todo[rows, cols].copy()
         h = min(2 * inner_halo, halo)

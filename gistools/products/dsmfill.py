@@ -13,7 +13,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from affine import Affine
 
 from ..grid import Grid, snapped_grid
 from ..io.scratch import grids_folder, load_grid
@@ -80,7 +79,7 @@ def fill_tile_dsm(info, neighbours, run, grid: Grid, dsm: np.ndarray, tile_grid)
     k = 2 * NEAREST_CELLS  # nearest: a ring the farthest return's cells fit in; tin: the buffer
     if run.dsm_fill == "tin":
         k = max(k, math.ceil(run.buffer / run.cell_size))
-    ring = Grid(grid.transform * Affine.translation(-k, -k), grid.width + 2 * k, grid.height + 2 * k, grid.crs)
+    ring = grid.grown(k)
     z, x, y = (np.full(ring.shape, np.nan) for _ in range(3))
     for other, g in sources:
         window = ring.window_in(g)

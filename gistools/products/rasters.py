@@ -340,7 +340,7 @@ def _task_bytes(infos, run: _Run) -> int:
 
 def _rows(grid: Grid, r0: int, r1: int) -> Grid:
     """The grid of rows r0 to r1 (exclusive) of ``grid``."""
-    return Grid(grid.transform * Affine.translation(0, r0), grid.width, r1 - r0, grid.crs)
+    return grid.part(0, r0, grid.width, r1 - r0)
 
 
 def _strips(counts_per_row: np.ndarray, max_points: int) -> list[tuple[int, int]]:

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError
+from ..grid import affine_apply
 from ..terrain.search import RING_SHARES
 
 log = logging.getLogger("gistools.products.search_plan")
@@ -314,7 +315,7 @@ def _cells(points, grid, name: str, passable=None) -> list[tuple[int, int]]:
     inv = ~grid.transform
     cells = []
     for x, y, where in points:
-        col, row = inv * (x, y)
+        col, row = affine_apply(inv, (x, y))
         r, c = int(math.floor(row)), int(math.floor(col))
         if not (0 <= r < grid.height and 0 <= c < grid.width):
             w, s, e, n = grid.bounds
@@ -472,7 +473,7 @@ def _rings_distance(scene: _Scene, s: SearchSettings, seen_cells, seen_xy, speed
         d = minutes * flat
     else:
         rows, cols = np.indices(grid.shape)
-        x, y = grid.transform * (cols + 0.5, rows + 0.5)
+        x, y = affine_apply(grid.transform, (cols + 0.5, rows + 0.5))
         d = np.min([np.hypot(x - px, y - py) for px, py in seen_xy], axis=0) * scene.xy.metres
     return np.where(has, d, np.nan)
 
@@ -590,7 +591,7 @@ def _polygons(labels: np.ndarray, grid, mask=None) -> dict:
 def _centres(cells, grid) -> np.ndarray:
     cols = grid.width
     cells = np.asarray(cells, dtype=np.int64)
-    x, y = grid.transform * ((cells % cols) + 0.5, (cells // cols) + 0.5)
+    x, y = affine_apply(grid.transform, ((cells % cols) + 0.5, (cells // cols) + 0.5))
     return np.stack([x, y], axis=1)
 
 

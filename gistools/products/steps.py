@@ -25,6 +25,7 @@ import shapely
 from ..docstrings import shared_sections
 from ..parameters import default_for
 from ..errors import InputError
+from ..grid import affine_apply
 from ..io.atomic import atomic_path
 from ..io.blocks import (BLOCK, PolygonMask, check_outputs_are_not_inputs, open_raster, raster_crs, read_window,
                          run_blockwise, same_grid, windows)
@@ -220,7 +221,7 @@ class _PointWriter:
         import pyogrio
 
         rows, cols = np.nonzero(codes <= 3)
-        xs, ys = transform * (cols + 0.5, rows + 0.5)
+        xs, ys = affine_apply(transform, (cols + 0.5, rows + 0.5))
         gdf = gpd.GeoDataFrame({"band": np.asarray(BAND_NAMES)[codes[rows, cols]], "grid_code": h[rows, cols]},
                                geometry=shapely.points(xs, ys), crs=self.crs)
         pyogrio.write_dataframe(gdf, self.gpkg, layer=self.layer, driver="GPKG", append=self.count > 0,

@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, InputError
+from ..grid import affine_apply
 from ..terrain.travel import (BYTES_PER_CELL, CELL_BYTES, CLASS_ROAD, CLASS_WATER, ISOCHRONES, NEIGHBOUR_BOUND,
                                SHRUB_FACTORS, TOBLER, neighbour_offsets, plan_memory, tobler_speed, travel_minutes)
 
@@ -243,7 +244,7 @@ def _refuse_geographic(path, crs, t, width: int, height: int) -> None:
     horizontal = crs.sub_crs_list[0] if crs.is_compound else crs
     if not horizontal.is_geographic:
         return
-    lon, lat = t * (width / 2, height / 2)
+    lon, lat = affine_apply(t, (width / 2, height / 2))
     epsg = "<the code of a projected CRS in metres or feet>"  # a centre off the globe: no zone to name
     if -180 <= lon <= 180 and -80 <= lat <= 84:
         epsg = f"{(32600 if lat >= 0 else 32700) + int((lon + 180) // 6) % 60 + 1} (its centre's UTM zone)"
@@ -374,7 +375,7 @@ def _start_cells(points, grid) -> list[tuple[int, int]]:
     inv = ~grid.transform
     cells = []
     for x, y, where in points:
-        col, row = inv * (x, y)
+        col, row = affine_apply(inv, (x, y))
         r, c = int(math.floor(row)), int(math.floor(col))
         if not (0 <= r < grid.height and 0 <= c < grid.width):
             w, s, e, n = grid.bounds

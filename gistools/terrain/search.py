@@ -10,6 +10,8 @@ import math
 
 import numpy as np
 
+from ..grid import affine_apply
+
 __all__ = ["RING_SHARES", "annulus_inside_fraction", "probability_of_area", "slope_degrees", "cliff_cells",
            "thicket_cells", "flow_receivers", "contributing_cells", "receiver_lines", "near_cells", "segment_cells",
            "coverage", "detection_probability", "cell_path", "corridor_open"]
@@ -30,7 +32,7 @@ def annulus_inside_fraction(centre, r0: float, r1: float, inside, transform, rad
     a = (np.arange(angular) + 0.5) / angular * 2 * math.pi
     x = centre[0] + np.outer(r, np.cos(a))
     y = centre[1] + np.outer(r, np.sin(a))
-    col, row = ~transform * (x, y)
+    col, row = affine_apply(~transform, (x, y))
     row, col = np.floor(row).astype(np.int64), np.floor(col).astype(np.int64)
     rows, cols = inside.shape
     on = (row >= 0) & (row < rows) & (col >= 0) & (col < cols)
@@ -232,8 +234,8 @@ def receiver_lines(mask: np.ndarray, receiver: np.ndarray, transform) -> list:
     if not cells.size:
         return []
     cols = mask.shape[1]
-    x0, y0 = transform * ((cells % cols) + 0.5, (cells // cols) + 0.5)
-    x1, y1 = transform * ((r[cells] % cols) + 0.5, (r[cells] // cols) + 0.5)
+    x0, y0 = affine_apply(transform, ((cells % cols) + 0.5, (cells // cols) + 0.5))
+    x1, y1 = affine_apply(transform, ((r[cells] % cols) + 0.5, (r[cells] // cols) + 0.5))
     parts = shapely.linestrings(np.stack([np.stack([x0, y0], -1), np.stack([x1, y1], -1)], axis=1))
     merged = shapely.line_merge(shapely.union_all(parts))
     return list(getattr(merged, "geoms", [merged]))
