@@ -114,3 +114,23 @@ def test_read_window_equals_a_boundless_read(tmp_path, dtype, nodata):
                             ref = ref.astype(np.float64)
                             ref[ref == nodata] = np.nan
                         assert np.array_equal(ours, ref, equal_nan=True)
+
+
+def test_grid_transforms_warn_on_no_affine_version_and_agree_with_rasterio():
+    """affine 3 deprecates ``*`` for products (a PendingDeprecationWarning, later an error); the grids are made and
+    applied without it, and their cell centres are rasterio's (rasterio.transform.xy)."""
+    import warnings
+
+    from rasterio.transform import xy
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        grid = snapped_grid((500003.2, 4100001.7, 500051.0, 4100040.3), 2.0)
+        grown = grid.grown(3)
+        part = grid.part(5, 4, 6, 7)
+        x, y = affine_apply(grid.transform, (np.array([0.5, 7.5]), np.array([0.5, 9.5])))
+    assert grown.bounds == (grid.bounds[0] - 6, grid.bounds[1] - 6, grid.bounds[2] + 6, grid.bounds[3] + 6)
+    assert part.bounds == (grid.bounds[0] + 10, grid.bounds[3] - 8 - 14, grid.bounds[0] + 22, grid.bounds[3] - 8)
+    want = xy(grid.transform, [0, 9], [0, 7])
+    np.testing.assert_allclose(x, want[0])
+    np.testing.assert_allclose(y, want[1])
