@@ -1,4 +1,4 @@
-"""The rasters' DSM pinholes filled (``gistools rasters --dsm-fill tin|subcircle``; on by default in the shrub chain).
+"""The rasters' DSM pinholes filled (``gistools rasters --dsm-fill tin|nearest|subcircle``; also in the shrub chain).
 
 Pass 1 keeps what the fill needs in each tile's partial grids: the position of every cell's highest first return
 (``tin``, ``nearest``) and the returns at the corners of the tile's convex hull (``tin``), or the DSM of the returns
