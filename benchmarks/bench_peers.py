@@ -27,7 +27,11 @@ lidR's MixedConifer survey, 2.4 M real forest returns, metres, 1 m cells), and t
 tiles of 5,000 ft, 6.8 M points) and a 16-tile block of its copies (27 M points), generated once into
 ``--workdir``.
 
-    python benchmarks/bench_peers.py [--repeat 3] [--cases sample,autzen,autzen4,forest,levy,levy16]
+A folder of real tiles of your own is a case too (``--delivery DIR``, 1 m cells): lasR's ``inst/extdata/bcts``
+holds 4 LAZ tiles of a British Columbia forest delivery (2.8 M points), which the performance page shows.
+
+    python benchmarks/bench_peers.py [--repeat 3] [--cases delivery,sample,autzen,autzen4,forest,levy,levy16]
+                                     [--delivery DIR]
                                      [--products rasters,normalize,metrics,chm,chm-p2r,ground] [--jobs-table]
 
 ``--jobs-table`` also times ``gistools rasters`` with ``--jobs 1`` and ``--jobs 2`` beside the default (auto).
@@ -190,11 +194,32 @@ def forest_tiles(source: Path, into: Path, per_side: int = 4) -> Path:
     return into
 
 
-def cases(work: Path, wanted: list[str]) -> dict:
+def delivery_case(folder: Path, work: Path) -> tuple[str, tuple]:
+    """A folder of real tiles given with ``--delivery`` (lasR's ``inst/extdata/bcts``: 4 LAZ tiles of a forest
+    delivery), copied into ``work`` (lasR writes its index beside the files), at 1 m cells."""
+    from gistools.io.points import read_tile_info
+
+    into = work / "delivery"
+    into.mkdir(parents=True, exist_ok=True)
+    tiles = tiles_of(folder)
+    for tile in tiles:
+        if not (into / tile.name).exists():
+            shutil.copy(tile, into / tile.name)
+    metre = 1 / read_tile_info(tiles[0]).unit.metres
+    points = sum(laspy_count(p) for p in tiles)
+    kind = tiles[0].suffix[1:].upper()
+    name = f"delivery, {len(tiles)} real {kind} tiles ({folder.name}), {points / 1e6:.1f} M points, 1 m"
+    return name, (into, "1m", metre, metre)
+
+
+def cases(work: Path, wanted: list[str], delivery: Path | None = None) -> dict:
     """{case: (folder of tiles, cell size text, cell size in CRS units, a metre in CRS units)}; in a smoke run the
     sample alone."""
     wanted = scaled(wanted, ["sample"])
     found = {}
+    if delivery is not None and "delivery" in wanted:
+        name, case = delivery_case(delivery, work)
+        found[name] = case
     if "sample" in wanted:  # copies: lasR writes a .lax index beside the files it reads
         sample = work / "sample"
         sample.mkdir(parents=True, exist_ok=True)
@@ -231,7 +256,9 @@ def cases(work: Path, wanted: list[str]) -> dict:
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--repeat", type=int, default=3)
-    ap.add_argument("--cases", default="sample,autzen,autzen4,forest,levy,levy16")
+    ap.add_argument("--cases", default="delivery,sample,autzen,autzen4,forest,levy,levy16")
+    ap.add_argument("--delivery", type=Path, default=None, help="A folder of real tiles for the delivery case "
+                    "(e.g. lasR's inst/extdata/bcts: 4 LAZ tiles of a forest delivery, 2.8 M points).")
     ap.add_argument("--products", default="rasters,normalize,metrics,chm,chm-p2r,ground")
     ap.add_argument("--workdir", default=workdir("/tmp/gistools-bench"))
     ap.add_argument("--jobs-table", action="store_true")
@@ -250,7 +277,7 @@ def main(argv=None) -> None:
     print("| case | product | gistools (auto) | lasR | lasR / gistools |", flush=True)
     print("|---|---|---:|---:|---:|", flush=True)
     jobs_rows = []
-    for case, (folder, cell, res, metre) in cases(work, args.cases.split(",")).items():
+    for case, (folder, cell, res, metre) in cases(work, args.cases.split(","), args.delivery).items():
         files = tiles_of(folder)
         for product in products:
             ours, theirs = [], []
