@@ -290,6 +290,9 @@ def join_workers() -> None:
 
     while _STARTED:
         _STARTED.pop().join()
+    tracker = getattr(resource_tracker, "_resource_tracker", None)
+    if getattr(tracker, "_pid", 0) is None:  # no tracker runs (no pool started one): nothing to collect or stop
+        return
     gc.collect()  # the pools' queues and their semaphores, unregistered from the tracker as they go
     from multiprocessing.synchronize import SemLock
 
