@@ -1252,3 +1252,29 @@ def test_a_damaged_record_is_one_line_for_a_step_rerun(shrub_out, edit):
     line = one_line(text, "report.json")
     assert "damaged or edited" in line and "--radius" not in line
     assert snapshot(shrub_out) == before
+
+
+def test_a_pool_closed_with_tasks_pending_ends_without_a_traceback_from_its_thread():
+    """Closing a process pool on an interrupt with tasks still queued (not yet sent to a worker): the workers are
+    killed and the pool's own thread marks the pending futures failed; no future is cancelled from this thread
+    meanwhile, which stops that thread with InvalidStateError on Python 3.11 (a traceback under the run's line)."""
+    import threading
+    import time
+
+    from gistools.engine.batch import ProcessPool
+
+    raised = []
+    before = threading.excepthook
+    threading.excepthook = lambda args: raised.append(args.exc_value)
+    try:
+        pool = ProcessPool(1)
+        futures = [pool.submit(time.sleep, 30) for _ in range(8)]  # one running, one queued, six pending
+        deadline = time.monotonic() + 60
+        while not futures[0].running() and time.monotonic() < deadline:
+            time.sleep(0.05)
+        pool.close(futures)
+        pool.join()
+    finally:
+        threading.excepthook = before
+    assert raised == []
+    assert all(f.done() for f in futures)

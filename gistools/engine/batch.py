@@ -342,9 +342,9 @@ class ProcessPool:
         # what join() waits for: shutdown(wait=False) lets go of the executor's thread and processes
         self._manager = getattr(self.pool, "_executor_manager_thread", None) or self._manager
         self._processes = list((getattr(self.pool, "_processes", None) or {}).values()) or self._processes
-        if futures:
-            for fut in futures:
-                getattr(fut, "cancel", bool)()
+        if futures:  # not cancelled here: the pool's own thread, finding its workers killed, marks every pending
+            # future failed, and one cancelled from this thread meanwhile stops it with a traceback on Python 3.11
+            # (InvalidStateError); shutdown(cancel_futures=True) cancels the rest from that thread
             for proc in self._processes:
                 if proc.is_alive():
                     proc.kill()
