@@ -125,4 +125,20 @@ def test_the_examples_run_as_printed(name, example_folder, tmp_path, monkeypatch
     runner = doctest.DocTestRunner(optionflags=doctest.ELLIPSIS | doctest.NORMALIZE_WHITESPACE)
     out = []
     result = runner.run(test, out=out.append)
-    assert result.failed == 0, "".join(out)
+    assert result.failed == 0, "".join(out) + _failed_tiles(tmp_path / "run")
+
+
+def _failed_tiles(folder) -> str:
+    """What the reports under ``folder`` say of their failed tiles (a failed example's count says only how many)."""
+    import json
+
+    lines = []
+    for report in sorted(folder.rglob("report.json")):
+        try:
+            tiles = json.loads(report.read_text(encoding="utf-8")).get("tiles", {})
+        except (OSError, ValueError):
+            continue
+        items = tiles.values() if isinstance(tiles, dict) else tiles
+        lines += [f"{report}: {t.get('name')}: {t.get('error')}" for t in items
+                  if isinstance(t, dict) and t.get("status") == "failed"]
+    return "\n".join(["", *lines]) if lines else ""
