@@ -92,3 +92,26 @@ def test_a_kept_tile_whose_file_changed_is_not_taken(pair, tmp_path):
     decoded.keep(path, las)
     os.utime(path, ns=(1, 1))  # rewritten since
     assert decoded.take(path) is None
+
+
+def test_a_tile_kept_by_a_relative_path_is_not_taken_from_another_working_folder(tmp_path, monkeypatch):
+    """Two copies of a tile with the same size and time, in two folders: kept by a relative path in one, the same
+    relative path from the other names another file, and is not taken."""
+    import shutil
+
+    from gistools.io import decoded
+
+    src = SAMPLE / "35813.laz"
+    for folder in ("a", "b"):
+        (tmp_path / folder / "t").mkdir(parents=True)
+        shutil.copy2(src, tmp_path / folder / "t" / "35813.laz")
+    monkeypatch.chdir(tmp_path / "a")
+    las = laspy.read("t/35813.laz")
+    decoded.keep("t/35813.laz", las)
+    try:
+        monkeypatch.chdir(tmp_path / "b")
+        assert decoded.take("t/35813.laz") is None
+        monkeypatch.chdir(tmp_path / "a")
+        assert decoded.take("t/35813.laz") is las
+    finally:
+        decoded.discard([tmp_path / "a" / "t" / "35813.laz"])

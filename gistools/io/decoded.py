@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import os
 import threading
-from pathlib import Path
 
 from ..machine import address_space_left, free_memory
 
@@ -21,6 +20,11 @@ MOST_BYTES = 2 * 2**30
 
 _lock = threading.Lock()
 _kept: dict = {}  # path -> (stamp, LasData, bytes)
+
+
+def _key(path) -> str:
+    """The absolute path: a relative one names another file once the working folder changes (a notebook, QGIS)."""
+    return os.path.abspath(path)
 
 
 def _stamp(path) -> tuple[int, int]:
@@ -59,7 +63,7 @@ def _record_bytes(info) -> int:
 
 def keep(path, las) -> None:
     """Keep a tile decoded (a laspy LasData) for the pass that reads it next."""
-    key = str(Path(path))
+    key = _key(path)
     with _lock:
         _kept[key] = (_stamp(path), las, int(las.points.array.nbytes))
 
@@ -67,7 +71,7 @@ def keep(path, las) -> None:
 def take(path):
     """The tile's decoded LasData kept by :func:`keep`, removed from the kept ones; None when it was not kept or
     its file changed since."""
-    key = str(Path(path))
+    key = _key(path)
     with _lock:
         entry = _kept.pop(key, None)
     if entry is None:
@@ -83,4 +87,4 @@ def discard(paths) -> None:
     """Forget the tiles of ``paths`` (what a run kept and did not take: a tile that failed or was not made)."""
     with _lock:
         for p in paths:
-            _kept.pop(str(Path(p)), None)
+            _kept.pop(_key(p), None)
