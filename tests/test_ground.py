@@ -98,9 +98,11 @@ def test_a_tiled_run_equals_the_run_on_the_merged_tiles(tmp_path, method):
     a = np.concatenate([np.asarray(laspy.read(tmp_path / "out_tiled" / f"{p.stem}.laz").classification) for p in wiped])
     b = np.asarray(laspy.read(tmp_path / "out_merged" / "all.laz").classification)
     assert np.array_equal(a, b)
-    # against the delivered ground of the sample (the generator's truth)
-    truth = np.concatenate([np.asarray(laspy.read(p).classification) for p in tiles]) == 2
-    assert np.mean((a == 2) == truth) > 0.97
+    # against the delivered ground of the sample (the generator's truth), on land: its water (class 9, 2.7 % of
+    # the points) is wiped with the rest, and a flat water surface is ground to a filter that is not told of it
+    delivered = np.concatenate([np.asarray(laspy.read(p).classification) for p in tiles])
+    land = delivered != 9
+    assert np.mean(((a == 2) == (delivered == 2))[land]) > 0.99
 
 
 def test_a_large_surveys_noise_measured_in_blocks_is_the_same_tiled_and_merged(tmp_path, monkeypatch):
@@ -236,7 +238,9 @@ def test_dem_from_classified_ground_is_close_to_the_providers_on_real_files(tmp_
     """Wipe the classes, classify, and compare TIN DEMs at 1 m from our ground and from the provider's. The
     default (adaptive) holds the ground lines on every real survey: mean bias within +-0.05 m, RMSE <= 0.15 m, but
     on Topography, where the provider's ground is one in about three of the returns at ground level (its DEM is
-    the coarser one) and the default's RMSE is 0.20 m. smrftin holds them on autzen and Megaplot."""
+    the coarser one) and the default's RMSE is 0.19 m. smrftin holds them on autzen and Megaplot. On Topography the
+    default keeps the provider's ground in the hollows of its rough floor (down to three thresholds below its
+    surface): at most a fifth of it is left out (29 % with SMRF's symmetric test)."""
     need_shared(path)
     from gistools.grid import snapped_grid
     from gistools.lidar.gridding import dem_from_ground_points
@@ -261,6 +265,8 @@ def test_dem_from_classified_ground_is_close_to_the_providers_on_real_files(tmp_
     rmse, bias = np.sqrt(np.mean(err ** 2)), np.mean(err)
     if method == "adaptive":
         assert rmse <= (0.20 if path == TOPOGRAPHY else 0.15) and abs(bias) <= 0.05, (rmse, bias)
+        if path == TOPOGRAPHY:
+            assert np.count_nonzero(truth & ~ours) <= 0.20 * np.count_nonzero(truth)
         multi = np.mean(d["number_of_returns"] >= 2)  # the canopy measure, counted here
         assert report["units"]["multi_return_share"] == pytest.approx(multi)
         assert report["units"]["cell"] * info.unit.metres == pytest.approx(1.75 if multi >= 0.10 else 1.5)

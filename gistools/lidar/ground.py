@@ -71,6 +71,7 @@ class SmrfParams:
     # square CRS unit at which the cell stays, the smallest cell (canopy_set); (): none
     multi: float | None = None  # adaptive: the survey's share of multi-return points (None: measure it on the points)
     density: float | None = None  # adaptive: the survey's last returns per square CRS unit (None: measure it)
+    below: float = 1.0  # a candidate this many thresholds below the surface is still ground (1: SMRF's |dz|)
 
 
 def smrftin_params(**lengths) -> SmrfParams:
@@ -88,12 +89,14 @@ def adaptive_params(**lengths) -> SmrfParams:
     """The adaptive method's parameters: smrftin's (``smrftin_params``, ``lengths`` override them) and the set it
     takes under a canopy (CANOPY_M, CANOPY_DENSITY_M2, CANOPY_MIN_CELL_M; in the data's units through ``canopy``)."""
     lengths.setdefault("canopy", (*CANOPY_M, CANOPY_DENSITY_M2, CANOPY_MIN_CELL_M))
+    lengths.setdefault("below", BELOW_THRESHOLDS)
     return smrftin_params(**lengths)
 
 
 NOISE_BAND_M = (0.025, 0.045)  # smrftin: ground noise (m) below which its thresholds are the tight set, above: its own
 TIGHT_M = (0.05, 0.2, 0.1)  # smrftin on a precise survey: threshold (m), scalar (m), slope (smrf's)
 CANOPY_M = (1.75, 0.05, 0.2, 0.1)  # adaptive under a canopy: cell (m), threshold (m), scalar (m), slope
+BELOW_THRESHOLDS = 3.0  # adaptive: ground reaches this many thresholds below its surface (see smrf_ground)
 CANOPY_SHARE = 0.10  # a survey records a canopy when at least this share of its points are of multi-return pulses
 CANOPY_DENSITY_M2 = 3.2  # last returns per m2 up to which the canopy set keeps its 1.75 m cells (about 10 a cell) ...
 CANOPY_MIN_CELL_M = 0.5  # ... beyond, cells as wide as hold as many, down to this
@@ -327,7 +330,8 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
     at = _Points(x, y, p.cell, col0, row_top, zipro.shape)
     dem = at.sample(zipro)
     cell_thresh = at.sample(thresh)
-    ground[candidates] = np.abs(cz - dem[candidates]) <= cell_thresh[candidates]
+    dz0 = cz - dem[candidates]
+    ground[candidates] = (dz0 <= cell_thresh[candidates]) & (dz0 >= -p.below * cell_thresh[candidates])
     if p.refine and ground.any():
         # ZIpro is a surface of cell minima, below the mean ground by about two noise deviations: the
         # upper half of noisy ground returns falls outside a tight threshold. Measure again against
@@ -353,7 +357,7 @@ def smrf_ground(x, y, z, candidates: np.ndarray, p: SmrfParams) -> tuple[np.ndar
         zt = tin_at_points(x[g], y[g], z[g], x[ask], y[ask]) if len(g) >= 3 else np.full(len(ask), np.nan)
         inside = np.isfinite(zt)
         d = np.where(inside, z[ask] - zt, z[ask] - dem[ask])
-        ground[ask] = np.abs(d) <= cell_thresh[ask]
+        ground[ask] = (d <= cell_thresh[ask]) & (d >= -p.below * cell_thresh[ask])
         dem = dem.copy()
         dem[ask[inside]] = zt[inside]
     if p.step > 0 and p.patch > 0 and ground.any():

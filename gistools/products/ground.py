@@ -27,11 +27,11 @@ from ..io.outdir import claim_output
 from ..io.points import (TileInfo, common_crs, crs_label, parse_crs_text, read_all_points, read_tile_info,
                          write_all_points)
 from ..io.vpc import write_vpc
-from ..lidar.ground import (CANOPY_DENSITY_M2, CANOPY_M, CANOPY_MIN_CELL_M, DENSITY_CELL_M, NOISE_BAND_M,
-                            NOISE_BINS, RECLASSIFIED, TIGHT_M, TIN_METHODS, CsfParams, NoiseBlocks, NoiseParams,
-                            SmrfParams, classify_ground_and_noise, for_data, for_noise, noise_from_histogram,
-                            noise_stride, smrftin_params, survey_density, survey_noise_histogram, survey_returns,
-                            too_few_in_blocks)
+from ..lidar.ground import (BELOW_THRESHOLDS, CANOPY_DENSITY_M2, CANOPY_M, CANOPY_MIN_CELL_M, DENSITY_CELL_M,
+                            NOISE_BAND_M, NOISE_BINS, RECLASSIFIED, TIGHT_M, TIN_METHODS, CsfParams, NoiseBlocks,
+                            NoiseParams, SmrfParams, classify_ground_and_noise, for_data, for_noise,
+                            noise_from_histogram, noise_stride, smrftin_params, survey_density,
+                            survey_noise_histogram, survey_returns, too_few_in_blocks)
 from ..parameters import COMMANDS, PARAMETERS, check, check_all, choices, default_for, option
 from ..parameters.lidar import check_method
 from ..progress import ProgressCallback
@@ -181,7 +181,8 @@ def _params(s: GroundSettings, info: TileInfo) -> _Params:
         c, m = CANOPY_M, xy.metres
         smrftin = replace(smrftin, canopy=(h(f"{c[0]}m", "canopy cell"), v(f"{c[1]}m", "canopy threshold"),
                                            v(f"{c[2]}m", "canopy scalar"), c[3], CANOPY_DENSITY_M2 * m * m,
-                                           h(f"{CANOPY_MIN_CELL_M}m", "canopy smallest cell")))
+                                           h(f"{CANOPY_MIN_CELL_M}m", "canopy smallest cell")),
+                          below=BELOW_THRESHOLDS)
     used = smrftin if s.method in TIN_METHODS else smrf
     cell = max(used.cell, used.canopy[0]) if used.canopy else used.cell  # the coarser of its lattices
     buffer = 2 * used.window + 10 * cell
