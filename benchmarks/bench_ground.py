@@ -192,6 +192,20 @@ def _inject_noise(x, y, z, truth, zm, rng, share=0.005):
     return pick, low, nz
 
 
+def _ground_scores(x, y, z, truth, ground, grid, ref, max_distance: float, z_metres: float) -> dict:
+    """Type I, type II and total error of ``ground`` against the provider's ``truth``, and the DEM at ``grid`` (a
+    TIN of the ground found) against the provider's ``ref`` on the cells both have: RMSE, bias, p95 |error| (m)."""
+    from gistools.lidar.gridding import dem_from_ground_points
+
+    g = ground
+    new = dem_from_ground_points(x[g], y[g], z[g], grid, max_distance=max_distance)
+    both = np.isfinite(ref) & np.isfinite(new)
+    err = (new - ref)[both] * z_metres
+    return {"type I": float(np.mean(~g[truth])), "type II": float(np.mean(g[~truth])), "total": float(np.mean(g != truth)),
+            "RMSE m": float(np.sqrt(np.mean(err ** 2))), "bias m": float(np.mean(err)),
+            "p95 m": float(np.percentile(np.abs(err), 95))}
+
+
 def quality(path: Path, rng, only=None) -> list[dict]:
     import laspy
 
@@ -242,15 +256,9 @@ def quality(path: Path, rng, only=None) -> list[dict]:
             cls = run()
         seconds = time.perf_counter() - t
         g = cls[: len(x)] == 2
-        new = dem_from_ground_points(x[g], y[g], z[g], grid, max_distance=10 * m)
-        both = np.isfinite(ref) & np.isfinite(new)
-        err = (new - ref)[both] * zm
         noise = cls[len(x):]
         rows.append({
-            "method": name,
-            "type I": float(np.mean(~g[truth])), "type II": float(np.mean(g[~truth])), "total": float(np.mean(g != truth)),
-            "RMSE m": float(np.sqrt(np.mean(err ** 2))), "p95 m": float(np.percentile(np.abs(err), 95)),
-            "bias m": float(np.mean(err)),
+            "method": name, **_ground_scores(x, y, z, truth, g, grid, ref, 10 * m, zm),
             "noise found": float(np.mean(np.isin(noise, (7, 18)))),
             "real as noise": float(np.mean(np.isin(cls[: len(x)], (7, 18)))),
             "Mpts/s": len(X) / seconds / 1e6,
@@ -294,12 +302,7 @@ def tiles_quality(files: list[Path], methods) -> list[dict]:
             seconds = time.perf_counter() - t
             g = np.concatenate([np.asarray(laspy.read(tmp / method / f"{f.stem}.laz").classification) == 2
                                 for f in files])
-            new = dem_from_ground_points(x[g], y[g], z[g], grid, max_distance=10 * m)
-            both = np.isfinite(ref) & np.isfinite(new)
-            err = (new - ref)[both] * zm
-            rows.append({"method": method, "type I": float(np.mean(~g[truth])), "type II": float(np.mean(g[~truth])),
-                         "total": float(np.mean(g != truth)), "RMSE m": float(np.sqrt(np.mean(err ** 2))),
-                         "bias m": float(np.mean(err)), "p95 m": float(np.percentile(np.abs(err), 95)),
+            rows.append({"method": method, **_ground_scores(x, y, z, truth, g, grid, ref, 10 * m, zm),
                          "Mpts/s": len(x) / seconds / 1e6})
     return rows
 
