@@ -9,7 +9,9 @@ caller converts the metre defaults (``products.ground``). The steps, as in the p
 3. objects: the progressive morphological filter, openings by a diamond of radius 1 ... window / cell, a cell is an
    object when the surface drops by more than slope x cell x radius at one step;
 4. ZIpro: ZImin without objects and low cells, inpainted; a point is ground when it lies within
-   ``threshold + scalar x slope of ZIpro`` of ZIpro (bilinear at the point).
+   ``threshold + scalar x slope of ZIpro`` of ZIpro (bilinear at the point); the adaptive method's ground reaches
+   ``below`` (3) such thresholds under it: the surfaces drawn between the lowest returns of a sparsely sampled,
+   rough floor pass above its hollows, and points far below the terrain are the noise step's.
 
 The smrftin method (``smrftin_params``: 1.5 m cells, no mean-surface pass) adds two steps: the candidates measured
 again against a TIN of the ground found (one step of Axelsson's densification), and ``raised_patches``: ground
