@@ -280,3 +280,26 @@ def test_a_ground_filters_own_options_are_taken(settings):
     from gistools.products.ground import GroundSettings
 
     GroundSettings(**settings).validate()
+
+
+BAD_VALUE = {"length": "-3 furlongs", "int": "many", "float": "much", "choice": "no-such-choice", "flag": "yes"}
+
+
+@pytest.mark.parametrize("settings_class", ["products.ground.GroundSettings", "products.settings.ShrubSettings",
+                                            "products.rasters.RasterSettings", "products.chm.ChmSettings"])
+def test_every_declared_field_of_a_settings_class_is_checked_without_a_list(settings_class):
+    """A settings class checks each of its fields that has a declaration of its name: an invalid value of each
+    (by its declared kind) is refused, in the one-line form that names its option, before anything is read."""
+    import dataclasses
+    import importlib
+
+    module, name = settings_class.rsplit(".", 1)
+    cls = getattr(importlib.import_module(f"gistools.{module}"), name)
+    fields = [f.name for f in dataclasses.fields(cls) if f.name in PARAMETERS and PARAMETERS[f.name].kind in BAD_VALUE]
+    assert len(fields) >= 4
+    for field in fields:
+        settings = cls(**{field: BAD_VALUE[PARAMETERS[field].kind]})
+        with pytest.raises(InputError) as refused:
+            settings.validate()
+        assert render(str(refused.value)).count("\n") == 0
+        assert field in str(refused.value), (field, str(refused.value))

@@ -3,6 +3,7 @@ written. Cross-parameter rules stay with the settings object that holds them."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 from .core import PARAMETERS, ByUnits, option
@@ -142,7 +143,10 @@ def check(name: str, value):
     return value if kind is None else kind(p, value)
 
 
-def check_all(settings, names) -> None:
-    """Check the fields ``names`` of a settings object."""
+def check_all(settings, names=None) -> None:
+    """Check the fields of a settings object against their declarations: ``names``, or (None) every dataclass
+    field that has a declaration of its name (a field added with a declaration is checked without a list)."""
+    if names is None:
+        names = [f.name for f in dataclasses.fields(settings) if f.name in PARAMETERS]
     for name in names:
         check(name, getattr(settings, name))

@@ -67,7 +67,7 @@ class ChmSettings:
     def validate(self) -> None:
         """Every field checked against its declaration, then pitfree's lists."""
         check_method("chm_method", self.method)
-        check_all(self, ("cell_size", "buffer", "tin_max_edge", "threshold_step"))
+        check_all(self)  # every field with a declaration of its name
         if not self.thresholds:
             raise InputError(f"{option('thresholds')}: give at least one height",
                              hint=f"e.g. {option('thresholds', ('0m', '2m', '5m', '10m', '15m'))}")

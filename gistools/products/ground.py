@@ -104,15 +104,10 @@ class GroundSettings:
     format: str = default_for("format")
     crs: str | None = None
 
-    CHECKED = ("noise", "cell", "slope", "window", "threshold", "scalar", "smrftin_cell", "smrftin_slope",
-               "smrftin_window", "smrftin_threshold", "smrftin_scalar", "smrftin_step", "smrftin_patch", "csf_resolution", "csf_threshold",
-               "csf_rigidness", "csf_time_step", "csf_iterations", "ivf_res", "ivf_n", "sor_k", "sor_multiplier",
-               "low_noise_depth", "buffer")
-
     def validate(self) -> None:
         """Every option checked against its declaration before anything is read or written."""
         check_method("ground_method", self.method)
-        check_all(self, self.CHECKED)
+        check_all(self)  # every field with a declaration of its name
         check_point_format(self.format)
         if float(self.csf_time_step) <= 0:
             raise InputError(f"{option('csf_time_step', self.csf_time_step)}: the cloth would not move; give a step "

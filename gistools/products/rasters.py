@@ -104,8 +104,7 @@ class RasterSettings:
 
     def validate(self) -> None:
         """Every field checked against its declaration (gistools.parameters), then the rules between them."""
-        check_all(self, ("products", "dem_method", "chunk_size", "cell_size", "dem_max_distance", "buffer", "dsm_classes",
-                         "classify_ground", "dsm_fill", "subcircle", "dem_fill", "shore_width"))
+        check_all(self)  # every field with a declaration of its name
         check_count(self.tin_block_points, "tin_block_points", example="5000000")
         if self.return_band_breaks is not None:
             values = [check_length(b, "band break", allow_equal=True) for b in self.return_band_breaks]

@@ -15,11 +15,6 @@ from .rasters import RasterSettings
 
 __all__ = ["ShrubSettings", "DEFAULTS"]
 
-# the fields checked against their declarations (gistools.parameters.shrub)
-DECLARED = ("bands", "noise_floor", "snap", "max_road_width", "max_hydro_width", "single_line_width", "radius", "classify",
-            "class_breaks", "tile_field")
-
-
 @dataclass(frozen=True)
 class ShrubSettings:
     """Parameters of the shrub chain. Lengths take a unit ("25ft", "0.1m") or are CRS units. Each is declared once,
@@ -55,7 +50,7 @@ class ShrubSettings:
         """Every option checked before anything is read or written (validation layer): each field against its
         declaration (gistools.parameters), then what a declaration does not say."""
         self.raster.validate()
-        check_all(self, DECLARED)
+        check_all(self)  # every field with a declaration of its name
         bands = choices("density_bands")
         if not self.density_bands or any(b not in bands for b in self.density_bands):
             raise InputError(f"{option('density_bands', tuple(self.density_bands))} must be among "
