@@ -303,3 +303,5 @@ def test_every_declared_field_of_a_settings_class_is_checked_without_a_list(sett
             settings.validate()
         assert render(str(refused.value)).count("\n") == 0
         assert field in str(refused.value), (field, str(refused.value))
+        if PARAMETERS[field].kind == "flag":  # the value given, as a Python caller wrote it
+            assert render(str(refused.value), "python").startswith(f"{PARAMETERS[field].python_name}='yes' ")

@@ -124,7 +124,7 @@ def _numbers(p, value):
 
 def _flag(p, value):
     if not isinstance(value, bool):
-        raise _error(f"{option(p.name)} {value!r} must be True or False")
+        raise _error(f"{option(p.name, value)} must be True or False")
     return value
 
 

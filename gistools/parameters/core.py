@@ -257,6 +257,8 @@ def render(text: str, speaks: str | None = None) -> str:
             label = labels.get(name) or (p.label if p else name)
             return f"'{label}'" + ("" if value is None or is_flag else f" = {_cli_value(value)}")
         keyword = p.python_name if p is not None else name
+        if is_flag and value is not None and not isinstance(value, bool):  # a value given that is not a flag's
+            return f"{keyword}={value!r}"
         if is_flag:  # a --no-... flag is its keyword set False (no_figures: figures=False)
             return f"{keyword}={name != 'no_' + keyword}"
         if value is None:
